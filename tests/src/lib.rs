@@ -1,0 +1,1 @@
+//! End-to-end tests of vademecum across processes: see `tests/`.
