@@ -1,1 +1,20 @@
-pub fn placeholder() {}
+//! Numerics of vademecum: meshes, materials, finite elements, sparse solvers and scenes.
+//!
+//! # Layout
+//! - [`mesh`]: volume meshes (tet4, hex8), Gmsh and VTK readers, `.vtu`/`.pvd` writers,
+//!   boundary surfaces, selections, quality, procedural meshes.
+//! - [`material`]: constitutive laws.
+//! - [`fem`]: shape functions, cell operators, assembly, loads, the static linear solve.
+//! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
+//! - [`scene`]: scene files (TOML), their validation, and the static problem they describe.
+//!
+//! This crate does no network or async I/O and spawns no threads on any real-time path;
+//! file I/O is limited to reading meshes and scenes and writing results when asked.
+#![deny(missing_docs)]
+#![allow(non_snake_case)]
+
+pub mod fem;
+pub mod material;
+pub mod mesh;
+pub mod scene;
+pub mod solve;

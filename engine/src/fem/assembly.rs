@@ -1,0 +1,344 @@
+//! Degree-of-freedom numbering, the sparsity pattern of the stiffness, and global assembly.
+//!
+//! Dirichlet conditions are applied by elimination: constrained degrees of freedom get no
+//! equation, and their prescribed values move to the right-hand side,
+//! `K_ff u_f = f_f − K_fc ū_c`. The stored matrix is the lower triangle of `K_ff` in
+//! compressed-column form (what faer's sparse Cholesky reads with `Side::Lower`).
+
+use std::sync::Arc;
+
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
+
+use super::element::{self, ElementError, ElementScratch, Locking};
+use crate::material::LinearElastic;
+use crate::mesh::Mesh;
+
+/// Marker of a constrained degree of freedom in [`DofMap`].
+const FIXED: u32 = u32::MAX;
+
+/// Maps each degree of freedom (`3·node + component`) to its equation, or to none if it is
+/// constrained. Equations follow node order, so the matrix bandwidth follows the mesh's.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DofMap {
+    eq: Vec<u32>,
+    n_free: usize,
+}
+
+impl DofMap {
+    /// Numbers the unconstrained degrees of freedom in order.
+    pub fn new(constrained: &[bool]) -> Self {
+        let mut eq = Vec::with_capacity(constrained.len());
+        let mut n = 0u32;
+        for &c in constrained {
+            if c {
+                eq.push(FIXED);
+            } else {
+                eq.push(n);
+                n += 1;
+            }
+        }
+        Self { eq, n_free: n as usize }
+    }
+
+    /// Number of degrees of freedom (free and constrained).
+    pub fn n_dofs(&self) -> usize {
+        self.eq.len()
+    }
+
+    /// Number of equations (free degrees of freedom).
+    pub fn n_free(&self) -> usize {
+        self.n_free
+    }
+
+    /// The equation of degree of freedom `dof`, or `None` if it is constrained.
+    #[inline]
+    pub fn eq(&self, dof: usize) -> Option<usize> {
+        let e = self.eq[dof];
+        (e != FIXED).then_some(e as usize)
+    }
+
+    /// Whether `dof` is constrained.
+    #[inline]
+    pub fn is_constrained(&self, dof: usize) -> bool {
+        self.eq[dof] == FIXED
+    }
+
+    /// The full vector: `free[eq(d)]` for free dofs, `prescribed[d]` for constrained ones.
+    pub fn expand(&self, free: &[f64], prescribed: &[f64], out: &mut [f64]) {
+        debug_assert_eq!(out.len(), self.eq.len());
+        for (d, o) in out.iter_mut().enumerate() {
+            *o = match self.eq(d) {
+                Some(e) => free[e],
+                None => prescribed[d],
+            };
+        }
+    }
+
+    /// Gathers the free entries of a full vector.
+    pub fn restrict(&self, full: &[f64], out: &mut [f64]) {
+        for (d, &v) in full.iter().enumerate() {
+            if let Some(e) = self.eq(d) {
+                out[e] = v;
+            }
+        }
+    }
+}
+
+/// The material of each cell, as an index into a table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MaterialMap {
+    /// Distinct materials.
+    pub table: Vec<LinearElastic>,
+    /// Index into `table` for every cell.
+    pub of_cell: Vec<u16>,
+    /// Density of every material (kg/m³), same order as `table`.
+    pub density: Vec<f64>,
+}
+
+impl MaterialMap {
+    /// One material and density for every cell.
+    pub fn uniform(mat: LinearElastic, density: f64, n_cells: usize) -> Self {
+        Self { table: vec![mat], of_cell: vec![0; n_cells], density: vec![density] }
+    }
+
+    /// The material of cell `c`.
+    #[inline]
+    pub fn of(&self, c: usize) -> &LinearElastic {
+        &self.table[self.of_cell[c] as usize]
+    }
+
+    /// The density of cell `c` (kg/m³).
+    #[inline]
+    pub fn density_of(&self, c: usize) -> f64 {
+        self.density[self.of_cell[c] as usize]
+    }
+}
+
+/// The lower-triangular sparsity pattern of `K_ff`, shared between matrices (stiffness, mass)
+/// and reused by every numeric factorization.
+#[derive(Debug, Clone)]
+pub struct SymmetricPattern {
+    symbolic: SymbolicSparseColMat<usize>,
+}
+
+impl SymmetricPattern {
+    /// The pattern of all couplings between free degrees of freedom of nodes sharing a cell.
+    pub fn build(mesh: &Mesh, dofs: &DofMap) -> Self {
+        let nn = mesh.n_nodes();
+        // node adjacency (including the node itself), sorted
+        let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nn];
+        for cell in mesh.cells_iter() {
+            for &a in cell {
+                for &b in cell {
+                    adj[a].push(b as u32);
+                }
+            }
+        }
+        for l in adj.iter_mut() {
+            l.sort_unstable();
+            l.dedup();
+        }
+        let n = dofs.n_free();
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        col_ptr.push(0usize);
+        let mut row_idx = Vec::new();
+        for a in 0..nn {
+            for i in 0..3 {
+                let Some(col) = dofs.eq(3 * a + i) else { continue };
+                for &b in &adj[a] {
+                    for j in 0..3 {
+                        if let Some(row) = dofs.eq(3 * b as usize + j) {
+                            if row >= col {
+                                row_idx.push(row);
+                            }
+                        }
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        Self { symbolic: SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx) }
+    }
+
+    /// Matrix dimension.
+    pub fn n(&self) -> usize {
+        self.symbolic.nrows()
+    }
+
+    /// Stored entries (lower triangle).
+    pub fn nnz(&self) -> usize {
+        self.symbolic.row_idx().len()
+    }
+
+    /// The faer symbolic matrix.
+    pub fn symbolic(&self) -> &SymbolicSparseColMat<usize> {
+        &self.symbolic
+    }
+
+    /// Position of entry `(row, col)` (`row ≥ col`) in the value array.
+    #[inline]
+    pub fn position(&self, row: usize, col: usize) -> Option<usize> {
+        let cp = self.symbolic.col_ptr();
+        let (s, e) = (cp[col], cp[col + 1]);
+        self.symbolic.row_idx()[s..e].binary_search(&row).ok().map(|k| s + k)
+    }
+}
+
+/// A symmetric sparse matrix stored as its lower triangle over a shared pattern.
+#[derive(Debug, Clone)]
+pub struct SymmetricMatrix {
+    /// The pattern.
+    pub pattern: Arc<SymmetricPattern>,
+    /// Values, aligned with the pattern's row indices.
+    pub values: Vec<f64>,
+}
+
+impl SymmetricMatrix {
+    /// A zero matrix on `pattern`.
+    pub fn zeros(pattern: Arc<SymmetricPattern>) -> Self {
+        let nnz = pattern.nnz();
+        Self { pattern, values: vec![0.0; nnz] }
+    }
+
+    /// A faer view of the lower triangle.
+    pub fn as_faer(&self) -> SparseColMatRef<'_, usize, f64> {
+        SparseColMatRef::new(self.pattern.symbolic.as_ref(), &self.values)
+    }
+
+    /// `y = A x` using the symmetric lower storage.
+    pub fn mul_vec(&self, x: &[f64], y: &mut [f64]) {
+        y.fill(0.0);
+        let cp = self.pattern.symbolic.col_ptr();
+        let ri = self.pattern.symbolic.row_idx();
+        for c in 0..self.pattern.n() {
+            for k in cp[c]..cp[c + 1] {
+                let r = ri[k];
+                let v = self.values[k];
+                y[r] += v * x[c];
+                if r != c {
+                    y[c] += v * x[r];
+                }
+            }
+        }
+    }
+}
+
+/// An assembly failed on one cell.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("cell {cell}: {source}")]
+pub struct AssemblyError {
+    /// The cell.
+    pub cell: usize,
+    /// What went wrong.
+    pub source: ElementError,
+}
+
+/// Assembles `K_ff` and adds `−K_fc ū_c` to `rhs` (length `n_free`), where `prescribed` holds
+/// `ū` for every degree of freedom (only constrained entries are read).
+pub fn assemble_stiffness(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    locking: Locking,
+    dofs: &DofMap,
+    pattern: Arc<SymmetricPattern>,
+    prescribed: &[f64],
+    rhs: &mut [f64],
+) -> Result<SymmetricMatrix, AssemblyError> {
+    let mut k = SymmetricMatrix::zeros(pattern);
+    let n = mesh.kind.nodes_per_cell();
+    let nd = 3 * n;
+    let mut ke = vec![0.0; nd * nd];
+    let mut x = vec![[0.0; 3]; n];
+    let mut eqs = vec![None; nd];
+    let mut s = ElementScratch::default();
+    for c in 0..mesh.n_cells() {
+        mesh.cell_coords(c, &mut x);
+        element::stiffness(mesh.kind, &x, materials.of(c), locking, &mut s, &mut ke).map_err(|source| AssemblyError { cell: c, source })?;
+        let cell = mesh.cell(c);
+        for a in 0..n {
+            for i in 0..3 {
+                eqs[3 * a + i] = dofs.eq(3 * cell[a] + i);
+            }
+        }
+        for p in 0..nd {
+            let Some(rp) = eqs[p] else { continue };
+            for q in 0..nd {
+                match eqs[q] {
+                    // K_ff, lower triangle: row rp, column rq
+                    Some(rq) if rp >= rq => {
+                        let pos = k.pattern.position(rp, rq).expect("pattern covers every cell coupling");
+                        k.values[pos] += ke[p * nd + q];
+                    }
+                    Some(_) => {}
+                    // −K_fc ū_c
+                    None => {
+                        let ub = prescribed[3 * cell[q / 3] + q % 3];
+                        if ub != 0.0 {
+                            rhs[rp] -= ke[p * nd + q] * ub;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(k)
+}
+
+/// Internal forces `f_int = Σ_e K^e u_e` on every degree of freedom (full length), from the
+/// full displacement vector. On constrained dofs, `f_int − f_ext` is the reaction.
+pub fn internal_forces(mesh: &Mesh, materials: &MaterialMap, locking: Locking, u: &[f64]) -> Result<Vec<f64>, AssemblyError> {
+    let n = mesh.kind.nodes_per_cell();
+    let nd = 3 * n;
+    let mut f = vec![0.0; u.len()];
+    let mut ke = vec![0.0; nd * nd];
+    let mut x = vec![[0.0; 3]; n];
+    let mut ue = vec![0.0; nd];
+    let mut s = ElementScratch::default();
+    for c in 0..mesh.n_cells() {
+        mesh.cell_coords(c, &mut x);
+        element::stiffness(mesh.kind, &x, materials.of(c), locking, &mut s, &mut ke).map_err(|source| AssemblyError { cell: c, source })?;
+        let cell = mesh.cell(c);
+        for p in 0..nd {
+            ue[p] = u[3 * cell[p / 3] + p % 3];
+        }
+        for p in 0..nd {
+            let fp: f64 = (0..nd).map(|q| ke[p * nd + q] * ue[q]).sum();
+            f[3 * cell[p / 3] + p % 3] += fp;
+        }
+    }
+    Ok(f)
+}
+
+/// Centre stress of every cell (Voigt, Pa) from the full displacement vector.
+pub fn cell_stresses(mesh: &Mesh, materials: &MaterialMap, locking: Locking, u: &[f64]) -> Result<Vec<[f64; 6]>, AssemblyError> {
+    let n = mesh.kind.nodes_per_cell();
+    let mut x = vec![[0.0; 3]; n];
+    let mut ue = vec![0.0; 3 * n];
+    let mut s = ElementScratch::default();
+    (0..mesh.n_cells())
+        .map(|c| {
+            mesh.cell_coords(c, &mut x);
+            for (a, &node) in mesh.cell(c).iter().enumerate() {
+                ue[3 * a..3 * a + 3].copy_from_slice(&u[3 * node..3 * node + 3]);
+            }
+            element::stress(mesh.kind, &x, &ue, materials.of(c), locking, &mut s).map_err(|source| AssemblyError { cell: c, source })
+        })
+        .collect()
+}
+
+/// Lumped nodal masses (kg) of every node.
+pub fn lumped_masses(mesh: &Mesh, materials: &MaterialMap) -> Result<Vec<f64>, AssemblyError> {
+    let n = mesh.kind.nodes_per_cell();
+    let mut x = vec![[0.0; 3]; n];
+    let mut me = vec![0.0; n];
+    let s = ElementScratch::default();
+    let mut m = vec![0.0; mesh.n_nodes()];
+    for c in 0..mesh.n_cells() {
+        mesh.cell_coords(c, &mut x);
+        element::lumped_mass(mesh.kind, &x, materials.density_of(c), &s, &mut me).map_err(|source| AssemblyError { cell: c, source })?;
+        for (a, &node) in mesh.cell(c).iter().enumerate() {
+            m[node] += me[a];
+        }
+    }
+    Ok(m)
+}

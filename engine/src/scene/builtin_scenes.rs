@@ -1,0 +1,141 @@
+//! Scenes compiled into the binary, so defaults need no files.
+
+/// Names of the built-in scenes; the first is the default.
+pub const BUILTIN_NAMES: [&str; 3] = ["organ", "patch", "cantilever"];
+
+/// The TOML text of a built-in scene.
+pub fn builtin(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "organ" => ORGAN,
+        "patch" => PATCH,
+        "cantilever" => CANTILEVER,
+        _ => return None,
+    })
+}
+
+const ORGAN: &str = r#"# The default scene: palpation of a liver-lobe-like organ.
+[scene]
+name = "organ"
+description = "Palpation of a 16 x 10 x 5 cm organ-like lobe held along its posterior edge; 1.2 N pressed on its upper surface (the load level of seed 001, section 6.2)."
+
+[[organs]]
+name = "lobe"
+density = 1060.0                     # kg/m3, soft tissue
+
+[organs.mesh]
+builtin = "lobe"
+semi_axes = [0.08, 0.05, 0.025]      # m
+bend = 0.6
+divisions = [16, 10, 6]
+
+[[organs.materials]]
+region = "all"
+model = "linear"
+young = 160e3                        # Pa, liver (seed 001)
+poisson = 0.45
+
+[organs.fixed]                       # posterior edge, attached to the body wall
+half_space = { point = [0.0, -0.04, 0.0], normal = [0.0, -1.0, 0.0] }
+
+[organs.accessible]                  # the upper (anterior) surface
+half_space = { point = [0.0, 0.0, 0.005], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]
+kind = "point"
+at = [0.0, 0.0, 0.04]                # nearest node: the top of the lobe
+force = [0.0, 0.0, -1.2]             # N
+
+[[tools]]
+kind = "probe"
+name = "probe"
+radius = 0.004                       # m
+
+[effects]
+deformation = "linear"
+
+[fidelity]
+locking = "bbar"
+"#;
+
+const PATCH: &str = r#"# Seed 000, section 3.5.1: the patch model (without its cut).
+[scene]
+name = "patch"
+description = "A vertical 5 x 5 grid of unit hexahedra (one cell deep), E = 5 Pa, nu = 0.3; one base corner fully fixed, the other base nodes sliding on the horizontal plane, 1 N down on an upper corner node."
+
+[[organs]]
+name = "patch"
+density = 1.0
+
+[organs.mesh]
+builtin = "block"
+origin = [0.0, 0.0, 0.0]
+size = [5.0, 1.0, 5.0]               # x wide, y deep, z up
+divisions = [5, 1, 5]
+cell = "hex8"
+
+[[organs.materials]]
+model = "linear"
+young = 5.0
+poisson = 0.3
+
+[organs.fixed]                       # the fully fixed bottom corner
+sphere = { center = [0.0, 0.0, 0.0], radius = 0.01 }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 5.0], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]                     # base nodes slide on the horizontal plane
+kind = "displacement"
+name = "base"
+region = { box = { min = [0.0, 0.0, 0.0], max = [5.0, 1.0, 0.0] } }
+z = 0.0
+
+[[organs.loads]]                     # stops the remaining rotation about the vertical axis
+kind = "displacement"
+name = "anchor"
+region = { sphere = { center = [5.0, 0.0, 0.0], radius = 0.01 } }
+y = 0.0
+
+[[organs.loads]]
+kind = "point"
+at = [5.0, 0.0, 5.0]
+force = [0.0, 0.0, -1.0]             # N
+
+[fidelity]
+locking = "none"
+"#;
+
+const CANTILEVER: &str = r#"# A cantilever ten times longer than high under a tip load (compare with beam theory).
+[scene]
+name = "cantilever"
+description = "1 m x 0.1 m x 0.1 m beam clamped at x = 0, 1 N down spread over the tip face."
+
+[[organs]]
+name = "beam"
+density = 1000.0
+
+[organs.mesh]
+builtin = "block"
+size = [1.0, 0.1, 0.1]
+divisions = [40, 4, 4]
+cell = "hex8"
+
+[[organs.materials]]
+model = "linear"
+young = 1e6
+poisson = 0.3
+
+[organs.fixed]
+box = { min = [0.0, 0.0, 0.0], max = [0.0, 0.1, 0.1] }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]
+kind = "force"
+region = { box = { min = [1.0, 0.0, 0.0], max = [1.0, 0.1, 0.1] } }
+force = [0.0, 0.0, -1.0]
+
+[fidelity]
+locking = "none"
+"#;

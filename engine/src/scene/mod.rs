@@ -1,0 +1,491 @@
+//! Scene files: parsing, validation with file/key/line diagnostics, built-in scenes, and the
+//! translation of an organ into a static finite-element problem.
+//!
+//! # Layout
+//! - [`schema`]: the serde types of the TOML format (documented in `docs/scene.md`).
+//! - [`locate`](self::locate): maps a key path to its line in the source text.
+//! - this file: [`Scene`] (a validated scene), [`SceneError`], [`OrganModel`] (an organ's
+//!   mesh, materials, constraints and loads, ready to solve), and [`builtin`] scenes.
+
+pub mod schema;
+
+mod builtin_scenes;
+pub mod locate;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::fem::assembly::MaterialMap;
+use crate::fem::linear_static::StaticProblem;
+use crate::fem::{Locking, loads};
+use crate::material::{self, LinearElastic};
+use crate::mesh::boundary::Boundary;
+use crate::mesh::select::{GroupRef, Region, nearest_node};
+use crate::mesh::{self, CellKind, Mesh, procedural};
+pub use builtin_scenes::{BUILTIN_NAMES, builtin};
+use locate::Seg;
+use schema::*;
+
+/// A scene that could not be read or is inconsistent: where, and what.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneError {
+    /// The scene file (or `<builtin:NAME>`).
+    pub file: PathBuf,
+    /// 1-based line of the offending key, when known.
+    pub line: Option<usize>,
+    /// Dotted key path (`organs[0].materials[1].poisson`), when known.
+    pub key: Option<String>,
+    /// What is wrong, and how to fix it where a fix is obvious.
+    pub message: String,
+}
+
+impl fmt::Display for SceneError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file.display())?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        write!(f, ": ")?;
+        if let Some(k) = &self.key {
+            write!(f, "{k}: ")?;
+        }
+        write!(f, "{}", self.message)
+    }
+}
+
+impl std::error::Error for SceneError {}
+
+/// A parsed and validated scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// The scene's content.
+    pub spec: SceneFile,
+    /// Where it came from (for messages and relative paths).
+    pub origin: PathBuf,
+    /// Its source text (for locating keys in messages, and for hashing).
+    pub source: String,
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, SceneError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            file: path.to_path_buf(),
+            line: None,
+            key: None,
+            message: format!("cannot read scene file: {e}"),
+        })?;
+        Self::from_toml(&text, path)
+    }
+
+    /// Parses and validates scene text; `origin` names it in messages and anchors relative
+    /// mesh paths.
+    pub fn from_toml(text: &str, origin: impl AsRef<Path>) -> Result<Self, SceneError> {
+        let origin = origin.as_ref().to_path_buf();
+        let spec: SceneFile = toml::from_str(text).map_err(|e| SceneError {
+            file: origin.clone(),
+            line: e.span().map(|s| locate::line_of_offset(text, s.start)),
+            key: None,
+            message: e.message().trim().to_string(),
+        })?;
+        let scene = Scene { spec, origin, source: text.to_string() };
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// A built-in scene by name (see [`BUILTIN_NAMES`]).
+    pub fn builtin(name: &str) -> Result<Self, SceneError> {
+        let text = builtin(name).ok_or_else(|| SceneError {
+            file: PathBuf::from(format!("<builtin:{name}>")),
+            line: None,
+            key: None,
+            message: format!("no built-in scene named '{name}' (known: {})", BUILTIN_NAMES.join(", ")),
+        })?;
+        Self::from_toml(text, format!("<builtin:{name}>"))
+    }
+
+    /// An error located at `path` in this scene's source.
+    pub fn error_at(&self, path: &[Seg<'_>], message: impl Into<String>) -> SceneError {
+        SceneError { file: self.origin.clone(), line: locate::line_of_path(&self.source, path), key: Some(locate::dotted(path)), message: message.into() }
+    }
+
+    /// Checks everything that can be checked without reading meshes.
+    fn validate(&self) -> Result<(), SceneError> {
+        let s = &self.spec;
+        let name_ok = |n: &str| !n.is_empty() && n.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+        if !name_ok(&s.scene.name) {
+            return Err(self.error_at(&[Seg::Key("scene"), Seg::Key("name")], "a scene name must be non-empty and use only letters, digits, '-' and '_' (it names output folders)"));
+        }
+        if s.organs.is_empty() {
+            return Err(self.error_at(&[Seg::Key("organs")], "a scene needs at least one [[organs]] entry"));
+        }
+        for (i, o) in s.organs.iter().enumerate() {
+            let at = |rest: &[Seg<'static>]| -> Vec<Seg<'static>> {
+                let mut v = vec![Seg::Key("organs"), Seg::Index(i)];
+                v.extend_from_slice(rest);
+                v
+            };
+            if !name_ok(&o.name) {
+                return Err(self.error_at(&at(&[Seg::Key("name")]), "an organ name must be non-empty and use only letters, digits, '-' and '_'"));
+            }
+            if s.organs[..i].iter().any(|p| p.name == o.name) {
+                return Err(self.error_at(&at(&[Seg::Key("name")]), format!("organ name '{}' is used twice", o.name)));
+            }
+            if let Err(e) = material::validate_density(o.density) {
+                return Err(self.error_at(&at(&[Seg::Key("density")]), e.to_string()));
+            }
+            self.validate_mesh_spec(&o.mesh, &at(&[Seg::Key("mesh")]))?;
+            if o.materials.is_empty() {
+                return Err(self.error_at(&at(&[Seg::Key("materials")]), "an organ needs at least one [[organs.materials]] entry"));
+            }
+            for (m, spec) in o.materials.iter().enumerate() {
+                self.validate_material(spec, &at(&[Seg::Key("materials"), Seg::Index(m)]))?;
+            }
+            for (key, r) in [("fixed", &o.fixed), ("accessible", &o.accessible)] {
+                if let Err(e) = r.validate() {
+                    return Err(self.error_at(&at(&[Seg::Key(key)]), e.to_string()));
+                }
+            }
+            for (l, load) in o.loads.iter().enumerate() {
+                let p = at(&[Seg::Key("loads"), Seg::Index(l)]);
+                let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+                let bad = match load {
+                    LoadSpec::Point { at, force } => (!finite(at) || !finite(force)).then_some("point loads need finite `at` and `force`"),
+                    LoadSpec::Force { region, force } => region.validate().err().map(|_| "invalid region").or((!finite(force)).then_some("`force` must be finite")),
+                    LoadSpec::Traction { region, traction } => region.validate().err().map(|_| "invalid region").or((!finite(traction)).then_some("`traction` must be finite")),
+                    LoadSpec::Gravity { acceleration } => (!finite(acceleration)).then_some("`acceleration` must be finite"),
+                    LoadSpec::Displacement { region, x, y, z, .. } => {
+                        if region.validate().is_err() {
+                            Some("invalid region")
+                        } else if x.is_none() && y.is_none() && z.is_none() {
+                            Some("a displacement load must prescribe at least one of x, y, z")
+                        } else if [x, y, z].iter().any(|c| c.is_some_and(|v| !v.is_finite())) {
+                            Some("prescribed displacements must be finite")
+                        } else {
+                            None
+                        }
+                    }
+                };
+                if let Some(msg) = bad {
+                    return Err(self.error_at(&p, msg));
+                }
+            }
+        }
+        let mut seen = Vec::new();
+        for (t, tool) in s.tools.iter().enumerate() {
+            let at = [Seg::Key("tools"), Seg::Index(t)];
+            if seen.contains(&tool.name()) {
+                return Err(self.error_at(&at, format!("tool name '{}' is used twice", tool.name())));
+            }
+            seen.push(tool.name());
+            let positive = |v: f64| v.is_finite() && v > 0.0;
+            let ok = match tool {
+                ToolSpec::Probe { radius, .. } => positive(*radius),
+                ToolSpec::Scalpel { blade_length, cut_force, .. } => positive(*blade_length) && positive(*cut_force),
+                ToolSpec::Grasper { jaw_width, max_force, .. } => positive(*jaw_width) && positive(*max_force),
+            };
+            if !ok {
+                return Err(self.error_at(&at, "tool dimensions and forces must be positive numbers"));
+            }
+        }
+        if s.effects.cutting && !s.tools.iter().any(|t| matches!(t, ToolSpec::Scalpel { .. })) {
+            return Err(self.error_at(&[Seg::Key("effects"), Seg::Key("cutting")], "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\""));
+        }
+        if s.effects.tearing && !s.tools.iter().any(|t| matches!(t, ToolSpec::Grasper { .. })) {
+            return Err(self.error_at(&[Seg::Key("effects"), Seg::Key("tearing")], "tearing is enabled but the scene has no grasper tool; add a [[tools]] entry with kind = \"grasper\""));
+        }
+        let p = &s.fidelity.pgd;
+        let pgd = [Seg::Key("fidelity"), Seg::Key("pgd")];
+        if !(p.global_tolerance > 0.0 && p.global_tolerance < 1.0) || !(p.enrichment_tolerance > 0.0 && p.enrichment_tolerance < 1.0) {
+            return Err(self.error_at(&pgd, "PGD tolerances must lie in (0, 1)"));
+        }
+        if p.max_modes == 0 || p.max_iterations == 0 {
+            return Err(self.error_at(&pgd, "max_modes and max_iterations must be at least 1"));
+        }
+        Ok(())
+    }
+
+    fn validate_mesh_spec(&self, m: &MeshSpec, at: &[Seg<'_>]) -> Result<(), SceneError> {
+        let key = |k: &'static str| -> Vec<Seg<'_>> {
+            let mut v = at.to_vec();
+            v.push(Seg::Key(k));
+            v
+        };
+        match (&m.file, m.builtin) {
+            (Some(_), Some(_)) => return Err(self.error_at(at, "give either `file` or `builtin`, not both")),
+            (None, None) => return Err(self.error_at(at, "give a mesh `file` (.msh, .vtu, .vtk) or a `builtin` mesh (\"lobe\" or \"block\")")),
+            _ => {}
+        }
+        let lobe_only = [("semi_axes", m.semi_axes.is_some()), ("bend", m.bend.is_some())];
+        let block_only = [("origin", m.origin.is_some()), ("size", m.size.is_some()), ("cell", m.cell.is_some())];
+        let builtin_only = [("divisions", m.divisions.is_some())];
+        let forbid = |list: &[(&'static str, bool)], why: &str| -> Result<(), SceneError> {
+            match list.iter().find(|(_, set)| *set) {
+                Some((k, _)) => Err(self.error_at(&key(k), format!("`{k}` {why}"))),
+                None => Ok(()),
+            }
+        };
+        match m.builtin {
+            None => {
+                forbid(&lobe_only, "only applies to builtin = \"lobe\"")?;
+                forbid(&block_only, "only applies to builtin = \"block\"")?;
+                forbid(&builtin_only, "only applies to built-in meshes")?;
+            }
+            Some(BuiltinMesh::Lobe) => {
+                forbid(&block_only, "only applies to builtin = \"block\"")?;
+                if m.scale.is_some() {
+                    return Err(self.error_at(&key("scale"), "`scale` applies to mesh files; give a built-in lobe its size with `semi_axes` (m)"));
+                }
+                if m.semi_axes.is_some_and(|a| a.iter().any(|v| !(v.is_finite() && *v > 0.0))) {
+                    return Err(self.error_at(&key("semi_axes"), "semi-axes must be positive lengths (m)"));
+                }
+                if m.bend.is_some_and(|b| !(b.is_finite() && b.abs() <= 2.0)) {
+                    return Err(self.error_at(&key("bend"), "bend must lie in [-2, 2]"));
+                }
+            }
+            Some(BuiltinMesh::Block) => {
+                forbid(&lobe_only, "only applies to builtin = \"lobe\"")?;
+                if m.scale.is_some() {
+                    return Err(self.error_at(&key("scale"), "`scale` applies to mesh files; give a built-in block its `size` (m)"));
+                }
+                if m.size.is_none() {
+                    return Err(self.error_at(at, "a built-in block needs `size` (m)"));
+                }
+                if m.size.is_some_and(|a| a.iter().any(|v| !(v.is_finite() && *v > 0.0))) {
+                    return Err(self.error_at(&key("size"), "block edge lengths must be positive (m)"));
+                }
+                if m.origin.is_some_and(|o| o.iter().any(|v| !v.is_finite())) {
+                    return Err(self.error_at(&key("origin"), "origin must be finite"));
+                }
+            }
+        }
+        if let Some(d) = m.divisions {
+            if d.iter().any(|&n| n == 0 || n > 2000) {
+                return Err(self.error_at(&key("divisions"), "divisions must lie in 1..=2000 along each axis"));
+            }
+            if d.iter().product::<usize>() > 20_000_000 {
+                return Err(self.error_at(&key("divisions"), "more than 20 million cells; use fewer divisions"));
+            }
+        }
+        if m.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
+            return Err(self.error_at(&key("scale"), "scale must be a positive number (e.g. 0.001 for a mesh in mm)"));
+        }
+        if m.translate.is_some_and(|t| t.iter().any(|v| !v.is_finite())) {
+            return Err(self.error_at(&key("translate"), "translate must be finite (m)"));
+        }
+        Ok(())
+    }
+
+    fn validate_material(&self, m: &MaterialSpec, at: &[Seg<'_>]) -> Result<(), SceneError> {
+        let key = |k: &'static str| -> Vec<Seg<'_>> {
+            let mut v = at.to_vec();
+            v.push(Seg::Key(k));
+            v
+        };
+        match m.model {
+            MaterialModel::Linear | MaterialModel::Stvk | MaterialModel::NeoHookean => {
+                let young = m.young.ok_or_else(|| self.error_at(at, "this model needs `young` (Pa)"))?;
+                let poisson = m.poisson.ok_or_else(|| self.error_at(at, "this model needs `poisson`"))?;
+                for k in ["c10", "c01", "bulk"] {
+                    let set = match k {
+                        "c10" => m.c10.is_some(),
+                        "c01" => m.c01.is_some(),
+                        _ => m.bulk.is_some(),
+                    };
+                    if set {
+                        return Err(self.error_at(&key(k), format!("`{k}` only applies to model = \"mooney_rivlin\"")));
+                    }
+                }
+                if let Err(e) = LinearElastic::new(young, poisson) {
+                    let k = if matches!(e, material::MaterialError::Young(_)) { "young" } else { "poisson" };
+                    return Err(self.error_at(&key(k), e.to_string()));
+                }
+            }
+            MaterialModel::MooneyRivlin => {
+                let (Some(c10), Some(c01), Some(bulk)) = (m.c10, m.c01, m.bulk) else {
+                    return Err(self.error_at(at, "mooney_rivlin needs `c10`, `c01` and `bulk` (Pa)"));
+                };
+                if !(c10 + c01 > 0.0 && bulk > 0.0 && c10.is_finite() && c01.is_finite() && bulk.is_finite()) {
+                    return Err(self.error_at(at, "mooney_rivlin needs c10 + c01 > 0 and bulk > 0"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Resolves a mesh path relative to the scene file's folder.
+    pub fn resolve_path(&self, p: &str) -> PathBuf {
+        let p = Path::new(p);
+        if p.is_absolute() {
+            return p.to_path_buf();
+        }
+        match self.origin.parent() {
+            Some(dir) if !self.origin.to_string_lossy().starts_with("<builtin") => dir.join(p),
+            _ => p.to_path_buf(),
+        }
+    }
+
+    /// Builds organ `index`'s mesh (read or generated, scaled, checked).
+    pub fn organ_mesh(&self, index: usize) -> Result<Mesh, SceneError> {
+        let o = &self.spec.organs[index];
+        let at = [Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh")];
+        let m = &o.mesh;
+        let mut mesh = match (&m.file, m.builtin) {
+            (Some(f), _) => {
+                let path = self.resolve_path(f);
+                let mut mesh = mesh::read(&path).map_err(|e| self.error_at(&[Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh"), Seg::Key("file")], e.to_string()))?;
+                mesh.scale(m.scale.unwrap_or(1.0));
+                mesh
+            }
+            (None, Some(BuiltinMesh::Lobe)) => {
+                let d = procedural::LobeParams::default();
+                let p = procedural::LobeParams { semi_axes: m.semi_axes.unwrap_or(d.semi_axes), bend: m.bend.unwrap_or(d.bend), divisions: m.divisions.unwrap_or(d.divisions) };
+                let mut mesh = procedural::lobe(&p);
+                mesh.check_cells().map_err(|e| self.error_at(&at, format!("the lobe parameters give a bad mesh: {e}")))?;
+                mesh
+            }
+            (None, Some(BuiltinMesh::Block)) => {
+                let size = m.size.unwrap_or([1.0; 3]);
+                let div = m.divisions.unwrap_or([4, 4, 4]);
+                let origin = m.origin.unwrap_or([0.0; 3]);
+                match m.cell.unwrap_or(CellKind::Hex8) {
+                    CellKind::Hex8 => procedural::block_hex(origin, size, div),
+                    CellKind::Tet4 => procedural::block_tet(origin, size, div),
+                }
+            }
+            (None, None) => unreachable!("validated: file or builtin"),
+        };
+        if let Some(t) = m.translate {
+            mesh.translate(t);
+        }
+        Ok(mesh)
+    }
+
+    /// Builds everything organ `index` needs for a static solve.
+    pub fn organ_model(&self, index: usize) -> Result<OrganModel, SceneError> {
+        let mesh = self.organ_mesh(index)?;
+        self.organ_model_with_mesh(index, mesh)
+    }
+
+    /// Like [`Scene::organ_model`], with a mesh already built (e.g. to reuse it).
+    pub fn organ_model_with_mesh(&self, index: usize, mesh: Mesh) -> Result<OrganModel, SceneError> {
+        let o = &self.spec.organs[index];
+        let base = |rest: &[Seg<'static>]| -> Vec<Seg<'static>> {
+            let mut v = vec![Seg::Key("organs"), Seg::Index(index)];
+            v.extend_from_slice(rest);
+            v
+        };
+        // Materials: later entries override earlier ones on the cells they cover.
+        let mut of_cell: Vec<Option<u16>> = vec![None; mesh.n_cells()];
+        let mut table = Vec::new();
+        for (m, spec) in o.materials.iter().enumerate() {
+            let at = base(&[Seg::Key("materials"), Seg::Index(m)]);
+            if spec.model != MaterialModel::Linear {
+                return Err(self.error_at(&[at.clone(), vec![Seg::Key("model")]].concat(), "only model = \"linear\" is available in this version; hyperelastic models arrive with the large-deformation solver"));
+            }
+            let mat = LinearElastic::new(spec.young.unwrap_or(0.0), spec.poisson.unwrap_or(0.0)).map_err(|e| self.error_at(&at, e.to_string()))?;
+            table.push(mat);
+            let idx = (table.len() - 1) as u16;
+            let all = matches!(&spec.region, GroupRef::Name(n) if n == "all");
+            if all {
+                of_cell.iter_mut().for_each(|c| *c = Some(idx));
+            } else {
+                let key = match &spec.region {
+                    GroupRef::Tag(t) => t.to_string(),
+                    GroupRef::Name(n) => n.clone(),
+                };
+                let tag = mesh.group_tag(&key).ok_or_else(|| {
+                    self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), format!("the mesh has no physical group {}", spec.region))
+                })?;
+                for (c, r) in mesh.cell_region.iter().enumerate() {
+                    if *r == tag {
+                        of_cell[c] = Some(idx);
+                    }
+                }
+            }
+        }
+        if let Some(c) = of_cell.iter().position(|m| m.is_none()) {
+            return Err(self.error_at(&base(&[Seg::Key("materials")]), format!("cell {c} (region {}) has no material; add a material with region = \"all\" or for its group", mesh.cell_region[c])));
+        }
+        let materials = MaterialMap { density: vec![o.density; table.len()], table, of_cell: of_cell.into_iter().map(|m| m.unwrap_or(0)).collect() };
+
+        let boundary = Boundary::of(&mesh);
+        let fixed_nodes = o.fixed.nodes(&mesh).map_err(|e| self.error_at(&base(&[Seg::Key("fixed")]), e.to_string()))?;
+        if fixed_nodes.is_empty() {
+            return Err(self.error_at(
+                &base(&[Seg::Key("fixed")]),
+                format!("the fixed region selects no node of the mesh (bounding box {:?} – {:?}), so the system would be singular; move or enlarge the region", mesh.bounding_box().0, mesh.bounding_box().1),
+            ));
+        }
+        let accessible_nodes = o.accessible.surface_nodes(&mesh, &boundary).map_err(|e| self.error_at(&base(&[Seg::Key("accessible")]), e.to_string()))?;
+        if accessible_nodes.is_empty() {
+            return Err(self.error_at(&base(&[Seg::Key("accessible")]), "the accessible region contains no surface node; tools could touch nothing"));
+        }
+        let mut problem = StaticProblem::new(mesh.n_nodes());
+        problem.clamp(&fixed_nodes);
+        let mut named_regions = vec![("fixed".to_string(), fixed_nodes.clone())];
+        for (l, load) in o.loads.iter().enumerate() {
+            let at = base(&[Seg::Key("loads"), Seg::Index(l)]);
+            let region_nodes = |r: &Region| r.nodes(&mesh).map_err(|e| self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), e.to_string()));
+            let empty = |what: &str| self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), format!("the region of this {what} selects nothing"));
+            match load {
+                LoadSpec::Point { at: p, force } => {
+                    let n = nearest_node(&mesh, *p).ok_or_else(|| self.error_at(&at, "the mesh has no nodes"))?;
+                    loads::add_point_force(&mut problem.forces, n, *force);
+                }
+                LoadSpec::Force { region, force } => {
+                    let nodes = region_nodes(region)?;
+                    if nodes.is_empty() {
+                        return Err(empty("force"));
+                    }
+                    loads::add_distributed_force(&mut problem.forces, &nodes, *force);
+                }
+                LoadSpec::Traction { region, traction } => {
+                    let faces = region.faces(&mesh, &boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
+                    if faces.is_empty() {
+                        return Err(empty("traction (no boundary face has all its nodes inside)"));
+                    }
+                    loads::add_traction(&mut problem.forces, &mesh, &boundary, &faces, *traction);
+                }
+                LoadSpec::Gravity { acceleration } => {
+                    loads::add_body_force(&mut problem.forces, &mesh, &materials, *acceleration).map_err(|e| self.error_at(&at, e.to_string()))?;
+                }
+                LoadSpec::Displacement { name, region, x, y, z } => {
+                    let nodes = region_nodes(region)?;
+                    if nodes.is_empty() {
+                        return Err(empty("displacement"));
+                    }
+                    for (i, v) in [x, y, z].into_iter().enumerate() {
+                        if let Some(v) = v {
+                            problem.prescribe(&nodes, i, *v);
+                        }
+                    }
+                    named_regions.push((name.clone(), nodes));
+                }
+            }
+        }
+        Ok(OrganModel { name: o.name.clone(), mesh, materials, locking: self.spec.fidelity.locking, problem, named_regions, accessible_nodes, boundary })
+    }
+}
+
+/// One organ of a scene, ready for a static solve.
+#[derive(Debug, Clone)]
+pub struct OrganModel {
+    /// Organ name.
+    pub name: String,
+    /// Its mesh (m).
+    pub mesh: Mesh,
+    /// Materials per cell.
+    pub materials: MaterialMap,
+    /// Locking treatment.
+    pub locking: Locking,
+    /// Constraints and loads.
+    pub problem: StaticProblem,
+    /// Regions whose reactions are reported: `fixed`, then each displacement load's name.
+    pub named_regions: Vec<(String, Vec<usize>)>,
+    /// Surface nodes tools may touch.
+    pub accessible_nodes: Vec<usize>,
+    /// The boundary surface.
+    pub boundary: Boundary,
+}

@@ -1,0 +1,297 @@
+//! The scene file format (TOML), as serde types. See `docs/scene.md` for the user guide.
+//!
+//! Every table rejects unknown keys, so a typo is an error with its line, never a silently
+//! ignored setting.
+
+use serde::{Deserialize, Serialize};
+
+use crate::fem::Locking;
+use crate::mesh::CellKind;
+use crate::mesh::select::{GroupRef, Region};
+
+/// A whole scene file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    /// Identification.
+    pub scene: SceneInfo,
+    /// The organs (at least one).
+    pub organs: Vec<OrganSpec>,
+    /// Surgical tools available in the scene.
+    #[serde(default)]
+    pub tools: Vec<ToolSpec>,
+    /// Which effects the scene simulates.
+    #[serde(default)]
+    pub effects: Effects,
+    /// Accuracy/cost settings.
+    #[serde(default)]
+    pub fidelity: Fidelity,
+}
+
+/// `[scene]`: identification.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneInfo {
+    /// Short name, used for output folders (letters, digits, `-`, `_`).
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+}
+
+/// `[[organs]]`: one deformable body.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OrganSpec {
+    /// Name, unique in the scene.
+    pub name: String,
+    /// Mass density ρ (kg/m³).
+    pub density: f64,
+    /// Where the mesh comes from.
+    pub mesh: MeshSpec,
+    /// Materials by region (at least one).
+    pub materials: Vec<MaterialSpec>,
+    /// Nodes fixed in place (all three components).
+    pub fixed: Region,
+    /// Surface region where tools may touch.
+    pub accessible: Region,
+    /// Static loads applied by `vademecum solve`.
+    #[serde(default)]
+    pub loads: Vec<LoadSpec>,
+}
+
+/// Built-in procedural meshes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BuiltinMesh {
+    /// A smooth organ-like lobe of tetrahedra (`semi_axes`, `bend`, `divisions`).
+    Lobe,
+    /// A structured box (`origin`, `size`, `divisions`, `cell`).
+    Block,
+}
+
+/// `[organs.mesh]`: a mesh file or a built-in mesh. Exactly one of `file` and `builtin`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshSpec {
+    /// A `.msh`, `.vtu` or `.vtk` file, relative to the scene file.
+    pub file: Option<String>,
+    /// A built-in mesh.
+    pub builtin: Option<BuiltinMesh>,
+    /// Factor applied to the file's coordinates (e.g. 0.001 for a mesh in mm). Default 1.
+    pub scale: Option<f64>,
+    /// Translation applied after scaling (m). Default 0.
+    pub translate: Option<[f64; 3]>,
+    /// Lobe: semi-axes (m).
+    pub semi_axes: Option<[f64; 3]>,
+    /// Lobe: bend, as a fraction of the z semi-axis.
+    pub bend: Option<f64>,
+    /// Lobe or block: cell divisions along x, y, z.
+    pub divisions: Option<[usize; 3]>,
+    /// Block: lower corner (m).
+    pub origin: Option<[f64; 3]>,
+    /// Block: edge lengths (m).
+    pub size: Option<[f64; 3]>,
+    /// Block: cell kind (`hex8` or `tet4`). Default hex8.
+    pub cell: Option<CellKind>,
+}
+
+/// Constitutive models a material may name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MaterialModel {
+    /// Linear elasticity (small strains).
+    Linear,
+    /// St Venant–Kirchhoff hyperelasticity.
+    Stvk,
+    /// Compressible neo-Hookean hyperelasticity.
+    NeoHookean,
+    /// Mooney–Rivlin hyperelasticity.
+    MooneyRivlin,
+}
+
+/// `[[organs.materials]]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// `"all"` (default) or a physical group name or tag.
+    #[serde(default = "all_region")]
+    pub region: GroupRef,
+    /// The constitutive model.
+    pub model: MaterialModel,
+    /// Young's modulus E (Pa).
+    pub young: Option<f64>,
+    /// Poisson's ratio ν.
+    pub poisson: Option<f64>,
+    /// Mooney–Rivlin c10 (Pa).
+    pub c10: Option<f64>,
+    /// Mooney–Rivlin c01 (Pa).
+    pub c01: Option<f64>,
+    /// Mooney–Rivlin bulk modulus (Pa).
+    pub bulk: Option<f64>,
+}
+
+fn all_region() -> GroupRef {
+    GroupRef::Name("all".into())
+}
+
+/// `[[organs.loads]]`: a static load, tagged by `kind`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum LoadSpec {
+    /// A force (N) on the node nearest to `at` (m).
+    Point {
+        /// Where (m); the nearest node is loaded.
+        at: [f64; 3],
+        /// Force (N).
+        force: [f64; 3],
+    },
+    /// A total force (N) spread equally over the nodes of a region.
+    Force {
+        /// The region.
+        region: Region,
+        /// Total force (N).
+        force: [f64; 3],
+    },
+    /// A uniform traction (Pa) on the boundary faces inside a region.
+    Traction {
+        /// The region.
+        region: Region,
+        /// Traction vector (Pa).
+        traction: [f64; 3],
+    },
+    /// A body acceleration (m/s²), e.g. gravity `[0, 0, -9.81]`.
+    Gravity {
+        /// Acceleration (m/s²).
+        acceleration: [f64; 3],
+    },
+    /// Prescribed displacement components (m) on the nodes of a region; omitted components
+    /// stay free. Its reaction is reported under `name`.
+    Displacement {
+        /// Name for the reaction report.
+        name: String,
+        /// The region.
+        region: Region,
+        /// x component (m).
+        x: Option<f64>,
+        /// y component (m).
+        y: Option<f64>,
+        /// z component (m).
+        z: Option<f64>,
+    },
+}
+
+/// `[[tools]]`, tagged by `kind`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ToolSpec {
+    /// A rigid spherical-tip probe for palpation.
+    Probe {
+        /// Tool name.
+        name: String,
+        /// Tip radius (m).
+        radius: f64,
+    },
+    /// A scalpel.
+    Scalpel {
+        /// Tool name.
+        name: String,
+        /// Blade length (m).
+        blade_length: f64,
+        /// Force on the blade plane above which tissue is cut (N).
+        cut_force: f64,
+    },
+    /// A grasper.
+    Grasper {
+        /// Tool name.
+        name: String,
+        /// Jaw width (m).
+        jaw_width: f64,
+        /// Largest force the jaws hold before slipping (N).
+        max_force: f64,
+    },
+}
+
+impl ToolSpec {
+    /// The tool's name.
+    pub fn name(&self) -> &str {
+        match self {
+            ToolSpec::Probe { name, .. } | ToolSpec::Scalpel { name, .. } | ToolSpec::Grasper { name, .. } => name,
+        }
+    }
+}
+
+/// Deformation models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DeformationModel {
+    /// Linear elasticity (small strains).
+    #[default]
+    Linear,
+    /// Large deformations (hyperelastic).
+    Large,
+}
+
+/// `[effects]`: what the scene simulates. A scene pays only for what it names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Effects {
+    /// Deformation model. Default linear.
+    #[serde(default)]
+    pub deformation: DeformationModel,
+    /// Cutting (needs a scalpel tool).
+    #[serde(default)]
+    pub cutting: bool,
+    /// Tearing (needs a grasper tool).
+    #[serde(default)]
+    pub tearing: bool,
+}
+
+/// `[fidelity]`: accuracy against cost.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Fidelity {
+    /// Volumetric-locking treatment of hexahedra (`none`, `sri`, `bbar`). Default `bbar`.
+    #[serde(default)]
+    pub locking: Locking,
+    /// Settings of the PGD vademecum builder.
+    #[serde(default)]
+    pub pgd: PgdFidelity,
+}
+
+/// `[fidelity.pgd]`: stopping criteria of the PGD greedy enrichment (seed 000, Alg. 2.1).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PgdFidelity {
+    /// Global tolerance ε_R on the relative residual/mode norm to stop adding modes.
+    #[serde(default = "default_eps_r")]
+    pub global_tolerance: f64,
+    /// Fixed-point tolerance ε_F on the change of a mode between alternating iterations.
+    #[serde(default = "default_eps_f")]
+    pub enrichment_tolerance: f64,
+    /// Cap on the number of modes.
+    #[serde(default = "default_max_modes")]
+    pub max_modes: usize,
+    /// Cap on alternating fixed-point iterations per mode.
+    #[serde(default = "default_max_iters")]
+    pub max_iterations: usize,
+}
+
+fn default_eps_r() -> f64 {
+    1e-4
+}
+fn default_eps_f() -> f64 {
+    1e-8
+}
+fn default_max_modes() -> usize {
+    200
+}
+fn default_max_iters() -> usize {
+    50
+}
+
+impl Default for PgdFidelity {
+    fn default() -> Self {
+        Self { global_tolerance: default_eps_r(), enrichment_tolerance: default_eps_f(), max_modes: default_max_modes(), max_iterations: default_max_iters() }
+    }
+}
