@@ -19,8 +19,10 @@ use crate::mesh::CellKind;
 /// - `Bbar`: the mean-dilatation B̄ method (Hughes 1980): the volumetric term uses the
 ///   cell-averaged gradients `ā = (1/V)∫ ∇N_a dV`, i.e. a constant pressure per cell.
 ///
-/// On hexahedra `Sri` and `Bbar` coincide for parallelepipeds and differ slightly on
-/// distorted cells; both pass the patch test. On linear tetrahedra the strain is already
+/// On hexahedra `Sri` and `Bbar` coincide for parallelepipeds. On distorted cells they
+/// differ, and only `Bbar` passes the patch test: one-point integration uses
+/// `8 det J(0) ∇N(0)` where consistency needs `∫ ∇N dV` (Flanagan & Belytschko 1981), hence
+/// `Bbar` is the default and `Sri` is kept for comparison. On linear tetrahedra the strain is already
 /// constant per cell, so all three options give the same matrix (and tet4 locks: use hex8
 /// for near-incompressible tissue). Measured in `BENCHMARKS.md`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]

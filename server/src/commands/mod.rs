@@ -1,0 +1,20 @@
+//! The subcommands, one file each.
+
+mod bench;
+mod mesh_info;
+mod scene;
+mod solve;
+
+use std::process::ExitCode;
+
+use crate::cli::{BenchCommand, Cli, Command, MeshCommand};
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Solve(a) => solve::run(a),
+        Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
+        Command::Scene(c) => scene::run(c),
+        Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),
+    }
+}
