@@ -1,0 +1,240 @@
+//! Bad input gets a clear error, never a panic: truncated or garbled meshes, inverted or
+//! zero-volume cells, unknown scene keys, missing files, an empty or insufficient fixed region.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+
+use vademecum_engine::fem::Locking;
+use vademecum_engine::fem::assembly::MaterialMap;
+use vademecum_engine::fem::linear_static::{self, StaticError, StaticProblem};
+use vademecum_engine::material::LinearElastic;
+use vademecum_engine::mesh::{self, MeshError, procedural};
+use vademecum_engine::scene::Scene;
+
+fn v2_text() -> String {
+    let m = procedural::block_tet([0.0; 3], [0.1; 3], [2, 2, 2]);
+    let mut s = format!("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n{}\n", m.n_nodes());
+    for (i, p) in m.nodes.iter().enumerate() {
+        s += &format!("{} {} {} {}\n", i + 1, p[0], p[1], p[2]);
+    }
+    s += &format!("$EndNodes\n$Elements\n{}\n", m.n_cells());
+    for (i, c) in m.cells_iter().enumerate() {
+        s += &format!("{} 4 2 1 1 {} {} {} {}\n", i + 1, c[0] + 1, c[1] + 1, c[2] + 1, c[3] + 1);
+    }
+    s + "$EndElements\n"
+}
+
+/// Parses `bytes` as a Gmsh file; must return (Ok or Err) without panicking.
+fn parse_no_panic(bytes: &[u8]) -> Result<mesh::Mesh, MeshError> {
+    catch_unwind(AssertUnwindSafe(|| mesh::gmsh::parse(bytes, Path::new("x.msh")))).expect("the Gmsh reader panicked")
+}
+
+#[test]
+fn every_truncation_of_a_gmsh_file_is_an_error_not_a_panic() {
+    let full = v2_text().into_bytes();
+    assert!(parse_no_panic(&full).is_ok());
+    let mut errors = 0;
+    for cut in (0..full.len() - 1).step_by(7) {
+        if parse_no_panic(&full[..cut]).is_err() {
+            errors += 1;
+        }
+    }
+    assert!(errors > 0);
+    let e = parse_no_panic(&full[..full.len() / 2]).unwrap_err();
+    assert!(e.to_string().contains("x.msh"), "message names the file: {e}");
+}
+
+#[test]
+fn garbled_gmsh_is_an_error() {
+    let text = v2_text().replace("$EndNodes", "$EndNodez");
+    let e = parse_no_panic(text.as_bytes()).unwrap_err();
+    assert!(e.to_string().contains("$EndNodes"), "{e}");
+    let text = v2_text().replacen(" 4 2 1 1 ", " 4 2 1 1 banana ", 1);
+    let e = parse_no_panic(text.as_bytes()).unwrap_err();
+    assert!(e.to_string().contains("banana"), "{e}");
+    let junk: Vec<u8> = (0..2000u32).map(|i| (i.wrapping_mul(2654435761u32) >> 24) as u8).collect();
+    assert!(parse_no_panic(&junk).is_err());
+    let e = parse_no_panic(b"$MeshFormat\n3.0 0 8\n$EndMeshFormat\n").unwrap_err();
+    assert!(e.to_string().contains("not supported"), "{e}");
+}
+
+#[test]
+fn truncated_or_garbled_binary_gmsh_is_an_error() {
+    // binary v4.1 through mshio, and binary v2, cut at every 13th byte
+    let m = procedural::block_tet([0.0; 3], [0.1; 3], [1, 1, 1]);
+    let mut f = b"$MeshFormat\n2.2 1 8\n".to_vec();
+    f.extend_from_slice(&1i32.to_le_bytes());
+    f.extend_from_slice(format!("\n$EndMeshFormat\n$Nodes\n{}\n", m.n_nodes()).as_bytes());
+    for (i, p) in m.nodes.iter().enumerate() {
+        f.extend_from_slice(&(i as i32 + 1).to_le_bytes());
+        for x in p {
+            f.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    f.extend_from_slice(format!("\n$EndNodes\n$Elements\n{}\n", m.n_cells()).as_bytes());
+    for v in [4i32, m.n_cells() as i32, 2] {
+        f.extend_from_slice(&v.to_le_bytes());
+    }
+    for (i, c) in m.cells_iter().enumerate() {
+        for v in [i as i32 + 1, 1, 1] {
+            f.extend_from_slice(&v.to_le_bytes());
+        }
+        for n in c {
+            f.extend_from_slice(&(*n as i32 + 1).to_le_bytes());
+        }
+    }
+    f.extend_from_slice(b"\n$EndElements\n");
+    assert!(parse_no_panic(&f).is_ok());
+    for cut in (0..f.len() - 1).step_by(13) {
+        let _ = parse_no_panic(&f[..cut]);
+    }
+    // a corrupt block header (negative count)
+    let mut g = f.clone();
+    let at = g.windows(9).position(|w| w == b"Elements\n").unwrap() + 9 + 2 + 4;
+    g[at..at + 4].copy_from_slice(&(-5i32).to_le_bytes());
+    assert!(parse_no_panic(&g).is_err());
+    // v4.1 garbage after a valid header goes through mshio
+    let mut h = b"$MeshFormat\n4.1 1 8\n".to_vec();
+    h.extend_from_slice(&1i32.to_le_bytes());
+    h.extend_from_slice(b"\n$EndMeshFormat\n$Nodes\n\x01\x02\x03");
+    assert!(parse_no_panic(&h).is_err());
+}
+
+#[test]
+fn truncated_or_garbled_vtu_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = procedural::block_hex([0.0; 3], [0.1; 3], [2, 2, 2]);
+    let good = dir.path().join("g.vtu");
+    mesh::vtk::write_vtu(&good, &m, &[], &[]).unwrap();
+    let text = std::fs::read_to_string(&good).unwrap();
+    for (name, bad) in [
+        ("half.vtu", text[..text.len() / 2].to_string()),
+        ("garbled.vtu", text.replace("<Points>", "<Poin ts>")),
+        ("nan.vtu", text.replacen("0.0 0.0 0.0", "zero zero", 1)),
+        ("outofrange.vtu", text.replacen("\n0 1 4 3 9 10 13 12\n", "\n0 1 4 3 9 10 13 999\n", 1)),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bad).unwrap();
+        let r = catch_unwind(|| mesh::read(&p)).expect("the VTK reader panicked");
+        let e = r.expect_err(name);
+        assert!(e.to_string().contains(name), "{name}: message names the file: {e}");
+    }
+}
+
+#[test]
+fn missing_mesh_file_is_an_io_error() {
+    let e = mesh::read("/nonexistent/organ.msh").unwrap_err();
+    assert!(matches!(e, MeshError::Io { .. }), "{e}");
+    assert!(e.to_string().contains("/nonexistent/organ.msh"));
+    let e = mesh::read("organ.stl").unwrap_err();
+    assert!(e.to_string().contains("unknown mesh format"), "{e}");
+}
+
+#[test]
+fn inverted_and_zero_volume_cells_are_rejected() {
+    let mut m = procedural::block_tet([0.0; 3], [0.1; 3], [2, 2, 2]);
+    let good = m.clone();
+    m.cells.swap(4 * 5 + 1, 4 * 5 + 2); // invert cell 5 only
+    let e = m.clone().check_cells().unwrap_err();
+    assert!(matches!(e, MeshError::InvertedCells { count: 1, first: 5, .. }), "{e}");
+    // a consistently mirrored mesh is a convention, not an error
+    let mut all = good.clone();
+    all.flip_orientation();
+    all.check_cells().unwrap();
+    assert_eq!(all.cells, good.cells);
+    // zero volume: collapse a tetrahedron onto a face
+    let mut z = good.clone();
+    let c = z.cell(3).to_vec();
+    z.nodes.push(z.nodes[c[0]]);
+    let dup = z.nodes.len() - 1;
+    z.cells[4 * 3 + 1] = dup;
+    let e = z.check_cells().unwrap_err();
+    assert!(matches!(e, MeshError::DegenerateCells { .. }), "{e}");
+}
+
+const GOOD_SCENE: &str = r#"[scene]
+name = "s"
+
+[[organs]]
+name = "block"
+density = 1000.0
+
+[organs.mesh]
+builtin = "block"
+size = [0.1, 0.1, 0.1]
+divisions = [2, 2, 2]
+
+[[organs.materials]]
+model = "linear"
+young = 1e4
+poisson = 0.3
+
+[organs.fixed]
+box = { min = [0.0, 0.0, 0.0], max = [0.0, 0.1, 0.1] }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }
+"#;
+
+#[test]
+fn unknown_scene_key_names_the_file_line_and_key() {
+    Scene::from_toml(GOOD_SCENE, "s.toml").unwrap();
+    let bad = GOOD_SCENE.replace("poisson = 0.3", "poisson = 0.3\npoison = 0.3");
+    let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+    assert_eq!(e.file, Path::new("s.toml"));
+    assert_eq!(e.line, Some(17));
+    let msg = e.to_string();
+    assert!(msg.starts_with("s.toml:17:") && msg.contains("poison"), "{msg}");
+}
+
+#[test]
+fn inconsistent_scene_settings_name_the_key_and_line() {
+    let bad = GOOD_SCENE.replace("poisson = 0.3", "poisson = 0.5");
+    let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+    assert_eq!(e.key.as_deref(), Some("organs[0].materials[0].poisson"));
+    assert_eq!(e.line, Some(16));
+    let bad = GOOD_SCENE.to_string() + "\n[effects]\ncutting = true\n";
+    let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+    assert!(e.to_string().contains("scalpel"), "{e}");
+    assert_eq!(e.key.as_deref(), Some("effects.cutting"));
+    let bad = GOOD_SCENE.replace("builtin = \"block\"", "builtin = \"block\"\nfile = \"x.msh\"");
+    let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+    assert!(e.to_string().contains("not both"), "{e}");
+}
+
+#[test]
+fn missing_scene_and_mesh_files_are_clear_errors() {
+    let e = Scene::load("/nonexistent/scene.toml").unwrap_err();
+    assert!(e.to_string().contains("/nonexistent/scene.toml") && e.to_string().contains("cannot read"), "{e}");
+    let text = GOOD_SCENE.replace("builtin = \"block\"\nsize = [0.1, 0.1, 0.1]\ndivisions = [2, 2, 2]", "file = \"missing.msh\"");
+    let s = Scene::from_toml(&text, "/tmp/dir/s.toml").unwrap();
+    let e = s.organ_model(0).unwrap_err();
+    assert_eq!(e.key.as_deref(), Some("organs[0].mesh.file"));
+    assert!(e.to_string().contains("/tmp/dir/missing.msh"), "path is resolved next to the scene: {e}");
+}
+
+#[test]
+fn empty_fixed_region_is_rejected_before_solving() {
+    let bad = GOOD_SCENE.replace("max = [0.0, 0.1, 0.1] }", "max = [-0.01, 0.1, 0.1] }").replace("min = [0.0, 0.0, 0.0]", "min = [-0.02, 0.0, 0.0]");
+    let s = Scene::from_toml(&bad, "s.toml").unwrap();
+    let e = s.organ_model(0).unwrap_err();
+    assert_eq!(e.key.as_deref(), Some("organs[0].fixed"));
+    assert!(e.to_string().contains("selects no node") && e.to_string().contains("singular"), "{e}");
+}
+
+#[test]
+fn a_fixed_region_that_allows_rigid_motion_is_a_clear_solver_error() {
+    let m = procedural::block_hex([0.0; 3], [0.1; 3], [2, 2, 2]);
+    let mat = MaterialMap::uniform(LinearElastic::new(1e4, 0.3).unwrap(), 1000.0, m.n_cells());
+    let mut p = StaticProblem::new(m.n_nodes());
+    p.forces[3 * 26 + 2] = -1.0;
+    let e = linear_static::solve(&m, &mat, Locking::Bbar, &p, &mut |_| {}).unwrap_err();
+    assert_eq!(e, StaticError::NoConstraints);
+    p.clamp(&[0]);
+    let e = linear_static::solve(&m, &mat, Locking::Bbar, &p, &mut |_| {}).unwrap_err();
+    match &e {
+        StaticError::RigidMotion { free } => assert_eq!(free.len(), 3, "{e}"),
+        other => panic!("expected RigidMotion, got {other}"),
+    }
+    assert!(e.to_string().contains("rotation"), "{e}");
+}
