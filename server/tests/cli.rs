@@ -1,0 +1,105 @@
+//! The `vademecum` binary as a user runs it: the default scene, JSON output, mesh info,
+//! scene validation, exit codes and error messages.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn vademecum(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_vademecum")).args(args).current_dir(dir).output().expect("binary runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn solve_without_arguments_solves_the_default_organ_and_writes_vtu() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["solve"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("organ 'lobe'") && text.contains("strain energy"), "{text}");
+    assert!(dir.path().join("out/organ/lobe.vtu").is_file());
+    assert!(dir.path().join("out/organ/summary.json").is_file());
+}
+
+#[test]
+fn solve_json_reports_energy_reactions_and_timing() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["solve", "--builtin", "cantilever", "--json", "--out", "res"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let organ = &v["organs"][0];
+    assert!(organ["strain_energy_j"].as_f64().unwrap() > 0.0);
+    assert!(organ["max_displacement_m"].as_f64().unwrap() > 0.0);
+    assert!(organ["solve_time_s"].as_f64().unwrap() >= 0.0);
+    // The clamp carries the 1 N tip load.
+    let rz = organ["reaction_force_n"]["fixed"][2].as_f64().unwrap();
+    assert!((rz - 1.0).abs() < 1e-9, "reaction {rz}");
+    assert!(dir.path().join("res/beam.vtu").is_file());
+}
+
+#[test]
+fn scene_show_output_is_a_valid_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["scene", "show", "patch"], dir.path());
+    assert!(o.status.success());
+    std::fs::write(dir.path().join("patch.toml"), o.stdout).unwrap();
+    let o = vademecum(&["scene", "check", "patch.toml"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("patch.toml: ok"));
+}
+
+#[test]
+fn bad_scene_exits_2_with_file_line_and_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["scene", "show", "organ"], dir.path());
+    let text = String::from_utf8(o.stdout).unwrap().replace("poisson = 0.45", "poisson = 0.45\nstiffnes = 3");
+    std::fs::write(dir.path().join("bad.toml"), &text).unwrap();
+    let o = vademecum(&["solve", "bad.toml"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    let line = text.lines().position(|l| l.starts_with("stiffnes")).unwrap() + 1;
+    let err = stderr(&o);
+    assert!(err.starts_with(&format!("vademecum: bad.toml:{line}:")) && err.contains("stiffnes"), "{err}");
+}
+
+#[test]
+fn missing_scene_file_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["solve", "nope.toml"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("nope.toml"), "{}", stderr(&o));
+}
+
+#[test]
+fn mesh_info_reports_counts_and_flags_inverted_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    // a two-tetrahedron mesh, the second inverted
+    let msh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n$EndNodes\n$Elements\n2\n1 4 2 1 1 1 2 3 4\n2 4 2 1 1 2 4 3 5\n$EndElements\n";
+    std::fs::write(dir.path().join("m.msh"), msh).unwrap();
+    let o = vademecum(&["mesh", "info", "m.msh", "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(1), "inverted cells make the check fail: {}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(v["nodes"], 5);
+    assert_eq!(v["cells"], 2);
+    assert_eq!(v["inverted"], 1);
+    let good = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$EndNodes\n$Elements\n1\n1 4 2 1 1 1 2 3 4\n$EndElements\n";
+    std::fs::write(dir.path().join("g.msh"), good).unwrap();
+    let o = vademecum(&["mesh", "info", "g.msh", "--scale", "0.001"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("cells        1 tet4"), "{}", stdout(&o));
+}
+
+#[test]
+fn help_explains_commands_and_exit_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["--help"], dir.path());
+    let text = stdout(&o);
+    for word in ["solve", "mesh", "scene", "bench", "Exit status"] {
+        assert!(text.contains(word), "--help lacks {word}: {text}");
+    }
+}
