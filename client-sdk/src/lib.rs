@@ -40,10 +40,6 @@ impl Client {
 
     /// Asks the server for its version and capabilities.
     pub async fn server_info(&mut self) -> Result<ServerInfo, SdkError> {
-        Ok(self
-            .info
-            .get_server_info(GetServerInfoRequest {})
-            .await?
-            .into_inner())
+        Ok(self.info.get_server_info(GetServerInfoRequest {}).await?.into_inner())
     }
 }

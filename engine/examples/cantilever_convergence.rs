@@ -38,8 +38,20 @@ fn tip_deflection(kind: CellKind, n: usize, nu: f64, locking: Locking) -> (f64, 
     };
     let mat = MaterialMap::uniform(LinearElastic::new(1e6, nu).expect("valid material"), 1000.0, mesh.n_cells());
     let mut p = StaticProblem::new(mesh.n_nodes());
-    p.clamp(&Region::Box { min: [0.0; 3], max: [0.0, h, h] }.nodes(&mesh).expect("region"));
-    let tip = Region::Box { min: [l, 0.0, 0.0], max: [l, h, h] }.nodes(&mesh).expect("region");
+    p.clamp(
+        &Region::Box {
+            min: [0.0; 3],
+            max: [0.0, h, h],
+        }
+        .nodes(&mesh)
+        .expect("region"),
+    );
+    let tip = Region::Box {
+        min: [l, 0.0, 0.0],
+        max: [l, h, h],
+    }
+    .nodes(&mesh)
+    .expect("region");
     loads::add_distributed_force(&mut p.forces, &tip, [0.0, 0.0, -1.0]);
     let sol = linear_static::solve(&mesh, &mat, locking, &p, &mut |_| {}).expect("cantilever solves");
     let w = -tip.iter().map(|&t| sol.u[3 * t + 2]).sum::<f64>() / tip.len() as f64;
@@ -61,7 +73,11 @@ fn main() {
     println!("Cantilever L/h = 10, E = 1 MPa, nu = {nu}; Timoshenko tip deflection {exact:.6e} m\n");
     println!("| element | cells through height | dofs | tip deflection (m) | error vs Timoshenko |");
     println!("|---|---:|---:|---:|---:|");
-    for (kind, locking, label) in [(CellKind::Hex8, Locking::None, "hex8 (full)"), (CellKind::Hex8, Locking::Bbar, "hex8 (B-bar)"), (CellKind::Tet4, Locking::None, "tet4")] {
+    for (kind, locking, label) in [
+        (CellKind::Hex8, Locking::None, "hex8 (full)"),
+        (CellKind::Hex8, Locking::Bbar, "hex8 (B-bar)"),
+        (CellKind::Tet4, Locking::None, "tet4"),
+    ] {
         for n in [1, 2, 4, 8, 12] {
             let (w, dofs) = tip_deflection(kind, n, nu, locking);
             println!("| {label} | {n} | {dofs} | {w:.6e} | {:+.2} % |", 100.0 * (w - exact) / exact);
@@ -80,7 +96,11 @@ fn main() {
     ] {
         for n in [4, 8] {
             let (w, _) = tip_deflection(kind, n, nu, locking);
-            println!("| {} | {label} | {n} | {w:.6e} | {:+.2} % |", kind.name(), 100.0 * (w - exact) / exact);
+            println!(
+                "| {} | {label} | {n} | {w:.6e} | {:+.2} % |",
+                kind.name(),
+                100.0 * (w - exact) / exact
+            );
         }
     }
 }

@@ -111,7 +111,10 @@ fn truncated_or_garbled_vtu_is_an_error() {
         ("half.vtu", text[..text.len() / 2].to_string()),
         ("garbled.vtu", text.replace("<Points>", "<Poin ts>")),
         ("nan.vtu", text.replacen("0.0 0.0 0.0", "zero zero", 1)),
-        ("outofrange.vtu", text.replacen("\n0 1 4 3 9 10 13 12\n", "\n0 1 4 3 9 10 13 999\n", 1)),
+        (
+            "outofrange.vtu",
+            text.replacen("\n0 1 4 3 9 10 13 12\n", "\n0 1 4 3 9 10 13 999\n", 1),
+        ),
     ] {
         let p = dir.path().join(name);
         std::fs::write(&p, bad).unwrap();
@@ -205,21 +208,35 @@ fn inconsistent_scene_settings_name_the_key_and_line() {
 #[test]
 fn missing_scene_and_mesh_files_are_clear_errors() {
     let e = Scene::load("/nonexistent/scene.toml").unwrap_err();
-    assert!(e.to_string().contains("/nonexistent/scene.toml") && e.to_string().contains("cannot read"), "{e}");
-    let text = GOOD_SCENE.replace("builtin = \"block\"\nsize = [0.1, 0.1, 0.1]\ndivisions = [2, 2, 2]", "file = \"missing.msh\"");
+    assert!(
+        e.to_string().contains("/nonexistent/scene.toml") && e.to_string().contains("cannot read"),
+        "{e}"
+    );
+    let text = GOOD_SCENE.replace(
+        "builtin = \"block\"\nsize = [0.1, 0.1, 0.1]\ndivisions = [2, 2, 2]",
+        "file = \"missing.msh\"",
+    );
     let s = Scene::from_toml(&text, "/tmp/dir/s.toml").unwrap();
     let e = s.organ_model(0).unwrap_err();
     assert_eq!(e.key.as_deref(), Some("organs[0].mesh.file"));
-    assert!(e.to_string().contains("/tmp/dir/missing.msh"), "path is resolved next to the scene: {e}");
+    assert!(
+        e.to_string().contains("/tmp/dir/missing.msh"),
+        "path is resolved next to the scene: {e}"
+    );
 }
 
 #[test]
 fn empty_fixed_region_is_rejected_before_solving() {
-    let bad = GOOD_SCENE.replace("max = [0.0, 0.1, 0.1] }", "max = [-0.01, 0.1, 0.1] }").replace("min = [0.0, 0.0, 0.0]", "min = [-0.02, 0.0, 0.0]");
+    let bad = GOOD_SCENE
+        .replace("max = [0.0, 0.1, 0.1] }", "max = [-0.01, 0.1, 0.1] }")
+        .replace("min = [0.0, 0.0, 0.0]", "min = [-0.02, 0.0, 0.0]");
     let s = Scene::from_toml(&bad, "s.toml").unwrap();
     let e = s.organ_model(0).unwrap_err();
     assert_eq!(e.key.as_deref(), Some("organs[0].fixed"));
-    assert!(e.to_string().contains("selects no node") && e.to_string().contains("singular"), "{e}");
+    assert!(
+        e.to_string().contains("selects no node") && e.to_string().contains("singular"),
+        "{e}"
+    );
 }
 
 #[test]

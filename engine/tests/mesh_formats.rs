@@ -14,7 +14,12 @@ use vademecum_engine::mesh::{self, CellKind, Mesh, procedural};
 fn sample() -> (Mesh, Vec<[usize; 3]>) {
     let m = procedural::block_tet([0.0; 3], [0.2, 0.1, 0.1], [4, 2, 2]);
     let b = Boundary::of(&m);
-    let base: Vec<[usize; 3]> = b.faces.iter().filter(|f| f.node_slice().iter().all(|&n| m.nodes[n][2] == 0.0)).map(|f| [f.nodes[0], f.nodes[1], f.nodes[2]]).collect();
+    let base: Vec<[usize; 3]> = b
+        .faces
+        .iter()
+        .filter(|f| f.node_slice().iter().all(|&n| m.nodes[n][2] == 0.0))
+        .map(|f| [f.nodes[0], f.nodes[1], f.nodes[2]])
+        .collect();
     (m, base)
 }
 
@@ -112,7 +117,8 @@ fn write_v41(path: &Path, m: &Mesh, base: &[[usize; 3]], binary: bool) {
     let mut f: Vec<u8> = Vec::new();
     let (lo, hi) = m.bounding_box();
     if !binary {
-        let mut s = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n2 3 \"base\"\n3 7 \"tissue\"\n$EndPhysicalNames\n");
+        let mut s =
+            String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n2 3 \"base\"\n3 7 \"tissue\"\n$EndPhysicalNames\n");
         s += "$Entities\n0 0 1 1\n";
         s += &format!("1 {} {} {} {} {} {} 1 3 0\n", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
         s += &format!("1 {} {} {} {} {} {} 1 7 1 1\n", lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
@@ -123,7 +129,11 @@ fn write_v41(path: &Path, m: &Mesh, base: &[[usize; 3]], binary: bool) {
         for p in &m.nodes {
             s += &format!("{:?} {:?} {:?}\n", p[0], p[1], p[2]);
         }
-        s += &format!("$EndNodes\n$Elements\n2 {} 1 {}\n", base.len() + m.n_cells(), base.len() + m.n_cells());
+        s += &format!(
+            "$EndNodes\n$Elements\n2 {} 1 {}\n",
+            base.len() + m.n_cells(),
+            base.len() + m.n_cells()
+        );
         s += &format!("2 1 2 {}\n", base.len());
         let mut id = 0;
         for t in base {
@@ -268,7 +278,12 @@ fn physical_groups_select_nodes_by_name() {
     let r = mesh::read(&p).unwrap();
     let nodes = Region::Group(GroupRef::Name("base".into())).nodes(&r).unwrap();
     assert!(!nodes.is_empty() && nodes.iter().all(|&n| r.nodes[n][2] == 0.0));
-    let plane = Region::Box { min: [0.0, 0.0, 0.0], max: [0.2, 0.1, 0.0] }.nodes(&r).unwrap();
+    let plane = Region::Box {
+        min: [0.0, 0.0, 0.0],
+        max: [0.2, 0.1, 0.0],
+    }
+    .nodes(&r)
+    .unwrap();
     assert_eq!(nodes, plane);
     let err = Region::Group(GroupRef::Name("nope".into())).nodes(&r).unwrap_err();
     assert!(err.to_string().contains("base"), "error lists the known groups: {err}");
@@ -277,11 +292,28 @@ fn physical_groups_select_nodes_by_name() {
 #[test]
 fn vtu_round_trips_mesh_and_fields_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    for m in [procedural::block_hex([0.0; 3], [0.3, 0.1, 0.2], [3, 2, 2]), procedural::lobe(&Default::default())] {
+    for m in [
+        procedural::block_hex([0.0; 3], [0.3, 0.1, 0.2], [3, 2, 2]),
+        procedural::lobe(&Default::default()),
+    ] {
         let u: Vec<f64> = (0..m.n_dofs()).map(|i| (i as f64 * 0.37).sin() * 1e-3 / 3.0).collect();
         let vm: Vec<f64> = (0..m.n_cells()).map(|c| c as f64 / 7.0).collect();
         let p = dir.path().join("r.vtu");
-        vtk::write_vtu(&p, &m, &[Field { name: "displacement", components: 3, values: &u }], &[Field { name: "von_mises", components: 1, values: &vm }]).unwrap();
+        vtk::write_vtu(
+            &p,
+            &m,
+            &[Field {
+                name: "displacement",
+                components: 3,
+                values: &u,
+            }],
+            &[Field {
+                name: "von_mises",
+                components: 1,
+                values: &vm,
+            }],
+        )
+        .unwrap();
         let r = mesh::read(&p).unwrap();
         assert_eq!((r.kind, &r.nodes, &r.cells), (m.kind, &m.nodes, &m.cells));
         assert_eq!(vtk::read_point_data(&p, "displacement").unwrap().unwrap(), u);
@@ -300,7 +332,14 @@ fn pvd_lists_its_steps() {
 
 fn write_legacy_vtk(path: &Path, m: &Mesh, binary: bool) {
     let mut f: Vec<u8> = Vec::new();
-    f.extend_from_slice(format!("# vtk DataFile Version 3.0\ntest\n{}\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n", if binary { "BINARY" } else { "ASCII" }, m.n_nodes()).as_bytes());
+    f.extend_from_slice(
+        format!(
+            "# vtk DataFile Version 3.0\ntest\n{}\nDATASET UNSTRUCTURED_GRID\nPOINTS {} double\n",
+            if binary { "BINARY" } else { "ASCII" },
+            m.n_nodes()
+        )
+        .as_bytes(),
+    );
     let npc = m.kind.nodes_per_cell();
     if binary {
         for p in &m.nodes {

@@ -81,7 +81,12 @@ fn run_patch(mesh: &Mesh, locking: Locking) {
     ];
     for s in &stresses {
         for k in 0..6 {
-            assert!((s[k] - want[k]).abs() < 1e-9 * 20.0, "stress component {k}: {} vs {}", s[k], want[k]);
+            assert!(
+                (s[k] - want[k]).abs() < 1e-9 * 20.0,
+                "stress component {k}: {} vs {}",
+                s[k],
+                want[k]
+            );
         }
     }
 }

@@ -15,7 +15,9 @@ fn every_builtin_scene_solves_in_equilibrium() {
             assert!(sol.residual < 1e-9, "{name}: residual {}", sol.residual);
             // Σ reactions + Σ external forces = 0 (no inertia)
             for k in 0..3 {
-                let total: f64 = (0..m.mesh.n_nodes()).map(|n| sol.reactions[3 * n + k] + m.problem.forces[3 * n + k]).sum();
+                let total: f64 = (0..m.mesh.n_nodes())
+                    .map(|n| sol.reactions[3 * n + k] + m.problem.forces[3 * n + k])
+                    .sum();
                 let scale = m.problem.forces.iter().map(|f| f.abs()).sum::<f64>().max(1e-30);
                 assert!(total.abs() < 1e-9 * scale, "{name}: force balance {k}: {total}");
             }
@@ -32,14 +34,33 @@ fn seed_patch_model_solves_and_round_trips_through_vtu() {
     let sol = linear_static::solve(&m.mesh, &m.materials, m.locking, &m.problem, &mut |_| {}).unwrap();
     // All prescribed displacements are zero, so U = ½ f·u (Clapeyron).
     let work: f64 = 0.5 * m.problem.forces.iter().zip(&sol.u).map(|(f, u)| f * u).sum::<f64>();
-    assert!((sol.strain_energy - work).abs() < 1e-10 * work, "U {} vs ½f·u {}", sol.strain_energy, work);
+    assert!(
+        (sol.strain_energy - work).abs() < 1e-10 * work,
+        "U {} vs ½f·u {}",
+        sol.strain_energy,
+        work
+    );
     // The loaded upper corner moves down.
     let loaded = (0..m.mesh.n_nodes()).find(|&n| m.mesh.nodes[n] == [5.0, 0.0, 5.0]).unwrap();
     assert!(sol.u[3 * loaded + 2] < 0.0);
     // Round trip.
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("patch.vtu");
-    vtk::write_vtu(&p, &m.mesh, &[vtk::Field { name: "displacement", components: 3, values: &sol.u }], &[vtk::Field { name: "von_mises", components: 1, values: &sol.von_mises }]).unwrap();
+    vtk::write_vtu(
+        &p,
+        &m.mesh,
+        &[vtk::Field {
+            name: "displacement",
+            components: 3,
+            values: &sol.u,
+        }],
+        &[vtk::Field {
+            name: "von_mises",
+            components: 1,
+            values: &sol.von_mises,
+        }],
+    )
+    .unwrap();
     let back = mesh::read(&p).unwrap();
     assert_eq!((&back.nodes, &back.cells), (&m.mesh.nodes, &m.mesh.cells));
     assert_eq!(vtk::read_point_data(&p, "displacement").unwrap().unwrap(), sol.u);

@@ -12,7 +12,9 @@ use vademecum_engine::mesh::{self, CellKind};
 use vademecum_engine::scene::Scene;
 
 fn shared() -> Option<PathBuf> {
-    let dir = std::env::var_os("VADEMECUM_SHARED").map(PathBuf::from).unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared"));
+    let dir = std::env::var_os("VADEMECUM_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared"));
     let meshes = dir.join("data/meshes");
     if meshes.is_dir() {
         Some(meshes)
@@ -30,7 +32,13 @@ const EXPECTED: &[(&str, usize, usize, usize, CellKind)] = &[
     ("sofa/cylinderPDMS12724Vol.vtk", 3668, 3668, 12724, CellKind::Tet4),
     ("sofa/truth_cylinder/cylinder_Hexa.msh", 5740, 5740, 4920, CellKind::Hex8),
     ("sofa_env/grasp_lift_touch/liver_volumetric.vtk", 98, 98, 273, CellKind::Tet4),
-    ("sofa_env/grasp_lift_touch/gallbladder_volumetric.vtk", 367, 366, 1063, CellKind::Tet4),
+    (
+        "sofa_env/grasp_lift_touch/gallbladder_volumetric.vtk",
+        367,
+        366,
+        1063,
+        CellKind::Tet4,
+    ),
     ("sofa_env/tissue_manipulation/tissue_volumetric.msh", 145, 145, 348, CellKind::Tet4),
     ("sofa_env/tissue_retraction/tissue_volume.msh", 493, 493, 1432, CellKind::Tet4),
     ("derived/openhelp_liver_tet_h20.msh", 3463, 3463, 14335, CellKind::Tet4),
@@ -54,7 +62,10 @@ fn every_shared_volume_mesh_reads_with_the_documented_counts() {
                     failures.push(format!("{file}: got {got:?}, SOURCES.md says {:?}", (nodes, used, cells, kind)));
                 }
                 if q.inverted != 0 || q.degenerate != 0 {
-                    failures.push(format!("{file}: {} inverted, {} degenerate after reading", q.inverted, q.degenerate));
+                    failures.push(format!(
+                        "{file}: {} inverted, {} degenerate after reading",
+                        q.inverted, q.degenerate
+                    ));
                 }
             }
             Err(e) => failures.push(format!("{file}: {e}")),

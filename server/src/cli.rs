@@ -28,10 +28,12 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Solve a scene's static loads and write the result as .vtu.
-    #[command(long_about = "Solve a scene's static loads with linear finite elements and write one .vtu per organ \
+    #[command(
+        long_about = "Solve a scene's static loads with linear finite elements and write one .vtu per organ \
 (displacement, von Mises stress, reactions) plus summary.json.\n\n\
 Without SCENE, solves the built-in default scene ('organ'). Open the .vtu files in ParaView \
-(Filters > Warp By Vector on 'displacement' shows the deformed shape).")]
+(Filters > Warp By Vector on 'displacement' shows the deformed shape)."
+    )]
     Solve(SolveArgs),
     /// Inspect meshes.
     #[command(subcommand)]
@@ -154,7 +156,9 @@ mod tests {
     #[test]
     fn bench_sizes_parse_as_a_list() {
         let c = Cli::parse_from(["vademecum", "bench", "fe", "--dofs", "100,200"]);
-        let Command::Bench(BenchCommand::Fe(a)) = c.command else { panic!("not bench") };
+        let Command::Bench(BenchCommand::Fe(a)) = c.command else {
+            panic!("not bench")
+        };
         assert_eq!(a.dofs, vec![100, 200]);
     }
 }

@@ -5,7 +5,11 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn vademecum(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_vademecum")).args(args).current_dir(dir).output().expect("binary runs")
+    Command::new(env!("CARGO_BIN_EXE_vademecum"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("binary runs")
 }
 
 fn stdout(o: &Output) -> String {
@@ -58,13 +62,18 @@ fn scene_show_output_is_a_valid_scene() {
 fn bad_scene_exits_2_with_file_line_and_key() {
     let dir = tempfile::tempdir().unwrap();
     let o = vademecum(&["scene", "show", "organ"], dir.path());
-    let text = String::from_utf8(o.stdout).unwrap().replace("poisson = 0.45", "poisson = 0.45\nstiffnes = 3");
+    let text = String::from_utf8(o.stdout)
+        .unwrap()
+        .replace("poisson = 0.45", "poisson = 0.45\nstiffnes = 3");
     std::fs::write(dir.path().join("bad.toml"), &text).unwrap();
     let o = vademecum(&["solve", "bad.toml"], dir.path());
     assert_eq!(o.status.code(), Some(2));
     let line = text.lines().position(|l| l.starts_with("stiffnes")).unwrap() + 1;
     let err = stderr(&o);
-    assert!(err.starts_with(&format!("vademecum: bad.toml:{line}:")) && err.contains("stiffnes"), "{err}");
+    assert!(
+        err.starts_with(&format!("vademecum: bad.toml:{line}:")) && err.contains("stiffnes"),
+        "{err}"
+    );
 }
 
 #[test]

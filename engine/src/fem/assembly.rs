@@ -98,7 +98,11 @@ pub struct MaterialMap {
 impl MaterialMap {
     /// One material and density for every cell.
     pub fn uniform(mat: LinearElastic, density: f64, n_cells: usize) -> Self {
-        Self { table: vec![mat], of_cell: vec![0; n_cells], density: vec![density] }
+        Self {
+            table: vec![mat],
+            of_cell: vec![0; n_cells],
+            density: vec![density],
+        }
     }
 
     /// The material of cell `c`.
@@ -157,7 +161,9 @@ impl SymmetricPattern {
                 col_ptr.push(row_idx.len());
             }
         }
-        Self { symbolic: SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx) }
+        Self {
+            symbolic: SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx),
+        }
     }
 
     /// Matrix dimension.
@@ -197,7 +203,10 @@ impl SymmetricMatrix {
     /// A zero matrix on `pattern`.
     pub fn zeros(pattern: Arc<SymmetricPattern>) -> Self {
         let nnz = pattern.nnz();
-        Self { pattern, values: vec![0.0; nnz] }
+        Self {
+            pattern,
+            values: vec![0.0; nnz],
+        }
     }
 
     /// A faer view of the lower triangle.
@@ -324,6 +333,54 @@ pub fn cell_stresses(mesh: &Mesh, materials: &MaterialMap, locking: Locking, u: 
             element::stress(mesh.kind, &x, &ue, materials.of(c), locking, &mut s).map_err(|source| AssemblyError { cell: c, source })
         })
         .collect()
+}
+
+/// Assembles the consistent mass `M_ff` (`M_ab = ρ ∫ N_a N_b dV` times the 3×3 identity) on
+/// the stiffness pattern, or its row-sum lumped diagonal when `lumped`.
+pub fn assemble_mass(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    dofs: &DofMap,
+    pattern: Arc<SymmetricPattern>,
+    lumped: bool,
+) -> Result<SymmetricMatrix, AssemblyError> {
+    let mut m = SymmetricMatrix::zeros(pattern);
+    let n = mesh.kind.nodes_per_cell();
+    let mut x = vec![[0.0; 3]; n];
+    let mut me = vec![0.0; n * n];
+    let mut ml = vec![0.0; n];
+    let s = ElementScratch::default();
+    for c in 0..mesh.n_cells() {
+        mesh.cell_coords(c, &mut x);
+        let cell = mesh.cell(c);
+        let rho = materials.density_of(c);
+        if lumped {
+            element::lumped_mass(mesh.kind, &x, rho, &s, &mut ml).map_err(|source| AssemblyError { cell: c, source })?;
+            for a in 0..n {
+                for i in 0..3 {
+                    if let Some(e) = dofs.eq(3 * cell[a] + i) {
+                        let pos = m.pattern.position(e, e).expect("pattern has the diagonal");
+                        m.values[pos] += ml[a];
+                    }
+                }
+            }
+        } else {
+            element::consistent_mass(mesh.kind, &x, rho, &s, &mut me).map_err(|source| AssemblyError { cell: c, source })?;
+            for a in 0..n {
+                for b in 0..n {
+                    for i in 0..3 {
+                        if let (Some(r), Some(col)) = (dofs.eq(3 * cell[a] + i), dofs.eq(3 * cell[b] + i)) {
+                            if r >= col {
+                                let pos = m.pattern.position(r, col).expect("pattern covers every cell coupling");
+                                m.values[pos] += me[a * n + b];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(m)
 }
 
 /// Lumped nodal masses (kg) of every node.

@@ -68,7 +68,13 @@ impl Default for ElementScratch {
             hex_dn[q] = shape::hex_dn(g[q]);
             hex_n[q] = shape::hex_n(g[q]);
         }
-        Self { grad: [[0.0; 3]; 8], gbar: [[0.0; 3]; 8], hex_dn, hex_n, hex_dn_centre: shape::hex_dn([0.0; 3]) }
+        Self {
+            grad: [[0.0; 3]; 8],
+            gbar: [[0.0; 3]; 8],
+            hex_dn,
+            hex_n,
+            hex_dn_centre: shape::hex_dn([0.0; 3]),
+        }
     }
 }
 
@@ -174,7 +180,14 @@ pub fn stiffness(
 /// Stress at the cell centre in Voigt order `[σxx, σyy, σzz, σxy, σyz, σzx]` (Pa), from the
 /// cell's nodal displacements `u` (flat, `3n`). The volumetric part follows the same locking
 /// option as the stiffness: `σ = κ θ I + 2μ dev ε`, with θ the (averaged) dilatation.
-pub fn stress(kind: CellKind, x: &[[f64; 3]], u: &[f64], mat: &LinearElastic, locking: Locking, s: &mut ElementScratch) -> Result<[f64; 6], ElementError> {
+pub fn stress(
+    kind: CellKind,
+    x: &[[f64; 3]],
+    u: &[f64],
+    mat: &LinearElastic,
+    locking: Locking,
+    s: &mut ElementScratch,
+) -> Result<[f64; 6], ElementError> {
     let n = kind.nodes_per_cell();
     let mut dn = [[0.0; 3]; 8];
     match kind {
@@ -285,7 +298,11 @@ mod tests {
             .enumerate()
             .map(|(a, p)| {
                 let d = 0.07 * ((a * 7 % 5) as f64 - 2.0);
-                [0.5 * p[0] + 0.6 + d, 0.4 * p[1] + 0.1 * p[0] - d * 0.5, 0.3 * p[2] + 0.05 * p[1] + 0.3 * d]
+                [
+                    0.5 * p[0] + 0.6 + d,
+                    0.4 * p[1] + 0.1 * p[0] - d * 0.5,
+                    0.3 * p[2] + 0.05 * p[1] + 0.3 * d,
+                ]
             })
             .collect()
     }
@@ -304,7 +321,10 @@ mod tests {
         let nd = 3 * n;
         for r in 0..nd {
             for c in 0..nd {
-                assert!((ke[r * nd + c] - ke[c * nd + r]).abs() <= 1e-12 * scale, "K not symmetric at ({r},{c})");
+                assert!(
+                    (ke[r * nd + c] - ke[c * nd + r]).abs() <= 1e-12 * scale,
+                    "K not symmetric at ({r},{c})"
+                );
             }
         }
         // Six rigid modes: 3 translations, 3 rotations u = ω × x.
@@ -342,7 +362,15 @@ mod tests {
         let mut x = distorted_hex();
         let mut ke = vec![0.0; 576];
         let mut s2 = ElementScratch::default();
-        let vol = stiffness(CellKind::Hex8, &x, &LinearElastic::new(1.0, 0.2).unwrap(), Locking::None, &mut s2, &mut ke).unwrap();
+        let vol = stiffness(
+            CellKind::Hex8,
+            &x,
+            &LinearElastic::new(1.0, 0.2).unwrap(),
+            Locking::None,
+            &mut s2,
+            &mut ke,
+        )
+        .unwrap();
         assert!((total - 1000.0 * vol).abs() < 1e-9 * total);
         x.truncate(4);
         let mut m = [0.0; 4];
@@ -358,7 +386,14 @@ mod tests {
         let mut x = tet();
         x.swap(1, 2);
         let mut ke = vec![0.0; 144];
-        let r = stiffness(CellKind::Tet4, &x, &LinearElastic::new(1.0, 0.3).unwrap(), Locking::None, &mut ElementScratch::default(), &mut ke);
+        let r = stiffness(
+            CellKind::Tet4,
+            &x,
+            &LinearElastic::new(1.0, 0.3).unwrap(),
+            Locking::None,
+            &mut ElementScratch::default(),
+            &mut ke,
+        );
         assert!(matches!(r, Err(ElementError::NonPositiveJacobian { .. })));
     }
 

@@ -34,7 +34,11 @@ pub struct StaticProblem {
 impl StaticProblem {
     /// A problem with no constraints and no loads on `n_nodes` nodes.
     pub fn new(n_nodes: usize) -> Self {
-        Self { constrained: vec![false; 3 * n_nodes], prescribed: vec![0.0; 3 * n_nodes], forces: vec![0.0; 3 * n_nodes] }
+        Self {
+            constrained: vec![false; 3 * n_nodes],
+            prescribed: vec![0.0; 3 * n_nodes],
+            forces: vec![0.0; 3 * n_nodes],
+        }
     }
 
     /// Fixes all three components of `nodes` at zero.
@@ -165,7 +169,9 @@ impl StaticSolution {
 #[non_exhaustive]
 pub enum StaticError {
     /// Nothing is constrained: the system is singular.
-    #[error("no degree of freedom is fixed, so the body can move freely and the system is singular; give the scene a non-empty fixed region")]
+    #[error(
+        "no degree of freedom is fixed, so the body can move freely and the system is singular; give the scene a non-empty fixed region"
+    )]
     NoConstraints,
     /// The constraints leave rigid motions free.
     #[error("the fixed region does not stop the body from moving: free {}; fix more nodes or nodes that are not aligned", .free.join("; "))]
@@ -185,7 +191,13 @@ pub enum StaticError {
 }
 
 /// Solves the static linear-elastic problem. See the module docs for the stages.
-pub fn solve(mesh: &Mesh, materials: &MaterialMap, locking: Locking, problem: &StaticProblem, on_stage: &mut dyn FnMut(Stage)) -> Result<StaticSolution, StaticError> {
+pub fn solve(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    locking: Locking,
+    problem: &StaticProblem,
+    on_stage: &mut dyn FnMut(Stage),
+) -> Result<StaticSolution, StaticError> {
     let n_dofs = mesh.n_dofs();
     assert_eq!(problem.constrained.len(), n_dofs, "problem vectors must have 3 entries per node");
     on_stage(Stage::Check);

@@ -43,7 +43,12 @@ pub fn add_traction(f: &mut [f64], mesh: &Mesh, boundary: &Boundary, faces: &[us
         } else {
             let x: Vec<[f64; 3]> = face.nodes.iter().map(|&n| mesh.nodes[n]).collect();
             for (xi, eta) in [(-g, -g), (g, -g), (g, g), (-g, g)] {
-                let n = [(1.0 - xi) * (1.0 - eta) / 4.0, (1.0 + xi) * (1.0 - eta) / 4.0, (1.0 + xi) * (1.0 + eta) / 4.0, (1.0 - xi) * (1.0 + eta) / 4.0];
+                let n = [
+                    (1.0 - xi) * (1.0 - eta) / 4.0,
+                    (1.0 + xi) * (1.0 - eta) / 4.0,
+                    (1.0 + xi) * (1.0 + eta) / 4.0,
+                    (1.0 - xi) * (1.0 + eta) / 4.0,
+                ];
                 let dxi = [-(1.0 - eta) / 4.0, (1.0 - eta) / 4.0, (1.0 + eta) / 4.0, -(1.0 + eta) / 4.0];
                 let deta = [-(1.0 - xi) / 4.0, -(1.0 + xi) / 4.0, (1.0 + xi) / 4.0, (1.0 - xi) / 4.0];
                 let mut a = [0.0; 3];

@@ -135,7 +135,10 @@ mod tests {
     #[test]
     fn gradients_of_a_linear_field_are_exact() {
         // Affine map of the reference hex; the gradient of u = c·x must come out as c.
-        let x: Vec<[f64; 3]> = HEX_NODES.iter().map(|s| [2.0 * s[0] + 0.3 * s[1], 1.5 * s[1], 0.7 * s[2] + 0.1 * s[0]]).collect();
+        let x: Vec<[f64; 3]> = HEX_NODES
+            .iter()
+            .map(|s| [2.0 * s[0] + 0.3 * s[1], 1.5 * s[1], 0.7 * s[2] + 0.1 * s[0]])
+            .collect();
         let c = [0.4, -1.1, 2.5];
         let u: Vec<f64> = x.iter().map(|p| c[0] * p[0] + c[1] * p[1] + c[2] * p[2]).collect();
         let mut g = [[0.0; 3]; 8];

@@ -64,7 +64,11 @@ impl LinearElastic {
 
 /// Checks a density (kg/m³).
 pub fn validate_density(rho: f64) -> Result<(), MaterialError> {
-    if rho.is_finite() && rho > 0.0 { Ok(()) } else { Err(MaterialError::Density(rho)) }
+    if rho.is_finite() && rho > 0.0 {
+        Ok(())
+    } else {
+        Err(MaterialError::Density(rho))
+    }
 }
 
 #[cfg(test)]

@@ -70,11 +70,21 @@ impl Boundary {
                 match mesh.kind {
                     CellKind::Tet4 => {
                         let f = TET_FACES[local as usize];
-                        BoundaryFace { cell, local, nodes: [nodes_of[f[0]], nodes_of[f[1]], nodes_of[f[2]], usize::MAX], len: 3 }
+                        BoundaryFace {
+                            cell,
+                            local,
+                            nodes: [nodes_of[f[0]], nodes_of[f[1]], nodes_of[f[2]], usize::MAX],
+                            len: 3,
+                        }
                     }
                     CellKind::Hex8 => {
                         let f = HEX_FACES[local as usize];
-                        BoundaryFace { cell, local, nodes: [nodes_of[f[0]], nodes_of[f[1]], nodes_of[f[2]], nodes_of[f[3]]], len: 4 }
+                        BoundaryFace {
+                            cell,
+                            local,
+                            nodes: [nodes_of[f[0]], nodes_of[f[1]], nodes_of[f[2]], nodes_of[f[3]]],
+                            len: 4,
+                        }
                     }
                 }
             })

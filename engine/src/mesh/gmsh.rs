@@ -92,14 +92,23 @@ impl Collected {
     }
 
     fn into_mesh(self, path: &Path) -> Result<Mesh, MeshError> {
-        let err = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
+        let err = |message: String| MeshError::Parse {
+            path: path.to_path_buf(),
+            message,
+        };
         let mut index: HashMap<u64, usize> = HashMap::with_capacity(self.node_tags.len());
         for (i, &t) in self.node_tags.iter().enumerate() {
             if index.insert(t, i).is_some() {
                 return Err(err(format!("node tag {t} is defined twice")));
             }
         }
-        let map = |t: u64| index.get(&t).copied().ok_or_else(|| err(format!("an element refers to node tag {t}, which the $Nodes section does not define")));
+        let map = |t: u64| {
+            index.get(&t).copied().ok_or_else(|| {
+                err(format!(
+                    "an element refers to node tag {t}, which the $Nodes section does not define"
+                ))
+            })
+        };
         if !self.other_volume.is_empty() {
             let list: Vec<String> = self.other_volume.iter().map(|(t, n)| format!("{n} of gmsh type {t}")).collect();
             return Err(MeshError::UnsupportedCells {
@@ -116,13 +125,22 @@ impl Collected {
             (false, false) => {
                 return Err(MeshError::UnsupportedCells {
                     path: path.to_path_buf(),
-                    message: format!("the mesh mixes {} tetrahedra and {} hexahedra; vademecum needs one cell kind per mesh", self.tets.len(), self.hexes.len()),
+                    message: format!(
+                        "the mesh mixes {} tetrahedra and {} hexahedra; vademecum needs one cell kind per mesh",
+                        self.tets.len(),
+                        self.hexes.len()
+                    ),
                 });
             }
             (true, true) => {
                 return Err(MeshError::NoVolumeCells {
                     path: path.to_path_buf(),
-                    found: format!("{} nodes, {} tagged triangles, {} tagged quads", self.nodes.len(), self.tris.len(), self.quads.len()),
+                    found: format!(
+                        "{} nodes, {} tagged triangles, {} tagged quads",
+                        self.nodes.len(),
+                        self.tris.len(),
+                        self.quads.len()
+                    ),
                 });
             }
         };
@@ -142,12 +160,27 @@ impl Collected {
         }
         let mut tagged_faces: BTreeMap<i32, TaggedFaces> = BTreeMap::new();
         for (f, r) in &self.tris {
-            tagged_faces.entry(*r).or_default().triangles.push([map(f[0])?, map(f[1])?, map(f[2])?]);
+            tagged_faces
+                .entry(*r)
+                .or_default()
+                .triangles
+                .push([map(f[0])?, map(f[1])?, map(f[2])?]);
         }
         for (f, r) in &self.quads {
-            tagged_faces.entry(*r).or_default().quads.push([map(f[0])?, map(f[1])?, map(f[2])?, map(f[3])?]);
+            tagged_faces
+                .entry(*r)
+                .or_default()
+                .quads
+                .push([map(f[0])?, map(f[1])?, map(f[2])?, map(f[3])?]);
         }
-        Ok(Mesh { nodes: self.nodes, kind, cells, cell_region, tagged_faces, group_names: self.names })
+        Ok(Mesh {
+            nodes: self.nodes,
+            kind,
+            cells,
+            cell_region,
+            tagged_faces,
+            group_names: self.names,
+        })
     }
 }
 
@@ -159,21 +192,28 @@ pub fn read(path: &Path) -> Result<Mesh, MeshError> {
 
 /// Parses Gmsh bytes (see [`read`]); `path` is only used in messages.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
-    let err = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
+    let err = |message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
     let start = bytes.iter().position(|b| !b.is_ascii_whitespace()).unwrap_or(bytes.len());
     let body = &bytes[start..];
     if body.starts_with(b"$NOD") {
         return parse_v1(body, path)?.into_mesh(path);
     }
     if !body.starts_with(b"$MeshFormat") {
-        return Err(err("not a Gmsh file: it does not start with $MeshFormat (or $NOD for version 1)".into()));
+        return Err(err(
+            "not a Gmsh file: it does not start with $MeshFormat (or $NOD for version 1)".into()
+        ));
     }
     let mut cur = Cursor::new(body);
     cur.line(); // $MeshFormat
     let header = cur.line().ok_or_else(|| err("truncated $MeshFormat section".into()))?;
     let fields: Vec<&str> = header.split_whitespace().collect();
     if fields.len() < 3 {
-        return Err(err(format!("malformed $MeshFormat line '{header}' (expected 'version file-type data-size')")));
+        return Err(err(format!(
+            "malformed $MeshFormat line '{header}' (expected 'version file-type data-size')"
+        )));
     }
     let version: f64 = fields[0].parse().map_err(|_| err(format!("bad format version '{}'", fields[0])))?;
     let binary = fields[1] == "1";
@@ -235,8 +275,14 @@ impl<'a> Cursor<'a> {
 }
 
 fn parse_num<T: std::str::FromStr>(s: Option<&str>, what: &str, section: &str, path: &Path) -> Result<T, MeshError> {
-    let s = s.ok_or_else(|| MeshError::Parse { path: path.to_path_buf(), message: format!("truncated {section} section: missing {what}") })?;
-    s.parse().map_err(|_| MeshError::Parse { path: path.to_path_buf(), message: format!("in {section}: expected {what}, found '{s}'") })
+    let s = s.ok_or_else(|| MeshError::Parse {
+        path: path.to_path_buf(),
+        message: format!("truncated {section} section: missing {what}"),
+    })?;
+    s.parse().map_err(|_| MeshError::Parse {
+        path: path.to_path_buf(),
+        message: format!("in {section}: expected {what}, found '{s}'"),
+    })
 }
 
 fn parse_physical_names(cur: &mut Cursor<'_>, out: &mut BTreeMap<i32, String>, path: &Path) -> Result<(), MeshError> {
@@ -254,7 +300,10 @@ fn parse_physical_names(cur: &mut Cursor<'_>, out: &mut BTreeMap<i32, String>, p
 
 /// Format version 2 (`2.x 0 8` ASCII, `2.x 1 8` binary).
 fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshError> {
-    let err = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
+    let err = |message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
     let mut cur = Cursor::new(bytes);
     cur.line();
     cur.line();
@@ -288,7 +337,9 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                             _ => return Err(err(format!("truncated $Nodes section: {i} of {n} nodes read"))),
                         }
                     } else {
-                        let line = cur.line().ok_or_else(|| err(format!("truncated $Nodes section: {i} of {n} nodes read")))?;
+                        let line = cur
+                            .line()
+                            .ok_or_else(|| err(format!("truncated $Nodes section: {i} of {n} nodes read")))?;
                         let mut it = line.split_whitespace();
                         let t: u64 = parse_num(it.next(), "a node tag", "$Nodes", path)?;
                         let x: f64 = parse_num(it.next(), "an x coordinate", "$Nodes", path)?;
@@ -302,7 +353,9 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                     cur.line();
                 }
                 if cur.line() != Some("$EndNodes") {
-                    return Err(err("the $Nodes section does not end with $EndNodes where its node count says".into()));
+                    return Err(err(
+                        "the $Nodes section does not end with $EndNodes where its node count says".into()
+                    ));
                 }
                 have_nodes = true;
             }
@@ -318,7 +371,9 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                         };
                         let nn = nodes_of_type(ty).ok_or_else(|| err(format!("unknown element type {ty} in binary $Elements")))?;
                         if count <= 0 || ntags < 0 || read + count as usize > n {
-                            return Err(err(format!("corrupt binary element block header (type {ty}, count {count}, tags {ntags})")));
+                            return Err(err(format!(
+                                "corrupt binary element block header (type {ty}, count {count}, tags {ntags})"
+                            )));
                         }
                         let mut nodes = vec![0u64; nn];
                         for _ in 0..count {
@@ -328,7 +383,10 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                                 tags.push(cur.i32(swap).unwrap_or(0));
                             }
                             for v in nodes.iter_mut() {
-                                *v = cur.i32(swap).ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))? as u64;
+                                *v = cur
+                                    .i32(swap)
+                                    .ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))?
+                                    as u64;
                             }
                             out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes);
                             read += 1;
@@ -338,7 +396,9 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                 } else {
                     let mut nodes = Vec::new();
                     for i in 0..n {
-                        let line = cur.line().ok_or_else(|| err(format!("truncated $Elements section: {i} of {n} elements read")))?;
+                        let line = cur
+                            .line()
+                            .ok_or_else(|| err(format!("truncated $Elements section: {i} of {n} elements read")))?;
                         let mut it = line.split_whitespace();
                         let _id: u64 = parse_num(it.next(), "an element id", "$Elements", path)?;
                         let ty: i32 = parse_num(it.next(), "an element type", "$Elements", path)?;
@@ -360,7 +420,9 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                     }
                 }
                 if cur.line() != Some("$EndElements") {
-                    return Err(err("the $Elements section does not end with $EndElements where its element count says".into()));
+                    return Err(err(
+                        "the $Elements section does not end with $EndElements where its element count says".into(),
+                    ));
                 }
                 have_elements = true;
             }
@@ -381,7 +443,10 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
 
 /// Format version 1 (`$NOD` … `$ENDNOD`, `$ELM` … `$ENDELM`), ASCII only.
 fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
-    let err = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
+    let err = |message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
     let mut cur = Cursor::new(bytes);
     let mut out = Collected::default();
     let (mut have_nodes, mut have_elements) = (false, false);
@@ -390,7 +455,9 @@ fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
             "$NOD" => {
                 let n: usize = parse_num(cur.line(), "the number of nodes", "$NOD", path)?;
                 for i in 0..n {
-                    let line = cur.line().ok_or_else(|| err(format!("truncated $NOD section: {i} of {n} nodes read")))?;
+                    let line = cur
+                        .line()
+                        .ok_or_else(|| err(format!("truncated $NOD section: {i} of {n} nodes read")))?;
                     let mut it = line.split_whitespace();
                     let t: u64 = parse_num(it.next(), "a node number", "$NOD", path)?;
                     let x: f64 = parse_num(it.next(), "an x coordinate", "$NOD", path)?;
@@ -408,7 +475,9 @@ fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
                 let n: usize = parse_num(cur.line(), "the number of elements", "$ELM", path)?;
                 let mut nodes = Vec::new();
                 for i in 0..n {
-                    let line = cur.line().ok_or_else(|| err(format!("truncated $ELM section: {i} of {n} elements read")))?;
+                    let line = cur
+                        .line()
+                        .ok_or_else(|| err(format!("truncated $ELM section: {i} of {n} elements read")))?;
                     let mut it = line.split_whitespace();
                     let _id: u64 = parse_num(it.next(), "an element number", "$ELM", path)?;
                     let ty: i32 = parse_num(it.next(), "an element type", "$ELM", path)?;
@@ -440,7 +509,10 @@ fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
 
 /// Format version 4.1, through `mshio`, plus `$PhysicalNames` (text in both encodings).
 fn parse_v41(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
-    let err = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
+    let err = |message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
     let msh = mshio::parse_msh_bytes(bytes).map_err(|e| {
         let text = e.to_string();
         let text = text.lines().filter(|l| !l.trim().is_empty()).collect::<Vec<_>>().join(" ");
@@ -497,7 +569,11 @@ fn parse_v41(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
         for e in &b.elements {
             if let Some(nn) = nodes_of_type(ty) {
                 if e.nodes.len() < nn {
-                    return Err(err(format!("element {} of type {ty} has {} nodes, expected {nn}", e.element_tag, e.nodes.len())));
+                    return Err(err(format!(
+                        "element {} of type {ty} has {} nodes, expected {nn}",
+                        e.element_tag,
+                        e.nodes.len()
+                    )));
                 }
             }
             out.push_element(ty, p, &e.nodes);

@@ -107,9 +107,7 @@ pub enum MeshError {
         source: std::io::Error,
     },
     /// The file extension is not one of the supported formats.
-    #[error(
-        "{path}: unknown mesh format (expected .msh, .vtu or .vtk); convert it with gmsh or meshio"
-    )]
+    #[error("{path}: unknown mesh format (expected .msh, .vtu or .vtk); convert it with gmsh or meshio")]
     UnknownFormat {
         /// The file.
         path: PathBuf,
@@ -139,9 +137,7 @@ pub enum MeshError {
         message: String,
     },
     /// A cell has non-positive volume (Jacobian determinant ≤ 0 somewhere inside it).
-    #[error(
-        "{count} inverted cell(s) out of {total} (first: cell {first}, volume {volume:.3e}); fix the node order or the mesh"
-    )]
+    #[error("{count} inverted cell(s) out of {total} (first: cell {first}, volume {volume:.3e}); fix the node order or the mesh")]
     InvertedCells {
         /// How many cells are inverted.
         count: usize,
@@ -153,9 +149,7 @@ pub enum MeshError {
         volume: f64,
     },
     /// A cell has (near-)zero volume relative to the mesh size.
-    #[error(
-        "{count} degenerate (zero-volume) cell(s) out of {total} (first: cell {first}); remove or re-mesh them"
-    )]
+    #[error("{count} degenerate (zero-volume) cell(s) out of {total} (first: cell {first}); remove or re-mesh them")]
     DegenerateCells {
         /// How many cells are degenerate.
         count: usize,
@@ -314,7 +308,11 @@ impl Mesh {
         let tiny = 1e-12 * mean_abs.max(f64::MIN_POSITIVE);
         let degenerate: Vec<usize> = (0..total).filter(|&c| vols[c].abs() <= tiny).collect();
         if let Some(&first) = degenerate.first() {
-            return Err(MeshError::DegenerateCells { count: degenerate.len(), total, first });
+            return Err(MeshError::DegenerateCells {
+                count: degenerate.len(),
+                total,
+                first,
+            });
         }
         let negative = vols.iter().filter(|v| **v < 0.0).count();
         if negative == total {
@@ -323,7 +321,12 @@ impl Mesh {
         }
         if negative > 0 {
             let first = vols.iter().position(|v| *v < 0.0).unwrap_or(0);
-            return Err(MeshError::InvertedCells { count: negative, total, first, volume: vols[first] });
+            return Err(MeshError::InvertedCells {
+                count: negative,
+                total,
+                first,
+                volume: vols[first],
+            });
         }
         self.check_hex_jacobians()
     }
@@ -333,7 +336,9 @@ impl Mesh {
         if self.kind != CellKind::Hex8 {
             return Ok(());
         }
-        let bad: Vec<usize> = (0..self.n_cells()).filter(|&c| quality::min_corner_jacobian(self, c) <= 0.0).collect();
+        let bad: Vec<usize> = (0..self.n_cells())
+            .filter(|&c| quality::min_corner_jacobian(self, c) <= 0.0)
+            .collect();
         match bad.first() {
             None => Ok(()),
             Some(&first) => Err(MeshError::InvertedCells {
@@ -397,5 +402,8 @@ pub fn read_unchecked(path: impl AsRef<Path>) -> Result<Mesh, MeshError> {
 
 /// Reads a file fully, mapping the error to [`MeshError::Io`].
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshError> {
-    std::fs::read(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })
+    std::fs::read(path).map_err(|source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }

@@ -34,7 +34,16 @@ fn grid_nodes(origin: [f64; 3], size: [f64; 3], n: [usize; 3]) -> Vec<[f64; 3]> 
 /// The eight corner nodes of grid cell `(i, j, k)`, VTK hexahedron order.
 fn hex_corners(n: [usize; 3], i: usize, j: usize, k: usize) -> [usize; 8] {
     let g = |a, b, c| grid_index(n, a, b, c);
-    [g(i, j, k), g(i + 1, j, k), g(i + 1, j + 1, k), g(i, j + 1, k), g(i, j, k + 1), g(i + 1, j, k + 1), g(i + 1, j + 1, k + 1), g(i, j + 1, k + 1)]
+    [
+        g(i, j, k),
+        g(i + 1, j, k),
+        g(i + 1, j + 1, k),
+        g(i, j + 1, k),
+        g(i, j, k + 1),
+        g(i + 1, j, k + 1),
+        g(i + 1, j + 1, k + 1),
+        g(i, j + 1, k + 1),
+    ]
 }
 
 /// A box `[origin, origin + size]` (m) divided into `n[0] × n[1] × n[2]` hexahedra.
@@ -43,7 +52,10 @@ fn hex_corners(n: [usize; 3], i: usize, j: usize, k: usize) -> [usize; 8] {
 /// If a division count is zero or a size is not positive: a broken invariant of the caller
 /// (the scene validates user values before calling).
 pub fn block_hex(origin: [f64; 3], size: [f64; 3], n: [usize; 3]) -> Mesh {
-    assert!(n.iter().all(|&d| d > 0) && size.iter().all(|&s| s > 0.0), "block needs positive sizes and divisions");
+    assert!(
+        n.iter().all(|&d| d > 0) && size.iter().all(|&s| s > 0.0),
+        "block needs positive sizes and divisions"
+    );
     let nodes = grid_nodes(origin, size, n);
     let mut cells = Vec::with_capacity(8 * n[0] * n[1] * n[2]);
     for k in 0..n[2] {
@@ -137,7 +149,11 @@ impl Default for LobeParams {
     /// A liver-lobe-sized body: 16 × 10 × 5 cm, bent by 60 % of its half-thickness, with
     /// 16 × 10 × 6 cube cells (1,309 nodes, 5,760 tetrahedra).
     fn default() -> Self {
-        Self { semi_axes: [0.08, 0.05, 0.025], bend: 0.6, divisions: [16, 10, 6] }
+        Self {
+            semi_axes: [0.08, 0.05, 0.025],
+            bend: 0.6,
+            divisions: [16, 10, 6],
+        }
     }
 }
 

@@ -27,12 +27,28 @@ pub fn min_corner_jacobian(mesh: &Mesh, c: usize) -> f64 {
     mesh.cell_coords(c, &mut x);
     match mesh.kind {
         CellKind::Tet4 => shape::jacobian_det(&x, &shape::TET_DN),
-        CellKind::Hex8 => shape::HEX_NODES.iter().map(|p| shape::jacobian_det(&x, &shape::hex_dn(*p))).fold(f64::INFINITY, f64::min),
+        CellKind::Hex8 => shape::HEX_NODES
+            .iter()
+            .map(|p| shape::jacobian_det(&x, &shape::hex_dn(*p)))
+            .fold(f64::INFINITY, f64::min),
     }
 }
 
 const TET_EDGES: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)];
-const HEX_EDGES: [(usize, usize); 12] = [(0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4), (1, 5), (2, 6), (3, 7)];
+const HEX_EDGES: [(usize, usize); 12] = [
+    (0, 1),
+    (1, 2),
+    (2, 3),
+    (3, 0),
+    (4, 5),
+    (5, 6),
+    (6, 7),
+    (7, 4),
+    (0, 4),
+    (1, 5),
+    (2, 6),
+    (3, 7),
+];
 
 /// The edges of a cell kind, as pairs of local node indices.
 pub fn edges(kind: CellKind) -> &'static [(usize, usize)] {

@@ -86,7 +86,11 @@ pub enum SelectError {
 }
 
 fn known_list(k: &[String]) -> String {
-    if k.is_empty() { " (it has no physical groups)".into() } else { format!(" (known: {})", k.join(", ")) }
+    if k.is_empty() {
+        " (it has no physical groups)".into()
+    } else {
+        format!(" (known: {})", k.join(", "))
+    }
 }
 
 impl Region {
@@ -100,17 +104,23 @@ impl Region {
                     return Err(SelectError::BadParameter("box corners must be finite numbers".into()));
                 }
                 if (0..3).any(|k| min[k] > max[k]) {
-                    return Err(SelectError::BadParameter(format!("box min {min:?} exceeds max {max:?} in some axis")));
+                    return Err(SelectError::BadParameter(format!(
+                        "box min {min:?} exceeds max {max:?} in some axis"
+                    )));
                 }
             }
             Region::HalfSpace { point, normal } => {
                 if !finite(point) || !finite(normal) || normal.iter().all(|x| *x == 0.0) {
-                    return Err(SelectError::BadParameter("half_space needs a finite point and a non-zero normal".into()));
+                    return Err(SelectError::BadParameter(
+                        "half_space needs a finite point and a non-zero normal".into(),
+                    ));
                 }
             }
             Region::Sphere { center, radius } => {
                 if !finite(center) || !radius.is_finite() || *radius <= 0.0 {
-                    return Err(SelectError::BadParameter(format!("sphere needs a finite centre and a positive radius (got {radius})")));
+                    return Err(SelectError::BadParameter(format!(
+                        "sphere needs a finite centre and a positive radius (got {radius})"
+                    )));
                 }
             }
             Region::Group(_) | Region::Nodes(_) => {}
@@ -146,7 +156,10 @@ impl Region {
             }
             Region::Nodes(list) => {
                 if let Some(&index) = list.iter().find(|&&i| i >= mesh.n_nodes()) {
-                    return Err(SelectError::NodeOutOfRange { index, n_nodes: mesh.n_nodes() });
+                    return Err(SelectError::NodeOutOfRange {
+                        index,
+                        n_nodes: mesh.n_nodes(),
+                    });
                 }
                 list.clone()
             }
@@ -169,7 +182,9 @@ impl Region {
         for n in self.nodes(mesh)? {
             mask[n] = true;
         }
-        Ok((0..boundary.faces.len()).filter(|&f| boundary.faces[f].node_slice().iter().all(|&n| mask[n])).collect())
+        Ok((0..boundary.faces.len())
+            .filter(|&f| boundary.faces[f].node_slice().iter().all(|&n| mask[n]))
+            .collect())
     }
 
     fn group_tag(&self, mesh: &Mesh, g: &GroupRef) -> Result<i32, SelectError> {

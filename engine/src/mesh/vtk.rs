@@ -15,13 +15,24 @@ use super::{CellKind, Mesh, MeshError};
 
 /// Reads an unstructured grid from `.vtu` or legacy `.vtk`.
 pub fn read(path: &Path) -> Result<Mesh, MeshError> {
-    let err = |message: String| MeshError::Parse { path: path.to_path_buf(), message };
+    let err = |message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
     // vtkio reads the whole file; check existence first for a plain I/O error.
-    std::fs::metadata(path).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })?;
+    std::fs::metadata(path).map_err(|source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let vtk = import(path)?;
     let pieces = match vtk.data {
         DataSet::UnstructuredGrid { pieces, .. } => pieces,
-        other => return Err(err(format!("expected an unstructured grid, found a {} data set", data_set_name(&other)))),
+        other => {
+            return Err(err(format!(
+                "expected an unstructured grid, found a {} data set",
+                data_set_name(&other)
+            )));
+        }
     };
     let mut nodes = Vec::new();
     let mut tets = Vec::new();
@@ -41,7 +52,10 @@ pub fn read(path: &Path) -> Result<Mesh, MeshError> {
         let n_local = pts.len() / 3;
         let types = &piece.cells.types;
         let mut conn_of_cell = |c: usize, verts: &[u64]| -> Result<(), MeshError> {
-            let ty = types.get(c).map(|t| *t as u8).ok_or_else(|| err(format!("cell {c} has no cell type")))?;
+            let ty = types
+                .get(c)
+                .map(|t| *t as u8)
+                .ok_or_else(|| err(format!("cell {c} has no cell type")))?;
             let idx = |v: u64| -> Result<usize, MeshError> {
                 let v = v as usize;
                 if v >= n_local {
@@ -69,14 +83,20 @@ pub fn read(path: &Path) -> Result<Mesh, MeshError> {
                 let mut at = 0usize;
                 for c in 0..num_cells as usize {
                     let n = *vertices.get(at).ok_or_else(|| err(format!("cell list ends before cell {c}")))? as usize;
-                    let slice = vertices.get(at + 1..at + 1 + n).ok_or_else(|| err(format!("cell list ends inside cell {c}")))?;
+                    let slice = vertices
+                        .get(at + 1..at + 1 + n)
+                        .ok_or_else(|| err(format!("cell list ends inside cell {c}")))?;
                     let verts: Vec<u64> = slice.iter().map(|&v| v as u64).collect();
                     conn_of_cell(c, &verts)?;
                     at += 1 + n;
                 }
             }
             VertexNumbers::XML { connectivity, offsets } => {
-                let offs: &[u64] = if offsets.first() == Some(&0) && offsets.len() == types.len() + 1 { &offsets[1..] } else { &offsets };
+                let offs: &[u64] = if offsets.first() == Some(&0) && offsets.len() == types.len() + 1 {
+                    &offsets[1..]
+                } else {
+                    &offsets
+                };
                 let mut start = 0u64;
                 for (c, &end) in offs.iter().enumerate() {
                     let slice = connectivity
@@ -100,10 +120,19 @@ pub fn read(path: &Path) -> Result<Mesh, MeshError> {
         (false, false) => {
             return Err(MeshError::UnsupportedCells {
                 path: path.to_path_buf(),
-                message: format!("the mesh mixes {} tetrahedra and {} hexahedra; vademecum needs one cell kind per mesh", tets.len(), hexes.len()),
+                message: format!(
+                    "the mesh mixes {} tetrahedra and {} hexahedra; vademecum needs one cell kind per mesh",
+                    tets.len(),
+                    hexes.len()
+                ),
             });
         }
-        (true, true) => return Err(MeshError::NoVolumeCells { path: path.to_path_buf(), found: format!("{} points and no tetrahedra or hexahedra", nodes.len()) }),
+        (true, true) => {
+            return Err(MeshError::NoVolumeCells {
+                path: path.to_path_buf(),
+                found: format!("{} points and no tetrahedra or hexahedra", nodes.len()),
+            });
+        }
     };
     Mesh::new(nodes, kind, cells)
 }
@@ -121,7 +150,9 @@ pub fn read_cell_data(path: &Path, name: &str) -> Result<Option<Vec<f64>>, MeshE
 
 fn read_attribute(path: &Path, name: &str, point: bool) -> Result<Option<Vec<f64>>, MeshError> {
     let vtk = import(path)?;
-    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else { return Ok(None) };
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        return Ok(None);
+    };
     for piece in pieces {
         let Piece::Inline(p) = piece else { continue };
         let attrs = if point { &p.data.point } else { &p.data.cell };
@@ -142,8 +173,14 @@ fn import(path: &Path) -> Result<vtkio::Vtk, MeshError> {
     let result = std::panic::catch_unwind(move || vtkio::Vtk::import(&p));
     match result {
         Ok(Ok(v)) => Ok(v),
-        Ok(Err(e)) => Err(MeshError::Parse { path: path.to_path_buf(), message: format!("invalid VTK file: {e}") }),
-        Err(_) => Err(MeshError::Parse { path: path.to_path_buf(), message: "invalid VTK file (the VTK reader rejected its structure)".into() }),
+        Ok(Err(e)) => Err(MeshError::Parse {
+            path: path.to_path_buf(),
+            message: format!("invalid VTK file: {e}"),
+        }),
+        Err(_) => Err(MeshError::Parse {
+            path: path.to_path_buf(),
+            message: "invalid VTK file (the VTK reader rejected its structure)".into(),
+        }),
     }
 }
 
@@ -182,17 +219,32 @@ pub struct Field<'a> {
 pub fn write_vtu(path: &Path, mesh: &Mesh, point_data: &[Field<'_>], cell_data: &[Field<'_>]) -> Result<(), MeshError> {
     for f in point_data {
         if f.values.len() != f.components * mesh.n_nodes() {
-            return Err(MeshError::Invalid(format!("point field '{}' has {} values, expected {}", f.name, f.values.len(), f.components * mesh.n_nodes())));
+            return Err(MeshError::Invalid(format!(
+                "point field '{}' has {} values, expected {}",
+                f.name,
+                f.values.len(),
+                f.components * mesh.n_nodes()
+            )));
         }
     }
     for f in cell_data {
         if f.values.len() != f.components * mesh.n_cells() {
-            return Err(MeshError::Invalid(format!("cell field '{}' has {} values, expected {}", f.name, f.values.len(), f.components * mesh.n_cells())));
+            return Err(MeshError::Invalid(format!(
+                "cell field '{}' has {} values, expected {}",
+                f.name,
+                f.values.len(),
+                f.components * mesh.n_cells()
+            )));
         }
     }
     let mut s = String::with_capacity(64 * (mesh.n_nodes() + mesh.n_cells()));
     s.push_str("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n");
-    let _ = writeln!(s, "<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">", mesh.n_nodes(), mesh.n_cells());
+    let _ = writeln!(
+        s,
+        "<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">",
+        mesh.n_nodes(),
+        mesh.n_cells()
+    );
     s.push_str("<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n");
     for p in &mesh.nodes {
         let _ = writeln!(s, "{:?} {:?} {:?}", p[0], p[1], p[2]);
@@ -225,11 +277,19 @@ pub fn write_vtu(path: &Path, mesh: &Mesh, point_data: &[Field<'_>], cell_data: 
         write_array(&mut s, f);
     }
     s.push_str("</CellData>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n");
-    std::fs::write(path, s).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })
+    std::fs::write(path, s).map_err(|source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 fn write_array(s: &mut String, f: &Field<'_>) {
-    let _ = writeln!(s, "<DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\" format=\"ascii\">", xml_escape(f.name), f.components);
+    let _ = writeln!(
+        s,
+        "<DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\" format=\"ascii\">",
+        xml_escape(f.name),
+        f.components
+    );
     for chunk in f.values.chunks(f.components.max(1)) {
         let line: Vec<String> = chunk.iter().map(|v| format!("{v:?}")).collect();
         s.push_str(&line.join(" "));
@@ -239,16 +299,27 @@ fn write_array(s: &mut String, f: &Field<'_>) {
 }
 
 fn xml_escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }
 
 /// Writes a ParaView `.pvd` collection: one `(time, file)` entry per step, file paths
 /// relative to the `.pvd`.
 pub fn write_pvd(path: &Path, steps: &[(f64, String)]) -> Result<(), MeshError> {
-    let mut s = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\" byte_order=\"LittleEndian\">\n<Collection>\n");
+    let mut s =
+        String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\" byte_order=\"LittleEndian\">\n<Collection>\n");
     for (t, file) in steps {
-        let _ = writeln!(s, "<DataSet timestep=\"{t:?}\" group=\"\" part=\"0\" file=\"{}\"/>", xml_escape(file));
+        let _ = writeln!(
+            s,
+            "<DataSet timestep=\"{t:?}\" group=\"\" part=\"0\" file=\"{}\"/>",
+            xml_escape(file)
+        );
     }
     s.push_str("</Collection>\n</VTKFile>\n");
-    std::fs::write(path, s).map_err(|source| MeshError::Io { path: path.to_path_buf(), source })
+    std::fs::write(path, s).map_err(|source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }

@@ -45,7 +45,9 @@ pub fn line_of_path(text: &str, path: &[Seg<'_>]) -> Option<usize> {
                 if let Some(DeValue::Table(t)) = value {
                     table = t;
                 }
-                let Some((key, v)) = table.iter().find(|(key, _)| key.get_ref().as_ref() == *k) else { break };
+                let Some((key, v)) = table.iter().find(|(key, _)| key.get_ref().as_ref() == *k) else {
+                    break;
+                };
                 line = Some(line_of_offset(text, key.span().start));
                 value = Some(v.get_ref());
             }
@@ -70,7 +72,13 @@ mod tests {
     fn finds_nested_keys_in_arrays_of_tables() {
         let text = "[scene]\nname = \"x\"\n\n[[organs]]\nname = \"a\"\n\n[[organs]]\nname = \"b\"\ndensity = 3\n";
         assert_eq!(line_of_path(text, &[Seg::Key("scene"), Seg::Key("name")]), Some(2));
-        assert_eq!(line_of_path(text, &[Seg::Key("organs"), Seg::Index(1), Seg::Key("density")]), Some(9));
-        assert_eq!(dotted(&[Seg::Key("organs"), Seg::Index(1), Seg::Key("density")]), "organs[1].density");
+        assert_eq!(
+            line_of_path(text, &[Seg::Key("organs"), Seg::Index(1), Seg::Key("density")]),
+            Some(9)
+        );
+        assert_eq!(
+            dotted(&[Seg::Key("organs"), Seg::Index(1), Seg::Key("density")]),
+            "organs[1].density"
+        );
     }
 }

@@ -89,7 +89,11 @@ impl Scene {
             key: None,
             message: e.message().trim().to_string(),
         })?;
-        let scene = Scene { spec, origin, source: text.to_string() };
+        let scene = Scene {
+            spec,
+            origin,
+            source: text.to_string(),
+        };
         scene.validate()?;
         Ok(scene)
     }
@@ -107,7 +111,12 @@ impl Scene {
 
     /// An error located at `path` in this scene's source.
     pub fn error_at(&self, path: &[Seg<'_>], message: impl Into<String>) -> SceneError {
-        SceneError { file: self.origin.clone(), line: locate::line_of_path(&self.source, path), key: Some(locate::dotted(path)), message: message.into() }
+        SceneError {
+            file: self.origin.clone(),
+            line: locate::line_of_path(&self.source, path),
+            key: Some(locate::dotted(path)),
+            message: message.into(),
+        }
     }
 
     /// Checks everything that can be checked without reading meshes.
@@ -115,7 +124,10 @@ impl Scene {
         let s = &self.spec;
         let name_ok = |n: &str| !n.is_empty() && n.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
         if !name_ok(&s.scene.name) {
-            return Err(self.error_at(&[Seg::Key("scene"), Seg::Key("name")], "a scene name must be non-empty and use only letters, digits, '-' and '_' (it names output folders)"));
+            return Err(self.error_at(
+                &[Seg::Key("scene"), Seg::Key("name")],
+                "a scene name must be non-empty and use only letters, digits, '-' and '_' (it names output folders)",
+            ));
         }
         if s.organs.is_empty() {
             return Err(self.error_at(&[Seg::Key("organs")], "a scene needs at least one [[organs]] entry"));
@@ -127,7 +139,10 @@ impl Scene {
                 v
             };
             if !name_ok(&o.name) {
-                return Err(self.error_at(&at(&[Seg::Key("name")]), "an organ name must be non-empty and use only letters, digits, '-' and '_'"));
+                return Err(self.error_at(
+                    &at(&[Seg::Key("name")]),
+                    "an organ name must be non-empty and use only letters, digits, '-' and '_'",
+                ));
             }
             if s.organs[..i].iter().any(|p| p.name == o.name) {
                 return Err(self.error_at(&at(&[Seg::Key("name")]), format!("organ name '{}' is used twice", o.name)));
@@ -137,7 +152,10 @@ impl Scene {
             }
             self.validate_mesh_spec(&o.mesh, &at(&[Seg::Key("mesh")]))?;
             if o.materials.is_empty() {
-                return Err(self.error_at(&at(&[Seg::Key("materials")]), "an organ needs at least one [[organs.materials]] entry"));
+                return Err(self.error_at(
+                    &at(&[Seg::Key("materials")]),
+                    "an organ needs at least one [[organs.materials]] entry",
+                ));
             }
             for (m, spec) in o.materials.iter().enumerate() {
                 self.validate_material(spec, &at(&[Seg::Key("materials"), Seg::Index(m)]))?;
@@ -152,8 +170,16 @@ impl Scene {
                 let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
                 let bad = match load {
                     LoadSpec::Point { at, force } => (!finite(at) || !finite(force)).then_some("point loads need finite `at` and `force`"),
-                    LoadSpec::Force { region, force } => region.validate().err().map(|_| "invalid region").or((!finite(force)).then_some("`force` must be finite")),
-                    LoadSpec::Traction { region, traction } => region.validate().err().map(|_| "invalid region").or((!finite(traction)).then_some("`traction` must be finite")),
+                    LoadSpec::Force { region, force } => region
+                        .validate()
+                        .err()
+                        .map(|_| "invalid region")
+                        .or((!finite(force)).then_some("`force` must be finite")),
+                    LoadSpec::Traction { region, traction } => region
+                        .validate()
+                        .err()
+                        .map(|_| "invalid region")
+                        .or((!finite(traction)).then_some("`traction` must be finite")),
                     LoadSpec::Gravity { acceleration } => (!finite(acceleration)).then_some("`acceleration` must be finite"),
                     LoadSpec::Displacement { region, x, y, z, .. } => {
                         if region.validate().is_err() {
@@ -182,7 +208,9 @@ impl Scene {
             let positive = |v: f64| v.is_finite() && v > 0.0;
             let ok = match tool {
                 ToolSpec::Probe { radius, .. } => positive(*radius),
-                ToolSpec::Scalpel { blade_length, cut_force, .. } => positive(*blade_length) && positive(*cut_force),
+                ToolSpec::Scalpel {
+                    blade_length, cut_force, ..
+                } => positive(*blade_length) && positive(*cut_force),
                 ToolSpec::Grasper { jaw_width, max_force, .. } => positive(*jaw_width) && positive(*max_force),
             };
             if !ok {
@@ -190,10 +218,16 @@ impl Scene {
             }
         }
         if s.effects.cutting && !s.tools.iter().any(|t| matches!(t, ToolSpec::Scalpel { .. })) {
-            return Err(self.error_at(&[Seg::Key("effects"), Seg::Key("cutting")], "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\""));
+            return Err(self.error_at(
+                &[Seg::Key("effects"), Seg::Key("cutting")],
+                "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\"",
+            ));
         }
         if s.effects.tearing && !s.tools.iter().any(|t| matches!(t, ToolSpec::Grasper { .. })) {
-            return Err(self.error_at(&[Seg::Key("effects"), Seg::Key("tearing")], "tearing is enabled but the scene has no grasper tool; add a [[tools]] entry with kind = \"grasper\""));
+            return Err(self.error_at(
+                &[Seg::Key("effects"), Seg::Key("tearing")],
+                "tearing is enabled but the scene has no grasper tool; add a [[tools]] entry with kind = \"grasper\"",
+            ));
         }
         let p = &s.fidelity.pgd;
         let pgd = [Seg::Key("fidelity"), Seg::Key("pgd")];
@@ -214,11 +248,20 @@ impl Scene {
         };
         match (&m.file, m.builtin) {
             (Some(_), Some(_)) => return Err(self.error_at(at, "give either `file` or `builtin`, not both")),
-            (None, None) => return Err(self.error_at(at, "give a mesh `file` (.msh, .vtu, .vtk) or a `builtin` mesh (\"lobe\" or \"block\")")),
+            (None, None) => {
+                return Err(self.error_at(
+                    at,
+                    "give a mesh `file` (.msh, .vtu, .vtk) or a `builtin` mesh (\"lobe\" or \"block\")",
+                ));
+            }
             _ => {}
         }
         let lobe_only = [("semi_axes", m.semi_axes.is_some()), ("bend", m.bend.is_some())];
-        let block_only = [("origin", m.origin.is_some()), ("size", m.size.is_some()), ("cell", m.cell.is_some())];
+        let block_only = [
+            ("origin", m.origin.is_some()),
+            ("size", m.size.is_some()),
+            ("cell", m.cell.is_some()),
+        ];
         let builtin_only = [("divisions", m.divisions.is_some())];
         let forbid = |list: &[(&'static str, bool)], why: &str| -> Result<(), SceneError> {
             match list.iter().find(|(_, set)| *set) {
@@ -235,7 +278,10 @@ impl Scene {
             Some(BuiltinMesh::Lobe) => {
                 forbid(&block_only, "only applies to builtin = \"block\"")?;
                 if m.scale.is_some() {
-                    return Err(self.error_at(&key("scale"), "`scale` applies to mesh files; give a built-in lobe its size with `semi_axes` (m)"));
+                    return Err(self.error_at(
+                        &key("scale"),
+                        "`scale` applies to mesh files; give a built-in lobe its size with `semi_axes` (m)",
+                    ));
                 }
                 if m.semi_axes.is_some_and(|a| a.iter().any(|v| !(v.is_finite() && *v > 0.0))) {
                     return Err(self.error_at(&key("semi_axes"), "semi-axes must be positive lengths (m)"));
@@ -298,7 +344,11 @@ impl Scene {
                     }
                 }
                 if let Err(e) = LinearElastic::new(young, poisson) {
-                    let k = if matches!(e, material::MaterialError::Young(_)) { "young" } else { "poisson" };
+                    let k = if matches!(e, material::MaterialError::Young(_)) {
+                        "young"
+                    } else {
+                        "poisson"
+                    };
                     return Err(self.error_at(&key(k), e.to_string()));
                 }
             }
@@ -334,15 +384,25 @@ impl Scene {
         let mut mesh = match (&m.file, m.builtin) {
             (Some(f), _) => {
                 let path = self.resolve_path(f);
-                let mut mesh = mesh::read(&path).map_err(|e| self.error_at(&[Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh"), Seg::Key("file")], e.to_string()))?;
+                let mut mesh = mesh::read(&path).map_err(|e| {
+                    self.error_at(
+                        &[Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh"), Seg::Key("file")],
+                        e.to_string(),
+                    )
+                })?;
                 mesh.scale(m.scale.unwrap_or(1.0));
                 mesh
             }
             (None, Some(BuiltinMesh::Lobe)) => {
                 let d = procedural::LobeParams::default();
-                let p = procedural::LobeParams { semi_axes: m.semi_axes.unwrap_or(d.semi_axes), bend: m.bend.unwrap_or(d.bend), divisions: m.divisions.unwrap_or(d.divisions) };
+                let p = procedural::LobeParams {
+                    semi_axes: m.semi_axes.unwrap_or(d.semi_axes),
+                    bend: m.bend.unwrap_or(d.bend),
+                    divisions: m.divisions.unwrap_or(d.divisions),
+                };
                 let mut mesh = procedural::lobe(&p);
-                mesh.check_cells().map_err(|e| self.error_at(&at, format!("the lobe parameters give a bad mesh: {e}")))?;
+                mesh.check_cells()
+                    .map_err(|e| self.error_at(&at, format!("the lobe parameters give a bad mesh: {e}")))?;
                 mesh
             }
             (None, Some(BuiltinMesh::Block)) => {
@@ -382,9 +442,13 @@ impl Scene {
         for (m, spec) in o.materials.iter().enumerate() {
             let at = base(&[Seg::Key("materials"), Seg::Index(m)]);
             if spec.model != MaterialModel::Linear {
-                return Err(self.error_at(&[at.clone(), vec![Seg::Key("model")]].concat(), "only model = \"linear\" is available in this version; hyperelastic models arrive with the large-deformation solver"));
+                return Err(self.error_at(
+                    &[at.clone(), vec![Seg::Key("model")]].concat(),
+                    "only model = \"linear\" is available in this version; hyperelastic models arrive with the large-deformation solver",
+                ));
             }
-            let mat = LinearElastic::new(spec.young.unwrap_or(0.0), spec.poisson.unwrap_or(0.0)).map_err(|e| self.error_at(&at, e.to_string()))?;
+            let mat = LinearElastic::new(spec.young.unwrap_or(0.0), spec.poisson.unwrap_or(0.0))
+                .map_err(|e| self.error_at(&at, e.to_string()))?;
             table.push(mat);
             let idx = (table.len() - 1) as u16;
             let all = matches!(&spec.region, GroupRef::Name(n) if n == "all");
@@ -396,7 +460,10 @@ impl Scene {
                     GroupRef::Name(n) => n.clone(),
                 };
                 let tag = mesh.group_tag(&key).ok_or_else(|| {
-                    self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), format!("the mesh has no physical group {}", spec.region))
+                    self.error_at(
+                        &[at.clone(), vec![Seg::Key("region")]].concat(),
+                        format!("the mesh has no physical group {}", spec.region),
+                    )
                 })?;
                 for (c, r) in mesh.cell_region.iter().enumerate() {
                     if *r == tag {
@@ -406,29 +473,56 @@ impl Scene {
             }
         }
         if let Some(c) = of_cell.iter().position(|m| m.is_none()) {
-            return Err(self.error_at(&base(&[Seg::Key("materials")]), format!("cell {c} (region {}) has no material; add a material with region = \"all\" or for its group", mesh.cell_region[c])));
+            return Err(self.error_at(
+                &base(&[Seg::Key("materials")]),
+                format!(
+                    "cell {c} (region {}) has no material; add a material with region = \"all\" or for its group",
+                    mesh.cell_region[c]
+                ),
+            ));
         }
-        let materials = MaterialMap { density: vec![o.density; table.len()], table, of_cell: of_cell.into_iter().map(|m| m.unwrap_or(0)).collect() };
+        let materials = MaterialMap {
+            density: vec![o.density; table.len()],
+            table,
+            of_cell: of_cell.into_iter().map(|m| m.unwrap_or(0)).collect(),
+        };
 
         let boundary = Boundary::of(&mesh);
-        let fixed_nodes = o.fixed.nodes(&mesh).map_err(|e| self.error_at(&base(&[Seg::Key("fixed")]), e.to_string()))?;
+        let fixed_nodes = o
+            .fixed
+            .nodes(&mesh)
+            .map_err(|e| self.error_at(&base(&[Seg::Key("fixed")]), e.to_string()))?;
         if fixed_nodes.is_empty() {
             return Err(self.error_at(
                 &base(&[Seg::Key("fixed")]),
                 format!("the fixed region selects no node of the mesh (bounding box {:?} – {:?}), so the system would be singular; move or enlarge the region", mesh.bounding_box().0, mesh.bounding_box().1),
             ));
         }
-        let accessible_nodes = o.accessible.surface_nodes(&mesh, &boundary).map_err(|e| self.error_at(&base(&[Seg::Key("accessible")]), e.to_string()))?;
+        let accessible_nodes = o
+            .accessible
+            .surface_nodes(&mesh, &boundary)
+            .map_err(|e| self.error_at(&base(&[Seg::Key("accessible")]), e.to_string()))?;
         if accessible_nodes.is_empty() {
-            return Err(self.error_at(&base(&[Seg::Key("accessible")]), "the accessible region contains no surface node; tools could touch nothing"));
+            return Err(self.error_at(
+                &base(&[Seg::Key("accessible")]),
+                "the accessible region contains no surface node; tools could touch nothing",
+            ));
         }
         let mut problem = StaticProblem::new(mesh.n_nodes());
         problem.clamp(&fixed_nodes);
         let mut named_regions = vec![("fixed".to_string(), fixed_nodes.clone())];
         for (l, load) in o.loads.iter().enumerate() {
             let at = base(&[Seg::Key("loads"), Seg::Index(l)]);
-            let region_nodes = |r: &Region| r.nodes(&mesh).map_err(|e| self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), e.to_string()));
-            let empty = |what: &str| self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), format!("the region of this {what} selects nothing"));
+            let region_nodes = |r: &Region| {
+                r.nodes(&mesh)
+                    .map_err(|e| self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), e.to_string()))
+            };
+            let empty = |what: &str| {
+                self.error_at(
+                    &[at.clone(), vec![Seg::Key("region")]].concat(),
+                    format!("the region of this {what} selects nothing"),
+                )
+            };
             match load {
                 LoadSpec::Point { at: p, force } => {
                     let n = nearest_node(&mesh, *p).ok_or_else(|| self.error_at(&at, "the mesh has no nodes"))?;
@@ -449,7 +543,8 @@ impl Scene {
                     loads::add_traction(&mut problem.forces, &mesh, &boundary, &faces, *traction);
                 }
                 LoadSpec::Gravity { acceleration } => {
-                    loads::add_body_force(&mut problem.forces, &mesh, &materials, *acceleration).map_err(|e| self.error_at(&at, e.to_string()))?;
+                    loads::add_body_force(&mut problem.forces, &mesh, &materials, *acceleration)
+                        .map_err(|e| self.error_at(&at, e.to_string()))?;
                 }
                 LoadSpec::Displacement { name, region, x, y, z } => {
                     let nodes = region_nodes(region)?;
@@ -465,7 +560,16 @@ impl Scene {
                 }
             }
         }
-        Ok(OrganModel { name: o.name.clone(), mesh, materials, locking: self.spec.fidelity.locking, problem, named_regions, accessible_nodes, boundary })
+        Ok(OrganModel {
+            name: o.name.clone(),
+            mesh,
+            materials,
+            locking: self.spec.fidelity.locking,
+            problem,
+            named_regions,
+            accessible_nodes,
+            boundary,
+        })
     }
 }
 

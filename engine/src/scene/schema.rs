@@ -292,6 +292,11 @@ fn default_max_iters() -> usize {
 
 impl Default for PgdFidelity {
     fn default() -> Self {
-        Self { global_tolerance: default_eps_r(), enrichment_tolerance: default_eps_f(), max_modes: default_max_modes(), max_iterations: default_max_iters() }
+        Self {
+            global_tolerance: default_eps_r(),
+            enrichment_tolerance: default_eps_f(),
+            max_modes: default_max_modes(),
+            max_iterations: default_max_iters(),
+        }
     }
 }

@@ -3,10 +3,10 @@
 //! of constraints removes every rigid-body motion (the usual cause of a singular stiffness).
 
 use faer::MatMut;
+use faer::Side;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::LltError;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
-use faer::Side;
 
 use crate::fem::assembly::SymmetricMatrix;
 
@@ -48,7 +48,9 @@ impl Cholesky {
     pub fn factor_with(symbolic: SymbolicLlt<usize>, k: &SymmetricMatrix) -> Result<Self, SolveError> {
         let n = k.pattern.n();
         let llt = Llt::try_new_with_symbolic(symbolic.clone(), k.as_faer(), Side::Lower).map_err(|e| match e {
-            LltError::Numeric(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) => SolveError::NotPositiveDefinite { pivot: index, n },
+            LltError::Numeric(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) => {
+                SolveError::NotPositiveDefinite { pivot: index, n }
+            }
             LltError::Generic(g) => SolveError::Internal(format!("{g:?}")),
         })?;
         Ok(Self { symbolic, llt, n })
@@ -92,7 +94,14 @@ impl Cholesky {
 }
 
 /// Names of the six rigid-body motions, in the order of [`free_rigid_motions`].
-pub const RIGID_MOTIONS: [&str; 6] = ["translation along x", "translation along y", "translation along z", "rotation about x", "rotation about y", "rotation about z"];
+pub const RIGID_MOTIONS: [&str; 6] = [
+    "translation along x",
+    "translation along y",
+    "translation along z",
+    "rotation about x",
+    "rotation about y",
+    "rotation about z",
+];
 
 /// Which rigid-body motions a set of constrained degrees of freedom leaves free.
 ///
@@ -107,7 +116,11 @@ pub fn free_rigid_motions(nodes: &[[f64; 3]], constrained: &[bool]) -> Vec<Strin
             c[k] += p[k] / n;
         }
     }
-    let scale = nodes.iter().map(|p| (0..3).map(|k| (p[k] - c[k]).powi(2)).sum::<f64>().sqrt()).fold(0.0, f64::max).max(f64::MIN_POSITIVE);
+    let scale = nodes
+        .iter()
+        .map(|p| (0..3).map(|k| (p[k] - c[k]).powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max)
+        .max(f64::MIN_POSITIVE);
     let mut g = nalgebra::Matrix6::<f64>::zeros();
     for (d, &is_c) in constrained.iter().enumerate() {
         if !is_c {
@@ -150,7 +163,9 @@ mod tests {
     use super::*;
 
     fn cube_nodes() -> Vec<[f64; 3]> {
-        (0..8).map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64]).collect()
+        (0..8)
+            .map(|i| [(i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64])
+            .collect()
     }
 
     #[test]

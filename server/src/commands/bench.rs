@@ -61,8 +61,18 @@ pub fn run_fe(a: BenchFeArgs) -> anyhow::Result<ExitCode> {
         let (mesh, divisions) = bar_for(dofs, a.cell);
         let mat = MaterialMap::uniform(LinearElastic::new(1e5, 0.45)?, 1000.0, mesh.n_cells());
         let mut p = StaticProblem::new(mesh.n_nodes());
-        p.clamp(&Region::Box { min: [0.0; 3], max: [0.0, 0.1, 0.1] }.nodes(&mesh)?);
-        let tip = Region::Box { min: [0.4, 0.0, 0.0], max: [0.4, 0.1, 0.1] }.nodes(&mesh)?;
+        p.clamp(
+            &Region::Box {
+                min: [0.0; 3],
+                max: [0.0, 0.1, 0.1],
+            }
+            .nodes(&mesh)?,
+        );
+        let tip = Region::Box {
+            min: [0.4, 0.0, 0.0],
+            max: [0.4, 0.1, 0.1],
+        }
+        .nodes(&mesh)?;
         vademecum_engine::fem::loads::add_distributed_force(&mut p.forces, &tip, [0.0, 0.0, -1.0]);
         let mut times: [Vec<f64>; 4] = Default::default();
         let mut last = None;
@@ -96,7 +106,10 @@ pub fn run_fe(a: BenchFeArgs) -> anyhow::Result<ExitCode> {
     if a.json {
         writeln!(out, "{}", serde_json::to_string_pretty(&rows)?)?;
     } else {
-        writeln!(out, "| cell | nodes | dofs | nnz (lower) | assembly (s) | analysis (s) | factorization (s) | solve (s) |")?;
+        writeln!(
+            out,
+            "| cell | nodes | dofs | nnz (lower) | assembly (s) | analysis (s) | factorization (s) | solve (s) |"
+        )?;
         writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|")?;
         for r in &rows {
             writeln!(

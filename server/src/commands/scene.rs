@@ -12,7 +12,8 @@ pub fn run(c: SceneCommand) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();
     match c {
         SceneCommand::Show { name } => {
-            let text = scene::builtin(&name).ok_or_else(|| anyhow!("no built-in scene named '{name}' (known: {})", scene::BUILTIN_NAMES.join(", ")))?;
+            let text = scene::builtin(&name)
+                .ok_or_else(|| anyhow!("no built-in scene named '{name}' (known: {})", scene::BUILTIN_NAMES.join(", ")))?;
             write!(out, "{text}")?;
         }
         SceneCommand::Check { file } => {

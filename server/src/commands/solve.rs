@@ -60,19 +60,40 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         let progress = Stages::start(&name);
         progress.stage("building mesh and loads");
         let model = scene.organ_model(i)?;
-        let sol = linear_static::solve(&model.mesh, &model.materials, model.locking, &model.problem, &mut |s| progress.stage(s.label()))
-            .with_context(|| format!("organ '{name}' could not be solved"))?;
+        let sol = linear_static::solve(&model.mesh, &model.materials, model.locking, &model.problem, &mut |s| {
+            progress.stage(s.label())
+        })
+        .with_context(|| format!("organ '{name}' could not be solved"))?;
         progress.stage("writing .vtu");
         let file = out.join(format!("{name}.vtu"));
         let vm_max = sol.von_mises.iter().copied().fold(0.0, f64::max);
         vtk::write_vtu(
             &file,
             &model.mesh,
-            &[Field { name: "displacement", components: 3, values: &sol.u }, Field { name: "reaction", components: 3, values: &sol.reactions }],
-            &[Field { name: "von_mises", components: 1, values: &sol.von_mises }],
+            &[
+                Field {
+                    name: "displacement",
+                    components: 3,
+                    values: &sol.u,
+                },
+                Field {
+                    name: "reaction",
+                    components: 3,
+                    values: &sol.reactions,
+                },
+            ],
+            &[Field {
+                name: "von_mises",
+                components: 1,
+                values: &sol.von_mises,
+            }],
         )?;
         progress.finish();
-        let reaction_force_n = model.named_regions.iter().map(|(n, nodes)| (n.clone(), sol.reaction_sum(nodes))).collect();
+        let reaction_force_n = model
+            .named_regions
+            .iter()
+            .map(|(n, nodes)| (n.clone(), sol.reaction_sum(nodes)))
+            .collect();
         organs.push(OrganSummary {
             name,
             cell_kind: model.mesh.kind.name(),
@@ -92,7 +113,11 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
             output: file,
         });
     }
-    let summary = Summary { scene: scene.spec.scene.name.clone(), source: scene.origin.display().to_string(), organs };
+    let summary = Summary {
+        scene: scene.spec.scene.name.clone(),
+        source: scene.origin.display().to_string(),
+        organs,
+    };
     let json = serde_json::to_string_pretty(&summary)?;
     std::fs::write(out.join("summary.json"), &json).with_context(|| format!("cannot write {}", out.join("summary.json").display()))?;
     let mut stdout = std::io::stdout().lock();
@@ -101,12 +126,28 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     } else {
         writeln!(stdout, "scene '{}' ({})", summary.scene, summary.source)?;
         for o in &summary.organs {
-            writeln!(stdout, "organ '{}': {} nodes, {} {} cells, {} equations", o.name, o.nodes, o.cells, o.cell_kind, o.equations)?;
+            writeln!(
+                stdout,
+                "organ '{}': {} nodes, {} {} cells, {} equations",
+                o.name, o.nodes, o.cells, o.cell_kind, o.equations
+            )?;
             writeln!(stdout, "  strain energy      {:.6e} J", o.strain_energy_j)?;
-            writeln!(stdout, "  max displacement   {:.6e} m at node {}", o.max_displacement_m, o.max_displacement_node)?;
+            writeln!(
+                stdout,
+                "  max displacement   {:.6e} m at node {}",
+                o.max_displacement_m, o.max_displacement_node
+            )?;
             writeln!(stdout, "  max von Mises      {:.6e} Pa", o.max_von_mises_pa)?;
             for (r, f) in &o.reaction_force_n {
-                writeln!(stdout, "  reaction '{r}'{:>width$} [{:+.6e}, {:+.6e}, {:+.6e}] N", "", f[0], f[1], f[2], width = 8usize.saturating_sub(r.len()))?;
+                writeln!(
+                    stdout,
+                    "  reaction '{r}'{:>width$} [{:+.6e}, {:+.6e}, {:+.6e}] N",
+                    "",
+                    f[0],
+                    f[1],
+                    f[2],
+                    width = 8usize.saturating_sub(r.len())
+                )?;
             }
             let t = &o.timings;
             writeln!(
@@ -116,7 +157,10 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
             )?;
             writeln!(stdout, "  result             {}", o.output.display())?;
         }
-        writeln!(stdout, "open the .vtu in ParaView; Filters > Warp By Vector on 'displacement' shows the deformed shape")?;
+        writeln!(
+            stdout,
+            "open the .vtu in ParaView; Filters > Warp By Vector on 'displacement' shows the deformed shape"
+        )?;
     }
     Ok(ExitCode::SUCCESS)
 }
