@@ -54,7 +54,7 @@ pub struct SolveArgs {
     /// Built-in scene to solve when no SCENE is given (organ, patch, cantilever).
     #[arg(long, default_value = "organ", conflicts_with = "scene")]
     pub builtin: String,
-    /// Output folder. Default: out/<scene name>.
+    /// Output folder. Default: `out/<scene name>`.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Print a machine-readable JSON summary on stdout instead of the text report.

@@ -151,10 +151,10 @@ impl SymmetricPattern {
                 let Some(col) = dofs.eq(3 * a + i) else { continue };
                 for &b in &adj[a] {
                     for j in 0..3 {
-                        if let Some(row) = dofs.eq(3 * b as usize + j) {
-                            if row >= col {
-                                row_idx.push(row);
-                            }
+                        if let Some(row) = dofs.eq(3 * b as usize + j)
+                            && row >= col
+                        {
+                            row_idx.push(row);
                         }
                     }
                 }
@@ -369,11 +369,11 @@ pub fn assemble_mass(
             for a in 0..n {
                 for b in 0..n {
                     for i in 0..3 {
-                        if let (Some(r), Some(col)) = (dofs.eq(3 * cell[a] + i), dofs.eq(3 * cell[b] + i)) {
-                            if r >= col {
-                                let pos = m.pattern.position(r, col).expect("pattern covers every cell coupling");
-                                m.values[pos] += me[a * n + b];
-                            }
+                        if let (Some(r), Some(col)) = (dofs.eq(3 * cell[a] + i), dofs.eq(3 * cell[b] + i))
+                            && r >= col
+                        {
+                            let pos = m.pattern.position(r, col).expect("pattern covers every cell coupling");
+                            m.values[pos] += me[a * n + b];
                         }
                     }
                 }

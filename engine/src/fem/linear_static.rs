@@ -60,7 +60,7 @@ impl StaticProblem {
     }
 }
 
-/// A stage of [`solve`], reported before it starts.
+/// A stage of [`solve()`], reported before it starts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
     /// Checking constraints against rigid motions.

@@ -411,10 +411,10 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                         for v in it {
                             nodes.push(parse_num::<u64>(Some(v), "a node tag", "$Elements", path)?);
                         }
-                        if let Some(nn) = nodes_of_type(ty) {
-                            if nodes.len() != nn {
-                                return Err(err(format!("element {i} of type {ty} lists {} nodes, expected {nn}", nodes.len())));
-                            }
+                        if let Some(nn) = nodes_of_type(ty)
+                            && nodes.len() != nn
+                        {
+                            return Err(err(format!("element {i} of type {ty} lists {} nodes, expected {nn}", nodes.len())));
                         }
                         out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes);
                     }
@@ -567,14 +567,14 @@ fn parse_v41(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
         let ty = b.element_type as i32;
         let p = phys.get(&(b.entity_dim, b.entity_tag)).copied().unwrap_or(0);
         for e in &b.elements {
-            if let Some(nn) = nodes_of_type(ty) {
-                if e.nodes.len() < nn {
-                    return Err(err(format!(
-                        "element {} of type {ty} has {} nodes, expected {nn}",
-                        e.element_tag,
-                        e.nodes.len()
-                    )));
-                }
+            if let Some(nn) = nodes_of_type(ty)
+                && e.nodes.len() < nn
+            {
+                return Err(err(format!(
+                    "element {} of type {ty} has {} nodes, expected {nn}",
+                    e.element_tag,
+                    e.nodes.len()
+                )));
             }
             out.push_element(ty, p, &e.nodes);
         }

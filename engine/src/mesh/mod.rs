@@ -75,7 +75,7 @@ pub struct TaggedFaces {
 
 /// A volume mesh of a single cell kind.
 ///
-/// Invariants (upheld by every constructor of this crate, checked by [`Mesh::check`]):
+/// Invariants (upheld by every constructor of this crate, checked by [`Mesh::check_structure`]):
 /// every cell index is below [`Mesh::n_nodes`], `cells.len() == n_cells · nodes_per_cell`,
 /// `cell_region.len() == n_cells`, every coordinate is finite.
 #[derive(Debug, Clone, PartialEq)]
@@ -269,7 +269,7 @@ impl Mesh {
     /// Checks the structural invariants: connectivity length, node indices, finite coordinates.
     pub fn check_structure(&self) -> Result<(), MeshError> {
         let npc = self.kind.nodes_per_cell();
-        if self.cells.len() % npc != 0 {
+        if !self.cells.len().is_multiple_of(npc) {
             return Err(MeshError::Invalid(format!(
                 "connectivity length {} is not a multiple of {npc}",
                 self.cells.len()

@@ -105,7 +105,7 @@ pub fn block_tet(origin: [f64; 3], size: [f64; 3], n: [usize; 3]) -> Mesh {
     split_hexes(hex, |_| [0, 0, 0])
 }
 
-/// Splits every hexahedron into six tetrahedra ([`kuhn`] with the diagonal corner chosen by
+/// Splits every hexahedron into six tetrahedra (the Kuhn split with the diagonal corner chosen by
 /// `diagonal_from(cell)`), fixing each tetrahedron's orientation.
 pub fn split_hexes(hex: Mesh, diagonal_from: impl Fn(usize) -> [usize; 3]) -> Mesh {
     assert_eq!(hex.kind, CellKind::Hex8);

@@ -45,7 +45,7 @@ pub fn read(path: &Path) -> Result<Mesh, MeshError> {
         };
         let base = nodes.len();
         let pts: Vec<f64> = piece.points.cast_into().ok_or_else(|| err("points are not numeric".into()))?;
-        if pts.len() % 3 != 0 {
+        if !pts.len().is_multiple_of(3) {
             return Err(err(format!("{} point coordinates is not a multiple of 3", pts.len())));
         }
         nodes.extend(pts.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
@@ -157,10 +157,10 @@ fn read_attribute(path: &Path, name: &str, point: bool) -> Result<Option<Vec<f64
         let Piece::Inline(p) = piece else { continue };
         let attrs = if point { &p.data.point } else { &p.data.cell };
         for a in attrs {
-            if let Attribute::DataArray(d) = a {
-                if d.name == name {
-                    return Ok(d.data.cast_into());
-                }
+            if let Attribute::DataArray(d) = a
+                && d.name == name
+            {
+                return Ok(d.data.cast_into());
             }
         }
     }

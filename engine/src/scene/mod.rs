@@ -3,7 +3,7 @@
 //!
 //! # Layout
 //! - [`schema`]: the serde types of the TOML format (documented in `docs/scene.md`).
-//! - [`locate`](self::locate): maps a key path to its line in the source text.
+//! - [`locate`]: maps a key path to its line in the source text.
 //! - this file: [`Scene`] (a validated scene), [`SceneError`], [`OrganModel`] (an organ's
 //!   mesh, materials, constraints and loads, ready to solve), and [`builtin`] scenes.
 
@@ -231,7 +231,8 @@ impl Scene {
         }
         let p = &s.fidelity.pgd;
         let pgd = [Seg::Key("fidelity"), Seg::Key("pgd")];
-        if !(p.global_tolerance > 0.0 && p.global_tolerance < 1.0) || !(p.enrichment_tolerance > 0.0 && p.enrichment_tolerance < 1.0) {
+        let in_unit = |t: f64| t > 0.0 && t < 1.0;
+        if !in_unit(p.global_tolerance) || !in_unit(p.enrichment_tolerance) {
             return Err(self.error_at(&pgd, "PGD tolerances must lie in (0, 1)"));
         }
         if p.max_modes == 0 || p.max_iterations == 0 {

@@ -186,6 +186,6 @@ mod tests {
         let mut c = vec![false; 24];
         c[0..3].fill(true);
         assert_eq!(free_rigid_motions(&nodes, &c).len(), 3);
-        assert_eq!(free_rigid_motions(&nodes, &vec![false; 24]).len(), 6);
+        assert_eq!(free_rigid_motions(&nodes, &[false; 24]).len(), 6);
     }
 }
