@@ -1,0 +1,72 @@
+//! Boundary faces point outward and carry their owning cell; consistent loads integrate to
+//! the right totals (traction × area, density × volume × g).
+
+use vademecum_engine::fem::assembly::MaterialMap;
+use vademecum_engine::fem::loads;
+use vademecum_engine::material::LinearElastic;
+use vademecum_engine::mesh::boundary::{Boundary, triangle_area_normal};
+use vademecum_engine::mesh::select::Region;
+use vademecum_engine::mesh::{Mesh, procedural, quality};
+
+fn centroid(m: &Mesh, nodes: &[usize]) -> [f64; 3] {
+    let mut c = [0.0; 3];
+    for &n in nodes {
+        for k in 0..3 {
+            c[k] += m.nodes[n][k] / nodes.len() as f64;
+        }
+    }
+    c
+}
+
+#[test]
+fn boundary_faces_point_out_of_their_owning_cell() {
+    for m in [procedural::block_hex([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2]), procedural::lobe(&Default::default())] {
+        let b = Boundary::of(&m);
+        assert!(!b.faces.is_empty());
+        for f in &b.faces {
+            let fc = centroid(&m, f.node_slice());
+            let cc = centroid(&m, m.cell(f.cell));
+            let (_, n) = triangle_area_normal(&m, [f.nodes[0], f.nodes[1], f.nodes[2]]);
+            let out: f64 = (0..3).map(|k| (fc[k] - cc[k]) * n[k]).sum();
+            assert!(out > 0.0, "face of cell {} points inward", f.cell);
+            assert!(f.node_slice().iter().all(|n| m.cell(f.cell).contains(n)));
+        }
+    }
+    // A closed surface has zero total vector area.
+    let m = procedural::lobe(&Default::default());
+    let b = Boundary::of(&m);
+    let mut s = [0.0; 3];
+    for t in b.triangles() {
+        let (a, n) = triangle_area_normal(&m, t);
+        for k in 0..3 {
+            s[k] += a * n[k];
+        }
+    }
+    assert!(s.iter().all(|v| v.abs() < 1e-12), "{s:?}");
+}
+
+#[test]
+fn traction_integrates_to_traction_times_area() {
+    for m in [procedural::block_hex([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2]), procedural::block_tet([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2])] {
+        let b = Boundary::of(&m);
+        let faces = Region::Box { min: [0.0, 0.0, 0.1], max: [0.3, 0.2, 0.1] }.faces(&m, &b).unwrap();
+        let mut f = vec![0.0; m.n_dofs()];
+        let area = loads::add_traction(&mut f, &m, &b, &faces, [0.0, 10.0, -100.0]);
+        assert!((area - 0.06).abs() < 1e-12, "top area {area}");
+        let fz: f64 = (0..m.n_nodes()).map(|n| f[3 * n + 2]).sum();
+        let fy: f64 = (0..m.n_nodes()).map(|n| f[3 * n + 1]).sum();
+        assert!((fz + 6.0).abs() < 1e-12 && (fy - 0.6).abs() < 1e-12, "{fy} {fz}");
+    }
+}
+
+#[test]
+fn gravity_integrates_to_weight() {
+    let m = procedural::lobe(&Default::default());
+    let mat = MaterialMap::uniform(LinearElastic::new(1e4, 0.3).unwrap(), 1060.0, m.n_cells());
+    let mut f = vec![0.0; m.n_dofs()];
+    let mass = loads::add_body_force(&mut f, &m, &mat, [0.0, 0.0, -9.81]).unwrap();
+    let v: f64 = quality::signed_volumes(&m).iter().sum();
+    assert!((mass - 1060.0 * v).abs() < 1e-10 * mass);
+    let fz: f64 = (0..m.n_nodes()).map(|n| f[3 * n + 2]).sum();
+    assert!((fz + 9.81 * mass).abs() < 1e-10 * mass);
+}
