@@ -5,6 +5,7 @@
 //!   boundary surfaces, selections, quality, procedural meshes.
 //! - [`material`]: constitutive laws.
 //! - [`fem`]: shape functions, cell operators, assembly, loads, the static linear solve.
+//! - [`pgd`]: PGD computational vademecums (offline builder, brute-force reference).
 //! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
 //! - [`scene`]: scene files (TOML), their validation, and the static problem they describe.
 //!
@@ -16,5 +17,6 @@
 pub mod fem;
 pub mod material;
 pub mod mesh;
+pub mod pgd;
 pub mod scene;
 pub mod solve;

@@ -20,7 +20,10 @@ fn centroid(m: &Mesh, nodes: &[usize]) -> [f64; 3] {
 
 #[test]
 fn boundary_faces_point_out_of_their_owning_cell() {
-    for m in [procedural::block_hex([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2]), procedural::lobe(&Default::default())] {
+    for m in [
+        procedural::block_hex([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2]),
+        procedural::lobe(&Default::default()),
+    ] {
         let b = Boundary::of(&m);
         assert!(!b.faces.is_empty());
         for f in &b.faces {
@@ -47,9 +50,17 @@ fn boundary_faces_point_out_of_their_owning_cell() {
 
 #[test]
 fn traction_integrates_to_traction_times_area() {
-    for m in [procedural::block_hex([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2]), procedural::block_tet([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2])] {
+    for m in [
+        procedural::block_hex([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2]),
+        procedural::block_tet([0.0; 3], [0.3, 0.2, 0.1], [3, 2, 2]),
+    ] {
         let b = Boundary::of(&m);
-        let faces = Region::Box { min: [0.0, 0.0, 0.1], max: [0.3, 0.2, 0.1] }.faces(&m, &b).unwrap();
+        let faces = Region::Box {
+            min: [0.0, 0.0, 0.1],
+            max: [0.3, 0.2, 0.1],
+        }
+        .faces(&m, &b)
+        .unwrap();
         let mut f = vec![0.0; m.n_dofs()];
         let area = loads::add_traction(&mut f, &m, &b, &faces, [0.0, 10.0, -100.0]);
         assert!((area - 0.06).abs() < 1e-12, "top area {area}");
