@@ -7,6 +7,7 @@
 //! - [`fem`]: shape functions, cell operators, assembly, loads, the static linear solve.
 //! - [`pgd`]: PGD computational vademecums (offline builder, brute-force reference).
 //! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
+//! - [`bundle`]: the on-disk form of built vademecums (manifest + `.npy` + checksums).
 //! - [`scene`]: scene files (TOML), their validation, and the static problem they describe.
 //!
 //! This crate does no network or async I/O and spawns no threads on any real-time path;
@@ -14,6 +15,7 @@
 #![deny(missing_docs)]
 #![allow(non_snake_case)]
 
+pub mod bundle;
 pub mod fem;
 pub mod material;
 pub mod mesh;

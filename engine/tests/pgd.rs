@@ -17,7 +17,7 @@ use vademecum_engine::solve::Cholesky;
 struct Setup {
     k: assembly::SymmetricMatrix,
     chol: Cholesky,
-    load_eqs: Vec<Option<usize>>,
+    load_eqs: Vec<vademecum_engine::pgd::LoadVector>,
 }
 
 fn setup() -> Setup {

@@ -35,6 +35,20 @@ Without SCENE, solves the built-in default scene ('organ'). Open the .vtu files 
 (Filters > Warp By Vector on 'displacement' shows the deformed shape)."
     )]
     Solve(SolveArgs),
+    /// Build the PGD vademecum of every organ of a scene into bundles.
+    #[command(
+        long_about = "Build the PGD computational vademecum (seed 000, Alg. 2.1) of every organ of a scene: \
+the displacement for a unit load in each direction at every accessible surface node, in \
+separated form u(x; s) = sum_k F_k(x) G_k(s). K is assembled and factored once; every \
+spatial solve reuses the factorization. The stopping criteria come from the scene's \
+[fidelity.pgd] section.\n\n\
+By default the exact parametric solution (one solve per load state) is also computed, to \
+report the vademecum's error against it and the time it took; --no-reference skips it for \
+large organs. Writes one bundle folder per organ (manifest.json, scene.toml, .npy arrays)."
+    )]
+    Build(BuildArgs),
+    /// Show what is inside a bundle.
+    Inspect(InspectArgs),
     /// Inspect meshes.
     #[command(subcommand)]
     Mesh(MeshCommand),
@@ -58,6 +72,38 @@ pub struct SolveArgs {
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Print a machine-readable JSON summary on stdout instead of the text report.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `vademecum build`.
+#[derive(Debug, Args)]
+pub struct BuildArgs {
+    /// Scene file (TOML). Default: the built-in scene named by --builtin.
+    pub scene: Option<PathBuf>,
+    /// Built-in scene to build when no SCENE is given (organ, patch, cantilever).
+    #[arg(long, default_value = "organ", conflicts_with = "scene")]
+    pub builtin: String,
+    /// Output folder; each organ's bundle goes to <OUT>/<organ>.bundle. Default: out/<scene name>.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Skip the brute-force reference (no error report; saves one solve per load state).
+    #[arg(long)]
+    pub no_reference: bool,
+    /// Keep the greedy modes as they are instead of recompressing them (QR + SVD).
+    #[arg(long)]
+    pub no_recompress: bool,
+    /// Print the build report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `vademecum inspect`.
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// Bundle folder (written by `vademecum build`).
+    pub bundle: PathBuf,
+    /// Print the manifest as JSON.
     #[arg(long)]
     pub json: bool,
 }

@@ -3,24 +3,24 @@
 
 use std::time::Instant;
 
-use super::build::SeparatedSolution;
+use super::build::{LoadVector, SeparatedSolution};
 use crate::solve::Cholesky;
 
 /// Columns solved together (a block of right-hand sides amortises the factor traversal).
 const BLOCK: usize = 64;
 
 /// The exact responses, `n × p` column-major, and the time taken (s).
-pub fn solve_all(chol: &Cholesky, load_eqs: &[Option<usize>], on_progress: &mut dyn FnMut(usize)) -> (Vec<f64>, f64) {
+pub fn solve_all(chol: &Cholesky, loads: &[LoadVector], on_progress: &mut dyn FnMut(usize)) -> (Vec<f64>, f64) {
     let clock = Instant::now();
     let n = chol.n();
-    let p = load_eqs.len();
+    let p = loads.len();
     let mut u = vec![0.0; n * p];
     for start in (0..p).step_by(BLOCK) {
         let end = (start + BLOCK).min(p);
         let block = &mut u[start * n..end * n];
         for (c, q) in (start..end).enumerate() {
-            if let Some(e) = load_eqs[q] {
-                block[c * n + e] = 1.0;
+            for &(e, w) in &loads[q] {
+                block[c * n + e] += w;
             }
         }
         chol.solve_many_in_place(block, end - start);

@@ -10,7 +10,9 @@ use crate::solve::Cholesky;
 pub struct PgdParams {
     /// ε_R: stop enriching when a new mode's energy is below this fraction of the first's.
     pub global_tolerance: f64,
-    /// ε_F: stop the fixed point when `R Sᵀ` changes by less than this (relative).
+    /// ε_F: stop the fixed point when `R Sᵀ` changes by less than this (relative). The modes
+    /// are near-optimal long before the fixed point converges tightly (BENCHMARKS.md), so
+    /// a loose value saves most of the build time.
     pub enrichment_tolerance: f64,
     /// Cap on modes.
     pub max_modes: usize,
@@ -112,20 +114,23 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// Builds the vademecum `U ≈ F Gᵀ` of `K U = F_L` by greedy enrichment. `load_eqs[p]` is the
-/// equation loaded by a unit force in load state p (`None` for a constrained degree of
-/// freedom: that state's response is zero). `chol` must factor `k`. `on_mode(k, energy)` is
-/// called after each mode (for progress displays).
+/// A load state as a sparse force vector over the free equations: `(equation, force)` pairs
+/// (empty when every loaded degree of freedom is constrained: the response is then zero).
+pub type LoadVector = Vec<(usize, f64)>;
+
+/// Builds the vademecum `U ≈ F Gᵀ` of `K U = F_L` by greedy enrichment, where column p of
+/// `F_L` is `loads[p]`. `chol` must factor `k`. `on_mode(k, energy)` is called after each mode
+/// (for progress displays).
 pub fn build(
     k: &SymmetricMatrix,
     chol: &Cholesky,
-    load_eqs: &[Option<usize>],
+    loads: &[LoadVector],
     params: &PgdParams,
     on_mode: &mut dyn FnMut(usize, f64),
 ) -> (SeparatedSolution, PgdInfo) {
     let clock = Instant::now();
     let n = k.pattern.n();
-    let p = load_eqs.len();
+    let p = loads.len();
     let mut sol = SeparatedSolution::empty(n, p);
     let mut info = PgdInfo {
         modes: 0,
@@ -156,9 +161,9 @@ pub fn build(
             let ss = dot(&s, &s);
             // R-step: R = [K⁻¹(F_L S) − Σ_i F_i (G_i·S)] / (S·S)
             r.fill(0.0);
-            for (q, e) in load_eqs.iter().enumerate() {
-                if let Some(e) = e {
-                    r[*e] += s[q];
+            for (q, l) in loads.iter().enumerate() {
+                for &(e, w) in l {
+                    r[e] += w * s[q];
                 }
             }
             chol.solve_in_place(&mut r);
@@ -186,8 +191,8 @@ pub fn build(
             for i in 0..sol.modes {
                 coef[i] = dot(sol.f_mode(i), &kr);
             }
-            for (q, e) in load_eqs.iter().enumerate() {
-                let mut v = e.map_or(0.0, |e| r[e]);
+            for (q, l) in loads.iter().enumerate() {
+                let mut v: f64 = l.iter().map(|&(e, w)| w * r[e]).sum();
                 for i in 0..sol.modes {
                     v -= coef[i] * sol.g[i * p + q];
                 }

@@ -31,5 +31,8 @@
 pub mod brute;
 pub mod build;
 pub mod compress;
+pub mod offline;
+pub mod vademecum;
 
-pub use build::{PgdInfo, PgdParams, SeparatedSolution};
+pub use build::{LoadVector, PgdInfo, PgdParams, SeparatedSolution};
+pub use vademecum::Vademecum;

@@ -281,13 +281,13 @@ fn default_eps_r() -> f64 {
     1e-4
 }
 fn default_eps_f() -> f64 {
-    1e-8
+    1e-2
 }
 fn default_max_modes() -> usize {
     200
 }
 fn default_max_iters() -> usize {
-    50
+    10
 }
 
 impl Default for PgdFidelity {

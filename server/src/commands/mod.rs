@@ -1,6 +1,8 @@
 //! The subcommands, one file each.
 
 mod bench;
+mod build;
+mod inspect;
 mod mesh_info;
 mod scene;
 mod solve;
@@ -13,6 +15,8 @@ use crate::cli::{BenchCommand, Cli, Command, MeshCommand};
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Solve(a) => solve::run(a),
+        Command::Build(a) => build::run(a),
+        Command::Inspect(a) => inspect::run(a),
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),

@@ -43,7 +43,7 @@ struct Summary {
 }
 
 /// Loads the scene named by the arguments.
-pub fn load_scene(path: &Option<PathBuf>, builtin: &str) -> anyhow::Result<Scene> {
+pub(crate) fn load_scene(path: &Option<PathBuf>, builtin: &str) -> anyhow::Result<Scene> {
     Ok(match path {
         Some(p) => Scene::load(p)?,
         None => Scene::builtin(builtin)?,

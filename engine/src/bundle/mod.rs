@@ -1,0 +1,336 @@
+//! Bundles: the on-disk form of a built vademecum. A bundle is a folder holding
+//!
+//! - `manifest.json` — format name and version, what was built (kind, organ, sizes), how
+//!   (build report), from what (SHA-256 of the scene text and of the mesh), and for every
+//!   array its file, shape, dtype and SHA-256;
+//! - `scene.toml` — the scene it was built from, verbatim;
+//! - one `.npy` file per array (NumPy-readable: `numpy.load("F.npy")`).
+//!
+//! Reading verifies every checksum, shape and the format version, so a damaged, truncated or
+//! foreign bundle is refused with a message naming the file, never loaded half-way.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use npyz::WriterBuilder;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+/// The `format` field of every manifest.
+pub const FORMAT: &str = "vademecum-bundle";
+/// The manifest version this build writes and reads.
+pub const VERSION: u32 = 1;
+/// The manifest's file name.
+pub const MANIFEST: &str = "manifest.json";
+
+/// Why a bundle could not be written or read.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BundleError {
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating-system error.
+        source: std::io::Error,
+    },
+    /// The folder has no manifest, or the manifest is not a vademecum manifest.
+    #[error("{path} is not a vademecum bundle ({why}); build one with `vademecum build <scene>`")]
+    NotABundle {
+        /// The folder or manifest.
+        path: PathBuf,
+        /// What is wrong.
+        why: String,
+    },
+    /// The bundle was written by another format version.
+    #[error("{path}: bundle format version {found}, this build reads version {supported}; rebuild it with `vademecum build`")]
+    Version {
+        /// The manifest.
+        path: PathBuf,
+        /// Version found.
+        found: u32,
+        /// Version supported.
+        supported: u32,
+    },
+    /// An array file does not match its checksum (damaged or edited).
+    #[error("{path}: checksum mismatch (expected {expected}, found {found}); the bundle is damaged, rebuild it")]
+    Checksum {
+        /// The array file.
+        path: PathBuf,
+        /// SHA-256 in the manifest.
+        expected: String,
+        /// SHA-256 of the file.
+        found: String,
+    },
+    /// An array is malformed (bad header, wrong shape or dtype, missing entry).
+    #[error("{path}: {message}")]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// The bundle was built for another scene or mesh than the one it is used with.
+    #[error("bundle {path} was built from another {what} (bundle {expected}…, here {found}…); rebuild it for this scene")]
+    Mismatch {
+        /// The bundle folder.
+        path: PathBuf,
+        /// "scene" or "mesh".
+        what: &'static str,
+        /// Hash prefix recorded in the bundle.
+        expected: String,
+        /// Hash prefix of what it is used with.
+        found: String,
+    },
+}
+
+/// One array of a bundle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArrayEntry {
+    /// File name inside the bundle.
+    pub file: String,
+    /// Shape (row-major).
+    pub shape: Vec<u64>,
+    /// NumPy dtype string (`<f8`, `<i8`).
+    pub dtype: String,
+    /// SHA-256 of the file, hex.
+    pub sha256: String,
+}
+
+/// The manifest of a bundle.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    /// Always [`FORMAT`].
+    pub format: String,
+    /// Format version ([`VERSION`]).
+    pub version: u32,
+    /// What the bundle holds (`pgd-linear`).
+    pub kind: String,
+    /// The vademecum version that wrote it.
+    pub created_by: String,
+    /// Scene name.
+    pub scene: String,
+    /// Organ name.
+    pub organ: String,
+    /// SHA-256 of the scene text.
+    pub scene_sha256: String,
+    /// SHA-256 of the mesh (see [`mesh_hash`]).
+    pub mesh_sha256: String,
+    /// Kind-specific facts (sizes, build report), free-form JSON.
+    pub info: serde_json::Value,
+    /// The arrays, by name.
+    pub arrays: BTreeMap<String, ArrayEntry>,
+}
+
+/// An array to write: f64 or i64 data with a shape.
+#[derive(Debug, Clone, Copy)]
+pub enum ArrayData<'a> {
+    /// Floating-point data.
+    F64(&'a [f64]),
+    /// Integer data.
+    I64(&'a [i64]),
+}
+
+/// Hex SHA-256 of bytes.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    let d = Sha256::digest(bytes);
+    d.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// SHA-256 identifying a mesh: node coordinates (f64, little endian), cell kind and
+/// connectivity (u64). Two meshes hash equal only if they are the same mesh in the same
+/// units and numbering.
+pub fn mesh_hash(mesh: &crate::mesh::Mesh) -> String {
+    let mut h = Sha256::new();
+    h.update(mesh.kind.name().as_bytes());
+    for p in &mesh.nodes {
+        for x in p {
+            h.update(x.to_le_bytes());
+        }
+    }
+    for c in &mesh.cells {
+        h.update((*c as u64).to_le_bytes());
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> BundleError + '_ {
+    move |source| BundleError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Writes a bundle into `dir` (created if needed): every array as `.npy`, the scene text,
+/// and the manifest (written last, so a bundle interrupted while writing has none and is
+/// refused). `manifest.arrays` is filled in here.
+pub fn write(
+    dir: &Path,
+    mut manifest: Manifest,
+    scene_text: &str,
+    arrays: &[(&str, Vec<u64>, ArrayData<'_>)],
+) -> Result<Manifest, BundleError> {
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let stale = dir.join(MANIFEST);
+    if stale.exists() {
+        std::fs::remove_file(&stale).map_err(io(&stale))?;
+    }
+    manifest.arrays.clear();
+    for (name, shape, data) in arrays {
+        let file = format!("{name}.npy");
+        let path = dir.join(&file);
+        let mut buf = Vec::new();
+        let dtype = match data {
+            ArrayData::F64(v) => {
+                let mut w = npyz::WriteOptions::new()
+                    .default_dtype()
+                    .shape(shape)
+                    .writer(&mut buf)
+                    .begin_nd()
+                    .map_err(io(&path))?;
+                w.extend(v.iter().copied()).map_err(io(&path))?;
+                w.finish().map_err(io(&path))?;
+                "<f8"
+            }
+            ArrayData::I64(v) => {
+                let mut w = npyz::WriteOptions::new()
+                    .default_dtype()
+                    .shape(shape)
+                    .writer(&mut buf)
+                    .begin_nd()
+                    .map_err(io(&path))?;
+                w.extend(v.iter().copied()).map_err(io(&path))?;
+                w.finish().map_err(io(&path))?;
+                "<i8"
+            }
+        };
+        std::fs::write(&path, &buf).map_err(io(&path))?;
+        manifest.arrays.insert(
+            name.to_string(),
+            ArrayEntry {
+                file,
+                shape: shape.clone(),
+                dtype: dtype.into(),
+                sha256: sha256_hex(&buf),
+            },
+        );
+    }
+    let scene_path = dir.join("scene.toml");
+    std::fs::write(&scene_path, scene_text).map_err(io(&scene_path))?;
+    let json = serde_json::to_string_pretty(&manifest).map_err(|e| BundleError::Malformed {
+        path: stale.clone(),
+        message: e.to_string(),
+    })?;
+    std::fs::write(&stale, json).map_err(io(&stale))?;
+    Ok(manifest)
+}
+
+/// Reads and checks a bundle's manifest (format and version), without loading arrays.
+pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
+    let path = dir.join(MANIFEST);
+    if !dir.is_dir() {
+        return Err(BundleError::NotABundle {
+            path: dir.to_path_buf(),
+            why: "no such folder".into(),
+        });
+    }
+    let text = std::fs::read_to_string(&path).map_err(|_| BundleError::NotABundle {
+        path: dir.to_path_buf(),
+        why: format!("no readable {MANIFEST}"),
+    })?;
+    let raw: serde_json::Value = serde_json::from_str(&text).map_err(|e| BundleError::NotABundle {
+        path: path.clone(),
+        why: format!("invalid JSON: {e}"),
+    })?;
+    if raw.get("format").and_then(|f| f.as_str()) != Some(FORMAT) {
+        return Err(BundleError::NotABundle {
+            path: path.clone(),
+            why: format!("its format is not \"{FORMAT}\""),
+        });
+    }
+    let found = raw.get("version").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
+    if found != VERSION {
+        return Err(BundleError::Version {
+            path,
+            found,
+            supported: VERSION,
+        });
+    }
+    serde_json::from_value(raw).map_err(|e| BundleError::Malformed {
+        path,
+        message: format!("invalid manifest: {e}"),
+    })
+}
+
+/// A loaded array.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Array {
+    /// f64 data.
+    F64(Vec<f64>),
+    /// i64 data.
+    I64(Vec<i64>),
+}
+
+/// Loads array `name` of a bundle, verifying its checksum, header, dtype and shape.
+pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u64>, Array), BundleError> {
+    let entry = manifest.arrays.get(name).ok_or_else(|| BundleError::Malformed {
+        path: dir.join(MANIFEST),
+        message: format!("the manifest lists no array '{name}'"),
+    })?;
+    let path = dir.join(&entry.file);
+    let bytes = std::fs::read(&path).map_err(io(&path))?;
+    let found = sha256_hex(&bytes);
+    if found != entry.sha256 {
+        return Err(BundleError::Checksum {
+            path,
+            expected: entry.sha256.clone(),
+            found,
+        });
+    }
+    let bad = |message: String| BundleError::Malformed {
+        path: path.clone(),
+        message,
+    };
+    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("not a valid .npy file: {e}")))?;
+    let shape = npy.shape().to_vec();
+    if shape != entry.shape {
+        return Err(bad(format!("shape {shape:?}, manifest says {:?}", entry.shape)));
+    }
+    let arr = match entry.dtype.as_str() {
+        "<f8" => Array::F64(npy.into_vec::<f64>().map_err(|e| bad(format!("cannot read f64 data: {e}")))?),
+        "<i8" => Array::I64(npy.into_vec::<i64>().map_err(|e| bad(format!("cannot read i64 data: {e}")))?),
+        d => return Err(bad(format!("unsupported dtype {d}"))),
+    };
+    let len = match &arr {
+        Array::F64(v) => v.len(),
+        Array::I64(v) => v.len(),
+    };
+    if len as u64 != shape.iter().product::<u64>() {
+        return Err(bad(format!("{len} values for shape {shape:?}")));
+    }
+    Ok((shape, arr))
+}
+
+/// Loads an f64 array.
+pub fn read_f64(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u64>, Vec<f64>), BundleError> {
+    match read_array(dir, manifest, name)? {
+        (s, Array::F64(v)) => Ok((s, v)),
+        _ => Err(BundleError::Malformed {
+            path: dir.join(name),
+            message: format!("array '{name}' is not f64"),
+        }),
+    }
+}
+
+/// Loads an i64 array.
+pub fn read_i64(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u64>, Vec<i64>), BundleError> {
+    match read_array(dir, manifest, name)? {
+        (s, Array::I64(v)) => Ok((s, v)),
+        _ => Err(BundleError::Malformed {
+            path: dir.join(name),
+            message: format!("array '{name}' is not i64"),
+        }),
+    }
+}

@@ -1,0 +1,434 @@
+//! From a scene's organ to a vademecum bundle on disk, and back: assemble K once, factor it
+//! once, build the modes, optionally measure them against the brute-force solution,
+//! recompress, and write the bundle; load a bundle, verifying it belongs to the scene.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::build::{self, PgdInfo, PgdParams};
+use super::{brute, compress, vademecum::Vademecum};
+use crate::bundle::{self, ArrayData, BundleError, Manifest};
+use crate::fem::assembly::{self, AssemblyError, DofMap, SymmetricPattern};
+use crate::mesh::Mesh;
+use crate::scene::{OrganModel, Scene, SceneError};
+use crate::solve::{self, Cholesky, SolveError};
+
+/// The bundle kind written here.
+pub const KIND: &str = "pgd-linear";
+
+/// How to build.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BuildOptions {
+    /// Stopping criteria.
+    pub params: PgdParams,
+    /// Also compute the brute-force solution and report the error against it (costs one
+    /// solve per load state and `8·dofs·states` bytes of memory).
+    pub compare_brute_force: bool,
+    /// Relative tolerance of the QR+SVD recompression (`None`: keep the greedy modes).
+    pub recompress: Option<f64>,
+    /// Radius (m) of the tool footprint over which each unit load is spread (0: point loads).
+    pub load_radius: f64,
+}
+
+/// A stage of [`build_organ`], for progress displays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum BuildStage {
+    /// Assembling K.
+    Assembly,
+    /// Factoring K.
+    Factorization,
+    /// Mode `k` done, with its relative energy.
+    Mode(usize, f64),
+    /// Brute-force columns done out of total.
+    BruteForce(usize, usize),
+    /// Measuring errors.
+    Errors,
+}
+
+/// Why a build failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum BuildError {
+    /// The scene's organ is unusable.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A cell operator failed.
+    #[error(transparent)]
+    Assembly(#[from] AssemblyError),
+    /// The stiffness could not be factored.
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    /// The constraints leave rigid motions free.
+    #[error("the fixed region does not stop the body from moving: free {}", .0.join("; "))]
+    RigidMotion(Vec<String>),
+    /// No accessible node can carry a load.
+    #[error("no accessible surface node is free to move, so there is nothing to build; check the accessible and fixed regions")]
+    NoLoadStates,
+    /// The bundle could not be written.
+    #[error(transparent)]
+    Bundle(#[from] BundleError),
+}
+
+/// What a build did (also stored in the bundle's manifest).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BuildReport {
+    /// Organ name.
+    pub organ: String,
+    /// Mesh nodes.
+    pub nodes: usize,
+    /// Free equations.
+    pub equations: usize,
+    /// Loadable surface nodes.
+    pub load_nodes: usize,
+    /// Radius of the load footprint (m).
+    pub load_radius: f64,
+    /// Mean number of nodes per load patch.
+    pub mean_patch_nodes: f64,
+    /// Load states (3 per loadable node).
+    pub load_states: usize,
+    /// The greedy builder's report.
+    pub greedy: PgdInfo,
+    /// Modes kept in the bundle.
+    pub modes: usize,
+    /// Whether the kept modes are the recompressed ones.
+    pub recompressed: bool,
+    /// Relative error of the greedy modes against brute force.
+    pub error_greedy: Option<f64>,
+    /// Relative error of the kept modes against brute force.
+    pub error: Option<f64>,
+    /// Error against brute force as modes are added (`(modes, error)`, sampled).
+    pub error_curve: Vec<(usize, f64)>,
+    /// Assembly time (s).
+    pub assembly_s: f64,
+    /// Symbolic + numeric factorization time (s).
+    pub factorization_s: f64,
+    /// Greedy PGD time (s), including its solves.
+    pub pgd_s: f64,
+    /// Recompression time (s).
+    pub recompress_s: f64,
+    /// Brute-force time (s): one solve per load state with the same factorization.
+    pub brute_force_s: Option<f64>,
+    /// Bytes of the modes kept (f64).
+    pub modes_bytes: usize,
+    /// Bytes of the full parametric solution (all dofs × all load states, f64).
+    pub full_bytes: usize,
+}
+
+/// Everything a build produced.
+#[derive(Debug, Clone)]
+pub struct Built {
+    /// The online vademecum.
+    pub vademecum: Vademecum,
+    /// The report.
+    pub report: BuildReport,
+    /// The organ model it was built from.
+    pub model: OrganModel,
+}
+
+/// Load nodes of an organ: accessible surface nodes with at least one free component.
+pub fn load_nodes(model: &OrganModel) -> Vec<usize> {
+    model
+        .accessible_nodes
+        .iter()
+        .copied()
+        .filter(|&n| (0..3).any(|i| !model.problem.constrained[3 * n + i]))
+        .collect()
+}
+
+/// The radius (m) of the scene's first probe tool, or 0 (point loads) when it has none.
+pub fn probe_radius(scene: &Scene) -> f64 {
+    scene
+        .spec
+        .tools
+        .iter()
+        .find_map(|t| match t {
+            crate::scene::schema::ToolSpec::Probe { radius, .. } => Some(*radius),
+            _ => None,
+        })
+        .unwrap_or(0.0)
+}
+
+/// The footprint of a tool of radius `r` pressing at each load node: the surface nodes
+/// within `r` of it, weighted by their share of surface area times a hat `(1 − d/r)`, and
+/// normalised to sum to one (the node alone when `r` is zero or no neighbour is that close).
+///
+/// A point load on a finite-element mesh has a compliance that grows without bound as the
+/// mesh is refined (the elastic response to a point force is singular), and its responses
+/// are not low-rank: on the built-in organ, 828 of 927 modes are needed for 1e-3 (see
+/// BENCHMARKS.md). Spreading the unit load over the probe's tip area is what the tool does,
+/// makes the contact stiffness mesh-independent, and makes the responses compressible.
+pub fn load_patches(model: &OrganModel, loads: &[usize], radius: f64) -> Vec<(Vec<usize>, Vec<f64>)> {
+    let mesh = &model.mesh;
+    let mut area = vec![0.0; mesh.n_nodes()];
+    for t in model.boundary.triangles() {
+        let (a, _) = crate::mesh::boundary::triangle_area_normal(mesh, t);
+        for n in t {
+            area[n] += a / 3.0;
+        }
+    }
+    let surface = model.boundary.nodes();
+    loads
+        .iter()
+        .map(|&s| {
+            let ps = mesh.nodes[s];
+            let mut nodes = vec![s];
+            let mut w = vec![area[s].max(f64::MIN_POSITIVE)];
+            if radius > 0.0 {
+                for &a in &surface {
+                    if a == s {
+                        continue;
+                    }
+                    let d = (0..3).map(|k| (mesh.nodes[a][k] - ps[k]).powi(2)).sum::<f64>().sqrt();
+                    if d < radius {
+                        nodes.push(a);
+                        w.push(area[a] * (1.0 - d / radius));
+                    }
+                }
+            }
+            let total: f64 = w.iter().sum();
+            (nodes, w.into_iter().map(|x| x / total).collect())
+        })
+        .collect()
+}
+
+/// The load vector of each load state `3j + d`: unit force in direction d over patch j.
+pub fn load_vectors(patches: &[(Vec<usize>, Vec<f64>)], dofs: &DofMap) -> Vec<build::LoadVector> {
+    patches
+        .iter()
+        .flat_map(|(nodes, w)| {
+            (0..3).map(move |d| {
+                nodes
+                    .iter()
+                    .zip(w)
+                    .filter_map(|(&a, &x)| dofs.eq(3 * a + d).map(|e| (e, x)))
+                    .collect()
+            })
+        })
+        .collect()
+}
+
+/// Builds organ `index` of `scene`.
+pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dyn FnMut(BuildStage)) -> Result<Built, BuildError> {
+    let model = scene.organ_model(index)?;
+    let mesh = &model.mesh;
+    let free = solve::free_rigid_motions(&mesh.nodes, &model.problem.constrained);
+    if !free.is_empty() {
+        return Err(BuildError::RigidMotion(free));
+    }
+    let loads = load_nodes(&model);
+    if loads.is_empty() {
+        return Err(BuildError::NoLoadStates);
+    }
+    on(BuildStage::Assembly);
+    let clock = Instant::now();
+    let dofs = DofMap::new(&model.problem.constrained);
+    let pattern = Arc::new(SymmetricPattern::build(mesh, &dofs));
+    let mut rhs = vec![0.0; dofs.n_free()];
+    let k = assembly::assemble_stiffness(
+        mesh,
+        &model.materials,
+        model.locking,
+        &dofs,
+        pattern,
+        &model.problem.prescribed,
+        &mut rhs,
+    )?;
+    let assembly_s = clock.elapsed().as_secs_f64();
+    on(BuildStage::Factorization);
+    let clock = Instant::now();
+    let chol = Cholesky::factor(&k)?;
+    let factorization_s = clock.elapsed().as_secs_f64();
+    let patches = load_patches(&model, &loads, opts.load_radius);
+    let load_eqs = load_vectors(&patches, &dofs);
+    let (sep, greedy) = build::build(&k, &chol, &load_eqs, &opts.params, &mut |m, e| on(BuildStage::Mode(m, e)));
+    let pgd_s = greedy.time_s;
+    let clock = Instant::now();
+    let kept = match opts.recompress {
+        Some(tol) => {
+            let c = compress::recompress(&sep, tol);
+            if c.modes < sep.modes { Some(c) } else { None }
+        }
+        None => None,
+    };
+    let recompress_s = clock.elapsed().as_secs_f64();
+    let (mut error_greedy, mut error, mut error_curve, mut brute_force_s) = (None, None, Vec::new(), None);
+    if opts.compare_brute_force {
+        let total = load_eqs.len();
+        let (exact, t) = brute::solve_all(&chol, &load_eqs, &mut |done| on(BuildStage::BruteForce(done, total)));
+        brute_force_s = Some(t);
+        on(BuildStage::Errors);
+        let curve = brute::error_curve(&sep, &exact);
+        let step = (curve.len() / 40).max(1);
+        error_curve = curve
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| (i + 1) % step == 0 || i + 1 == curve.len())
+            .map(|(i, e)| (i + 1, *e))
+            .collect();
+        error_greedy = curve.last().copied();
+        error = match &kept {
+            Some(c) => Some(brute::relative_error(c, &exact, c.modes)),
+            None => error_greedy,
+        };
+    }
+    let final_sep = kept.as_ref().unwrap_or(&sep);
+    let vademecum = Vademecum::from_separated(final_sep, &dofs, &loads, &patches);
+    let report = BuildReport {
+        organ: model.name.clone(),
+        nodes: mesh.n_nodes(),
+        equations: dofs.n_free(),
+        load_nodes: loads.len(),
+        load_states: load_eqs.len(),
+        load_radius: opts.load_radius,
+        mean_patch_nodes: patches.iter().map(|p| p.0.len()).sum::<usize>() as f64 / patches.len() as f64,
+        modes: final_sep.modes,
+        recompressed: kept.is_some(),
+        greedy,
+        error_greedy,
+        error,
+        error_curve,
+        assembly_s,
+        factorization_s,
+        pgd_s,
+        recompress_s,
+        brute_force_s,
+        modes_bytes: 8 * final_sep.modes * (mesh.n_dofs() + load_eqs.len()),
+        full_bytes: 8 * mesh.n_dofs() * load_eqs.len(),
+    };
+    Ok(Built { vademecum, report, model })
+}
+
+/// Writes a built vademecum as a bundle in `dir`.
+pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest, BundleError> {
+    let v = &built.vademecum;
+    let mesh = &built.model.mesh;
+    let manifest = Manifest {
+        format: bundle::FORMAT.into(),
+        version: bundle::VERSION,
+        kind: KIND.into(),
+        created_by: format!("vademecum {}", env!("CARGO_PKG_VERSION")),
+        scene: scene.spec.scene.name.clone(),
+        organ: built.model.name.clone(),
+        scene_sha256: bundle::sha256_hex(scene.source.as_bytes()),
+        mesh_sha256: bundle::mesh_hash(mesh),
+        info: serde_json::to_value(&built.report).unwrap_or(serde_json::Value::Null),
+        arrays: Default::default(),
+    };
+    let nodes: Vec<f64> = mesh.nodes.iter().flatten().copied().collect();
+    let loads: Vec<i64> = v.load_nodes().iter().map(|&n| n as i64).collect();
+    let surface: Vec<i64> = built.model.boundary.triangles().iter().flatten().map(|&n| n as i64).collect();
+    let mut patch_ptr = vec![0i64];
+    let mut patch_nodes = Vec::new();
+    let mut patch_weights = Vec::new();
+    for (n, w) in v.patches() {
+        patch_nodes.extend(n.iter().map(|&x| x as i64));
+        patch_weights.extend_from_slice(w);
+        patch_ptr.push(patch_nodes.len() as i64);
+    }
+    let m = v.modes() as u64;
+    let arrays = [
+        ("F", vec![m, mesh.n_dofs() as u64], ArrayData::F64(v.f_raw())),
+        ("G", vec![m, 3 * loads.len() as u64], ArrayData::F64(v.g_raw())),
+        ("load_nodes", vec![loads.len() as u64], ArrayData::I64(&loads)),
+        ("nodes", vec![mesh.n_nodes() as u64, 3], ArrayData::F64(&nodes)),
+        ("surface", vec![(surface.len() / 3) as u64, 3], ArrayData::I64(&surface)),
+        ("patch_ptr", vec![patch_ptr.len() as u64], ArrayData::I64(&patch_ptr)),
+        ("patch_nodes", vec![patch_nodes.len() as u64], ArrayData::I64(&patch_nodes)),
+        ("patch_weights", vec![patch_weights.len() as u64], ArrayData::F64(&patch_weights)),
+    ];
+    bundle::write(dir, manifest, &scene.source, &arrays)
+}
+
+/// A bundle loaded from disk.
+#[derive(Debug, Clone)]
+pub struct LoadedBundle {
+    /// Its manifest.
+    pub manifest: Manifest,
+    /// The online vademecum.
+    pub vademecum: Vademecum,
+    /// Reference node coordinates (m).
+    pub nodes: Vec<[f64; 3]>,
+    /// Boundary surface triangles (node indices).
+    pub surface: Vec<[usize; 3]>,
+}
+
+/// Loads and verifies a bundle (format, version, kind, checksums, shapes, consistency).
+pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
+    let manifest = bundle::read_manifest(dir)?;
+    let bad = |message: String| BundleError::Malformed {
+        path: dir.to_path_buf(),
+        message,
+    };
+    if manifest.kind != KIND {
+        return Err(bad(format!("bundle kind '{}' is not '{KIND}'", manifest.kind)));
+    }
+    let (fs, f) = bundle::read_f64(dir, &manifest, "F")?;
+    let (gs, g) = bundle::read_f64(dir, &manifest, "G")?;
+    let (_, loads) = bundle::read_i64(dir, &manifest, "load_nodes")?;
+    let (ns, nodes) = bundle::read_f64(dir, &manifest, "nodes")?;
+    let (_, surface) = bundle::read_i64(dir, &manifest, "surface")?;
+    let (_, patch_ptr) = bundle::read_i64(dir, &manifest, "patch_ptr")?;
+    let (_, patch_nodes) = bundle::read_i64(dir, &manifest, "patch_nodes")?;
+    let (_, patch_weights) = bundle::read_f64(dir, &manifest, "patch_weights")?;
+    if fs.len() != 2 || gs.len() != 2 || ns.len() != 2 || ns[1] != 3 || fs[0] != gs[0] || fs[1] != 3 * ns[0] {
+        return Err(bad(format!("inconsistent array shapes: F {fs:?}, G {gs:?}, nodes {ns:?}")));
+    }
+    let n_nodes = ns[0] as usize;
+    let to_index = |v: &i64| -> Result<usize, BundleError> {
+        if *v < 0 || *v as usize >= n_nodes {
+            Err(bad(format!("node index {v} out of range (0..{n_nodes})")))
+        } else {
+            Ok(*v as usize)
+        }
+    };
+    let load_nodes = loads.iter().map(to_index).collect::<Result<Vec<_>, _>>()?;
+    let surface_idx = surface.iter().map(to_index).collect::<Result<Vec<_>, _>>()?;
+    if patch_ptr.len() != load_nodes.len() + 1 || patch_nodes.len() != patch_weights.len() {
+        return Err(bad("load patch arrays do not match the load nodes".into()));
+    }
+    let mut patches = Vec::with_capacity(load_nodes.len());
+    for w in patch_ptr.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if a < 0 || b < a || b as usize > patch_nodes.len() {
+            return Err(bad("load patch offsets are not increasing".into()));
+        }
+        let nodes = patch_nodes[a as usize..b as usize]
+            .iter()
+            .map(to_index)
+            .collect::<Result<Vec<_>, _>>()?;
+        patches.push((nodes, patch_weights[a as usize..b as usize].to_vec()));
+    }
+    let vademecum = Vademecum::from_parts(n_nodes, fs[0] as usize, load_nodes, patches, f, g).map_err(bad)?;
+    Ok(LoadedBundle {
+        manifest,
+        vademecum,
+        nodes: nodes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        surface: surface_idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    })
+}
+
+/// Checks that a bundle was built from this scene text and this mesh.
+pub fn check_matches(dir: &Path, manifest: &Manifest, scene: &Scene, mesh: &Mesh) -> Result<(), BundleError> {
+    let scene_hash = bundle::sha256_hex(scene.source.as_bytes());
+    if manifest.scene_sha256 != scene_hash {
+        return Err(BundleError::Mismatch {
+            path: dir.to_path_buf(),
+            what: "scene",
+            expected: manifest.scene_sha256.chars().take(12).collect(),
+            found: scene_hash[..12].to_string(),
+        });
+    }
+    let mesh_hash = bundle::mesh_hash(mesh);
+    if manifest.mesh_sha256 != mesh_hash {
+        return Err(BundleError::Mismatch {
+            path: dir.to_path_buf(),
+            what: "mesh",
+            expected: manifest.mesh_sha256.chars().take(12).collect(),
+            found: mesh_hash[..12].to_string(),
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,283 @@
+//! The online vademecum: compliance, contact force and displacement field from the modes,
+//! with no allocation after construction.
+//!
+//! A load state is a unit force in direction d spread over the tool's footprint around
+//! surface node s (a patch of surface nodes with weights summing to one; a single node for a
+//! point load). For it the displacement is
+//! `u(x; s, d) = Σ_k F_k(x) G_k(s, d)`. The 3×3 compliance at s is the patch-averaged
+//! displacement per unit force, `C_ij(s) = Σ_k F̄_k(s)_i G_k(s, j)` with
+//! `F̄_k(s) = Σ_a w_a F_k(a)` over the patch (symmetric, by reciprocity), and a tool tip pressing the reference surface at s by
+//! a penetration δ meets the force `f = C(s)⁻¹ δ` (the force that displaces s by δ). Inside a
+//! surface triangle with barycentric weights w, both the load and the observation point are
+//! interpolated — `F_k(s) = Σ_a w_a F_k(a)`, `G_k(s) = Σ_b w_b G_k(b)` — so the force varies
+//! continuously as the tool slides across triangles.
+
+use super::build::SeparatedSolution;
+use crate::fem::assembly::DofMap;
+
+/// Marker of a node that carries no load state.
+const NOT_LOADABLE: u32 = u32::MAX;
+
+/// A linear PGD vademecum ready for online evaluation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Vademecum {
+    n_nodes: usize,
+    modes: usize,
+    /// Loadable nodes, in load-state order (state `3j + d` is node `load_nodes[j]`, direction d).
+    load_nodes: Vec<usize>,
+    param_of_node: Vec<u32>,
+    /// Spatial modes over all `3·n_nodes` degrees of freedom (zero on constrained ones),
+    /// mode-major: `f[k·3n + 3·node + i]`.
+    f: Vec<f64>,
+    /// Parameter modes, mode-major: `g[k·P + 3j + d]`.
+    g: Vec<f64>,
+    /// The load patch of each loadable node: `(nodes, weights)`, weights summing to one.
+    patches: Vec<(Vec<usize>, Vec<f64>)>,
+    /// Per loadable node j, interleaved for contact: `fl[(j·modes + k)·3 + i] = F̄_k(node_j)_i`,
+    /// the patch average of the spatial mode.
+    fl: Vec<f64>,
+    /// Same layout for G: `gl[(j·modes + k)·3 + d] = G_k(j, d)`.
+    gl: Vec<f64>,
+}
+
+impl Vademecum {
+    /// Builds the online form of a separated solution over the free equations of `dofs`.
+    pub fn from_separated(sep: &SeparatedSolution, dofs: &DofMap, load_nodes: &[usize], patches: &[(Vec<usize>, Vec<f64>)]) -> Self {
+        let n_dofs = dofs.n_dofs();
+        let n_nodes = n_dofs / 3;
+        let m = sep.modes;
+        let p = sep.p;
+        assert_eq!(p, 3 * load_nodes.len(), "one load state per node and direction");
+        let mut f = vec![0.0; m * n_dofs];
+        for k in 0..m {
+            let fk = sep.f_mode(k);
+            for d in 0..n_dofs {
+                if let Some(e) = dofs.eq(d) {
+                    f[k * n_dofs + d] = fk[e];
+                }
+            }
+        }
+        Self::from_parts(n_nodes, m, load_nodes.to_vec(), patches.to_vec(), f, sep.g.clone()).expect("consistent by construction")
+    }
+
+    /// Assembles a vademecum from raw arrays (as stored in a bundle), checking their sizes.
+    pub fn from_parts(
+        n_nodes: usize,
+        modes: usize,
+        load_nodes: Vec<usize>,
+        patches: Vec<(Vec<usize>, Vec<f64>)>,
+        f: Vec<f64>,
+        g: Vec<f64>,
+    ) -> Result<Self, String> {
+        let p = 3 * load_nodes.len();
+        if patches.len() != load_nodes.len() {
+            return Err(format!("{} load patches for {} load nodes", patches.len(), load_nodes.len()));
+        }
+        for (nodes, w) in &patches {
+            if nodes.len() != w.len() || nodes.is_empty() || nodes.iter().any(|&n| n >= n_nodes) || w.iter().any(|x| !x.is_finite()) {
+                return Err("a load patch is empty, out of range or not finite".into());
+            }
+        }
+        if f.len() != modes * 3 * n_nodes {
+            return Err(format!("F has {} values, expected {modes} modes × {} dofs", f.len(), 3 * n_nodes));
+        }
+        if g.len() != modes * p {
+            return Err(format!("G has {} values, expected {modes} modes × {p} load states", g.len()));
+        }
+        let mut param_of_node = vec![NOT_LOADABLE; n_nodes];
+        for (j, &n) in load_nodes.iter().enumerate() {
+            if n >= n_nodes {
+                return Err(format!("load node {n} is outside the mesh ({n_nodes} nodes)"));
+            }
+            if param_of_node[n] != NOT_LOADABLE {
+                return Err(format!("load node {n} is listed twice"));
+            }
+            param_of_node[n] = j as u32;
+        }
+        if f.iter().chain(&g).any(|v| !v.is_finite()) {
+            return Err("the modes contain non-finite values".into());
+        }
+        let nl = load_nodes.len();
+        let mut fl = vec![0.0; nl * modes * 3];
+        let mut gl = vec![0.0; nl * modes * 3];
+        for (j, (pn, pw)) in patches.iter().enumerate() {
+            for k in 0..modes {
+                for i in 0..3 {
+                    fl[(j * modes + k) * 3 + i] = pn.iter().zip(pw).map(|(&a, &w)| w * f[k * 3 * n_nodes + 3 * a + i]).sum();
+                    gl[(j * modes + k) * 3 + i] = g[k * p + 3 * j + i];
+                }
+            }
+        }
+        Ok(Self {
+            n_nodes,
+            modes,
+            load_nodes,
+            param_of_node,
+            f,
+            g,
+            patches,
+            fl,
+            gl,
+        })
+    }
+
+    /// Number of mesh nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.n_nodes
+    }
+
+    /// Number of modes.
+    pub fn modes(&self) -> usize {
+        self.modes
+    }
+
+    /// The loadable nodes, in load-state order.
+    pub fn load_nodes(&self) -> &[usize] {
+        &self.load_nodes
+    }
+
+    /// The load patch `(nodes, weights)` of each loadable node, in load-state order.
+    pub fn patches(&self) -> &[(Vec<usize>, Vec<f64>)] {
+        &self.patches
+    }
+
+    /// Raw spatial modes (mode-major over all dofs).
+    pub fn f_raw(&self) -> &[f64] {
+        &self.f
+    }
+
+    /// Raw parameter modes (mode-major over load states).
+    pub fn g_raw(&self) -> &[f64] {
+        &self.g
+    }
+
+    /// Whether a tool may load `node`.
+    pub fn is_loadable(&self, node: usize) -> bool {
+        self.param_of_node.get(node).is_some_and(|&p| p != NOT_LOADABLE)
+    }
+
+    /// The compliance (m/N) at a surface point given by up to three nodes and barycentric
+    /// weights; `None` if a node with non-zero weight is not loadable or the input is not
+    /// finite. Cost: 9 multiply-adds per mode per node pair of non-zero weight.
+    pub fn compliance(&self, nodes: [usize; 3], weights: [f64; 3]) -> Option<[[f64; 3]; 3]> {
+        if weights.iter().any(|w| !w.is_finite()) {
+            return None;
+        }
+        let mut js = [0usize; 3];
+        for a in 0..3 {
+            if weights[a] != 0.0 {
+                let p = *self.param_of_node.get(nodes[a])?;
+                if p == NOT_LOADABLE {
+                    return None;
+                }
+                js[a] = p as usize;
+            }
+        }
+        let m = self.modes;
+        let mut c = [[0.0; 3]; 3];
+        for k in 0..m {
+            let (mut fk, mut gk) = ([0.0; 3], [0.0; 3]);
+            for a in 0..3 {
+                let w = weights[a];
+                if w == 0.0 {
+                    continue;
+                }
+                let at = (js[a] * m + k) * 3;
+                for i in 0..3 {
+                    fk[i] += w * self.fl[at + i];
+                    gk[i] += w * self.gl[at + i];
+                }
+            }
+            for i in 0..3 {
+                for d in 0..3 {
+                    c[i][d] += fk[i] * gk[d];
+                }
+            }
+        }
+        Some(c)
+    }
+
+    /// The contact force (N) that displaces a surface point by `penetration` (m):
+    /// `f = C⁻¹ δ`. Returns zero for a non-finite input or a singular compliance.
+    pub fn contact_force(c: &[[f64; 3]; 3], penetration: [f64; 3]) -> [f64; 3] {
+        if penetration.iter().any(|v| !v.is_finite()) {
+            return [0.0; 3];
+        }
+        let det = c[0][0] * (c[1][1] * c[2][2] - c[1][2] * c[2][1]) - c[0][1] * (c[1][0] * c[2][2] - c[1][2] * c[2][0])
+            + c[0][2] * (c[1][0] * c[2][1] - c[1][1] * c[2][0]);
+        if !(det.is_finite() && det.abs() > 0.0) {
+            return [0.0; 3];
+        }
+        // Cramer's rule
+        let mut f = [0.0; 3];
+        for col in 0..3 {
+            let mut m = *c;
+            for r in 0..3 {
+                m[r][col] = penetration[r];
+            }
+            let d = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+            f[col] = d / det;
+        }
+        if f.iter().all(|v| v.is_finite()) { f } else { [0.0; 3] }
+    }
+
+    /// Mode coefficients `c_k = Σ_b w_b Σ_d G_k(b, d) f_d` of the response to force `f` (N)
+    /// applied at the surface point `(nodes, weights)`, into `coeffs` (length = modes).
+    /// Returns false (and zeros) if the point is not loadable or the input is not finite.
+    pub fn coefficients(&self, nodes: [usize; 3], weights: [f64; 3], force: [f64; 3], coeffs: &mut [f64]) -> bool {
+        debug_assert_eq!(coeffs.len(), self.modes);
+        coeffs.fill(0.0);
+        if weights.iter().chain(&force).any(|v| !v.is_finite()) {
+            return false;
+        }
+        let m = self.modes;
+        for a in 0..3 {
+            if weights[a] == 0.0 {
+                continue;
+            }
+            let Some(&p) = self.param_of_node.get(nodes[a]) else {
+                coeffs.fill(0.0);
+                return false;
+            };
+            if p == NOT_LOADABLE {
+                coeffs.fill(0.0);
+                return false;
+            }
+            for (k, c) in coeffs.iter_mut().enumerate() {
+                let at = (p as usize * m + k) * 3;
+                *c += weights[a] * (self.gl[at] * force[0] + self.gl[at + 1] * force[1] + self.gl[at + 2] * force[2]);
+            }
+        }
+        true
+    }
+
+    /// The displacement field `u = Σ_k c_k F_k` over all nodes (`out`: 3·n_nodes values).
+    pub fn field(&self, coeffs: &[f64], out: &mut [f64]) {
+        let nd = 3 * self.n_nodes;
+        debug_assert_eq!(out.len(), nd);
+        out.fill(0.0);
+        for (k, &c) in coeffs.iter().enumerate() {
+            if c != 0.0 {
+                for (o, f) in out.iter_mut().zip(&self.f[k * nd..(k + 1) * nd]) {
+                    *o += c * f;
+                }
+            }
+        }
+    }
+
+    /// The displacement of selected nodes only (`out`: 3 values per node).
+    pub fn field_at(&self, coeffs: &[f64], nodes: &[usize], out: &mut [f64]) {
+        let nd = 3 * self.n_nodes;
+        debug_assert_eq!(out.len(), 3 * nodes.len());
+        out.fill(0.0);
+        for (k, &c) in coeffs.iter().enumerate() {
+            let fk = &self.f[k * nd..(k + 1) * nd];
+            for (o, &n) in out.chunks_exact_mut(3).zip(nodes) {
+                o[0] += c * fk[3 * n];
+                o[1] += c * fk[3 * n + 1];
+                o[2] += c * fk[3 * n + 2];
+            }
+        }
+    }
+}
