@@ -1,0 +1,196 @@
+//! Building a vademecum into a bundle and loading it back: the online evaluator matches the
+//! brute-force solution it was measured against, bundles round-trip exactly, and a damaged,
+//! truncated, foreign or mismatched bundle is refused with a clear error.
+
+use std::path::Path;
+
+use vademecum_engine::bundle::BundleError;
+use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::pgd::{PgdParams, Vademecum};
+use vademecum_engine::scene::Scene;
+
+const SCENE: &str = r#"[scene]
+name = "slab"
+
+[[organs]]
+name = "slab"
+density = 1000.0
+
+[organs.mesh]
+builtin = "block"
+size = [0.08, 0.04, 0.02]
+divisions = [8, 4, 2]
+
+[[organs.materials]]
+model = "linear"
+young = 5e3
+poisson = 0.45
+
+[organs.fixed]
+box = { min = [0.0, 0.0, 0.0], max = [0.08, 0.04, 0.0] }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 0.02], normal = [0.0, 0.0, 1.0] }
+
+[[tools]]
+kind = "probe"
+name = "probe"
+radius = 0.012
+"#;
+
+fn built(max_modes: usize) -> (Scene, offline::Built) {
+    let scene = Scene::from_toml(SCENE, "slab.toml").unwrap();
+    let opts = BuildOptions {
+        params: PgdParams { global_tolerance: 1e-10, enrichment_tolerance: 1e-6, max_modes, max_iterations: 60 },
+        compare_brute_force: true,
+        recompress: Some(1e-9),
+        load_radius: offline::probe_radius(&scene),
+    };
+    let b = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
+    (scene, b)
+}
+
+#[test]
+fn a_full_rank_vademecum_reproduces_the_brute_force_solution() {
+    let (_, b) = built(400);
+    let r = &b.report;
+    assert_eq!(r.load_states, 3 * r.load_nodes);
+    assert!(r.mean_patch_nodes > 1.0, "the probe footprint spans several nodes");
+    let e = r.error.unwrap();
+    assert!(e < 1e-6, "error {e} with {} modes", r.modes);
+    // the error curve falls
+    for w in r.error_curve.windows(2) {
+        assert!(w[1].1 <= w[0].1 * (1.0 + 1e-9));
+    }
+}
+
+#[test]
+fn compliance_is_symmetric_positive_definite_and_force_inverts_it() {
+    let (_, b) = built(400);
+    let v = &b.vademecum;
+    for &n in v.load_nodes().iter().take(20) {
+        let c = v.compliance([n, n, n], [1.0, 0.0, 0.0]).unwrap();
+        for i in 0..3 {
+            assert!(c[i][i] > 0.0);
+            for j in 0..3 {
+                // reciprocity: patch-averaged response is symmetric
+                assert!((c[i][j] - c[j][i]).abs() < 1e-6 * c[i][i].max(c[j][j]), "C not symmetric at node {n}: {c:?}");
+            }
+        }
+        let delta = [0.0, 0.0, -1e-3];
+        let f = Vademecum::contact_force(&c, delta);
+        for i in 0..3 {
+            let back: f64 = (0..3).map(|j| c[i][j] * f[j]).sum();
+            assert!((back - delta[i]).abs() < 1e-12, "C f != delta");
+        }
+        assert!(f[2] < 0.0, "pressing down needs a downward force on the tissue... got {f:?}");
+    }
+}
+
+#[test]
+fn force_is_continuous_across_triangles_and_zero_for_bad_input() {
+    let (_, b) = built(400);
+    let v = &b.vademecum;
+    let l = v.load_nodes();
+    let (a, bb, c, d) = (l[0], l[1], l[2], l[3]);
+    // A point on the edge a–b seen from two triangles (a, b, c) and (a, b, d) gets one compliance.
+    let c1 = v.compliance([a, bb, c], [0.3, 0.7, 0.0]).unwrap();
+    let c2 = v.compliance([bb, a, d], [0.7, 0.3, 0.0]).unwrap();
+    for i in 0..3 {
+        for j in 0..3 {
+            assert!((c1[i][j] - c2[i][j]).abs() <= 1e-15 * c1[i][i].abs().max(1e-30) * 1e3);
+        }
+    }
+    // and it tends to the vertex value as the point reaches the vertex
+    let near = v.compliance([a, bb, c], [1.0 - 1e-9, 1e-9, 0.0]).unwrap();
+    let at = v.compliance([a, a, a], [1.0, 0.0, 0.0]).unwrap();
+    assert!((near[2][2] - at[2][2]).abs() < 1e-6 * at[2][2]);
+    // bad input: NaN weights, NaN penetration, a node that is not loadable
+    assert!(v.compliance([a, bb, c], [f64::NAN, 0.5, 0.5]).is_none());
+    assert_eq!(Vademecum::contact_force(&at, [f64::NAN, 0.0, 0.0]), [0.0; 3]);
+    let fixed_node = (0..v.n_nodes()).find(|&n| !v.is_loadable(n)).unwrap();
+    assert!(v.compliance([fixed_node, a, bb], [1.0, 0.0, 0.0]).is_none());
+    let mut coeffs = vec![1.0; v.modes()];
+    assert!(!v.coefficients([fixed_node, a, bb], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], &mut coeffs));
+    assert!(coeffs.iter().all(|c| *c == 0.0));
+}
+
+#[test]
+fn field_of_a_unit_load_matches_the_node_compliance() {
+    let (_, b) = built(400);
+    let v = &b.vademecum;
+    let n = v.load_nodes()[5];
+    let mut coeffs = vec![0.0; v.modes()];
+    assert!(v.coefficients([n, n, n], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], &mut coeffs));
+    let mut u = vec![0.0; 3 * v.n_nodes()];
+    v.field(&coeffs, &mut u);
+    // patch average of u_z equals C_zz
+    let (pn, pw) = &v.patches()[5];
+    let avg: f64 = pn.iter().zip(pw).map(|(&a, &w)| w * u[3 * a + 2]).sum();
+    let c = v.compliance([n, n, n], [1.0, 0.0, 0.0]).unwrap();
+    assert!((avg - c[2][2]).abs() < 1e-9 * c[2][2]);
+    let mut few = vec![0.0; 6];
+    v.field_at(&coeffs, &[pn[0], pn[pn.len() - 1]], &mut few);
+    assert_eq!(&few[..3], &u[3 * pn[0]..3 * pn[0] + 3]);
+}
+
+fn write(dir: &Path) -> (Scene, offline::Built) {
+    let (scene, b) = built(60);
+    offline::write_bundle(dir, &scene, &b).unwrap();
+    (scene, b)
+}
+
+#[test]
+fn bundles_round_trip_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("slab.bundle");
+    let (scene, b) = write(&dir);
+    let l = offline::load_bundle(&dir).unwrap();
+    assert_eq!(l.vademecum, b.vademecum);
+    assert_eq!(l.nodes, b.model.mesh.nodes);
+    offline::check_matches(&dir, &l.manifest, &scene, &b.model.mesh).unwrap();
+    assert_eq!(std::fs::read_to_string(dir.join("scene.toml")).unwrap(), SCENE);
+}
+
+#[test]
+fn damaged_truncated_or_foreign_bundles_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("b");
+    let (scene, b) = write(&dir);
+    // one flipped byte in F.npy
+    let f = dir.join("F.npy");
+    let mut bytes = std::fs::read(&f).unwrap();
+    let good = bytes.clone();
+    let mid = bytes.len() / 2;
+    bytes[mid] ^= 0x40;
+    std::fs::write(&f, &bytes).unwrap();
+    let e = offline::load_bundle(&dir).unwrap_err();
+    assert!(matches!(e, BundleError::Checksum { .. }) && e.to_string().contains("F.npy"), "{e}");
+    // truncated
+    std::fs::write(&f, &good[..good.len() - 100]).unwrap();
+    let e = offline::load_bundle(&dir).unwrap_err();
+    assert!(matches!(e, BundleError::Checksum { .. }), "{e}");
+    std::fs::write(&f, &good).unwrap();
+    offline::load_bundle(&dir).unwrap();
+    // another format version
+    let m = dir.join("manifest.json");
+    let text = std::fs::read_to_string(&m).unwrap();
+    std::fs::write(&m, text.replacen("\"version\": 1", "\"version\": 99", 1)).unwrap();
+    let e = offline::load_bundle(&dir).unwrap_err();
+    assert!(matches!(e, BundleError::Version { found: 99, .. }), "{e}");
+    // not a bundle at all
+    std::fs::write(&m, "{\"hello\": 1}").unwrap();
+    assert!(matches!(offline::load_bundle(&dir).unwrap_err(), BundleError::NotABundle { .. }));
+    std::fs::remove_file(&m).unwrap();
+    assert!(matches!(offline::load_bundle(&dir).unwrap_err(), BundleError::NotABundle { .. }));
+    // a bundle used with another scene or mesh
+    std::fs::write(&m, text).unwrap();
+    let l = offline::load_bundle(&dir).unwrap();
+    let other = Scene::from_toml(&SCENE.replace("divisions = [8, 4, 2]", "divisions = [8, 4, 3]"), "other.toml").unwrap();
+    let other_mesh = other.organ_mesh(0).unwrap();
+    let e = offline::check_matches(&dir, &l.manifest, &other, &other_mesh).unwrap_err();
+    assert!(matches!(e, BundleError::Mismatch { what: "scene", .. }), "{e}");
+    let e = offline::check_matches(&dir, &l.manifest, &scene, &other_mesh).unwrap_err();
+    assert!(matches!(e, BundleError::Mismatch { what: "mesh", .. }), "{e}");
+    let _ = b;
+}
