@@ -45,10 +45,10 @@ fn setup() -> Setup {
     }
     .surface_nodes(&mesh, &boundary)
     .unwrap();
-    let load_eqs: Vec<Option<usize>> = top
+    let load_eqs: Vec<_> = top
         .iter()
         .flat_map(|&n| (0..3).map(move |d| 3 * n + d))
-        .map(|d| dofs.eq(d))
+        .map(|d| dofs.eq(d).map(|e| vec![(e, 1.0)]).unwrap_or_default())
         .collect();
     Setup { k, chol, load_eqs }
 }

@@ -41,7 +41,12 @@ radius = 0.012
 fn built(max_modes: usize) -> (Scene, offline::Built) {
     let scene = Scene::from_toml(SCENE, "slab.toml").unwrap();
     let opts = BuildOptions {
-        params: PgdParams { global_tolerance: 1e-10, enrichment_tolerance: 1e-6, max_modes, max_iterations: 60 },
+        params: PgdParams {
+            global_tolerance: 1e-10,
+            enrichment_tolerance: 1e-6,
+            max_modes,
+            max_iterations: 60,
+        },
         compare_brute_force: true,
         recompress: Some(1e-9),
         load_radius: offline::probe_radius(&scene),
@@ -74,7 +79,10 @@ fn compliance_is_symmetric_positive_definite_and_force_inverts_it() {
             assert!(c[i][i] > 0.0);
             for j in 0..3 {
                 // reciprocity: patch-averaged response is symmetric
-                assert!((c[i][j] - c[j][i]).abs() < 1e-6 * c[i][i].max(c[j][j]), "C not symmetric at node {n}: {c:?}");
+                assert!(
+                    (c[i][j] - c[j][i]).abs() < 1e-6 * c[i][i].max(c[j][j]),
+                    "C not symmetric at node {n}: {c:?}"
+                );
             }
         }
         let delta = [0.0, 0.0, -1e-3];

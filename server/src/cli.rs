@@ -84,7 +84,7 @@ pub struct BuildArgs {
     /// Built-in scene to build when no SCENE is given (organ, patch, cantilever).
     #[arg(long, default_value = "organ", conflicts_with = "scene")]
     pub builtin: String,
-    /// Output folder; each organ's bundle goes to <OUT>/<organ>.bundle. Default: out/<scene name>.
+    /// Output folder; each organ's bundle goes to `<OUT>/<organ>.bundle`. Default: `out/<scene name>`.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Skip the brute-force reference (no error report; saves one solve per load state).

@@ -112,3 +112,31 @@ fn help_explains_commands_and_exit_codes() {
         assert!(text.contains(word), "--help lacks {word}: {text}");
     }
 }
+
+#[test]
+fn build_writes_a_bundle_that_inspect_verifies() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["build", "--builtin", "cantilever", "--out", "b", "--json"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("JSON report");
+    let r = &v[0];
+    assert!(r["modes"].as_u64().unwrap() > 0);
+    assert!(r["error"].as_f64().unwrap() < 0.1, "error vs brute force is reported");
+    assert!(r["brute_force_s"].as_f64().is_some());
+    let bundle = dir.path().join("b/beam.bundle");
+    for f in ["manifest.json", "scene.toml", "F.npy", "G.npy", "nodes.npy", "load_nodes.npy"] {
+        assert!(bundle.join(f).is_file(), "{f} missing");
+    }
+    let o = vademecum(&["inspect", "b/beam.bundle"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("checksums verified"), "{}", stdout(&o));
+    // damage it: inspect refuses with exit 2, naming the file
+    let g = bundle.join("G.npy");
+    let mut bytes = std::fs::read(&g).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&g, bytes).unwrap();
+    let o = vademecum(&["inspect", "b/beam.bundle"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("G.npy") && stderr(&o).contains("checksum"), "{}", stderr(&o));
+}
