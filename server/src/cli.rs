@@ -153,6 +153,31 @@ linear problem on the built-in block (clamped at one end, tip load), at the requ
 Sizes are approximate: the block is a 4:1:1 bar of cubes whose node count gives about the \
 requested number of degrees of freedom.")]
     Fe(BenchFeArgs),
+    /// Online cost of a vademecum bundle: load time, contact force per tick, displacement fields.
+    #[command(
+        long_about = "Online cost of a vademecum bundle, each figure beside a baseline measured in the same run: \
+bundle load time; contact-force evaluation (compliance at a random point of a random \
+accessible surface triangle, then f = C^-1 delta) per call, beside a null loop that only \
+reads the clock; the displacement field of the whole mesh and of the surface nodes only, \
+beside a plain streaming read of the same bytes. Percentiles are of individual calls."
+    )]
+    Pgd(BenchPgdArgs),
+}
+
+/// Arguments of `vademecum bench pgd`.
+#[derive(Debug, Args)]
+pub struct BenchPgdArgs {
+    /// Bundle folder (written by `vademecum build`).
+    pub bundle: PathBuf,
+    /// Contact-force evaluations to time.
+    #[arg(long, default_value_t = 200_000)]
+    pub contacts: usize,
+    /// Field evaluations to time (each for the whole mesh and for the surface).
+    #[arg(long, default_value_t = 300)]
+    pub fields: usize,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Cell kinds on the command line.

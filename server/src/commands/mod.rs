@@ -1,6 +1,7 @@
 //! The subcommands, one file each.
 
 mod bench;
+mod bench_pgd;
 mod build;
 mod inspect;
 mod mesh_info;
@@ -20,5 +21,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),
+        Command::Bench(BenchCommand::Pgd(a)) => bench_pgd::run(a),
     }
 }

@@ -1,0 +1,160 @@
+//! `vademecum bench pgd`: the online cost of a vademecum, each figure beside a baseline
+//! measured in the same run (these are shared, noisy machines).
+
+use std::hint::black_box;
+use std::io::Write;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use serde::Serialize;
+use vademecum_engine::pgd::Vademecum;
+use vademecum_engine::pgd::offline;
+
+use crate::cli::BenchPgdArgs;
+
+#[derive(Debug, Serialize)]
+struct Stat {
+    what: String,
+    calls: usize,
+    p50_us: f64,
+    p99_us: f64,
+    p999_us: f64,
+    max_us: f64,
+}
+
+fn stat(what: &str, mut v: Vec<f64>) -> Stat {
+    v.sort_by(f64::total_cmp);
+    let q = |p: f64| v[((v.len() as f64 - 1.0) * p).round() as usize];
+    Stat {
+        what: what.into(),
+        calls: v.len(),
+        p50_us: q(0.5),
+        p99_us: q(0.99),
+        p999_us: q(0.999),
+        max_us: *v.last().unwrap_or(&0.0),
+    }
+}
+
+/// A tiny deterministic generator (xorshift), so runs are repeatable.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
+    if a.contacts == 0 || a.fields == 0 {
+        bail!("--contacts and --fields must be at least 1");
+    }
+    // bundle load time
+    let mut loads = Vec::new();
+    let mut bundle = None;
+    for _ in 0..5 {
+        let t = Instant::now();
+        let b = offline::load_bundle(&a.bundle).with_context(|| format!("cannot load bundle {}", a.bundle.display()))?;
+        loads.push(t.elapsed().as_secs_f64() * 1e6);
+        bundle = Some(b);
+    }
+    let b = bundle.expect("loaded at least once");
+    let v = &b.vademecum;
+    let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
+    if tris.is_empty() {
+        bail!("the bundle has no surface triangle whose three nodes are loadable");
+    }
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    // null loop: the same timing loop, no work
+    let mut null = Vec::with_capacity(a.contacts);
+    let mut contact = Vec::with_capacity(a.contacts);
+    let mut acc = 0.0;
+    for _ in 0..a.contacts {
+        let t = Instant::now();
+        black_box(&mut acc);
+        null.push(t.elapsed().as_secs_f64() * 1e6);
+    }
+    for _ in 0..a.contacts {
+        let tri = tris[(rng.next() % tris.len() as u64) as usize];
+        let (u, w) = (rng.unit(), rng.unit());
+        let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
+        let bary = [1.0 - u - w, u, w];
+        let delta = [0.0, 0.0, -1e-3 * rng.unit()];
+        let t = Instant::now();
+        let f = match v.compliance(black_box(tri), black_box(bary)) {
+            Some(c) => Vademecum::contact_force(&c, delta),
+            None => [0.0; 3],
+        };
+        contact.push(t.elapsed().as_secs_f64() * 1e6);
+        acc += black_box(f)[2];
+    }
+    // fields
+    let mut coeffs = vec![0.0; v.modes()];
+    let mut full = vec![0.0; 3 * v.n_nodes()];
+    let mut surface_nodes: Vec<usize> = b.surface.iter().flatten().copied().collect();
+    surface_nodes.sort_unstable();
+    surface_nodes.dedup();
+    let mut surf = vec![0.0; 3 * surface_nodes.len()];
+    let (mut tf, mut ts, mut tr) = (Vec::new(), Vec::new(), Vec::new());
+    let raw = v.f_raw();
+    for i in 0..a.fields {
+        let tri = tris[i % tris.len()];
+        v.coefficients(tri, [1.0 / 3.0; 3], [0.0, 0.0, -1.0], &mut coeffs);
+        let t = Instant::now();
+        v.field(black_box(&coeffs), &mut full);
+        tf.push(t.elapsed().as_secs_f64() * 1e6);
+        acc += black_box(&full)[i % full.len()];
+        let t = Instant::now();
+        v.field_at(black_box(&coeffs), &surface_nodes, &mut surf);
+        ts.push(t.elapsed().as_secs_f64() * 1e6);
+        acc += black_box(&surf)[0];
+        // baseline: stream the same bytes as the whole-mesh field reads
+        let t = Instant::now();
+        let s: f64 = black_box(raw).iter().sum();
+        tr.push(t.elapsed().as_secs_f64() * 1e6);
+        acc += black_box(s);
+    }
+    black_box(acc);
+    let stats = vec![
+        stat("bundle load (verify checksums, build online layout)", loads),
+        stat("null timing loop", null),
+        stat("contact force (compliance in a triangle + C^-1 delta)", contact),
+        stat(
+            &format!("displacement field, whole mesh ({} nodes, f64, mode-major)", v.n_nodes()),
+            tf,
+        ),
+        stat(&format!("displacement field, surface only ({} nodes)", surface_nodes.len()), ts),
+        stat(
+            &format!("streaming read of the same bytes ({:.1} MB)", (raw.len() * 8) as f64 / 1e6),
+            tr,
+        ),
+    ];
+    let mut out = std::io::stdout().lock();
+    if a.json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&stats)?)?;
+    } else {
+        writeln!(
+            out,
+            "bundle {}: {} modes, {} nodes, {} load nodes",
+            a.bundle.display(),
+            v.modes(),
+            v.n_nodes(),
+            v.load_nodes().len()
+        )?;
+        writeln!(out, "| what | calls | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) |")?;
+        writeln!(out, "|---|---:|---:|---:|---:|---:|")?;
+        for s in &stats {
+            writeln!(
+                out,
+                "| {} | {} | {:.2} | {:.2} | {:.2} | {:.1} |",
+                s.what, s.calls, s.p50_us, s.p99_us, s.p999_us, s.max_us
+            )?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
