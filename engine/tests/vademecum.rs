@@ -202,3 +202,53 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
     assert!(matches!(e, BundleError::Mismatch { what: "mesh", .. }), "{e}");
     let _ = b;
 }
+
+#[test]
+fn probe_contact_gives_force_only_when_touching_the_accessible_surface() {
+    use vademecum_engine::pgd::contact::SurfaceContact;
+    let (_, b) = built(400);
+    let v = &b.vademecum;
+    let mesh = &b.model.mesh;
+    let surface = b.model.boundary.triangles();
+    let c = SurfaceContact::new(&mesh.nodes, &surface, v);
+    assert!(!c.is_empty());
+    let r = 0.004;
+    let force_at = |tip: [f64; 3]| -> [f64; 3] {
+        match c.query(tip, r) {
+            Some(cp) => {
+                let comp = v.compliance(cp.nodes, cp.weights).unwrap();
+                Vademecum::contact_force(&comp, cp.penetration)
+            }
+            None => [0.0; 3],
+        }
+    };
+    // pressing 1 mm into the top face (z = 0.02): the tissue is pushed down
+    let tip = [0.04, 0.02, 0.02 + r - 0.001];
+    let cp = c.query(tip, r).expect("touching");
+    assert!((cp.depth - 0.001).abs() < 1e-12 && cp.penetration[2] < 0.0);
+    let f = force_at(tip);
+    assert!(
+        f[2] < 0.0 && f[0].abs() < 0.2 * f[2].abs() && f[1].abs() < 0.2 * f[2].abs(),
+        "mostly along the normal: {f:?}"
+    );
+    // deeper press, larger force
+    let f2 = force_at([0.04, 0.02, 0.02 + r - 0.002]);
+    assert!(f2[2] < f[2]);
+    // sliding by small steps changes the force by small amounts (continuity)
+    let mut prev = force_at([0.03, 0.013, 0.02 + r - 0.001]);
+    for i in 1..=200 {
+        let x = 0.03 + 0.02 * i as f64 / 200.0;
+        let y = 0.013 + 0.014 * i as f64 / 200.0;
+        let f = force_at([x, y, 0.02 + r - 0.001]);
+        assert!(
+            (f[2] - prev[2]).abs() < 0.1 * prev[2].abs(),
+            "jump from {prev:?} to {f:?} at step {i}"
+        );
+        prev = f;
+    }
+    // far above, NaN, below the fixed bottom: no contact, zero force
+    assert_eq!(force_at([0.04, 0.02, 0.05]), [0.0; 3]);
+    assert_eq!(force_at([f64::NAN, 0.02, 0.02]), [0.0; 3]);
+    assert!(c.query([0.04, 0.02, 0.02], f64::NAN).is_none());
+    assert_eq!(force_at([0.04, 0.02, -0.003]), [0.0; 3]);
+}
