@@ -9,6 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use serde::Serialize;
 use vademecum_engine::pgd::Vademecum;
+use vademecum_engine::pgd::contact::SurfaceContact;
 use vademecum_engine::pgd::offline;
 
 use crate::cli::BenchPgdArgs;
@@ -93,6 +94,35 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         contact.push(t.elapsed().as_secs_f64() * 1e6);
         acc += black_box(f)[2];
     }
+    // the whole tick: find the contact of a probe tip, then the force
+    let surface = SurfaceContact::new(&b.nodes, &b.surface, v);
+    let radius = 0.004;
+    let mut tick = Vec::with_capacity(a.contacts);
+    let mut touched = 0usize;
+    for _ in 0..a.contacts {
+        let tri = tris[(rng.next() % tris.len() as u64) as usize];
+        let (u, w) = (rng.unit(), rng.unit());
+        let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
+        let p: Vec<f64> = (0..3).map(|k| (1.0 - u - w) * b.nodes[tri[0]][k] + u * b.nodes[tri[1]][k] + w * b.nodes[tri[2]][k]).collect();
+        let (e1, e2): (Vec<f64>, Vec<f64>) = ((0..3).map(|k| b.nodes[tri[1]][k] - b.nodes[tri[0]][k]).collect(), (0..3).map(|k| b.nodes[tri[2]][k] - b.nodes[tri[0]][k]).collect());
+        let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(f64::MIN_POSITIVE);
+        let lift = radius - 0.002 * rng.unit();
+        let tip = [p[0] + lift * n[0] / len, p[1] + lift * n[1] / len, p[2] + lift * n[2] / len];
+        let t = Instant::now();
+        let f = match surface.query(black_box(tip), radius) {
+            Some(cp) => match v.compliance(cp.nodes, cp.weights) {
+                Some(c) => Vademecum::contact_force(&c, cp.penetration),
+                None => [0.0; 3],
+            },
+            None => [0.0; 3],
+        };
+        tick.push(t.elapsed().as_secs_f64() * 1e6);
+        if f != [0.0; 3] {
+            touched += 1;
+        }
+        acc += black_box(f)[2];
+    }
     // fields
     let mut coeffs = vec![0.0; v.modes()];
     let mut full = vec![0.0; 3 * v.n_nodes()];
@@ -124,6 +154,7 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         stat("bundle load (verify checksums, build online layout)", loads),
         stat("null timing loop", null),
         stat("contact force (compliance in a triangle + C^-1 delta)", contact),
+        stat(&format!("probe tick: contact search over {} triangles + force ({touched} touching)", surface.len()), tick),
         stat(
             &format!("displacement field, whole mesh ({} nodes, f64, mode-major)", v.n_nodes()),
             tf,
