@@ -72,33 +72,36 @@ fn main() {
         let svd = compress::recompress(&full, 0.0);
         let optimal = brute::error_curve(&svd, &exact);
         let needed = |curve: &[f64], tol: f64| curve.iter().position(|&x| x <= tol).map(|i| i + 1);
-    // The quantity the haptic loop uses: the 3×3 compliance at each load node (patch-averaged
-    // displacement per unit force). Its error with the optimal r modes, beside the field's.
-    let n_free = dofs.n_free();
-    let compliance = |col: &dyn Fn(usize, &mut [f64]), out: &mut Vec<f64>| {
-        out.clear();
-        let mut u = vec![0.0; n_free];
-        for (j, (pn, pw)) in patches.iter().enumerate() {
-            for d in 0..3 {
-                col(3 * j + d, &mut u);
-                for i in 0..3 {
-                    out.push(pn.iter().zip(pw).map(|(&a, &w)| dofs.eq(3 * a + i).map_or(0.0, |e| w * u[e])).sum());
+        // The quantity the haptic loop uses: the 3×3 compliance at each load node (patch-averaged
+        // displacement per unit force). Its error with the optimal r modes, beside the field's.
+        let n_free = dofs.n_free();
+        let compliance = |col: &dyn Fn(usize, &mut [f64]), out: &mut Vec<f64>| {
+            out.clear();
+            let mut u = vec![0.0; n_free];
+            for (j, (pn, pw)) in patches.iter().enumerate() {
+                for d in 0..3 {
+                    col(3 * j + d, &mut u);
+                    for i in 0..3 {
+                        out.push(pn.iter().zip(pw).map(|(&a, &w)| dofs.eq(3 * a + i).map_or(0.0, |e| w * u[e])).sum());
+                    }
                 }
             }
+        };
+        let mut c_exact = Vec::new();
+        compliance(
+            &|q, u: &mut [f64]| u.copy_from_slice(&exact[q * n_free..(q + 1) * n_free]),
+            &mut c_exact,
+        );
+        let c_norm = c_exact.iter().map(|x| x * x).sum::<f64>().sqrt();
+        println!("| modes (optimal basis) | field error | contact-compliance error |");
+        println!("|---:|---:|---:|");
+        let mut c_r = Vec::new();
+        for r in [25usize, 50, 100, 200, 400].into_iter().filter(|&r| r <= svd.modes) {
+            compliance(&|q, u: &mut [f64]| svd.column(q, r, u), &mut c_r);
+            let err = c_r.iter().zip(&c_exact).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt() / c_norm;
+            println!("| {r} | {:.2e} | {err:.2e} |", optimal[r - 1]);
         }
-    };
-    let mut c_exact = Vec::new();
-    compliance(&|q, u: &mut [f64]| u.copy_from_slice(&exact[q * n_free..(q + 1) * n_free]), &mut c_exact);
-    let c_norm = c_exact.iter().map(|x| x * x).sum::<f64>().sqrt();
-    println!("| modes (optimal basis) | field error | contact-compliance error |");
-    println!("|---:|---:|---:|");
-    let mut c_r = Vec::new();
-    for r in [25usize, 50, 100, 200, 400].into_iter().filter(|&r| r <= svd.modes) {
-        compliance(&|q, u: &mut [f64]| svd.column(q, r, u), &mut c_r);
-        let err = c_r.iter().zip(&c_exact).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt() / c_norm;
-        println!("| {r} | {:.2e} | {err:.2e} |", optimal[r - 1]);
-    }
-    println!();
+        println!();
         println!("| representation | modes for 1e-2 | modes for 3e-3 | modes for 1e-3 | build time (s) |");
         println!("|---|---:|---:|---:|---:|");
         println!(

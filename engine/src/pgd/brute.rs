@@ -13,20 +13,33 @@ const BLOCK: usize = 64;
 pub fn solve_all(chol: &Cholesky, loads: &[LoadVector], on_progress: &mut dyn FnMut(usize)) -> (Vec<f64>, f64) {
     let clock = Instant::now();
     let n = chol.n();
+    let mut u = vec![0.0; n * loads.len()];
+    solve_blocks(chol, loads, &mut |start, block| {
+        u[start * n..start * n + block.len()].copy_from_slice(block);
+        on_progress(start + block.len() / n);
+    });
+    (u, clock.elapsed().as_secs_f64())
+}
+
+/// Solves for every load state in blocks of columns, handing each solved block
+/// (`n × columns`, column-major, first column = load state `start`) to `visit`, so callers
+/// can extract what they need without holding the whole solution.
+pub fn solve_blocks(chol: &Cholesky, loads: &[LoadVector], visit: &mut dyn FnMut(usize, &[f64])) {
+    let n = chol.n();
     let p = loads.len();
-    let mut u = vec![0.0; n * p];
+    let mut block = vec![0.0; n * BLOCK.min(p.max(1))];
     for start in (0..p).step_by(BLOCK) {
         let end = (start + BLOCK).min(p);
-        let block = &mut u[start * n..end * n];
+        let b = &mut block[..(end - start) * n];
+        b.fill(0.0);
         for (c, q) in (start..end).enumerate() {
             for &(e, w) in &loads[q] {
-                block[c * n + e] += w;
+                b[c * n + e] += w;
             }
         }
-        chol.solve_many_in_place(block, end - start);
-        on_progress(end);
+        chol.solve_many_in_place(b, end - start);
+        visit(start, b);
     }
-    (u, clock.elapsed().as_secs_f64())
 }
 
 /// Relative Frobenius error `‖U − F Gᵀ‖ / ‖U‖` over all load states, using the first `modes`

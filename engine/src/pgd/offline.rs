@@ -9,7 +9,8 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::build::{self, PgdInfo, PgdParams};
-use super::{brute, compress, vademecum::Vademecum};
+use super::vademecum::{LocalCompliance, Vademecum};
+use super::{brute, compress};
 use crate::bundle::{self, ArrayData, BundleError, Manifest};
 use crate::fem::assembly::{self, AssemblyError, DofMap, SymmetricPattern};
 use crate::mesh::Mesh;
@@ -111,6 +112,11 @@ pub struct BuildReport {
     pub recompress_s: f64,
     /// Brute-force time (s): one solve per load state with the same factorization.
     pub brute_force_s: Option<f64>,
+    /// Time of the blocked pass over all load states that computes the exact local
+    /// compliances (and the brute-force solution when asked) (s).
+    pub exact_pass_s: f64,
+    /// Exact local compliance blocks stored (neighbouring load-node pairs).
+    pub local_blocks: usize,
     /// Bytes of the modes kept (f64).
     pub modes_bytes: usize,
     /// Bytes of the full parametric solution (all dofs × all load states, f64).
@@ -210,6 +216,40 @@ pub fn load_vectors(patches: &[(Vec<usize>, Vec<f64>)], dofs: &DofMap) -> Vec<bu
         .collect()
 }
 
+/// Neighbours of each load node among the load nodes: itself and every load node sharing a
+/// surface triangle with it (sorted).
+fn load_neighbours(model: &OrganModel, loads: &[usize]) -> Vec<Vec<usize>> {
+    let mut index = vec![usize::MAX; model.mesh.n_nodes()];
+    for (j, &n) in loads.iter().enumerate() {
+        index[n] = j;
+    }
+    let mut nbrs: Vec<Vec<usize>> = (0..loads.len()).map(|j| vec![j]).collect();
+    for t in model.boundary.triangles() {
+        for &a in &t {
+            for &b in &t {
+                if index[a] != usize::MAX && index[b] != usize::MAX {
+                    nbrs[index[a]].push(index[b]);
+                }
+            }
+        }
+    }
+    for l in nbrs.iter_mut() {
+        l.sort_unstable();
+        l.dedup();
+    }
+    nbrs
+}
+
+/// Patch average of component i of a solution over load patch `b`.
+fn patch_value(u: &[f64], dofs: &DofMap, patch: &(Vec<usize>, Vec<f64>), i: usize) -> f64 {
+    patch
+        .0
+        .iter()
+        .zip(&patch.1)
+        .map(|(&a, &w)| dofs.eq(3 * a + i).map_or(0.0, |e| w * u[e]))
+        .sum()
+}
+
 /// Builds organ `index` of `scene`.
 pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dyn FnMut(BuildStage)) -> Result<Built, BuildError> {
     let model = scene.organ_model(index)?;
@@ -255,10 +295,46 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     };
     let recompress_s = clock.elapsed().as_secs_f64();
     let (mut error_greedy, mut error, mut error_curve, mut brute_force_s) = (None, None, Vec::new(), None);
+    // One blocked pass over all load states: the exact local compliances (always: they make
+    // the haptic force exact) and, when asked, the full solution for the error report.
+    let total = load_eqs.len();
+    let n_free = dofs.n_free();
+    let nbrs = load_neighbours(&model, &loads);
+    let mut local = LocalCompliance {
+        ptr: vec![0],
+        nbr: Vec::new(),
+        c: Vec::new(),
+    };
+    for l in &nbrs {
+        local.nbr.extend_from_slice(l);
+        local.c.extend(std::iter::repeat_n([[0.0; 3]; 3], l.len()));
+        local.ptr.push(local.nbr.len());
+    }
+    let mut exact = if opts.compare_brute_force {
+        vec![0.0; n_free * total]
+    } else {
+        Vec::new()
+    };
+    let clock = Instant::now();
+    brute::solve_blocks(&chol, &load_eqs, &mut |start, block| {
+        for (col, u) in block.chunks_exact(n_free).enumerate() {
+            let q = start + col;
+            let (j, d) = (q / 3, q % 3);
+            for k in local.ptr[j]..local.ptr[j + 1] {
+                let b = local.nbr[k];
+                for i in 0..3 {
+                    local.c[k][i][d] = patch_value(u, &dofs, &patches[b], i);
+                }
+            }
+            if opts.compare_brute_force {
+                exact[q * n_free..(q + 1) * n_free].copy_from_slice(u);
+            }
+        }
+        on(BuildStage::BruteForce(start + block.len() / n_free, total));
+    });
+    let exact_pass_s = clock.elapsed().as_secs_f64();
     if opts.compare_brute_force {
-        let total = load_eqs.len();
-        let (exact, t) = brute::solve_all(&chol, &load_eqs, &mut |done| on(BuildStage::BruteForce(done, total)));
-        brute_force_s = Some(t);
+        brute_force_s = Some(exact_pass_s);
         on(BuildStage::Errors);
         let curve = brute::error_curve(&sep, &exact);
         let step = (curve.len() / 40).max(1);
@@ -275,7 +351,9 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         };
     }
     let final_sep = kept.as_ref().unwrap_or(&sep);
-    let vademecum = Vademecum::from_separated(final_sep, &dofs, &loads, &patches);
+    let vademecum = Vademecum::from_separated(final_sep, &dofs, &loads, &patches)
+        .with_local(local)
+        .expect("local compliances are consistent by construction");
     let report = BuildReport {
         organ: model.name.clone(),
         nodes: mesh.n_nodes(),
@@ -295,6 +373,8 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         pgd_s,
         recompress_s,
         brute_force_s,
+        exact_pass_s,
+        local_blocks: vademecum.local().map_or(0, |l| l.nbr.len()),
         modes_bytes: 8 * final_sep.modes * (mesh.n_dofs() + load_eqs.len()),
         full_bytes: 8 * mesh.n_dofs() * load_eqs.len(),
     };
@@ -328,6 +408,14 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         patch_weights.extend_from_slice(w);
         patch_ptr.push(patch_nodes.len() as i64);
     }
+    let (local_ptr, local_nbr, local_c): (Vec<i64>, Vec<i64>, Vec<f64>) = match v.local() {
+        Some(l) => (
+            l.ptr.iter().map(|&x| x as i64).collect(),
+            l.nbr.iter().map(|&x| x as i64).collect(),
+            l.c.iter().flatten().flatten().copied().collect(),
+        ),
+        None => (vec![0; v.load_nodes().len() + 1], Vec::new(), Vec::new()),
+    };
     let m = v.modes() as u64;
     let arrays = [
         ("F", vec![m, mesh.n_dofs() as u64], ArrayData::F64(v.f_raw())),
@@ -338,6 +426,9 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         ("patch_ptr", vec![patch_ptr.len() as u64], ArrayData::I64(&patch_ptr)),
         ("patch_nodes", vec![patch_nodes.len() as u64], ArrayData::I64(&patch_nodes)),
         ("patch_weights", vec![patch_weights.len() as u64], ArrayData::F64(&patch_weights)),
+        ("local_ptr", vec![local_ptr.len() as u64], ArrayData::I64(&local_ptr)),
+        ("local_nbr", vec![local_nbr.len() as u64], ArrayData::I64(&local_nbr)),
+        ("local_c", vec![local_nbr.len() as u64, 3, 3], ArrayData::F64(&local_c)),
     ];
     bundle::write(dir, manifest, &scene.source, &arrays)
 }
@@ -401,7 +492,25 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
             .collect::<Result<Vec<_>, _>>()?;
         patches.push((nodes, patch_weights[a as usize..b as usize].to_vec()));
     }
-    let vademecum = Vademecum::from_parts(n_nodes, fs[0] as usize, load_nodes, patches, f, g).map_err(bad)?;
+    let mut vademecum = Vademecum::from_parts(n_nodes, fs[0] as usize, load_nodes, patches, f, g).map_err(bad)?;
+    let (_, local_ptr) = bundle::read_i64(dir, &manifest, "local_ptr")?;
+    let (_, local_nbr) = bundle::read_i64(dir, &manifest, "local_nbr")?;
+    let (_, local_c) = bundle::read_f64(dir, &manifest, "local_c")?;
+    if !local_nbr.is_empty() {
+        let nonneg = |v: &[i64]| v.iter().all(|&x| x >= 0);
+        if !nonneg(&local_ptr) || !nonneg(&local_nbr) || local_c.len() != 9 * local_nbr.len() {
+            return Err(bad("local compliance arrays are inconsistent".into()));
+        }
+        let local = LocalCompliance {
+            ptr: local_ptr.iter().map(|&x| x as usize).collect(),
+            nbr: local_nbr.iter().map(|&x| x as usize).collect(),
+            c: local_c
+                .chunks_exact(9)
+                .map(|c| [[c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]])
+                .collect(),
+        };
+        vademecum = vademecum.with_local(local).map_err(bad)?;
+    }
     Ok(LoadedBundle {
         manifest,
         vademecum,

@@ -103,9 +103,18 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         let tri = tris[(rng.next() % tris.len() as u64) as usize];
         let (u, w) = (rng.unit(), rng.unit());
         let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
-        let p: Vec<f64> = (0..3).map(|k| (1.0 - u - w) * b.nodes[tri[0]][k] + u * b.nodes[tri[1]][k] + w * b.nodes[tri[2]][k]).collect();
-        let (e1, e2): (Vec<f64>, Vec<f64>) = ((0..3).map(|k| b.nodes[tri[1]][k] - b.nodes[tri[0]][k]).collect(), (0..3).map(|k| b.nodes[tri[2]][k] - b.nodes[tri[0]][k]).collect());
-        let n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+        let p: Vec<f64> = (0..3)
+            .map(|k| (1.0 - u - w) * b.nodes[tri[0]][k] + u * b.nodes[tri[1]][k] + w * b.nodes[tri[2]][k])
+            .collect();
+        let (e1, e2): (Vec<f64>, Vec<f64>) = (
+            (0..3).map(|k| b.nodes[tri[1]][k] - b.nodes[tri[0]][k]).collect(),
+            (0..3).map(|k| b.nodes[tri[2]][k] - b.nodes[tri[0]][k]).collect(),
+        );
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(f64::MIN_POSITIVE);
         let lift = radius - 0.002 * rng.unit();
         let tip = [p[0] + lift * n[0] / len, p[1] + lift * n[1] / len, p[2] + lift * n[2] / len];
@@ -154,7 +163,13 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         stat("bundle load (verify checksums, build online layout)", loads),
         stat("null timing loop", null),
         stat("contact force (compliance in a triangle + C^-1 delta)", contact),
-        stat(&format!("probe tick: contact search over {} triangles + force ({touched} touching)", surface.len()), tick),
+        stat(
+            &format!(
+                "probe tick: contact search over {} triangles + force ({touched} touching)",
+                surface.len()
+            ),
+            tick,
+        ),
         stat(
             &format!("displacement field, whole mesh ({} nodes, f64, mode-major)", v.n_nodes()),
             tf,

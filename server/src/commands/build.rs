@@ -77,6 +77,11 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             if r.recompressed {
                 writeln!(stdout, "  recompressed     {} modes ({:.3} s)", r.modes, r.recompress_s)?;
             }
+            writeln!(
+                stdout,
+                "  exact contact    {} local compliance blocks from one blocked pass over all load states ({:.2} s)",
+                r.local_blocks, r.exact_pass_s
+            )?;
             if let (Some(e), Some(t)) = (r.error, r.brute_force_s) {
                 writeln!(
                     stdout,
