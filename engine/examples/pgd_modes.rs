@@ -12,13 +12,10 @@
 //! floor no separated representation can beat. The greedy PGD follows it at a distance that
 //! shrinks as the fixed point is converged more tightly, at the price of more iterations.
 
-use std::sync::Arc;
 use std::time::Instant;
 
-use vademecum_engine::fem::assembly::{self, DofMap, SymmetricPattern};
 use vademecum_engine::pgd::{PgdParams, SeparatedSolution, brute, build, compress, offline};
 use vademecum_engine::scene::Scene;
-use vademecum_engine::solve::Cholesky;
 
 fn main() {
     let scene = match std::env::args().nth(1) {
@@ -27,20 +24,7 @@ fn main() {
     };
     let model = scene.organ_model(0).expect("organ builds");
     let mesh = &model.mesh;
-    let dofs = DofMap::new(&model.problem.constrained);
-    let pattern = Arc::new(SymmetricPattern::build(mesh, &dofs));
-    let mut rhs = vec![0.0; dofs.n_free()];
-    let k = assembly::assemble_stiffness(
-        mesh,
-        &model.materials,
-        model.locking,
-        &dofs,
-        pattern,
-        &model.problem.prescribed,
-        &mut rhs,
-    )
-    .expect("assembly");
-    let chol = Cholesky::factor(&k).expect("factor");
+    let (dofs, k, chol, _, _) = offline::stiffness(&model, &mut |_| {}).expect("stiffness assembles and factors");
     let loads = offline::load_nodes(&model);
     let probe = offline::probe_radius(&scene);
     println!(

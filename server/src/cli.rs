@@ -60,14 +60,22 @@ large organs. Writes one bundle folder per organ (manifest.json, scene.toml, .np
     Bench(BenchCommand),
 }
 
+/// Which scene a command works on: a file, or a built-in scene.
+#[derive(Debug, Args)]
+pub struct SceneSource {
+    /// Scene file (TOML). Default: the built-in scene named by --builtin.
+    pub scene: Option<PathBuf>,
+    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever).
+    #[arg(long, default_value = "organ", conflicts_with = "scene")]
+    pub builtin: String,
+}
+
 /// Arguments of `vademecum solve`.
 #[derive(Debug, Args)]
 pub struct SolveArgs {
-    /// Scene file (TOML). Default: the built-in scene named by --builtin.
-    pub scene: Option<PathBuf>,
-    /// Built-in scene to solve when no SCENE is given (organ, patch, cantilever).
-    #[arg(long, default_value = "organ", conflicts_with = "scene")]
-    pub builtin: String,
+    /// The scene.
+    #[command(flatten)]
+    pub source: SceneSource,
     /// Output folder. Default: `out/<scene name>`.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
@@ -79,11 +87,9 @@ pub struct SolveArgs {
 /// Arguments of `vademecum build`.
 #[derive(Debug, Args)]
 pub struct BuildArgs {
-    /// Scene file (TOML). Default: the built-in scene named by --builtin.
-    pub scene: Option<PathBuf>,
-    /// Built-in scene to build when no SCENE is given (organ, patch, cantilever).
-    #[arg(long, default_value = "organ", conflicts_with = "scene")]
-    pub builtin: String,
+    /// The scene.
+    #[command(flatten)]
+    pub source: SceneSource,
     /// Output folder; each organ's bundle goes to `<OUT>/<organ>.bundle`. Default: `out/<scene name>`.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
@@ -220,8 +226,8 @@ mod tests {
     fn solve_defaults_to_the_organ_scene() {
         let c = Cli::parse_from(["vademecum", "solve"]);
         let Command::Solve(a) = c.command else { panic!("not solve") };
-        assert_eq!(a.builtin, "organ");
-        assert!(a.scene.is_none());
+        assert_eq!(a.source.builtin, "organ");
+        assert!(a.source.scene.is_none());
     }
 
     #[test]

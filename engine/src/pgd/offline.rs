@@ -12,7 +12,7 @@ use super::build::{self, PgdInfo, PgdParams};
 use super::vademecum::{LocalCompliance, Vademecum};
 use super::{brute, compress};
 use crate::bundle::{self, ArrayData, BundleError, Manifest};
-use crate::fem::assembly::{self, AssemblyError, DofMap, SymmetricPattern};
+use crate::fem::assembly::{self, AssemblyError, DofMap, SymmetricMatrix, SymmetricPattern};
 use crate::mesh::Mesh;
 use crate::scene::{OrganModel, Scene, SceneError};
 use crate::solve::{self, Cholesky, SolveError};
@@ -250,6 +250,31 @@ fn patch_value(u: &[f64], dofs: &DofMap, patch: &(Vec<usize>, Vec<f64>), i: usiz
         .sum()
 }
 
+/// Assembles `K_ff` of an organ over its free degrees of freedom and factors it once (with
+/// progress stages and timings): what every vademecum computation starts from.
+#[allow(clippy::type_complexity)]
+pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(DofMap, SymmetricMatrix, Cholesky, f64, f64), BuildError> {
+    on(BuildStage::Assembly);
+    let clock = Instant::now();
+    let dofs = DofMap::new(&model.problem.constrained);
+    let pattern = Arc::new(SymmetricPattern::build(&model.mesh, &dofs));
+    let mut rhs = vec![0.0; dofs.n_free()];
+    let k = assembly::assemble_stiffness(
+        &model.mesh,
+        &model.materials,
+        model.locking,
+        &dofs,
+        pattern,
+        &model.problem.prescribed,
+        &mut rhs,
+    )?;
+    let assembly_s = clock.elapsed().as_secs_f64();
+    on(BuildStage::Factorization);
+    let clock = Instant::now();
+    let chol = Cholesky::factor(&k)?;
+    Ok((dofs, k, chol, assembly_s, clock.elapsed().as_secs_f64()))
+}
+
 /// Builds organ `index` of `scene`.
 pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dyn FnMut(BuildStage)) -> Result<Built, BuildError> {
     let model = scene.organ_model(index)?;
@@ -262,25 +287,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     if loads.is_empty() {
         return Err(BuildError::NoLoadStates);
     }
-    on(BuildStage::Assembly);
-    let clock = Instant::now();
-    let dofs = DofMap::new(&model.problem.constrained);
-    let pattern = Arc::new(SymmetricPattern::build(mesh, &dofs));
-    let mut rhs = vec![0.0; dofs.n_free()];
-    let k = assembly::assemble_stiffness(
-        mesh,
-        &model.materials,
-        model.locking,
-        &dofs,
-        pattern,
-        &model.problem.prescribed,
-        &mut rhs,
-    )?;
-    let assembly_s = clock.elapsed().as_secs_f64();
-    on(BuildStage::Factorization);
-    let clock = Instant::now();
-    let chol = Cholesky::factor(&k)?;
-    let factorization_s = clock.elapsed().as_secs_f64();
+    let (dofs, k, chol, assembly_s, factorization_s) = stiffness(&model, on)?;
     let patches = load_patches(&model, &loads, opts.load_radius);
     let load_eqs = load_vectors(&patches, &dofs);
     let (sep, greedy) = build::build(&k, &chol, &load_eqs, &opts.params, &mut |m, e| on(BuildStage::Mode(m, e)));

@@ -17,7 +17,7 @@ use crate::progress::Stages;
 const RECOMPRESS_FRACTION: f64 = 0.1;
 
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
-    let scene = load_scene(&a.scene, &a.builtin)?;
+    let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
     let f = scene.spec.fidelity.pgd;
     let params = PgdParams {

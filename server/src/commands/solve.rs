@@ -11,7 +11,7 @@ use vademecum_engine::fem::linear_static::{self, Timings};
 use vademecum_engine::mesh::vtk::{self, Field};
 use vademecum_engine::scene::Scene;
 
-use crate::cli::SolveArgs;
+use crate::cli::{SceneSource, SolveArgs};
 use crate::progress::Stages;
 
 /// The JSON summary of one organ (`--json`, and `summary.json`).
@@ -43,15 +43,15 @@ struct Summary {
 }
 
 /// Loads the scene named by the arguments.
-pub(crate) fn load_scene(path: &Option<PathBuf>, builtin: &str) -> anyhow::Result<Scene> {
-    Ok(match path {
+pub(crate) fn load_scene(source: &SceneSource) -> anyhow::Result<Scene> {
+    Ok(match &source.scene {
         Some(p) => Scene::load(p)?,
-        None => Scene::builtin(builtin)?,
+        None => Scene::builtin(&source.builtin)?,
     })
 }
 
 pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
-    let scene = load_scene(&a.scene, &a.builtin)?;
+    let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create output folder {}", out.display()))?;
     let mut organs = Vec::new();
