@@ -279,3 +279,27 @@ fn contact_compliance_is_exact_at_nodes_whatever_the_number_of_modes() {
     let modal: f64 = pn.iter().zip(pw).map(|(&a, &w)| w * u[3 * a + 2]).sum();
     assert!((modal - exact[2][2]).abs() < 1e-6 * exact[2][2], "{modal} vs {}", exact[2][2]);
 }
+
+#[test]
+fn node_major_f32_surface_field_matches_the_f64_field() {
+    use vademecum_engine::pgd::vademecum::NodeMajorField;
+    let (_, b) = built(60);
+    let v = &b.vademecum;
+    let surface = b.model.boundary.nodes();
+    let nm = NodeMajorField::new(v, &surface);
+    let n = v.load_nodes()[3];
+    let mut coeffs = vec![0.0; v.modes()];
+    v.coefficients([n, n, n], [1.0, 0.0, 0.0], [0.3, -0.2, -1.0], &mut coeffs);
+    let mut full = vec![0.0; 3 * v.n_nodes()];
+    v.field(&coeffs, &mut full);
+    let c32: Vec<f32> = coeffs.iter().map(|&c| c as f32).collect();
+    let mut out = vec![0.0f32; 3 * surface.len()];
+    nm.eval(&c32, &mut out);
+    let scale = full.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    for (j, &node) in surface.iter().enumerate() {
+        for i in 0..3 {
+            // f32 storage: relative error ~1e-7 per term, summed over the modes
+            assert!((out[3 * j + i] as f64 - full[3 * node + i]).abs() < 1e-5 * scale, "node {node}");
+        }
+    }
+}

@@ -181,6 +181,10 @@ pub struct BenchPgdArgs {
     /// Field evaluations to time (each for the whole mesh and for the surface).
     #[arg(long, default_value_t = 300)]
     pub fields: usize,
+    /// Also time the f32 node-major surface field on synthetic modes of this many surface
+    /// nodes (a 30k-node organ has about 10k), with the bundle's number of modes.
+    #[arg(long, default_value_t = 10_000)]
+    pub surface_nodes: usize,
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,

@@ -369,3 +369,77 @@ impl Vademecum {
         }
     }
 }
+
+/// The spatial modes restricted to a set of nodes (the visual surface), in f32 and
+/// node-major order — for each node, for each component, the `modes` values contiguous — so
+/// evaluating the field there is one contiguous, vectorisable dot product per component and
+/// reads `12·modes` bytes per node instead of streaming every mode over the whole mesh.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NodeMajorField {
+    nodes: Vec<usize>,
+    modes: usize,
+    /// `data[(j·3 + i)·modes + k] = F_k(nodes[j])_i`.
+    data: Vec<f32>,
+}
+
+impl NodeMajorField {
+    /// Copies the modes of `v` at `nodes`.
+    pub fn new(v: &Vademecum, nodes: &[usize]) -> Self {
+        Self::from_mode_major(&v.f, v.n_nodes, v.modes, nodes)
+    }
+
+    /// Builds from mode-major f64 modes over `n_nodes` nodes (`f[k·3n + 3·node + i]`).
+    pub fn from_mode_major(f: &[f64], n_nodes: usize, modes: usize, nodes: &[usize]) -> Self {
+        let nd = 3 * n_nodes;
+        let mut data = vec![0.0f32; nodes.len() * 3 * modes];
+        for (j, &n) in nodes.iter().enumerate() {
+            for i in 0..3 {
+                for k in 0..modes {
+                    data[(j * 3 + i) * modes + k] = f[k * nd + 3 * n + i] as f32;
+                }
+            }
+        }
+        Self {
+            nodes: nodes.to_vec(),
+            modes,
+            data,
+        }
+    }
+
+    /// The nodes, in output order.
+    pub fn nodes(&self) -> &[usize] {
+        &self.nodes
+    }
+
+    /// Bytes of mode data read per evaluation.
+    pub fn bytes(&self) -> usize {
+        4 * self.data.len()
+    }
+
+    /// `out[3j + i] = Σ_k c_k F_k(nodes[j])_i` (`coeffs`: one f32 per mode).
+    pub fn eval(&self, coeffs: &[f32], out: &mut [f32]) {
+        debug_assert_eq!(coeffs.len(), self.modes);
+        debug_assert_eq!(out.len(), 3 * self.nodes.len());
+        for (o, row) in out.iter_mut().zip(self.data.chunks_exact(self.modes.max(1))) {
+            *o = dot_f32(row, coeffs);
+        }
+    }
+}
+
+/// A dot product written with eight independent accumulators so it vectorises.
+#[inline]
+fn dot_f32(a: &[f32], b: &[f32]) -> f32 {
+    let mut acc = [0.0f32; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for l in 0..8 {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    let mut s: f32 = acc.iter().sum();
+    for (x, y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
+}

@@ -11,6 +11,7 @@ use serde::Serialize;
 use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pgd::contact::SurfaceContact;
 use vademecum_engine::pgd::offline;
+use vademecum_engine::pgd::vademecum::NodeMajorField;
 
 use crate::cli::BenchPgdArgs;
 
@@ -158,6 +159,39 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         tr.push(t.elapsed().as_secs_f64() * 1e6);
         acc += black_box(s);
     }
+    // f32 node-major surface field: the bundle's surface, then synthetic modes of the size of
+    // a 30k-node organ's surface, each beside a streaming read of the same bytes
+    let nm = NodeMajorField::new(v, &surface_nodes);
+    let c32: Vec<f32> = coeffs.iter().map(|&c| c as f32).collect();
+    let mut out32 = vec![0.0f32; 3 * surface_nodes.len()];
+    let syn_nodes: Vec<usize> = (0..a.surface_nodes).collect();
+    let syn_f: Vec<f64> = (0..v.modes() * 3 * a.surface_nodes).map(|_| rng.unit() - 0.5).collect();
+    let syn = NodeMajorField::from_mode_major(&syn_f, a.surface_nodes, v.modes(), &syn_nodes);
+    drop(syn_f);
+    let syn_raw: Vec<f32> = (0..syn.bytes() / 4).map(|i| i as f32).collect();
+    let mut syn_out = vec![0.0f32; 3 * a.surface_nodes];
+    let (mut t32, mut tsyn, mut tsyn_read) = (Vec::new(), Vec::new(), Vec::new());
+    for _ in 0..a.fields {
+        let t = Instant::now();
+        nm.eval(black_box(&c32), &mut out32);
+        t32.push(t.elapsed().as_secs_f64() * 1e6);
+        let t = Instant::now();
+        syn.eval(black_box(&c32), &mut syn_out);
+        tsyn.push(t.elapsed().as_secs_f64() * 1e6);
+        let t = Instant::now();
+        let s: f32 = black_box(&syn_raw)
+            .chunks_exact(8)
+            .fold([0.0f32; 8], |mut acc, c| {
+                for l in 0..8 {
+                    acc[l] += c[l];
+                }
+                acc
+            })
+            .iter()
+            .sum();
+        tsyn_read.push(t.elapsed().as_secs_f64() * 1e6);
+        acc += black_box(out32[0] + syn_out[0] + s) as f64;
+    }
     black_box(acc);
     let stats = vec![
         stat("bundle load (verify checksums, build online layout)", loads),
@@ -178,6 +212,27 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         stat(
             &format!("streaming read of the same bytes ({:.1} MB)", (raw.len() * 8) as f64 / 1e6),
             tr,
+        ),
+        stat(
+            &format!(
+                "surface field, f32 node-major ({} nodes, {:.1} MB)",
+                surface_nodes.len(),
+                nm.bytes() as f64 / 1e6
+            ),
+            t32,
+        ),
+        stat(
+            &format!(
+                "synthetic surface field, f32 node-major ({} nodes × {} modes, {:.1} MB)",
+                a.surface_nodes,
+                v.modes(),
+                syn.bytes() as f64 / 1e6
+            ),
+            tsyn,
+        ),
+        stat(
+            &format!("streaming read of the same {:.1} MB (f32, 8 lanes)", syn.bytes() as f64 / 1e6),
+            tsyn_read,
         ),
     ];
     let mut out = std::io::stdout().lock();
