@@ -94,24 +94,32 @@ fn main() {
             needed(&optimal, 3e-3),
             needed(&optimal, 1e-3)
         );
-        for (eps_f, iters) in [(1e-2, 5), (1e-2, 20), (1e-3, 50)] {
-            if radius == 0.0 && iters > 5 {
+        for (eps_f, iters, block) in [
+            (1e-2, 5, 1),
+            (1e-2, 20, 1),
+            (1e-3, 50, 1),
+            (1e-2, 3, 32),
+            (1e-2, 5, 32),
+            (1e-2, 3, 64),
+        ] {
+            if radius == 0.0 && (iters > 5 || block > 1) {
                 continue; // point loads need nearly full rank; one greedy run shows it
             }
             let params = PgdParams {
                 global_tolerance: 1e-8,
                 enrichment_tolerance: eps_f,
-                max_modes: p.min(if radius == 0.0 { 900 } else { 400 }),
+                max_modes: p.min(if radius == 0.0 || block > 1 { 900 } else { 400 }),
                 max_iterations: iters,
+                block,
             };
             let clock = Instant::now();
             let (sep, info) = build::build(&k, &chol, &load_eqs, &params, &mut |_, _| {});
             let t = clock.elapsed().as_secs_f64();
             let curve = brute::error_curve(&sep, &exact);
             println!(
-                "| greedy PGD, eps_F = {eps_f:.0e}, at most {iters} iterations ({} modes, {} iterations) | {:?} | {:?} | {:?} | {t:.2} |",
+                "| greedy PGD, blocks of {block}, eps_F = {eps_f:.0e}, at most {iters} iterations ({} modes, {} solves) | {:?} | {:?} | {:?} | {t:.2} |",
                 sep.modes,
-                info.iterations.iter().sum::<usize>(),
+                info.solves,
                 needed(&curve, 1e-2),
                 needed(&curve, 3e-3),
                 needed(&curve, 1e-3)

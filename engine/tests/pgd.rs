@@ -61,6 +61,7 @@ fn pgd_error_falls_with_every_mode_and_reaches_the_tolerance() {
         enrichment_tolerance: 1e-10,
         max_modes: 400,
         max_iterations: 100,
+        block: 1,
     };
     let (sep, info) = build::build(&s.k, &s.chol, &s.load_eqs, &params, &mut |_, _| {});
     assert!(info.converged, "stopped by the mode cap after {} modes", info.modes);
@@ -82,6 +83,7 @@ fn recompression_keeps_accuracy_with_no_more_modes() {
         enrichment_tolerance: 1e-8,
         max_modes: 400,
         max_iterations: 50,
+        block: 1,
     };
     let (sep, _) = build::build(&s.k, &s.chol, &s.load_eqs, &params, &mut |_, _| {});
     let (exact, _) = brute::solve_all(&s.chol, &s.load_eqs, &mut |_| {});
@@ -95,6 +97,63 @@ fn recompression_keeps_accuracy_with_no_more_modes() {
         for j in 0..c.modes.min(5) {
             let d: f64 = c.f_mode(i).iter().zip(c.f_mode(j)).map(|(a, b)| a * b).sum();
             assert!((d - if i == j { 1.0 } else { 0.0 }).abs() < 1e-10);
+        }
+    }
+}
+
+/// Enriching a block of modes at a time is the same method (alternating fixed point on
+/// R and S, Galerkin S-step): its modes converge to the exact solution like one-at-a-time
+/// enrichment, with the same blocked solves turned into fewer, wider ones.
+#[test]
+fn block_enrichment_converges_like_single_modes() {
+    let s = setup();
+    let (exact, _) = brute::solve_all(&s.chol, &s.load_eqs, &mut |_| {});
+    let p = s.load_eqs.len();
+    let mut needed = Vec::new();
+    for block in [1usize, 8] {
+        let params = PgdParams {
+            global_tolerance: 1e-9,
+            enrichment_tolerance: 1e-6,
+            max_modes: p,
+            max_iterations: 40,
+            block,
+        };
+        let (sep, info) = build::build(&s.k, &s.chol, &s.load_eqs, &params, &mut |_, _| {});
+        let curve = brute::error_curve(&sep, &exact);
+        assert!(
+            *curve.last().unwrap() < 1e-6,
+            "block {block}: final error {}",
+            curve.last().unwrap()
+        );
+        assert_eq!(info.iterations.len(), sep.modes);
+        needed.push(curve.iter().position(|&e| e <= 1e-2).unwrap() + 1);
+    }
+    // within 15 % in the modes needed for 1 % error (both near the optimum)
+    let (a, b) = (needed[0] as f64, needed[1] as f64);
+    assert!((a - b).abs() <= 0.15 * a.max(b), "modes for 1e-2: single {a}, block {b}");
+}
+
+/// The streamed prefix errors (used by `vademecum build`, which never holds the exact
+/// solution whole) equal the direct computation for every number of modes, for greedy
+/// (non-orthogonal) and recompressed (orthonormal) modes alike.
+#[test]
+fn streamed_prefix_errors_match_the_direct_error_curve() {
+    let s = setup();
+    let params = PgdParams {
+        global_tolerance: 1e-6,
+        enrichment_tolerance: 1e-3,
+        max_modes: 40,
+        max_iterations: 5,
+        block: 4,
+    };
+    let (sep, _) = build::build(&s.k, &s.chol, &s.load_eqs, &params, &mut |_, _| {});
+    let (exact, _) = brute::solve_all(&s.chol, &s.load_eqs, &mut |_| {});
+    for sol in [sep.clone(), compress::recompress(&sep, 0.0)] {
+        let direct = brute::error_curve(&sol, &exact);
+        let mut streamed = brute::PrefixErrors::new(&sol);
+        brute::solve_blocks(&s.chol, &s.load_eqs, &mut |start, block| streamed.add_block(&sol, start, block));
+        for (k, (a, b)) in direct.iter().zip(streamed.curve()).enumerate() {
+            assert!((a - b).abs() <= 1e-8 + 1e-6 * a, "{} modes: direct {a}, streamed {b}", k + 1);
         }
     }
 }

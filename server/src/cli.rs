@@ -41,10 +41,13 @@ Without SCENE, solves the built-in default scene ('organ'). Open the .vtu files 
 the displacement for a unit load in each direction at every accessible surface node, in \
 separated form u(x; s) = sum_k F_k(x) G_k(s). K is assembled and factored once; every \
 spatial solve reuses the factorization. The stopping criteria come from the scene's \
-[fidelity.pgd] section.\n\n\
-By default the exact parametric solution (one solve per load state) is also computed, to \
-report the vademecum's error against it and the time it took; --no-reference skips it for \
-large organs. Writes one bundle folder per organ (manifest.json, scene.toml, .npy arrays)."
+[fidelity.pgd] section; modes are enriched in blocks (fidelity.pgd.block) and recompressed \
+by QR + SVD.\n\n\
+One blocked pass over the exact parametric solution (one solve per load state, streamed: \
+never held whole) computes the exact contact compliances between neighbouring load nodes \
+and measures the error of every prefix of the modes; the bundle keeps the fewest modes that \
+meet fidelity.pgd.tolerance (relative L2 over all load states, default 1e-3). Writes one \
+bundle folder per organ (manifest.json, scene.toml, .npy arrays, modes in f32)."
     )]
     Build(BuildArgs),
     /// Show what is inside a bundle.
@@ -93,9 +96,6 @@ pub struct BuildArgs {
     /// Output folder; each organ's bundle goes to `<OUT>/<organ>.bundle`. Default: `out/<scene name>`.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Skip the brute-force reference (no error report; saves one solve per load state).
-    #[arg(long)]
-    pub no_reference: bool,
     /// Keep the greedy modes as they are instead of recompressing them (QR + SVD).
     #[arg(long)]
     pub no_recompress: bool,

@@ -124,11 +124,14 @@ pub struct Manifest {
     pub arrays: BTreeMap<String, ArrayEntry>,
 }
 
-/// An array to write: f64 or i64 data with a shape.
+/// An array to write: f64, f32 or i64 data with a shape.
 #[derive(Debug, Clone, Copy)]
 pub enum ArrayData<'a> {
     /// Floating-point data.
     F64(&'a [f64]),
+    /// Single-precision data (modes: their rounding, ~6e-8 relative, is far below any
+    /// accuracy a vademecum is built to).
+    F32(&'a [f32]),
     /// Integer data.
     I64(&'a [i64]),
 }
@@ -183,28 +186,9 @@ pub fn write(
         let path = dir.join(&file);
         let mut buf = Vec::new();
         let dtype = match data {
-            ArrayData::F64(v) => {
-                let mut w = npyz::WriteOptions::new()
-                    .default_dtype()
-                    .shape(shape)
-                    .writer(&mut buf)
-                    .begin_nd()
-                    .map_err(io(&path))?;
-                w.extend(v.iter().copied()).map_err(io(&path))?;
-                w.finish().map_err(io(&path))?;
-                "<f8"
-            }
-            ArrayData::I64(v) => {
-                let mut w = npyz::WriteOptions::new()
-                    .default_dtype()
-                    .shape(shape)
-                    .writer(&mut buf)
-                    .begin_nd()
-                    .map_err(io(&path))?;
-                w.extend(v.iter().copied()).map_err(io(&path))?;
-                w.finish().map_err(io(&path))?;
-                "<i8"
-            }
+            ArrayData::F64(v) => encode_npy(&mut buf, shape, v, &path, "<f8")?,
+            ArrayData::F32(v) => encode_npy(&mut buf, shape, v, &path, "<f4")?,
+            ArrayData::I64(v) => encode_npy(&mut buf, shape, v, &path, "<i8")?,
         };
         std::fs::write(&path, &buf).map_err(io(&path))?;
         manifest.arrays.insert(
@@ -225,6 +209,25 @@ pub fn write(
     })?;
     std::fs::write(&stale, json).map_err(io(&stale))?;
     Ok(manifest)
+}
+
+/// Encodes `data` as a `.npy` file of `shape` into `buf`, returning its dtype string.
+fn encode_npy<T: npyz::Serialize + npyz::AutoSerialize + Copy>(
+    buf: &mut Vec<u8>,
+    shape: &[u64],
+    data: &[T],
+    path: &Path,
+    dtype: &'static str,
+) -> Result<&'static str, BundleError> {
+    let mut w = npyz::WriteOptions::new()
+        .default_dtype()
+        .shape(shape)
+        .writer(buf)
+        .begin_nd()
+        .map_err(io(path))?;
+    w.extend(data.iter().copied()).map_err(io(path))?;
+    w.finish().map_err(io(path))?;
+    Ok(dtype)
 }
 
 /// Reads and checks a bundle's manifest (format and version), without loading arrays.
@@ -269,6 +272,8 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
 pub enum Array {
     /// f64 data.
     F64(Vec<f64>),
+    /// f32 data.
+    F32(Vec<f32>),
     /// i64 data.
     I64(Vec<i64>),
 }
@@ -300,11 +305,13 @@ pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u6
     }
     let arr = match entry.dtype.as_str() {
         "<f8" => Array::F64(npy.into_vec::<f64>().map_err(|e| bad(format!("cannot read f64 data: {e}")))?),
+        "<f4" => Array::F32(npy.into_vec::<f32>().map_err(|e| bad(format!("cannot read f32 data: {e}")))?),
         "<i8" => Array::I64(npy.into_vec::<i64>().map_err(|e| bad(format!("cannot read i64 data: {e}")))?),
         d => return Err(bad(format!("unsupported dtype {d}"))),
     };
     let len = match &arr {
         Array::F64(v) => v.len(),
+        Array::F32(v) => v.len(),
         Array::I64(v) => v.len(),
     };
     if len as u64 != shape.iter().product::<u64>() {
@@ -313,13 +320,14 @@ pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u6
     Ok((shape, arr))
 }
 
-/// Loads an f64 array.
+/// Loads a floating-point array as f64 (f32 data is widened exactly).
 pub fn read_f64(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u64>, Vec<f64>), BundleError> {
     match read_array(dir, manifest, name)? {
         (s, Array::F64(v)) => Ok((s, v)),
+        (s, Array::F32(v)) => Ok((s, v.into_iter().map(f64::from).collect())),
         _ => Err(BundleError::Malformed {
             path: dir.join(name),
-            message: format!("array '{name}' is not f64"),
+            message: format!("array '{name}' is not floating-point"),
         }),
     }
 }

@@ -81,3 +81,66 @@ pub fn error_curve(sep: &SeparatedSolution, exact: &[f64]) -> Vec<f64> {
     }
     errs2.iter().map(|e| if den == 0.0 { 0.0 } else { (e / den).sqrt() }).collect()
 }
+
+/// The error of every prefix of a separated solution's modes against the exact solution,
+/// accumulated block by block as the exact columns are solved, so the exact solution is never
+/// held whole (memory: the modes plus one block).
+///
+/// With `c = Fᵀu_q`, `g = G(q, ·)` and the Gram matrix `M = FᵀF`, the error of the first k
+/// modes on column q is `‖u_q‖² − 2 Σ_{i≤k} g_i c_i + Σ_{i,j≤k} g_i g_j M_ij`; the last sum
+/// grows by `g_k (2 (L g)_k + M_kk g_k)` with L the strictly lower part of M. Both products
+/// are taken for a whole block at once (matrix products), so the cost is that of two
+/// `modes × columns` products per block.
+#[derive(Debug, Clone)]
+pub struct PrefixErrors {
+    gram_lower: faer::Mat<f64>,
+    gram_diag: Vec<f64>,
+    err2: Vec<f64>,
+    norm2: f64,
+}
+
+impl PrefixErrors {
+    /// Prepares the accumulation for `sep`.
+    pub fn new(sep: &SeparatedSolution) -> Self {
+        let f = faer::MatRef::from_column_major_slice(&sep.f, sep.n, sep.modes);
+        let gram = f.transpose() * f;
+        let m = sep.modes;
+        Self {
+            gram_lower: faer::Mat::from_fn(m, m, |i, j| if j < i { gram[(i, j)] } else { 0.0 }),
+            gram_diag: (0..m).map(|i| gram[(i, i)]).collect(),
+            err2: vec![0.0; m],
+            norm2: 0.0,
+        }
+    }
+
+    /// Adds exact columns `start..start + c` (`block` is `n × c`, column-major).
+    pub fn add_block(&mut self, sep: &SeparatedSolution, start: usize, block: &[f64]) {
+        let (n, m) = (sep.n, sep.modes);
+        let c = block.len() / n.max(1);
+        let u = faer::MatRef::from_column_major_slice(block, n, c);
+        let f = faer::MatRef::from_column_major_slice(&sep.f, n, m);
+        let coef = f.transpose() * u;
+        let g = faer::Mat::from_fn(m, c, |k, j| sep.g[k * sep.p + start + j]);
+        let lg = &self.gram_lower * &g;
+        for j in 0..c {
+            let col = &block[j * n..(j + 1) * n];
+            let un = col.iter().map(|x| x * x).sum::<f64>();
+            self.norm2 += un;
+            let (mut lin, mut quad) = (0.0, 0.0);
+            for k in 0..m {
+                let gk = g[(k, j)];
+                lin += gk * coef[(k, j)];
+                quad += gk * (2.0 * lg[(k, j)] + self.gram_diag[k] * gk);
+                self.err2[k] += un - 2.0 * lin + quad;
+            }
+        }
+    }
+
+    /// Relative error of every prefix (`out[k-1]`: first k modes) over the columns added.
+    pub fn curve(&self) -> Vec<f64> {
+        self.err2
+            .iter()
+            .map(|e| if self.norm2 > 0.0 { (e.max(0.0) / self.norm2).sqrt() } else { 0.0 })
+            .collect()
+    }
+}

@@ -2,6 +2,9 @@
 
 use std::time::Instant;
 
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Mat, MatMut, MatRef};
+
 use crate::fem::assembly::SymmetricMatrix;
 use crate::solve::Cholesky;
 
@@ -18,6 +21,8 @@ pub struct PgdParams {
     pub max_modes: usize,
     /// Cap on fixed-point iterations per mode.
     pub max_iterations: usize,
+    /// Modes enriched together (1: Alg. 2.1 as published, one mode at a time).
+    pub block: usize,
 }
 
 impl Default for PgdParams {
@@ -28,6 +33,7 @@ impl Default for PgdParams {
             enrichment_tolerance: 1e-8,
             max_modes: 200,
             max_iterations: 50,
+            block: 1,
         }
     }
 }
@@ -78,6 +84,14 @@ impl SeparatedSolution {
         self.modes += 1;
     }
 
+    /// Keeps the first `modes` modes.
+    pub fn truncate(&mut self, modes: usize) {
+        let m = modes.min(self.modes);
+        self.f.truncate(m * self.n);
+        self.g.truncate(m * self.p);
+        self.modes = m;
+    }
+
     /// Column `q` of `F Gᵀ` (the response to load state q) into `out`, using the first
     /// `modes` modes.
     pub fn column(&self, q: usize, modes: usize, out: &mut [f64]) {
@@ -110,17 +124,66 @@ pub struct PgdInfo {
     pub solves: usize,
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
 /// A load state as a sparse force vector over the free equations: `(equation, force)` pairs
 /// (empty when every loaded degree of freedom is constrained: the response is then zero).
 pub type LoadVector = Vec<(usize, f64)>;
 
+/// Column-major `n × c` view of a slice.
+fn view(data: &[f64], n: usize, c: usize) -> MatRef<'_, f64> {
+    MatRef::from_column_major_slice(data, n, c)
+}
+
+/// `F_L S`: the load matrix (sparse columns `loads`) times `S` (`p × c`), into `out` (`n × c`).
+fn loads_times(loads: &[LoadVector], s: MatRef<'_, f64>, out: &mut [f64]) {
+    let n = out.len() / s.ncols().max(1);
+    for (j, col) in out.chunks_exact_mut(n.max(1)).enumerate() {
+        for (q, l) in loads.iter().enumerate() {
+            let w = s[(q, j)];
+            if w != 0.0 {
+                for &(e, f) in l {
+                    col[e] += f * w;
+                }
+            }
+        }
+    }
+}
+
+/// `F_Lᵀ R` (`p × c`).
+fn loads_transpose_times(loads: &[LoadVector], r: MatRef<'_, f64>) -> Mat<f64> {
+    Mat::from_fn(loads.len(), r.ncols(), |q, j| loads[q].iter().map(|&(e, f)| f * r[(e, j)]).sum())
+}
+
+/// `‖A Bᵀ − C Dᵀ‖²_F` from the small Gram products (the columns of A, C live in one space,
+/// those of B, D in another): `tr(AᵀA BᵀB) + tr(CᵀC DᵀD) − 2 tr(AᵀC DᵀB)`.
+fn product_distance2(a: MatRef<'_, f64>, b: MatRef<'_, f64>, c: MatRef<'_, f64>, d: MatRef<'_, f64>) -> (f64, f64) {
+    let tr = |x: Mat<f64>, y: Mat<f64>| -> f64 {
+        (0..x.nrows())
+            .map(|i| (0..x.ncols()).map(|j| x[(i, j)] * y[(j, i)]).sum::<f64>())
+            .sum()
+    };
+    let ab = tr(a.transpose() * a, b.transpose() * b);
+    let cd = tr(c.transpose() * c, d.transpose() * d);
+    let cross = tr(a.transpose() * c, d.transpose() * b);
+    ((ab + cd - 2.0 * cross).max(0.0), ab)
+}
+
 /// Builds the vademecum `U ≈ F Gᵀ` of `K U = F_L` by greedy enrichment, where column p of
 /// `F_L` is `loads[p]`. `chol` must factor `k`. `on_mode(k, energy)` is called after each mode
 /// (for progress displays).
+///
+/// Each enrichment adds a block of `b = params.block` modes at once (b = 1 is Alg. 2.1 as
+/// published): the alternating fixed point runs on `R` (`n × b`) and `S` (`p × b`),
+///
+/// - R-step: `R = K⁻¹(F_L S) − F (Gᵀ S)`, one blocked solve of b right-hand sides, then R is
+///   made K-orthonormal (`RᵀKR = I`; directions without energy are dropped, so the block
+///   shrinks when the residual has lower rank);
+/// - S-step (Galerkin, Eq. 2.22 with `RᵀKR = I`): `S = F_Lᵀ R − G (Fᵀ K R)`,
+///
+/// and the converged block is split into modes by an SVD of S (`S = Q Σ Wᵀ`: modes `R w_k`,
+/// still K-orthonormal, with parameter functions `σ_k q_k`), pushed in decreasing energy
+/// `σ_k = ‖F_k‖_K ‖G_k‖`. Blocks turn b single solves into one blocked solve and the
+/// vector updates against the existing modes into matrix products, which is where the
+/// single-mode builder spends its time once there are a few hundred modes.
 pub fn build(
     k: &SymmetricMatrix,
     chol: &Cholesky,
@@ -140,90 +203,97 @@ pub fn build(
         time_s: 0.0,
         solves: 0,
     };
-    let mut r = vec![0.0; n];
-    let mut r_old = vec![0.0; n];
-    let mut kr = vec![0.0; n];
-    let mut s = vec![0.0; p];
-    let mut s_old = vec![0.0; p];
-    let mut coef = vec![0.0; params.max_modes];
     let mut first_energy = 0.0;
-    while sol.modes < params.max_modes {
-        // Initial S: a smooth, non-zero guess that is not orthogonal to anything in general.
-        for (q, v) in s.iter_mut().enumerate() {
-            *v = 1.0 + 0.1 * ((q as f64) * 0.618).sin();
-        }
-        r.fill(0.0);
+    'enrich: while sol.modes < params.max_modes && p > 0 && n > 0 {
+        let b = params.block.max(1).min(params.max_modes - sol.modes).min(p);
+        // Initial S: smooth, deterministic, linearly independent columns.
+        let mut s = Mat::from_fn(p, b, |q, j| 1.0 + 0.1 * ((q as f64) * (0.618 + 0.37 * j as f64) + j as f64).sin());
+        let mut r = Mat::<f64>::zeros(n, b);
+        let mut r_old = Mat::<f64>::zeros(n, 0);
+        let mut s_old = Mat::<f64>::zeros(p, 0);
         let mut iters = 0;
         loop {
             iters += 1;
-            r_old.copy_from_slice(&r);
-            s_old.copy_from_slice(&s);
-            let ss = dot(&s, &s);
-            // R-step: R = [K⁻¹(F_L S) − Σ_i F_i (G_i·S)] / (S·S)
-            r.fill(0.0);
-            for (q, l) in loads.iter().enumerate() {
-                for &(e, w) in l {
-                    r[e] += w * s[q];
-                }
+            let c = s.ncols();
+            // R-step
+            let mut w = vec![0.0; n * c];
+            loads_times(loads, s.as_ref(), &mut w);
+            chol.solve_many_in_place(&mut w, c);
+            info.solves += c;
+            if sol.modes > 0 {
+                let gs = view(&sol.g, p, sol.modes).transpose() * s.as_ref();
+                let wm = MatMut::from_column_major_slice_mut(&mut w, n, c);
+                matmul(
+                    wm,
+                    Accum::Add,
+                    view(&sol.f, n, sol.modes),
+                    &gs,
+                    -1.0,
+                    faer::get_global_parallelism(),
+                );
             }
-            chol.solve_in_place(&mut r);
-            info.solves += 1;
-            for i in 0..sol.modes {
-                coef[i] = dot(sol.g_mode(i), &s);
+            // K-orthonormalise: R ← W V Λ^{-1/2} over the eigenpairs of WᵀKW with energy.
+            let mut kw = vec![0.0; n * c];
+            for (wc, kc) in w.chunks_exact(n).zip(kw.chunks_exact_mut(n)) {
+                k.mul_vec(wc, kc);
             }
-            for i in 0..sol.modes {
-                let c = coef[i];
-                for (rv, fv) in r.iter_mut().zip(sol.f_mode(i)) {
-                    *rv -= c * fv;
-                }
-            }
-            let rn = dot(&r, &r).sqrt();
-            if rn == 0.0 || ss == 0.0 {
+            let (w, kw) = (view(&w, n, c), view(&kw, n, c));
+            let gram = w.transpose() * kw;
+            let Ok(eig) = gram.self_adjoint_eigen(faer::Side::Lower) else {
                 break;
+            };
+            let lambda: Vec<f64> = (0..c).map(|i| eig.S()[i]).collect();
+            let top = lambda.iter().cloned().fold(0.0, f64::max);
+            let keep: Vec<usize> = (0..c).rev().filter(|&i| lambda[i] > 1e-12 * top && lambda[i].is_finite()).collect();
+            if keep.is_empty() || top.is_nan() || top <= 0.0 {
+                // nothing left to represent
+                info.converged = true;
+                break 'enrich;
             }
-            // keep R normalised; S carries the magnitude
-            for v in r.iter_mut() {
-                *v /= rn;
+            let t = Mat::from_fn(c, keep.len(), |i, j| eig.U()[(i, keep[j])] / lambda[keep[j]].sqrt());
+            r = w * &t;
+            let kr = kw * &t;
+            // S-step (Galerkin)
+            let mut s_new = loads_transpose_times(loads, r.as_ref());
+            if sol.modes > 0 {
+                let fkr = view(&sol.f, n, sol.modes).transpose() * &kr;
+                s_new -= view(&sol.g, p, sol.modes) * &fkr;
             }
-            // S-step: S (RᵀKR) = F_Lᵀ R − Σ_i G_i (F_iᵀ K R)
-            k.mul_vec(&r, &mut kr);
-            let rkr = dot(&r, &kr);
-            for i in 0..sol.modes {
-                coef[i] = dot(sol.f_mode(i), &kr);
-            }
-            for (q, l) in loads.iter().enumerate() {
-                let mut v: f64 = l.iter().map(|&(e, w)| w * r[e]).sum();
-                for i in 0..sol.modes {
-                    v -= coef[i] * sol.g[i * p + q];
-                }
-                s[q] = v / rkr;
-            }
-            // change of the rank-one product, relative (Frobenius)
-            let (a2, b2) = (dot(&r, &r) * dot(&s, &s), dot(&r_old, &r_old) * dot(&s_old, &s_old));
-            let ab = dot(&r, &r_old) * dot(&s, &s_old);
-            let change = ((a2 + b2 - 2.0 * ab).max(0.0) / a2.max(f64::MIN_POSITIVE)).sqrt();
+            s = s_new;
+            let (change2, norm2) = if r_old.ncols() == 0 {
+                (f64::INFINITY, 1.0)
+            } else {
+                product_distance2(r.as_ref(), s.as_ref(), r_old.as_ref(), s_old.as_ref())
+            };
+            let change = (change2 / norm2.max(f64::MIN_POSITIVE)).sqrt();
             if change < params.enrichment_tolerance || iters >= params.max_iterations {
                 break;
             }
+            r_old = r.clone();
+            s_old = s.clone();
         }
-        // mode energy ‖R‖_K ‖S‖
-        k.mul_vec(&r, &mut kr);
-        let energy = (dot(&r, &kr).max(0.0)).sqrt() * dot(&s, &s).sqrt();
-        if sol.modes == 0 {
-            first_energy = energy;
-        }
-        let rel = if first_energy > 0.0 { energy / first_energy } else { 0.0 };
-        if energy == 0.0 || !energy.is_finite() {
-            info.converged = true;
-            break;
-        }
-        sol.push(&r, &s);
-        info.iterations.push(iters);
-        info.mode_energy.push(rel);
-        on_mode(sol.modes, rel);
-        if rel < params.global_tolerance {
-            info.converged = true;
-            break;
+        // Split the block into modes: S = Q Σ Wᵀ → F = R W (K-orthonormal), G = Q Σ.
+        let Ok(svd) = s.thin_svd() else { break };
+        let fw = &r * svd.V();
+        for j in 0..svd.S().dim() {
+            let sigma = svd.S()[j];
+            if sol.modes == 0 {
+                first_energy = sigma;
+            }
+            let rel = if first_energy > 0.0 { sigma / first_energy } else { 0.0 };
+            if sigma == 0.0 || !sigma.is_finite() || rel < params.global_tolerance {
+                info.converged = true;
+                break 'enrich;
+            }
+            let fk: Vec<f64> = (0..n).map(|i| fw[(i, j)]).collect();
+            let gk: Vec<f64> = (0..p).map(|q| svd.U()[(q, j)] * sigma).collect();
+            sol.push(&fk, &gk);
+            info.iterations.push(iters);
+            info.mode_energy.push(rel);
+            on_mode(sol.modes, rel);
+            if sol.modes >= params.max_modes {
+                break 'enrich;
+            }
         }
     }
     info.modes = sol.modes;

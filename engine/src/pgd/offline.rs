@@ -23,13 +23,16 @@ pub const KIND: &str = "pgd-linear";
 /// How to build.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BuildOptions {
-    /// Stopping criteria.
+    /// Stopping criteria of the greedy enrichment.
     pub params: PgdParams,
-    /// Also compute the brute-force solution and report the error against it (costs one
-    /// solve per load state and `8·dofs·states` bytes of memory).
-    pub compare_brute_force: bool,
-    /// Relative tolerance of the QR+SVD recompression (`None`: keep the greedy modes).
-    pub recompress: Option<f64>,
+    /// Target relative L2 error of the displacement field over all load states. The build
+    /// measures the error of every prefix of the modes against the exact solution (streamed
+    /// in the blocked pass it makes anyway for the exact contact compliances) and keeps the
+    /// fewest modes that meet it.
+    pub tolerance: f64,
+    /// Recompress the greedy modes by QR + SVD before truncating (the truncated SVD is the
+    /// best basis of its size, so this never keeps more modes).
+    pub recompress: bool,
     /// Radius (m) of the tool footprint over which each unit load is spread (0: point loads).
     pub load_radius: f64,
 }
@@ -43,10 +46,10 @@ pub enum BuildStage {
     Factorization,
     /// Mode `k` done, with its relative energy.
     Mode(usize, f64),
-    /// Brute-force columns done out of total.
-    BruteForce(usize, usize),
-    /// Measuring errors.
-    Errors,
+    /// Recompressing the modes.
+    Recompression,
+    /// Exact columns done out of total (contact compliances and error measurement).
+    Exact(usize, usize),
 }
 
 /// Why a build failed.
@@ -96,11 +99,17 @@ pub struct BuildReport {
     pub modes: usize,
     /// Whether the kept modes are the recompressed ones.
     pub recompressed: bool,
-    /// Relative error of the greedy modes against brute force.
-    pub error_greedy: Option<f64>,
-    /// Relative error of the kept modes against brute force.
-    pub error: Option<f64>,
-    /// Error against brute force as modes are added (`(modes, error)`, sampled).
+    /// The target relative L2 error.
+    pub tolerance: f64,
+    /// Whether the kept modes meet it (false: the greedy stopped, by ε_R or the mode cap,
+    /// before reaching it, and every mode is kept).
+    pub target_met: bool,
+    /// Relative L2 error of all the greedy modes against the exact solution.
+    pub error_greedy: f64,
+    /// Relative L2 error of the kept modes against the exact solution.
+    pub error: f64,
+    /// Error against the exact solution as modes are added (`(modes, error)`, sampled, in
+    /// the order the bundle stores them).
     pub error_curve: Vec<(usize, f64)>,
     /// Assembly time (s).
     pub assembly_s: f64,
@@ -110,14 +119,15 @@ pub struct BuildReport {
     pub pgd_s: f64,
     /// Recompression time (s).
     pub recompress_s: f64,
-    /// Brute-force time (s): one solve per load state with the same factorization.
-    pub brute_force_s: Option<f64>,
+    /// Time of the brute-force solution alone (s): one blocked pass of solves over all load
+    /// states with the same factorization.
+    pub brute_force_s: f64,
     /// Time of the blocked pass over all load states that computes the exact local
-    /// compliances (and the brute-force solution when asked) (s).
+    /// compliances and measures the error of the modes (s; includes the brute-force solves).
     pub exact_pass_s: f64,
     /// Exact local compliance blocks stored (neighbouring load-node pairs).
     pub local_blocks: usize,
-    /// Bytes of the modes kept (f64).
+    /// Bytes of the modes kept, as stored in the bundle (f32).
     pub modes_bytes: usize,
     /// Bytes of the full parametric solution (all dofs × all load states, f64).
     pub full_bytes: usize,
@@ -293,19 +303,22 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     let (sep, greedy) = build::build(&k, &chol, &load_eqs, &opts.params, &mut |m, e| on(BuildStage::Mode(m, e)));
     let pgd_s = greedy.time_s;
     let clock = Instant::now();
-    let kept = match opts.recompress {
-        Some(tol) => {
-            let c = compress::recompress(&sep, tol);
-            if c.modes < sep.modes { Some(c) } else { None }
-        }
-        None => None,
+    let kept = if opts.recompress && sep.modes > 0 {
+        on(BuildStage::Recompression);
+        Some(compress::recompress(&sep, 0.0))
+    } else {
+        None
     };
     let recompress_s = clock.elapsed().as_secs_f64();
-    let (mut error_greedy, mut error, mut error_curve, mut brute_force_s) = (None, None, Vec::new(), None);
-    // One blocked pass over all load states: the exact local compliances (always: they make
-    // the haptic force exact) and, when asked, the full solution for the error report.
+    // The bundle stores the modes in f32: round them now, so the errors measured below are
+    // those of the modes served and a loaded bundle equals the built vademecum exactly.
+    let mut candidate = kept.clone().unwrap_or_else(|| sep.clone());
+    for x in candidate.f.iter_mut().chain(candidate.g.iter_mut()) {
+        *x = *x as f32 as f64;
+    }
+    // One blocked pass over all load states: the exact local compliances (they make the
+    // haptic force exact) and the error of every prefix of the modes.
     let total = load_eqs.len();
-    let n_free = dofs.n_free();
     let nbrs = load_neighbours(&model, &loads);
     let mut local = LocalCompliance {
         ptr: vec![0],
@@ -317,13 +330,14 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         local.c.extend(std::iter::repeat_n([[0.0; 3]; 3], l.len()));
         local.ptr.push(local.nbr.len());
     }
-    let mut exact = if opts.compare_brute_force {
-        vec![0.0; n_free * total]
-    } else {
-        Vec::new()
-    };
+    let n_free = dofs.n_free();
+    let mut errs_greedy = brute::PrefixErrors::new(&sep);
+    let mut errs = kept.as_ref().map(|_| brute::PrefixErrors::new(&candidate));
     let clock = Instant::now();
+    let mut solve_s = 0.0;
+    let mut lap = Instant::now();
     brute::solve_blocks(&chol, &load_eqs, &mut |start, block| {
+        solve_s += lap.elapsed().as_secs_f64();
         for (col, u) in block.chunks_exact(n_free).enumerate() {
             let q = start + col;
             let (j, d) = (q / 3, q % 3);
@@ -333,31 +347,30 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
                     local.c[k][i][d] = patch_value(u, &dofs, &patches[b], i);
                 }
             }
-            if opts.compare_brute_force {
-                exact[q * n_free..(q + 1) * n_free].copy_from_slice(u);
-            }
         }
-        on(BuildStage::BruteForce(start + block.len() / n_free, total));
+        errs_greedy.add_block(&sep, start, block);
+        if let Some(e) = errs.as_mut() {
+            e.add_block(&candidate, start, block);
+        }
+        on(BuildStage::Exact(start + block.len() / n_free, total));
+        lap = Instant::now();
     });
     let exact_pass_s = clock.elapsed().as_secs_f64();
-    if opts.compare_brute_force {
-        brute_force_s = Some(exact_pass_s);
-        on(BuildStage::Errors);
-        let curve = brute::error_curve(&sep, &exact);
-        let step = (curve.len() / 40).max(1);
-        error_curve = curve
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| (i + 1) % step == 0 || i + 1 == curve.len())
-            .map(|(i, e)| (i + 1, *e))
-            .collect();
-        error_greedy = curve.last().copied();
-        error = match &kept {
-            Some(c) => Some(brute::relative_error(c, &exact, c.modes)),
-            None => error_greedy,
-        };
-    }
-    let final_sep = kept.as_ref().unwrap_or(&sep);
+    let greedy_curve = errs_greedy.curve();
+    let curve = errs.as_ref().map_or_else(|| greedy_curve.clone(), |e| e.curve());
+    let error_greedy = greedy_curve.last().copied().unwrap_or(1.0);
+    let needed = curve.iter().position(|&e| e <= opts.tolerance).map(|i| i + 1);
+    let target_met = needed.is_some();
+    candidate.truncate(needed.unwrap_or(candidate.modes));
+    let error = if candidate.modes == 0 { 1.0 } else { curve[candidate.modes - 1] };
+    let step = (curve.len() / 40).max(1);
+    let error_curve = curve
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| (i + 1) % step == 0 || i + 1 == curve.len())
+        .map(|(i, e)| (i + 1, *e))
+        .collect();
+    let final_sep = &candidate;
     let vademecum = Vademecum::from_separated(final_sep, &dofs, &loads, &patches)
         .with_local(local)
         .expect("local compliances are consistent by construction");
@@ -371,6 +384,8 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         mean_patch_nodes: patches.iter().map(|p| p.0.len()).sum::<usize>() as f64 / patches.len() as f64,
         modes: final_sep.modes,
         recompressed: kept.is_some(),
+        tolerance: opts.tolerance,
+        target_met,
         greedy,
         error_greedy,
         error,
@@ -379,10 +394,10 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         factorization_s,
         pgd_s,
         recompress_s,
-        brute_force_s,
+        brute_force_s: solve_s,
         exact_pass_s,
         local_blocks: vademecum.local().map_or(0, |l| l.nbr.len()),
-        modes_bytes: 8 * final_sep.modes * (mesh.n_dofs() + load_eqs.len()),
+        modes_bytes: 4 * final_sep.modes * (mesh.n_dofs() + load_eqs.len()),
         full_bytes: 8 * mesh.n_dofs() * load_eqs.len(),
     };
     Ok(Built { vademecum, report, model })
@@ -424,9 +439,11 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         None => (vec![0; v.load_nodes().len() + 1], Vec::new(), Vec::new()),
     };
     let m = v.modes() as u64;
+    let f32_of = |x: &[f64]| -> Vec<f32> { x.iter().map(|&v| v as f32).collect() };
+    let (f, g) = (f32_of(v.f_raw()), f32_of(v.g_raw()));
     let arrays = [
-        ("F", vec![m, mesh.n_dofs() as u64], ArrayData::F64(v.f_raw())),
-        ("G", vec![m, 3 * loads.len() as u64], ArrayData::F64(v.g_raw())),
+        ("F", vec![m, mesh.n_dofs() as u64], ArrayData::F32(&f)),
+        ("G", vec![m, 3 * loads.len() as u64], ArrayData::F32(&g)),
         ("load_nodes", vec![loads.len() as u64], ArrayData::I64(&loads)),
         ("nodes", vec![mesh.n_nodes() as u64, 3], ArrayData::F64(&nodes)),
         ("surface", vec![(surface.len() / 3) as u64, 3], ArrayData::I64(&surface)),

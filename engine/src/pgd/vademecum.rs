@@ -420,26 +420,124 @@ impl NodeMajorField {
     pub fn eval(&self, coeffs: &[f32], out: &mut [f32]) {
         debug_assert_eq!(coeffs.len(), self.modes);
         debug_assert_eq!(out.len(), 3 * self.nodes.len());
-        for (o, row) in out.iter_mut().zip(self.data.chunks_exact(self.modes.max(1))) {
-            *o = dot_f32(row, coeffs);
-        }
+        eval_rows(&self.data, self.modes, coeffs, out);
     }
 }
 
-/// A dot product written with eight independent accumulators so it vectorises.
-#[inline]
-fn dot_f32(a: &[f32], b: &[f32]) -> f32 {
+/// The spatial modes at a set of nodes, node-major like [`NodeMajorField`] but quantised to
+/// i16 with one scale per mode (`F_k(x)_i ≈ s_k · q`, `s_k = max |F_k| / 32767`): half the
+/// bytes of f32, for a relative rounding of at most `1/65534` of each mode's largest value.
+/// The scales are folded into the coefficients (`c'_k = s_k c_k`), so the inner loop is one
+/// widening multiply–add per value. The surface field is memory-bound (BENCHMARKS.md), so
+/// halving the bytes halves its time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuantizedField {
+    nodes: Vec<usize>,
+    modes: usize,
+    scale: Vec<f32>,
+    /// `data[(j·3 + i)·modes + k] = round(F_k(nodes[j])_i / s_k)`.
+    data: Vec<i16>,
+}
+
+impl QuantizedField {
+    /// Quantises the first `modes` modes of `v` at `nodes` (a prefix of the modes is a
+    /// coarser field: the modes are ordered by decreasing singular value).
+    pub fn new(v: &Vademecum, nodes: &[usize], modes: usize) -> Self {
+        Self::from_mode_major(&v.f, v.n_nodes, modes.min(v.modes), nodes)
+    }
+
+    /// Builds from mode-major f64 modes over `n_nodes` nodes (`f[k·3n + 3·node + i]`).
+    pub fn from_mode_major(f: &[f64], n_nodes: usize, modes: usize, nodes: &[usize]) -> Self {
+        let nd = 3 * n_nodes;
+        let scale: Vec<f32> = (0..modes)
+            .map(|k| {
+                let m = nodes
+                    .iter()
+                    .flat_map(|&n| (0..3).map(move |i| f[k * nd + 3 * n + i].abs()))
+                    .fold(0.0, f64::max);
+                (m / i16::MAX as f64) as f32
+            })
+            .collect();
+        let mut data = vec![0i16; nodes.len() * 3 * modes];
+        for (j, &n) in nodes.iter().enumerate() {
+            for i in 0..3 {
+                for k in 0..modes {
+                    let s = scale[k] as f64;
+                    data[(j * 3 + i) * modes + k] = if s > 0.0 { (f[k * nd + 3 * n + i] / s).round() as i16 } else { 0 };
+                }
+            }
+        }
+        Self {
+            nodes: nodes.to_vec(),
+            modes,
+            scale,
+            data,
+        }
+    }
+
+    /// Modes used.
+    pub fn modes(&self) -> usize {
+        self.modes
+    }
+
+    /// Bytes of mode data read per evaluation.
+    pub fn bytes(&self) -> usize {
+        2 * self.data.len()
+    }
+
+    /// `out[3j + i] = Σ_k c_k F_k(nodes[j])_i` over the quantised modes; `scaled` is a
+    /// workspace of `modes` values (no allocation).
+    pub fn eval(&self, coeffs: &[f32], scaled: &mut [f32], out: &mut [f32]) {
+        debug_assert!(coeffs.len() >= self.modes && scaled.len() == self.modes);
+        debug_assert_eq!(out.len(), 3 * self.nodes.len());
+        for ((c, &x), &s) in scaled.iter_mut().zip(coeffs).zip(&self.scale) {
+            *c = x * s;
+        }
+        eval_rows(&self.data, self.modes, scaled, out);
+    }
+}
+
+/// `out[r] = Σ_k data[r·modes + k] · c_k` for every row: node-major modes times
+/// coefficients, with AVX2 + FMA when the CPU has them (chosen at run time; the i16 → f32
+/// widening needs at least SSE4.1 to vectorise, and the x86-64 baseline has only SSE2).
+fn eval_rows<T: Copy + Into<f32>>(data: &[T], modes: usize, c: &[f32], out: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports the features the function is compiled for.
+        unsafe { eval_rows_avx2(data, modes, c, out) };
+        return;
+    }
+    eval_rows_portable(data, modes, c, out);
+}
+
+#[inline(always)]
+fn eval_rows_portable<T: Copy + Into<f32>>(data: &[T], modes: usize, c: &[f32], out: &mut [f32]) {
+    for (o, row) in out.iter_mut().zip(data.chunks_exact(modes.max(1))) {
+        *o = dot(row, c);
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn eval_rows_avx2<T: Copy + Into<f32>>(data: &[T], modes: usize, c: &[f32], out: &mut [f32]) {
+    eval_rows_portable(data, modes, c, out)
+}
+
+/// `Σ a_k b_k` (a in f32 or i16, widened), written with eight independent accumulators so
+/// it vectorises.
+#[inline(always)]
+fn dot<T: Copy + Into<f32>>(a: &[T], b: &[f32]) -> f32 {
     let mut acc = [0.0f32; 8];
     let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
     let (ra, rb) = (ca.remainder(), cb.remainder());
     for (x, y) in ca.zip(cb) {
         for l in 0..8 {
-            acc[l] += x[l] * y[l];
+            acc[l] += x[l].into() * y[l];
         }
     }
     let mut s: f32 = acc.iter().sum();
     for (x, y) in ra.iter().zip(rb) {
-        s += x * y;
+        s += (*x).into() * y;
     }
     s
 }

@@ -232,11 +232,11 @@ impl Scene {
         let p = &s.fidelity.pgd;
         let pgd = [Seg::Key("fidelity"), Seg::Key("pgd")];
         let in_unit = |t: f64| t > 0.0 && t < 1.0;
-        if !in_unit(p.global_tolerance) || !in_unit(p.enrichment_tolerance) {
+        if !in_unit(p.tolerance) || !in_unit(p.global_tolerance) || !in_unit(p.enrichment_tolerance) {
             return Err(self.error_at(&pgd, "PGD tolerances must lie in (0, 1)"));
         }
-        if p.max_modes == 0 || p.max_iterations == 0 {
-            return Err(self.error_at(&pgd, "max_modes and max_iterations must be at least 1"));
+        if p.max_modes == 0 || p.max_iterations == 0 || p.block == 0 {
+            return Err(self.error_at(&pgd, "max_modes, max_iterations and block must be at least 1"));
         }
         Ok(())
     }

@@ -11,7 +11,7 @@ use serde::Serialize;
 use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pgd::contact::SurfaceContact;
 use vademecum_engine::pgd::offline;
-use vademecum_engine::pgd::vademecum::NodeMajorField;
+use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
 
 use crate::cli::BenchPgdArgs;
 
@@ -50,6 +50,37 @@ impl Rng {
     fn unit(&mut self) -> f64 {
         (self.next() >> 11) as f64 / (1u64 << 53) as f64
     }
+}
+
+/// Times `n` calls of `f` (µs each), keeping its results alive.
+fn time_n(n: usize, mut f: impl FnMut() -> f64) -> Vec<f64> {
+    let mut acc = 0.0;
+    let v = (0..n)
+        .map(|_| {
+            let t = Instant::now();
+            acc += f();
+            t.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    black_box(acc);
+    v
+}
+
+/// The memory-bound floor: `n` plain reads (an 8-lane f32 sum) of a buffer of `bytes` bytes.
+fn streaming_read(bytes: usize, n: usize) -> Vec<f64> {
+    let buf: Vec<f32> = (0..bytes / 4).map(|i| i as f32).collect();
+    time_n(n, || {
+        black_box(&buf)
+            .chunks_exact(8)
+            .fold([0.0f32; 8], |mut acc, c| {
+                for l in 0..8 {
+                    acc[l] += c[l];
+                }
+                acc
+            })
+            .iter()
+            .sum::<f32>() as f64
+    })
 }
 
 pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
@@ -159,41 +190,87 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         tr.push(t.elapsed().as_secs_f64() * 1e6);
         acc += black_box(s);
     }
-    // f32 node-major surface field: the bundle's surface, then synthetic modes of the size of
-    // a 30k-node organ's surface, each beside a streaming read of the same bytes
-    let nm = NodeMajorField::new(v, &surface_nodes);
+    // Node-major surface fields: the bundle's surface in f32 and i16, then synthetic modes of
+    // the size of a 30k-node organ's surface for several mode counts (a prefix of the modes is
+    // a coarser field), each beside a streaming read of the same bytes.
     let c32: Vec<f32> = coeffs.iter().map(|&c| c as f32).collect();
     let mut out32 = vec![0.0f32; 3 * surface_nodes.len()];
-    let syn_nodes: Vec<usize> = (0..a.surface_nodes).collect();
-    let syn_f: Vec<f64> = (0..v.modes() * 3 * a.surface_nodes).map(|_| rng.unit() - 0.5).collect();
-    let syn = NodeMajorField::from_mode_major(&syn_f, a.surface_nodes, v.modes(), &syn_nodes);
-    drop(syn_f);
-    let syn_raw: Vec<f32> = (0..syn.bytes() / 4).map(|i| i as f32).collect();
-    let mut syn_out = vec![0.0f32; 3 * a.surface_nodes];
-    let (mut t32, mut tsyn, mut tsyn_read) = (Vec::new(), Vec::new(), Vec::new());
-    for _ in 0..a.fields {
-        let t = Instant::now();
+    let nm = NodeMajorField::new(v, &surface_nodes);
+    let t32 = time_n(a.fields, || {
         nm.eval(black_box(&c32), &mut out32);
-        t32.push(t.elapsed().as_secs_f64() * 1e6);
-        let t = Instant::now();
-        syn.eval(black_box(&c32), &mut syn_out);
-        tsyn.push(t.elapsed().as_secs_f64() * 1e6);
-        let t = Instant::now();
-        let s: f32 = black_box(&syn_raw)
-            .chunks_exact(8)
-            .fold([0.0f32; 8], |mut acc, c| {
-                for l in 0..8 {
-                    acc[l] += c[l];
-                }
-                acc
-            })
-            .iter()
-            .sum();
-        tsyn_read.push(t.elapsed().as_secs_f64() * 1e6);
-        acc += black_box(out32[0] + syn_out[0] + s) as f64;
+        out32[0] as f64
+    });
+    let qf = QuantizedField::new(v, &surface_nodes, v.modes());
+    let mut scaled = vec![0.0f32; qf.modes()];
+    let t16 = time_n(a.fields, || {
+        qf.eval(black_box(&c32), &mut scaled, &mut out32);
+        out32[0] as f64
+    });
+    let mut stats_fields = vec![
+        stat(
+            &format!(
+                "surface field, f32 node-major ({} nodes, {:.1} MB)",
+                surface_nodes.len(),
+                nm.bytes() as f64 / 1e6
+            ),
+            t32,
+        ),
+        stat(
+            &format!(
+                "surface field, i16 node-major ({} nodes, {:.1} MB)",
+                surface_nodes.len(),
+                qf.bytes() as f64 / 1e6
+            ),
+            t16,
+        ),
+    ];
+    let syn_nodes: Vec<usize> = (0..a.surface_nodes).collect();
+    let mut mode_counts = vec![v.modes(), 200, 100, 50];
+    mode_counts.dedup();
+    for modes in mode_counts {
+        let syn_f: Vec<f64> = (0..modes * 3 * a.surface_nodes).map(|_| rng.unit() - 0.5).collect();
+        let c: Vec<f32> = (0..modes).map(|_| rng.unit() as f32).collect();
+        let mut out = vec![0.0f32; 3 * a.surface_nodes];
+        let f32_field = NodeMajorField::from_mode_major(&syn_f, a.surface_nodes, modes, &syn_nodes);
+        let i16_field = QuantizedField::from_mode_major(&syn_f, a.surface_nodes, modes, &syn_nodes);
+        drop(syn_f);
+        let t = time_n(a.fields, || {
+            f32_field.eval(black_box(&c), &mut out);
+            out[0] as f64
+        });
+        stats_fields.push(stat(
+            &format!(
+                "synthetic surface field, f32 node-major ({} nodes × {modes} modes, {:.1} MB)",
+                a.surface_nodes,
+                f32_field.bytes() as f64 / 1e6
+            ),
+            t,
+        ));
+        stats_fields.push(stat(
+            &format!("streaming read of the same {:.1} MB", f32_field.bytes() as f64 / 1e6),
+            streaming_read(f32_field.bytes(), a.fields),
+        ));
+        drop(f32_field);
+        let mut scaled = vec![0.0f32; modes];
+        let t = time_n(a.fields, || {
+            i16_field.eval(black_box(&c), &mut scaled, &mut out);
+            out[0] as f64
+        });
+        stats_fields.push(stat(
+            &format!(
+                "synthetic surface field, i16 node-major ({} nodes × {modes} modes, {:.1} MB)",
+                a.surface_nodes,
+                i16_field.bytes() as f64 / 1e6
+            ),
+            t,
+        ));
+        stats_fields.push(stat(
+            &format!("streaming read of the same {:.1} MB", i16_field.bytes() as f64 / 1e6),
+            streaming_read(i16_field.bytes(), a.fields),
+        ));
     }
     black_box(acc);
-    let stats = vec![
+    let mut stats = vec![
         stat("bundle load (verify checksums, build online layout)", loads),
         stat("null timing loop", null),
         stat("contact force (compliance in a triangle + C^-1 delta)", contact),
@@ -213,28 +290,8 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
             &format!("streaming read of the same bytes ({:.1} MB)", (raw.len() * 8) as f64 / 1e6),
             tr,
         ),
-        stat(
-            &format!(
-                "surface field, f32 node-major ({} nodes, {:.1} MB)",
-                surface_nodes.len(),
-                nm.bytes() as f64 / 1e6
-            ),
-            t32,
-        ),
-        stat(
-            &format!(
-                "synthetic surface field, f32 node-major ({} nodes × {} modes, {:.1} MB)",
-                a.surface_nodes,
-                v.modes(),
-                syn.bytes() as f64 / 1e6
-            ),
-            tsyn,
-        ),
-        stat(
-            &format!("streaming read of the same {:.1} MB (f32, 8 lanes)", syn.bytes() as f64 / 1e6),
-            tsyn_read,
-        ),
     ];
+    stats.extend(stats_fields);
     let mut out = std::io::stdout().lock();
     if a.json {
         writeln!(out, "{}", serde_json::to_string_pretty(&stats)?)?;
