@@ -5,7 +5,9 @@
 //!   boundary surfaces, selections, quality, procedural meshes.
 //! - [`material`]: constitutive laws.
 //! - [`fem`]: shape functions, cell operators, assembly, loads, the static linear solve.
-//! - [`pgd`]: PGD computational vademecums (offline builder, brute-force reference).
+//! - [`pgd`]: PGD computational vademecums (offline builder, brute-force reference, online
+//!   evaluator).
+//! - [`pipeline`]: one simulation tick — tool state → contact → the scene's effects → force.
 //! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
 //! - [`bundle`]: the on-disk form of built vademecums (manifest + `.npy` + checksums).
 //! - [`scene`]: scene files (TOML), their validation, and the static problem they describe.
@@ -20,5 +22,6 @@ pub mod fem;
 pub mod material;
 pub mod mesh;
 pub mod pgd;
+pub mod pipeline;
 pub mod scene;
 pub mod solve;

@@ -10,8 +10,9 @@ const ABOUT: &str = "Real-time soft-tissue simulation for surgical training: off
 const LONG_ABOUT: &str = "vademecum solves soft-tissue mechanics offline into compact reduced models and serves \
 forces and displacements from them in real time.
 
-This build provides the finite-element core: static solves of scene files, mesh inspection, \
-scene validation and solver benchmarks.
+This build provides static solves of scene files, PGD vademecum builds (bundles), headless \
+real-time sessions with recorded forces and frames, mesh inspection, scene validation and \
+benchmarks.
 
 Exit status: 0 success; 1 finished but a check failed; 2 error (bad input, solver failure).";
 
@@ -50,6 +51,20 @@ meet fidelity.pgd.tolerance (relative L2 over all load states, default 1e-3). Wr
 bundle folder per organ (manifest.json, scene.toml, .npy arrays, modes in f32)."
     )]
     Build(BuildArgs),
+    /// Run a headless session: a scripted tool trajectory at 1 kHz, forces and frames recorded.
+    #[command(long_about = "Run a session with no network client: the tick thread plays a scripted tool \
+trajectory at 1 kHz, as a simulator frontend would send it, and the session records every \
+tick's force as CSV and displacement frames as .pvd/.vtu (open the .pvd in ParaView and \
+warp by 'displacement'), then prints a summary: tick work and lateness percentiles, \
+deadline misses, peak force.\n\n\
+The vademecum of each organ is taken from <BUNDLES>/<organ>.bundle and built there first \
+when it is missing or was built from another scene or mesh. Without --script, the probe \
+palpates the middle of the first organ's accessible surface: down 3 mm above it, --depth \
+into it over 1 s, hold, slide 15 mm over 2 s, lift (5 s in all).\n\n\
+Writes <RECORD>/forces.csv (tick, t_s, contact point, force on the tool in N, contact, \
+depth, events, latency_us), trajectory.csv, <organ>.pvd + frames/*.vtu and summary.json. \
+Exit status 1 when force rows were dropped.")]
+    Run(RunArgs),
     /// Show what is inside a bundle.
     Inspect(InspectArgs),
     /// Inspect meshes.
@@ -100,6 +115,34 @@ pub struct BuildArgs {
     #[arg(long)]
     pub no_recompress: bool,
     /// Print the build report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `vademecum run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// The scene.
+    #[command(flatten)]
+    pub source: SceneSource,
+    /// Tool trajectory as CSV keyframes `t_s,x_m,y_m,z_m[,closure]` (SI units, times
+    /// increasing), interpolated linearly at every tick. Default: the built-in palpation.
+    #[arg(long, value_name = "CSV")]
+    pub script: Option<PathBuf>,
+    /// Folder for forces.csv, frames and summary.json. Default: `out/<scene name>/run`.
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
+    /// Folder of the bundles (`<organ>.bundle`), built there when missing or stale.
+    /// Default: `out/<scene name>`.
+    #[arg(long, value_name = "DIR")]
+    pub bundles: Option<PathBuf>,
+    /// Frames recorded per second (at most 60).
+    #[arg(long, default_value_t = 30.0, value_name = "HZ")]
+    pub frame_rate: f64,
+    /// How deep the built-in palpation presses (m).
+    #[arg(long, default_value_t = 0.004, value_name = "M")]
+    pub depth: f64,
+    /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
 }

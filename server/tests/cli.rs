@@ -140,3 +140,37 @@ fn build_writes_a_bundle_that_inspect_verifies() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("G.npy") && stderr(&o).contains("checksum"), "{}", stderr(&o));
 }
+
+#[test]
+fn run_builds_the_missing_vademecum_plays_the_palpation_and_records_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["run", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert!(stderr(&o).contains("building the vademecum of 'lobe'"), "{}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let ticks = s["ticks"].as_u64().unwrap();
+    assert!((4990..=5010).contains(&ticks), "5 s at 1 kHz, got {ticks} ticks");
+    assert!(s["peak_force_n"].as_f64().unwrap() > 0.1, "{s}");
+    assert!(s["contact_ticks"].as_u64().unwrap() > 1000, "{s}");
+    assert_eq!(s["dropped_answers"], 0);
+    let rec = dir.path().join("out/organ/run");
+    let forces = std::fs::read_to_string(rec.join("forces.csv")).unwrap();
+    assert_eq!(forces.lines().count() as u64, ticks + 1, "one row per tick plus the header");
+    assert!(rec.join("lobe.pvd").is_file() && rec.join("summary.json").is_file());
+    assert!(s["frames"].as_u64().unwrap() > 10, "{s}");
+    // a second run reuses the bundle
+    let o = vademecum(&["run", "--json", "--record", "again"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert!(!stderr(&o).contains("building"), "{}", stderr(&o));
+}
+
+#[test]
+fn run_refuses_a_bad_trajectory_with_its_line() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("t.csv"), "t_s,x_m,y_m,z_m\n0,0,0,0.1\n0.5,0,0,oops\n").unwrap();
+    let o = vademecum(&["run", "--script", "t.csv", "--bundles", "b"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(e.contains("t.csv") && e.contains("line: 3"), "{e}");
+    assert!(!e.contains("building"), "a bad script fails before any build: {e}");
+}

@@ -217,62 +217,89 @@ pub struct Field<'a> {
 /// [`MeshError::Invalid`] if a field's length does not match the mesh, [`MeshError::Io`] if
 /// the file cannot be written.
 pub fn write_vtu(path: &Path, mesh: &Mesh, point_data: &[Field<'_>], cell_data: &[Field<'_>]) -> Result<(), MeshError> {
-    for f in point_data {
-        if f.values.len() != f.components * mesh.n_nodes() {
+    let regions: Vec<f64> = mesh.cell_region.iter().map(|&r| r as f64).collect();
+    write_unstructured(
+        path,
+        &mesh.nodes,
+        &mesh.cells,
+        mesh.kind.nodes_per_cell(),
+        mesh.kind.vtk_type(),
+        Some(&regions),
+        point_data,
+        cell_data,
+    )
+}
+
+/// Writes a triangulated surface as an ASCII `.vtu` (VTK triangles) with point data:
+/// `positions` (m) and `triangles` (3 node indices each).
+pub fn write_surface_vtu(path: &Path, positions: &[[f64; 3]], triangles: &[usize], point_data: &[Field<'_>]) -> Result<(), MeshError> {
+    if !triangles.len().is_multiple_of(3) || triangles.iter().any(|&n| n >= positions.len()) {
+        return Err(MeshError::Invalid("surface triangles must be triples of valid node indices".into()));
+    }
+    write_unstructured(path, positions, triangles, 3, 5, None, point_data, &[])
+}
+
+/// The `.vtu` writer behind [`write_vtu`] and [`write_surface_vtu`]: cells of one type with
+/// `npc` nodes each, flat in `cells`; `regions` (integers) becomes the `region` cell array.
+#[allow(clippy::too_many_arguments)]
+fn write_unstructured(
+    path: &Path,
+    nodes: &[[f64; 3]],
+    cells: &[usize],
+    npc: usize,
+    vtk_type: u8,
+    regions: Option<&[f64]>,
+    point_data: &[Field<'_>],
+    cell_data: &[Field<'_>],
+) -> Result<(), MeshError> {
+    let n_cells = cells.len() / npc.max(1);
+    for (f, count, what) in point_data
+        .iter()
+        .map(|f| (f, nodes.len(), "point"))
+        .chain(cell_data.iter().map(|f| (f, n_cells, "cell")))
+    {
+        if f.values.len() != f.components * count {
             return Err(MeshError::Invalid(format!(
-                "point field '{}' has {} values, expected {}",
+                "{what} field '{}' has {} values, expected {}",
                 f.name,
                 f.values.len(),
-                f.components * mesh.n_nodes()
+                f.components * count
             )));
         }
     }
-    for f in cell_data {
-        if f.values.len() != f.components * mesh.n_cells() {
-            return Err(MeshError::Invalid(format!(
-                "cell field '{}' has {} values, expected {}",
-                f.name,
-                f.values.len(),
-                f.components * mesh.n_cells()
-            )));
-        }
-    }
-    let mut s = String::with_capacity(64 * (mesh.n_nodes() + mesh.n_cells()));
+    let mut s = String::with_capacity(64 * (nodes.len() + n_cells));
     s.push_str("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n<UnstructuredGrid>\n");
-    let _ = writeln!(
-        s,
-        "<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">",
-        mesh.n_nodes(),
-        mesh.n_cells()
-    );
+    let _ = writeln!(s, "<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">", nodes.len(), n_cells);
     s.push_str("<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">\n");
-    for p in &mesh.nodes {
+    for p in nodes {
         let _ = writeln!(s, "{:?} {:?} {:?}", p[0], p[1], p[2]);
     }
     s.push_str("</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
-    for c in mesh.cells_iter() {
+    for c in cells.chunks_exact(npc.max(1)) {
         let line: Vec<String> = c.iter().map(|n| n.to_string()).collect();
         s.push_str(&line.join(" "));
         s.push('\n');
     }
     s.push_str("</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
-    let npc = mesh.kind.nodes_per_cell();
-    for c in 0..mesh.n_cells() {
+    for c in 0..n_cells {
         let _ = write!(s, "{} ", (c + 1) * npc);
     }
     s.push_str("\n</DataArray>\n<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
-    for _ in 0..mesh.n_cells() {
-        let _ = write!(s, "{} ", mesh.kind.vtk_type());
+    for _ in 0..n_cells {
+        let _ = write!(s, "{vtk_type} ");
     }
     s.push_str("\n</DataArray>\n</Cells>\n<PointData>\n");
     for f in point_data {
         write_array(&mut s, f);
     }
-    s.push_str("</PointData>\n<CellData>\n<DataArray type=\"Int32\" Name=\"region\" format=\"ascii\">\n");
-    for r in &mesh.cell_region {
-        let _ = write!(s, "{r} ");
+    s.push_str("</PointData>\n<CellData>\n");
+    if let Some(r) = regions {
+        s.push_str("<DataArray type=\"Int32\" Name=\"region\" format=\"ascii\">\n");
+        for x in r {
+            let _ = write!(s, "{} ", *x as i64);
+        }
+        s.push_str("\n</DataArray>\n");
     }
-    s.push_str("\n</DataArray>\n");
     for f in cell_data {
         write_array(&mut s, f);
     }

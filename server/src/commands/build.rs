@@ -1,47 +1,95 @@
 //! `vademecum build`: PGD vademecums of every organ of a scene, written as bundles.
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use anyhow::Context;
 use vademecum_engine::pgd::PgdParams;
-use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage};
+use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle};
+use vademecum_engine::scene::Scene;
 
 use crate::cli::BuildArgs;
 use crate::commands::solve::load_scene;
 use crate::progress::Stages;
 
+/// The build options a scene's `[fidelity.pgd]` asks for.
+pub(crate) fn options(scene: &Scene, recompress: bool) -> BuildOptions {
+    let f = scene.spec.fidelity.pgd;
+    BuildOptions {
+        params: PgdParams {
+            global_tolerance: f.global_tolerance,
+            enrichment_tolerance: f.enrichment_tolerance,
+            max_modes: f.max_modes,
+            max_iterations: f.max_iterations,
+            block: f.block,
+        },
+        tolerance: f.tolerance,
+        recompress,
+        load_radius: offline::probe_radius(scene),
+    }
+}
+
+/// Builds organ `i` of `scene` with a progress display.
+pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) -> anyhow::Result<(Built, Stages)> {
+    let name = scene.spec.organs[i].name.clone();
+    let eps = opts.params.global_tolerance;
+    let bar = Stages::start(&format!("building '{name}'"));
+    let built = offline::build_organ(scene, i, opts, &mut |s| match s {
+        BuildStage::Assembly => bar.stage("assembling K"),
+        BuildStage::Factorization => bar.stage("factoring K"),
+        BuildStage::Mode(k, e) => bar.stage(&format!("mode {k}, energy {e:.2e} (stop below {eps:.1e})")),
+        BuildStage::Recompression => bar.stage("recompressing (QR + SVD)"),
+        BuildStage::Exact(done, total) => bar.stage(&format!("exact pass: compliances and errors, {done}/{total} load states")),
+    })
+    .with_context(|| format!("cannot build organ '{name}'"))?;
+    Ok((built, bar))
+}
+
+/// The bundle of every organ of `scene` in `dir` (`<dir>/<organ>.bundle`), loaded and
+/// checked against the scene and its meshes; a bundle that is missing, unreadable or built
+/// from another scene or mesh is (re)built first, with a note on stderr saying why.
+pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Arc<LoadedBundle>>> {
+    let mut out = Vec::new();
+    for i in 0..scene.spec.organs.len() {
+        let name = &scene.spec.organs[i].name;
+        let path = dir.join(format!("{name}.bundle"));
+        let mesh = scene.organ_mesh(i)?;
+        let reason = if !path.exists() {
+            format!("no bundle at {} yet", path.display())
+        } else {
+            match offline::load_bundle(&path) {
+                Ok(b) => match offline::check_matches(&path, &b.manifest, scene, &mesh) {
+                    Ok(()) => {
+                        out.push(Arc::new(b));
+                        continue;
+                    }
+                    Err(e) => e.to_string(),
+                },
+                Err(e) => e.to_string(),
+            }
+        };
+        eprintln!("vademecum: building the vademecum of '{name}' ({reason})");
+        let (built, bar) = build_with_progress(scene, i, &options(scene, true))?;
+        bar.stage("writing bundle");
+        offline::write_bundle(&path, scene, &built).with_context(|| format!("cannot write bundle {}", path.display()))?;
+        bar.finish();
+        let b = offline::load_bundle(&path).with_context(|| format!("cannot read back bundle {}", path.display()))?;
+        out.push(Arc::new(b));
+    }
+    Ok(out)
+}
+
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
-    let f = scene.spec.fidelity.pgd;
-    let params = PgdParams {
-        global_tolerance: f.global_tolerance,
-        enrichment_tolerance: f.enrichment_tolerance,
-        max_modes: f.max_modes,
-        max_iterations: f.max_iterations,
-        block: f.block,
-    };
-    let opts = BuildOptions {
-        params,
-        tolerance: f.tolerance,
-        recompress: !a.no_recompress,
-        load_radius: offline::probe_radius(&scene),
-    };
+    let opts = options(&scene, !a.no_recompress);
     let mut reports = Vec::new();
     let mut stdout = std::io::stdout().lock();
     for i in 0..scene.spec.organs.len() {
         let name = scene.spec.organs[i].name.clone();
-        let bar = Stages::start(&format!("building '{name}'"));
-        let built = offline::build_organ(&scene, i, &opts, &mut |s| match s {
-            BuildStage::Assembly => bar.stage("assembling K"),
-            BuildStage::Factorization => bar.stage("factoring K"),
-            BuildStage::Mode(k, e) => bar.stage(&format!("mode {k}, energy {e:.2e} (stop below {:.1e})", f.global_tolerance)),
-            BuildStage::Recompression => bar.stage("recompressing (QR + SVD)"),
-            BuildStage::Exact(done, total) => bar.stage(&format!("exact pass: compliances and errors, {done}/{total} load states")),
-        })
-        .with_context(|| format!("cannot build organ '{name}'"))?;
+        let (built, bar) = build_with_progress(&scene, i, &opts)?;
         bar.stage("writing bundle");
         let dir = out.join(format!("{name}.bundle"));
         offline::write_bundle(&dir, &scene, &built).with_context(|| format!("cannot write bundle {}", dir.display()))?;

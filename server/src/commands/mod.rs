@@ -5,6 +5,7 @@ mod bench_pgd;
 mod build;
 mod inspect;
 mod mesh_info;
+mod run;
 mod scene;
 mod solve;
 
@@ -18,6 +19,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Solve(a) => solve::run(a),
         Command::Build(a) => build::run(a),
         Command::Inspect(a) => inspect::run(a),
+        Command::Run(a) => run::run(a),
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),

@@ -1,0 +1,182 @@
+//! Displacement frames for viewers: the reference surface of every organ (sent once), and
+//! per frame the displacement of its nodes, computed on the frame thread from the latest
+//! tick state (see the [module docs](super)).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use tokio::sync::watch;
+use vademecum_engine::pgd::offline::LoadedBundle;
+use vademecum_engine::pgd::vademecum::NodeMajorField;
+use vademecum_engine::pipeline::Contact;
+use vademecum_engine::scene::Scene;
+
+use super::stats::TickStats;
+use super::tick::Latest;
+
+/// The reference surface of one organ.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrganSurface {
+    /// Organ name.
+    pub name: String,
+    /// Mesh nodes on the surface, sorted (frame arrays follow this order).
+    pub nodes: Vec<usize>,
+    /// Their reference positions (m), 3 per node.
+    pub positions_m: Vec<f32>,
+    /// Surface triangles as indices into `nodes`, 3 per triangle, outward.
+    pub triangles: Vec<u32>,
+}
+
+/// The reference surfaces of a session's organs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceGeometry {
+    /// One per organ, in scene order.
+    pub organs: Vec<OrganSurface>,
+}
+
+impl SurfaceGeometry {
+    /// The boundary surfaces stored in the bundles.
+    pub fn of(scene: &Scene, bundles: &[Arc<LoadedBundle>]) -> Self {
+        let organs = bundles
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                let mut nodes: Vec<usize> = b.surface.iter().flatten().copied().collect();
+                nodes.sort_unstable();
+                nodes.dedup();
+                let mut local = vec![u32::MAX; b.nodes.len()];
+                for (j, &n) in nodes.iter().enumerate() {
+                    local[n] = j as u32;
+                }
+                OrganSurface {
+                    name: scene.spec.organs.get(i).map_or_else(|| format!("organ{i}"), |o| o.name.clone()),
+                    positions_m: nodes.iter().flat_map(|&n| b.nodes[n].map(|x| x as f32)).collect(),
+                    triangles: b.surface.iter().flatten().map(|&n| local[n]).collect(),
+                    nodes,
+                }
+            })
+            .collect();
+        Self { organs }
+    }
+}
+
+/// One frame: the displacement of every organ's surface at one tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// Frame number, from 1, increasing by one per frame produced (0: the rest state).
+    pub seq: u64,
+    /// The tick it shows.
+    pub tick: u64,
+    /// Session time of that tick (s).
+    pub time_s: f64,
+    /// Force on the tool (N).
+    pub force_n: [f64; 3],
+    /// Contact, if any.
+    pub contact: Option<Contact>,
+    /// Per organ, the displacement (m) of its surface nodes, 3 per node, in
+    /// [`OrganSurface::nodes`] order.
+    pub displacements_m: Vec<Vec<f32>>,
+}
+
+impl Frame {
+    /// The undeformed state.
+    pub fn rest(g: &SurfaceGeometry) -> Self {
+        Self {
+            seq: 0,
+            tick: 0,
+            time_s: 0.0,
+            force_n: [0.0; 3],
+            contact: None,
+            displacements_m: g.organs.iter().map(|o| vec![0.0; 3 * o.nodes.len()]).collect(),
+        }
+    }
+}
+
+pub(super) struct FrameProducer {
+    bundles: Vec<Arc<LoadedBundle>>,
+    fields: Vec<NodeMajorField>,
+    geometry: Arc<SurfaceGeometry>,
+    latest: triple_buffer::Output<Latest>,
+    tx: watch::Sender<Arc<Frame>>,
+    stats: Arc<TickStats>,
+    stop: Arc<AtomicBool>,
+    interval: Duration,
+    period: Duration,
+}
+
+impl FrameProducer {
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        bundles: Vec<Arc<LoadedBundle>>,
+        geometry: Arc<SurfaceGeometry>,
+        latest: triple_buffer::Output<Latest>,
+        tx: watch::Sender<Arc<Frame>>,
+        stats: Arc<TickStats>,
+        stop: Arc<AtomicBool>,
+        rate_hz: f64,
+        period: Duration,
+    ) -> Self {
+        let fields = bundles
+            .iter()
+            .zip(&geometry.organs)
+            .map(|(b, o)| NodeMajorField::new(&b.vademecum, &o.nodes))
+            .collect();
+        let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
+        Self {
+            bundles,
+            fields,
+            geometry,
+            latest,
+            tx,
+            stats,
+            stop,
+            interval: Duration::from_secs_f64(1.0 / rate),
+            period,
+        }
+    }
+
+    /// Produces frames while someone watches and the tick state changes.
+    pub fn run(mut self) {
+        let mut seq = 0u64;
+        let mut coeffs: Vec<Vec<f64>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
+        let mut c32: Vec<Vec<f32>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
+        let mut next = Instant::now();
+        while !self.stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            if now < next {
+                // sleep in slices of a few ticks so a close is noticed promptly
+                std::thread::sleep((next - now).min(self.period * 20));
+                continue;
+            }
+            next += self.interval;
+            if next < now {
+                next = now + self.interval;
+            }
+            if self.tx.receiver_count() == 0 || !self.latest.updated() {
+                continue;
+            }
+            let l = *self.latest.read();
+            let mut frame = Frame::rest(&self.geometry);
+            seq += 1;
+            frame.seq = seq;
+            frame.tick = l.tick;
+            frame.time_s = l.time_us as f64 * 1e-6;
+            frame.force_n = l.state.force_n;
+            frame.contact = l.state.contact;
+            if let Some(c) = l.state.contact {
+                let v = &self.bundles[c.organ].vademecum;
+                // the tissue carries the opposite of the force on the tool
+                let f = l.state.force_n.map(|x| -x);
+                if v.coefficients(c.nodes, c.weights, f, &mut coeffs[c.organ]) {
+                    for (a, b) in c32[c.organ].iter_mut().zip(&coeffs[c.organ]) {
+                        *a = *b as f32;
+                    }
+                    self.fields[c.organ].eval(&c32[c.organ], &mut frame.displacements_m[c.organ]);
+                }
+            }
+            self.tx.send_replace(Arc::new(frame));
+            self.stats.frames.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}

@@ -1,0 +1,306 @@
+//! Sessions: a scene, its loaded bundles (shared read-only with other sessions), the effect
+//! pipeline built from the scene's `[effects]`, and two threads.
+//!
+//! - The **tick thread** owns the pipeline. Every period (1 ms by default) it sleeps to its
+//!   deadline, drains the bounded command queue with `try_recv` and answers each tool state
+//!   in arrival order (through the sender each command carries; `try_send`, so a consumer
+//!   that stops reading loses answers — counted — and never blocks the tick), re-evaluates
+//!   the last tool state when none arrived (the force stays fresh for a device), and writes
+//!   the tick's state into a triple buffer (a wait-free latest-value slot). It never awaits,
+//!   never allocates in the loop, and shares no lock a request handler can hold: statistics
+//!   are merged into the shared histograms with `try_lock`.
+//! - The **frame thread** reads the latest tick state at the frame rate, turns it into the
+//!   displacement of every organ's surface (f32, node-major modes) and publishes it on a
+//!   `tokio::sync::watch` channel, where the latest frame wins: a slow viewer skips frames
+//!   and never delays a force.
+//!
+//! Backpressure: the command queue is bounded ([`SessionConfig::queue`]); when it is full,
+//! [`Session::submit`] refuses the tool state at once ([`SubmitError::Busy`]) instead of
+//! queueing latency.
+
+pub mod frames;
+pub mod script;
+pub mod stats;
+mod tick;
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, SyncSender, TrySendError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use tokio::sync::watch;
+use vademecum_engine::pgd::offline::LoadedBundle;
+use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput};
+use vademecum_engine::scene::Scene;
+
+pub use frames::{Frame, SurfaceGeometry};
+pub use script::Trajectory;
+pub use stats::{StatsSnapshot, TickStats};
+
+/// A tool state sent to a session, with where to send its answer.
+#[derive(Debug, Clone)]
+pub struct ToolCommand {
+    /// The tool state.
+    pub input: ToolInput,
+    /// The client's sequence number, echoed in the answer.
+    pub seq: u64,
+    /// The client's timestamp (µs, its own clock), echoed.
+    pub client_time_us: u64,
+    /// When the server received it.
+    pub received: Instant,
+    /// Where the answer goes.
+    pub reply: tokio::sync::mpsc::Sender<Answer>,
+}
+
+/// The answer to one tool state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Answer {
+    /// The sequence number of the tool state answered.
+    pub seq: u64,
+    /// Its client timestamp, echoed (µs).
+    pub client_time_us: u64,
+    /// When the session received it (µs since the session started).
+    pub received_us: u64,
+    /// When the tick answered it (µs since the session started).
+    pub answered_us: u64,
+    /// The tick that answered it.
+    pub tick: u64,
+    /// Force, contact and events.
+    pub state: TickState,
+}
+
+/// How a session runs.
+#[derive(Debug, Clone)]
+pub struct SessionConfig {
+    /// Tick period (1 ms: 1 kHz).
+    pub period: Duration,
+    /// Frames produced per second for viewers (each viewer takes them at its own rate, up
+    /// to this).
+    pub frame_rate_hz: f64,
+    /// Capacity of the command queue.
+    pub queue: usize,
+}
+
+impl Default for SessionConfig {
+    fn default() -> Self {
+        Self {
+            period: Duration::from_millis(1),
+            frame_rate_hz: 60.0,
+            queue: 4096,
+        }
+    }
+}
+
+/// Why a tool state was not accepted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum SubmitError {
+    /// The command queue is full: the client sends faster than the session ticks.
+    #[error("the session's command queue is full; send tool states no faster than the tick rate")]
+    Busy,
+    /// The session has stopped.
+    #[error("the session has stopped")]
+    Closed,
+}
+
+/// A running session.
+#[derive(Debug)]
+pub struct Session {
+    id: String,
+    scene: Arc<Scene>,
+    bundles: Vec<Arc<LoadedBundle>>,
+    effects: Vec<&'static str>,
+    commands: SyncSender<Command>,
+    frames: watch::Sender<Arc<Frame>>,
+    geometry: Arc<SurfaceGeometry>,
+    stats: Arc<TickStats>,
+    stop: Arc<AtomicBool>,
+    threads: Vec<JoinHandle<()>>,
+    epoch: Instant,
+    config: SessionConfig,
+}
+
+/// What the tick thread receives.
+#[derive(Debug)]
+enum Command {
+    Tool(ToolCommand),
+}
+
+/// A trajectory the tick thread plays itself (headless runs), answering into `answers`.
+#[derive(Debug)]
+pub struct Script {
+    /// The trajectory, sampled at every tick.
+    pub trajectory: Trajectory,
+    /// Where every tick's answer goes (sequence number = tick).
+    pub answers: tokio::sync::mpsc::Sender<Answer>,
+}
+
+impl Session {
+    /// Starts a session on `scene` with one loaded bundle per organ.
+    pub fn start(id: String, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, config: SessionConfig) -> Result<Self, PipelineError> {
+        Self::start_with(id, scene, bundles, config, None)
+    }
+
+    /// Starts a session whose tick thread plays `script` and stops at its end (headless
+    /// runs); tool states can still be submitted.
+    pub fn start_scripted(
+        id: String,
+        scene: Arc<Scene>,
+        bundles: Vec<Arc<LoadedBundle>>,
+        config: SessionConfig,
+        script: Script,
+    ) -> Result<Self, PipelineError> {
+        Self::start_with(id, scene, bundles, config, Some(script))
+    }
+
+    fn start_with(
+        id: String,
+        scene: Arc<Scene>,
+        bundles: Vec<Arc<LoadedBundle>>,
+        config: SessionConfig,
+        script: Option<Script>,
+    ) -> Result<Self, PipelineError> {
+        let pipeline = Pipeline::for_scene(&scene, &bundles)?;
+        let effects = pipeline.effect_names();
+        let geometry = Arc::new(SurfaceGeometry::of(&scene, &bundles));
+        let (commands, rx) = mpsc::sync_channel(config.queue.max(1));
+        let (latest_in, latest_out) = triple_buffer::triple_buffer(&tick::Latest::default());
+        let (frames, _) = watch::channel(Arc::new(Frame::rest(&geometry)));
+        let stats = Arc::new(TickStats::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let epoch = Instant::now();
+        let tick_loop = tick::TickLoop {
+            pipeline,
+            commands: rx,
+            stats: stats.clone(),
+            latest: latest_in,
+            stop: stop.clone(),
+            period: config.period,
+            epoch,
+            script,
+        };
+        let tick_thread = std::thread::Builder::new()
+            .name(format!("tick-{id}"))
+            .spawn(move || tick_loop.run())
+            .expect("the OS can start a thread");
+        let producer = frames::FrameProducer::new(
+            bundles.clone(),
+            geometry.clone(),
+            latest_out,
+            frames.clone(),
+            stats.clone(),
+            stop.clone(),
+            config.frame_rate_hz,
+            config.period,
+        );
+        let frame_thread = std::thread::Builder::new()
+            .name(format!("frames-{id}"))
+            .spawn(move || producer.run())
+            .expect("the OS can start a thread");
+        Ok(Self {
+            id,
+            scene,
+            bundles,
+            effects,
+            commands,
+            frames,
+            geometry,
+            stats,
+            stop,
+            threads: vec![tick_thread, frame_thread],
+            epoch,
+            config,
+        })
+    }
+
+    /// The session id.
+    pub fn id(&self) -> &str {
+        &self.id
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Arc<Scene> {
+        &self.scene
+    }
+
+    /// The loaded bundles, one per organ.
+    pub fn bundles(&self) -> &[Arc<LoadedBundle>] {
+        &self.bundles
+    }
+
+    /// The effects of the tick pipeline, in order.
+    pub fn effects(&self) -> &[&'static str] {
+        &self.effects
+    }
+
+    /// The configuration it runs with.
+    pub fn config(&self) -> &SessionConfig {
+        &self.config
+    }
+
+    /// When the session started (the origin of its timestamps).
+    pub fn epoch(&self) -> Instant {
+        self.epoch
+    }
+
+    /// The reference surface of every organ (what viewers receive first).
+    pub fn geometry(&self) -> &Arc<SurfaceGeometry> {
+        &self.geometry
+    }
+
+    /// Queues a tool state for the next tick; refuses at once when the queue is full.
+    pub fn submit(&self, cmd: ToolCommand) -> Result<(), SubmitError> {
+        match self.commands.try_send(Command::Tool(cmd)) {
+            Ok(()) => Ok(()),
+            Err(TrySendError::Full(_)) => Err(SubmitError::Busy),
+            Err(TrySendError::Disconnected(_)) => Err(SubmitError::Closed),
+        }
+    }
+
+    /// A receiver of the latest frames.
+    pub fn subscribe_frames(&self) -> watch::Receiver<Arc<Frame>> {
+        self.frames.subscribe()
+    }
+
+    /// Live statistics.
+    pub fn stats(&self) -> &Arc<TickStats> {
+        &self.stats
+    }
+
+    /// Whether the tick thread has stopped (a script ended, or the session was closed).
+    pub fn finished(&self) -> bool {
+        self.threads.first().is_none_or(|t| t.is_finished())
+    }
+
+    /// Stops the threads (the tick thread finishes its current tick), joins them and returns
+    /// the final statistics.
+    pub fn close(mut self) -> StatsSnapshot {
+        self.shutdown();
+        self.stats.snapshot()
+    }
+
+    /// Waits for a scripted session's tick thread to reach the end of its script, then
+    /// closes it.
+    pub fn wait(mut self) -> StatsSnapshot {
+        if let Some(t) = self.threads.first_mut() {
+            while !t.is_finished() {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+        }
+        self.shutdown();
+        self.stats.snapshot()
+    }
+
+    fn shutdown(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}

@@ -1,0 +1,146 @@
+//! The real-time tick loop of a session (see the [module docs](super)).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, TryRecvError};
+use std::time::{Duration, Instant};
+
+use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput};
+
+use super::stats::{Histograms, TickStats};
+use super::{Answer, Command, Script};
+
+/// How many ticks between merges of the local histograms into the shared ones.
+const PUBLISH_EVERY: u64 = 64;
+
+/// After a stall longer than this many periods the loop restarts its schedule from now
+/// instead of running the missed ticks back to back (they are counted as misses).
+const MAX_CATCH_UP: u32 = 10;
+
+/// What the tick thread leaves for the frame thread.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub(super) struct Latest {
+    /// Tick number.
+    pub tick: u64,
+    /// Session time (µs).
+    pub time_us: u64,
+    /// The tick's state.
+    pub state: TickState,
+}
+
+pub(super) struct TickLoop {
+    pub pipeline: Pipeline,
+    pub commands: Receiver<Command>,
+    pub stats: Arc<TickStats>,
+    pub latest: triple_buffer::Input<Latest>,
+    pub stop: Arc<AtomicBool>,
+    pub period: Duration,
+    pub epoch: Instant,
+    pub script: Option<Script>,
+}
+
+impl TickLoop {
+    fn micros(&self, t: Instant) -> u64 {
+        t.saturating_duration_since(self.epoch).as_micros() as u64
+    }
+
+    fn answer(&mut self, tick: u64, input: &ToolInput, seq: u64, client_time_us: u64, received: Instant) -> Answer {
+        let state = self.pipeline.tick(input);
+        if state.events.has(Events::REJECTED_INPUT) {
+            self.stats.rejected.fetch_add(1, Ordering::Relaxed);
+        }
+        let now = Instant::now();
+        Answer {
+            seq,
+            client_time_us,
+            received_us: self.micros(received),
+            answered_us: self.micros(now),
+            tick,
+            state,
+        }
+    }
+
+    pub fn run(mut self) {
+        let mut local = Histograms::default();
+        let period = self.period;
+        let mut next = Instant::now() + period;
+        let mut tick: u64 = 0;
+        let mut last_input: Option<ToolInput> = None;
+        'ticks: while !self.stop.load(Ordering::Relaxed) {
+            let now = Instant::now();
+            if next > now {
+                std::thread::sleep(next - now);
+            }
+            let start = Instant::now();
+            let late = start.saturating_duration_since(next);
+            Histograms::record(&mut local.lateness, late.as_nanos() as u64);
+            if late > period {
+                self.stats.misses.fetch_add(1, Ordering::Relaxed);
+            }
+            let mut state: Option<TickState> = None;
+            if let Some(script) = self.script.take() {
+                let t = tick as f64 * period.as_secs_f64();
+                if t > script.trajectory.duration_s() + 0.5 * period.as_secs_f64() {
+                    break 'ticks;
+                }
+                let input = script.trajectory.at(t);
+                let a = self.answer(tick, &input, tick, self.micros(start), start);
+                Histograms::record(&mut local.response, (a.answered_us - a.received_us) * 1000);
+                if script.answers.try_send(a).is_err() {
+                    self.stats.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+                self.stats.answered.fetch_add(1, Ordering::Relaxed);
+                state = Some(a.state);
+                last_input = Some(input);
+                self.script = Some(script);
+            }
+            loop {
+                match self.commands.try_recv() {
+                    Ok(Command::Tool(c)) => {
+                        let a = self.answer(tick, &c.input, c.seq, c.client_time_us, c.received);
+                        Histograms::record(
+                            &mut local.response,
+                            Instant::now().saturating_duration_since(c.received).as_nanos() as u64,
+                        );
+                        if c.reply.try_send(a).is_err() {
+                            self.stats.dropped.fetch_add(1, Ordering::Relaxed);
+                        }
+                        self.stats.answered.fetch_add(1, Ordering::Relaxed);
+                        state = Some(a.state);
+                        if c.input.is_valid() {
+                            last_input = Some(c.input);
+                        }
+                    }
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => break 'ticks,
+                }
+            }
+            if state.is_none()
+                && let Some(input) = last_input
+            {
+                state = Some(self.pipeline.tick(&input));
+            }
+            if let Some(state) = state {
+                self.latest.write(Latest {
+                    tick,
+                    time_us: self.micros(start),
+                    state,
+                });
+            }
+            Histograms::record(&mut local.work, start.elapsed().as_nanos() as u64);
+            self.stats.ticks.fetch_add(1, Ordering::Relaxed);
+            tick += 1;
+            if tick.is_multiple_of(PUBLISH_EVERY) {
+                self.stats.publish(&mut local);
+            }
+            next += period;
+            let now = Instant::now();
+            if now > next + period * MAX_CATCH_UP {
+                next = now;
+            }
+        }
+        while !self.stats.publish(&mut local) {
+            std::thread::yield_now();
+        }
+    }
+}
