@@ -1,10 +1,35 @@
-//! Async Rust client for vademecum servers.
+//! Async Rust client for vademecum servers: connect, create a session, stream tool states
+//! and receive forces, watch displacement frames.
 //!
-//! For now it wraps the `Info` service; sessions, interaction and frame subscription join it
-//! with the server's session contract.
+//! ```no_run
+//! # async fn demo() -> Result<(), vademecum_client::SdkError> {
+//! use vademecum_client::{Client, SceneSpec, tool_at};
+//! let client = Client::connect("http://127.0.0.1:50051").await?;
+//! let session = client.create_session(SceneSpec::Builtin("organ".into()), "out/organ", "demo").await?;
+//! let mut tools = session.interact().await?;
+//! tools.send(tool_at(1, [0.0, 0.0, 0.045])).await?;
+//! if let Some(r) = tools.next().await? {
+//!     println!("force {:?}", r.force_n);
+//! }
+//! session.close().await?;
+//! # Ok(()) }
+//! ```
+//!
+//! # Layout
+//! - [`Client`]: a connection (optionally with a bearer token); creates and finds sessions.
+//! - [`Session`]: one session: [`Session::interact`] (a bidirectional stream of tool states
+//!   and responses), [`Session::watch`] (frames), statistics, close.
+//! - [`SdkError`]: every failure, with a [`SdkError::kind`] to branch on.
 #![warn(missing_docs)]
 
-use vademecum_proto::v1::{GetServerInfoRequest, ServerInfo, info_client::InfoClient};
+use tokio::sync::mpsc;
+use tokio_stream::wrappers::ReceiverStream;
+use tonic::Streaming;
+use tonic::metadata::MetadataValue;
+use tonic::service::Interceptor;
+use tonic::service::interceptor::InterceptedService;
+use tonic::transport::Channel;
+pub use vademecum_proto::v1 as pb;
 
 /// Errors returned by the client.
 #[derive(Debug, thiserror::Error)]
@@ -20,26 +45,311 @@ pub enum SdkError {
     /// The server answered with an error status.
     #[error("server answered {}: {}", .0.code(), .0.message())]
     Status(#[from] tonic::Status),
+    /// The token cannot be sent as metadata.
+    #[error("the token contains characters that cannot be sent as metadata")]
+    BadToken,
+    /// The stream to the server is closed.
+    #[error("the stream to the server is closed")]
+    Closed,
+}
+
+/// What kind of failure an [`SdkError`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ErrorKind {
+    /// Could not reach the server.
+    Connect,
+    /// No such session (or not yours).
+    NotFound,
+    /// The request was invalid.
+    InvalidArgument,
+    /// Missing or wrong token.
+    Unauthenticated,
+    /// A limit was reached (sessions, queue, message size).
+    ResourceExhausted,
+    /// A bundle is missing or stale.
+    FailedPrecondition,
+    /// Anything else.
+    Other,
+}
+
+impl SdkError {
+    /// The kind of failure.
+    pub fn kind(&self) -> ErrorKind {
+        match self {
+            SdkError::Connect { .. } => ErrorKind::Connect,
+            SdkError::Status(s) => match s.code() {
+                tonic::Code::NotFound => ErrorKind::NotFound,
+                tonic::Code::InvalidArgument => ErrorKind::InvalidArgument,
+                tonic::Code::Unauthenticated => ErrorKind::Unauthenticated,
+                tonic::Code::ResourceExhausted => ErrorKind::ResourceExhausted,
+                tonic::Code::FailedPrecondition => ErrorKind::FailedPrecondition,
+                _ => ErrorKind::Other,
+            },
+            SdkError::BadToken => ErrorKind::Unauthenticated,
+            SdkError::Closed => ErrorKind::Other,
+        }
+    }
+}
+
+/// Adds `authorization: Bearer <token>` to every call when a token is set.
+#[derive(Debug, Clone, Default)]
+pub struct Token(Option<MetadataValue<tonic::metadata::Ascii>>);
+
+impl Interceptor for Token {
+    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
+        if let Some(v) = &self.0 {
+            req.metadata_mut().insert("authorization", v.clone());
+        }
+        Ok(req)
+    }
+}
+
+type Svc = InterceptedService<Channel, Token>;
+
+/// Where a session's scene comes from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SceneSpec {
+    /// A built-in scene by name ("organ", …).
+    Builtin(String),
+    /// Scene TOML text.
+    Toml(String),
+    /// A scene file on the server, relative to its scene root.
+    Path(String),
 }
 
 /// A connection to a vademecum server.
 #[derive(Debug, Clone)]
 pub struct Client {
-    info: InfoClient<tonic::transport::Channel>,
+    channel: Channel,
+    token: Token,
 }
 
 impl Client {
-    /// Connects to `addr` (for example `http://127.0.0.1:50051`).
+    /// Connects to `addr` (for example `http://127.0.0.1:50051`), with no token.
     pub async fn connect(addr: impl Into<String>) -> Result<Self, SdkError> {
+        Self::connect_with_token(addr, None).await
+    }
+
+    /// Connects and presents `token` on every call.
+    pub async fn connect_with_token(addr: impl Into<String>, token: Option<&str>) -> Result<Self, SdkError> {
         let addr = addr.into();
-        let info = InfoClient::connect(addr.clone())
+        let token = match token {
+            Some(t) => Token(Some(format!("Bearer {t}").parse().map_err(|_| SdkError::BadToken)?)),
+            None => Token(None),
+        };
+        let channel = Channel::from_shared(addr.clone())
+            .map_err(|_| SdkError::Closed)?
+            .connect()
             .await
             .map_err(|source| SdkError::Connect { addr, source })?;
-        Ok(Self { info })
+        Ok(Self { channel, token })
+    }
+
+    fn svc(&self) -> Svc {
+        InterceptedService::new(self.channel.clone(), self.token.clone())
     }
 
     /// Asks the server for its version and capabilities.
-    pub async fn server_info(&mut self) -> Result<ServerInfo, SdkError> {
-        Ok(self.info.get_server_info(GetServerInfoRequest {}).await?.into_inner())
+    pub async fn server_info(&self) -> Result<pb::ServerInfo, SdkError> {
+        let mut c = pb::info_client::InfoClient::new(self.svc());
+        Ok(c.get_server_info(pb::GetServerInfoRequest {}).await?.into_inner())
     }
+
+    /// Starts a session on `scene` with the bundles in `bundle_dir` (on the server,
+    /// relative to its bundle root).
+    pub async fn create_session(&self, scene: SceneSpec, bundle_dir: &str, label: &str) -> Result<Session, SdkError> {
+        use pb::create_session_request::Scene;
+        let scene = match scene {
+            SceneSpec::Builtin(b) => Scene::Builtin(b),
+            SceneSpec::Toml(t) => Scene::SceneToml(t),
+            SceneSpec::Path(p) => Scene::ScenePath(p),
+        };
+        let mut c = pb::sessions_client::SessionsClient::new(self.svc());
+        let info = c
+            .create_session(pb::CreateSessionRequest {
+                scene: Some(scene),
+                bundle_dir: bundle_dir.into(),
+                label: label.into(),
+            })
+            .await?
+            .into_inner();
+        Ok(Session {
+            client: self.clone(),
+            info,
+        })
+    }
+
+    /// The caller's sessions.
+    pub async fn list_sessions(&self) -> Result<Vec<pb::SessionInfo>, SdkError> {
+        let mut c = pb::sessions_client::SessionsClient::new(self.svc());
+        Ok(c.list_sessions(pb::ListSessionsRequest {}).await?.into_inner().sessions)
+    }
+
+    /// A handle on an existing session of the caller's.
+    pub async fn session(&self, id: &str) -> Result<Session, SdkError> {
+        let mut c = pb::sessions_client::SessionsClient::new(self.svc());
+        let info = c.get_session(pb::GetSessionRequest { session_id: id.into() }).await?.into_inner();
+        Ok(Session {
+            client: self.clone(),
+            info,
+        })
+    }
+}
+
+/// One session on a server.
+#[derive(Debug, Clone)]
+pub struct Session {
+    client: Client,
+    info: pb::SessionInfo,
+}
+
+impl Session {
+    /// The session id.
+    pub fn id(&self) -> &str {
+        &self.info.session_id
+    }
+
+    /// What the server said about it at creation.
+    pub fn info(&self) -> &pb::SessionInfo {
+        &self.info
+    }
+
+    /// Live statistics.
+    pub async fn stats(&self) -> Result<pb::SessionStats, SdkError> {
+        let mut c = pb::sessions_client::SessionsClient::new(self.client.svc());
+        let info = c
+            .get_session(pb::GetSessionRequest {
+                session_id: self.id().into(),
+            })
+            .await?
+            .into_inner();
+        Ok(info.stats.unwrap_or_default())
+    }
+
+    /// Opens an interaction stream on this session.
+    pub async fn interact(&self) -> Result<Interaction, SdkError> {
+        let (tx, rx) = mpsc::channel(1024);
+        let mut c = pb::interaction_client::InteractionClient::new(self.client.svc());
+        // the server needs the first message to know the session: queue it before opening
+        let first_id = self.id().to_string();
+        let responses_fut = async move { c.interact(ReceiverStream::new(rx)).await };
+        let interaction = Interaction {
+            session_id: first_id,
+            tx,
+            first_sent: false,
+            pending: None,
+        };
+        Ok(interaction.with_responses(responses_fut))
+    }
+
+    /// Watches frames at `rate_hz` (0: the server's default, 30 Hz). The first frame
+    /// carries the reference geometry.
+    pub async fn watch(&self, rate_hz: f64) -> Result<Streaming<pb::Frame>, SdkError> {
+        let mut c = pb::viewing_client::ViewingClient::new(self.client.svc()).max_decoding_message_size(256 << 20);
+        Ok(c.watch(pb::WatchRequest {
+            session_id: self.id().into(),
+            rate_hz,
+        })
+        .await?
+        .into_inner())
+    }
+
+    /// Closes the session; returns its final statistics.
+    pub async fn close(self) -> Result<pb::SessionStats, SdkError> {
+        let mut c = pb::sessions_client::SessionsClient::new(self.client.svc());
+        Ok(c.close_session(pb::CloseSessionRequest {
+            session_id: self.id().into(),
+        })
+        .await?
+        .into_inner()
+        .stats
+        .unwrap_or_default())
+    }
+}
+
+type ResponsesFuture = std::pin::Pin<Box<dyn Future<Output = Result<tonic::Response<Streaming<pb::ToolResponse>>, tonic::Status>> + Send>>;
+
+/// A bidirectional stream of tool states and their responses.
+pub struct Interaction {
+    session_id: String,
+    tx: mpsc::Sender<pb::ToolState>,
+    first_sent: bool,
+    pending: Option<PendingResponses>,
+}
+
+enum PendingResponses {
+    Opening(ResponsesFuture),
+    Open(Box<Streaming<pb::ToolResponse>>),
+}
+
+impl std::fmt::Debug for Interaction {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Interaction").field("session_id", &self.session_id).finish()
+    }
+}
+
+impl Interaction {
+    fn with_responses(
+        mut self,
+        fut: impl Future<Output = Result<tonic::Response<Streaming<pb::ToolResponse>>, tonic::Status>> + Send + 'static,
+    ) -> Self {
+        self.pending = Some(PendingResponses::Opening(Box::pin(fut)));
+        self
+    }
+
+    /// Sends a tool state (the session id is filled in on the first).
+    pub async fn send(&mut self, mut state: pb::ToolState) -> Result<(), SdkError> {
+        if !self.first_sent {
+            state.session_id = self.session_id.clone();
+            self.first_sent = true;
+        }
+        self.tx.send(state).await.map_err(|_| SdkError::Closed)
+    }
+
+    /// Ends the client's side of the stream: the server answers what was sent, then ends.
+    pub fn finish(&mut self) {
+        let (tx, _) = mpsc::channel(1);
+        self.tx = tx;
+    }
+
+    async fn stream(&mut self) -> Result<&mut Streaming<pb::ToolResponse>, SdkError> {
+        if let Some(PendingResponses::Opening(_)) = &self.pending {
+            let Some(PendingResponses::Opening(fut)) = self.pending.take() else {
+                unreachable!()
+            };
+            let s = fut.await?.into_inner();
+            self.pending = Some(PendingResponses::Open(Box::new(s)));
+        }
+        match &mut self.pending {
+            Some(PendingResponses::Open(s)) => Ok(s),
+            _ => Err(SdkError::Closed),
+        }
+    }
+
+    /// The next response (`None` when the server ended the stream).
+    pub async fn next(&mut self) -> Result<Option<pb::ToolResponse>, SdkError> {
+        Ok(self.stream().await?.message().await?)
+    }
+}
+
+/// A probe tool state at `position_m` (m) with sequence number `seq`.
+pub fn tool_at(seq: u64, position_m: [f64; 3]) -> pb::ToolState {
+    pb::ToolState {
+        seq,
+        kind: pb::ToolKind::Probe as i32,
+        position_m: Some(pb::Vec3 {
+            x: position_m[0],
+            y: position_m[1],
+            z: position_m[2],
+        }),
+        ..Default::default()
+    }
+}
+
+/// Decodes packed little-endian f32 values (frame positions and displacements).
+pub fn f32s(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
 }

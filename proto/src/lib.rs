@@ -1,8 +1,9 @@
 //! Wire contracts of vademecum: the gRPC services generated from `proto/vademecum/**.proto`.
 //!
 //! # Layout
-//! - [`v1`]: the `vademecum.v1` package (server information for now; sessions, interaction and
-//!   viewing services join it as the server grows).
+//! - [`v1`]: the `vademecum.v1` package: `Info` (server identity), `Sessions` (create, list,
+//!   inspect, close), `Interaction` (bidirectional stream: tool states in, forces out) and
+//!   `Viewing` (server stream of displacement frames).
 //!
 //! This crate contains no logic: conversions to and from engine types live at the edges
 //! (`server/src/convert.rs`, the client SDK).
@@ -13,6 +14,9 @@
 pub mod v1 {
     tonic::include_proto!("vademecum.v1");
 }
+
+/// The encoded file descriptor set of every `.proto` here, for gRPC server reflection.
+pub const FILE_DESCRIPTOR_SET: &[u8] = tonic::include_file_descriptor_set!("vademecum_descriptor");
 
 /// Name of the wire contract implemented by this crate.
 pub const CONTRACT: &str = "vademecum.v1";

@@ -65,6 +65,19 @@ Writes <RECORD>/forces.csv (tick, t_s, contact point, force on the tool in N, co
 depth, events, latency_us), trajectory.csv, <organ>.pvd + frames/*.vtu and summary.json. \
 Exit status 1 when force rows were dropped.")]
     Run(RunArgs),
+    /// Serve sessions over gRPC (sessions, interaction stream, viewer frames, health, reflection).
+    #[command(long_about = "Serve the vademecum.v1 gRPC API: Sessions (create from a scene and its bundles, \
+list, inspect, close), Interaction (bidirectional stream: tool states in, one force response \
+each, in order), Viewing (reference geometry, then displacement frames at the viewer's rate, \
+30 Hz by default, capped by --max-frame-rate), Info, the standard grpc.health.v1 service and \
+server reflection.\n\n\
+Prints 'listening on ADDR' once ready. Stops on Ctrl-C: every session is closed and its \
+streams end.\n\n\
+Authentication: with --tokens-file or VADEMECUM_TOKENS (comma-separated), every call must \
+carry 'authorization: Bearer <token>', and a client reaches only the sessions created with \
+its token. Limits: requests up to 1 MiB (an inline scene), responses up to 64 MiB (the \
+geometry of a large organ).")]
+    Serve(ServeArgs),
     /// Show what is inside a bundle.
     Inspect(InspectArgs),
     /// Inspect meshes.
@@ -145,6 +158,35 @@ pub struct RunArgs {
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Arguments of `vademecum serve`.
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    /// Address to listen on (port 0: any free port, printed at start).
+    #[arg(long, default_value = "127.0.0.1:50051", value_name = "ADDR")]
+    pub listen: String,
+    /// Also serve Prometheus metrics (GET /metrics) on this address.
+    #[arg(long, value_name = "ADDR")]
+    pub metrics: Option<String>,
+    /// Folder that scene paths sent by clients resolve under (and inline scenes' mesh paths).
+    #[arg(long, default_value = ".", value_name = "DIR")]
+    pub scene_root: PathBuf,
+    /// Folder that bundle folders named by clients resolve under.
+    #[arg(long, default_value = ".", value_name = "DIR")]
+    pub bundle_root: PathBuf,
+    /// Refuse server-side scene paths (clients must send the scene text).
+    #[arg(long)]
+    pub no_paths: bool,
+    /// Most sessions at once.
+    #[arg(long, default_value_t = 16)]
+    pub max_sessions: usize,
+    /// Highest frame rate a viewer gets (Hz).
+    #[arg(long, default_value_t = 60.0, value_name = "HZ")]
+    pub max_frame_rate: f64,
+    /// File with one accepted bearer token per line ('#' comments); enables authentication.
+    #[arg(long, value_name = "FILE")]
+    pub tokens_file: Option<PathBuf>,
 }
 
 /// Arguments of `vademecum inspect`.

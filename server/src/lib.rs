@@ -1,5 +1,5 @@
-//! The vademecum server: sessions that simulate a scene in real time, and (next) the gRPC
-//! services in front of them.
+//! The vademecum server: sessions that simulate a scene in real time, and the gRPC services
+//! in front of them.
 //!
 //! # Layout
 //! - [`session`]: a session — a scene, its loaded bundles shared read-only, the effect
@@ -7,8 +7,105 @@
 //!   awaits, never takes a lock a request handler can hold) and the frame thread (displacement
 //!   frames for viewers at display rate, through a latest-value slot). Scripted trajectories
 //!   for headless runs, and tick statistics.
+//! - [`registry`]: live sessions by id with their owners; the cache of loaded bundles.
+//! - [`service`]: the gRPC services (`Info`, `Sessions`, `Interaction`, `Viewing`), one thin
+//!   file each; [`convert`] holds every wire ↔ engine conversion, [`error`] the one mapping
+//!   of errors to status codes, [`auth`] the bearer-token interceptor.
+//! - [`metrics`]: the Prometheus endpoint. [`config`]: the settings.
+//!
+//! # Shutdown
+//! [`run`] stops when its `shutdown` future resolves: the server stops accepting
+//! connections, every session is closed (its tick thread finishes the current tick; open
+//! streams end with OK), in-flight calls complete, and the sessions' threads are joined as
+//! the last stream lets go of each.
 //!
 //! The `vademecum` binary (`main.rs`, `cli.rs`, `commands/`) is a thin command line over this
 //! library and the engine.
 
+pub mod auth;
+pub mod config;
+pub mod convert;
+pub mod error;
+pub mod metrics;
+pub mod registry;
+pub mod service;
 pub mod session;
+
+use std::future::Future;
+
+use tokio_stream::wrappers::TcpListenerStream;
+use tonic::service::interceptor::InterceptedService;
+use vademecum_proto::v1 as pb;
+
+use crate::auth::Auth;
+use crate::config::ServerConfig;
+use crate::registry::Registry;
+use crate::service::{info::InfoService, interaction::InteractionService, sessions::SessionsService, viewing::ViewingService};
+
+/// Serves the gRPC API on `listener` (and Prometheus metrics on `metrics`, if given) until
+/// `shutdown` resolves.
+pub async fn run(
+    listener: tokio::net::TcpListener,
+    metrics: Option<tokio::net::TcpListener>,
+    config: ServerConfig,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> anyhow::Result<()> {
+    let registry = Registry::new(config.clone());
+    let auth = Auth::new(config.tokens.clone());
+    let (health, health_service) = tonic_health::server::health_reporter();
+    health.set_serving::<pb::sessions_server::SessionsServer<SessionsService>>().await;
+    health
+        .set_serving::<pb::interaction_server::InteractionServer<InteractionService>>()
+        .await;
+    health.set_serving::<pb::viewing_server::ViewingServer<ViewingService>>().await;
+    let reflection = tonic_reflection::server::Builder::configure()
+        .register_encoded_file_descriptor_set(vademecum_proto::FILE_DESCRIPTOR_SET)
+        .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+        .build_v1()?;
+    let (req, resp) = (config.max_request_bytes, config.max_response_bytes);
+    let sessions = pb::sessions_server::SessionsServer::new(SessionsService {
+        registry: registry.clone(),
+    })
+    .max_decoding_message_size(req)
+    .max_encoding_message_size(resp);
+    let interaction = pb::interaction_server::InteractionServer::new(InteractionService {
+        registry: registry.clone(),
+    })
+    .max_decoding_message_size(req)
+    .max_encoding_message_size(resp);
+    let viewing = pb::viewing_server::ViewingServer::new(ViewingService {
+        registry: registry.clone(),
+    })
+    .max_decoding_message_size(req)
+    .max_encoding_message_size(resp);
+    let info = pb::info_server::InfoServer::new(InfoService);
+    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    let metrics_task = metrics.map(|l| {
+        let mut rx = stop_rx.clone();
+        tokio::spawn(metrics::serve(l, registry.clone(), async move {
+            let _ = rx.wait_for(|&s| s).await;
+        }))
+    });
+    let on_shutdown = {
+        let registry = registry.clone();
+        async move {
+            shutdown.await;
+            tracing::info!("shutting down: closing every session");
+            registry.close_all();
+            let _ = stop_tx.send(true);
+        }
+    };
+    tonic::transport::Server::builder()
+        .add_service(health_service)
+        .add_service(reflection)
+        .add_service(InterceptedService::new(info, auth.clone()))
+        .add_service(InterceptedService::new(sessions, auth.clone()))
+        .add_service(InterceptedService::new(interaction, auth.clone()))
+        .add_service(InterceptedService::new(viewing, auth))
+        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), on_shutdown)
+        .await?;
+    if let Some(t) = metrics_task {
+        let _ = t.await;
+    }
+    Ok(())
+}

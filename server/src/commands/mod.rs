@@ -7,6 +7,7 @@ mod inspect;
 mod mesh_info;
 mod run;
 mod scene;
+mod serve;
 mod solve;
 
 use std::process::ExitCode;
@@ -20,6 +21,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Build(a) => build::run(a),
         Command::Inspect(a) => inspect::run(a),
         Command::Run(a) => run::run(a),
+        Command::Serve(a) => serve::run(a),
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),

@@ -272,6 +272,12 @@ impl Session {
         self.threads.first().is_none_or(|t| t.is_finished())
     }
 
+    /// Asks the threads to stop (the tick thread finishes its current tick) without waiting
+    /// for them; they are joined when the session is dropped or closed.
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
     /// Stops the threads (the tick thread finishes its current tick), joins them and returns
     /// the final statistics.
     pub fn close(mut self) -> StatsSnapshot {

@@ -1,0 +1,83 @@
+//! `vademecum serve`: the gRPC server.
+
+use std::io::Write;
+use std::process::ExitCode;
+
+use anyhow::{Context, bail};
+use vademecum_server::config::ServerConfig;
+
+use crate::cli::ServeArgs;
+
+fn tokens(a: &ServeArgs) -> anyhow::Result<Option<Vec<String>>> {
+    let mut tokens: Vec<String> = Vec::new();
+    if let Some(f) = &a.tokens_file {
+        let text = std::fs::read_to_string(f).with_context(|| format!("cannot read token file {}", f.display()))?;
+        tokens.extend(
+            text.lines()
+                .map(str::trim)
+                .filter(|l| !l.is_empty() && !l.starts_with('#'))
+                .map(String::from),
+        );
+        if tokens.is_empty() {
+            bail!("token file {} holds no token", f.display());
+        }
+    }
+    if let Ok(env) = std::env::var("VADEMECUM_TOKENS") {
+        tokens.extend(env.split(',').map(str::trim).filter(|t| !t.is_empty()).map(String::from));
+    }
+    Ok((!tokens.is_empty()).then_some(tokens))
+}
+
+pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
+    if a.max_sessions == 0 {
+        bail!("--max-sessions must be at least 1");
+    }
+    if !(a.max_frame_rate > 0.0 && a.max_frame_rate <= 240.0) {
+        bail!("--max-frame-rate must lie in (0, 240] Hz, got {}", a.max_frame_rate);
+    }
+    let config = ServerConfig {
+        scene_root: a.scene_root.clone(),
+        bundle_root: a.bundle_root.clone(),
+        allow_paths: !a.no_paths,
+        max_sessions: a.max_sessions,
+        max_frame_rate_hz: a.max_frame_rate,
+        tokens: tokens(&a)?,
+        ..ServerConfig::default()
+    };
+    let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+    rt.block_on(async move {
+        let listener = tokio::net::TcpListener::bind(&a.listen)
+            .await
+            .with_context(|| format!("cannot listen on {}", a.listen))?;
+        let metrics = match &a.metrics {
+            Some(addr) => Some(
+                tokio::net::TcpListener::bind(addr)
+                    .await
+                    .with_context(|| format!("cannot listen on {addr} for metrics"))?,
+            ),
+            None => None,
+        };
+        {
+            let mut out = std::io::stdout().lock();
+            writeln!(out, "listening on {}", listener.local_addr()?)?;
+            if let Some(m) = &metrics {
+                writeln!(out, "metrics on http://{}/metrics", m.local_addr()?)?;
+            }
+            writeln!(
+                out,
+                "authentication: {}",
+                if config.tokens.is_some() {
+                    "bearer tokens"
+                } else {
+                    "none (every client is 'anonymous')"
+                }
+            )?;
+            out.flush()?;
+        }
+        vademecum_server::run(listener, metrics, config, async {
+            let _ = tokio::signal::ctrl_c().await;
+        })
+        .await
+    })?;
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,47 @@
+//! Runtime settings of `vademecum serve`, with their defaults and why.
+
+use std::path::PathBuf;
+
+use crate::session::SessionConfig;
+
+/// Settings of a server.
+#[derive(Debug, Clone)]
+pub struct ServerConfig {
+    /// Scene files named by `scene_path` resolve under this folder; inline scenes resolve
+    /// their relative mesh paths against it.
+    pub scene_root: PathBuf,
+    /// Bundle folders named by `bundle_dir` resolve under this folder.
+    pub bundle_root: PathBuf,
+    /// Whether clients may name server-side scene paths at all.
+    pub allow_paths: bool,
+    /// Most sessions at once (all clients together).
+    pub max_sessions: usize,
+    /// Highest frame rate a viewer gets (Hz); requests above it are capped.
+    pub max_frame_rate_hz: f64,
+    /// Largest message the server accepts (bytes): an inline scene is the largest thing a
+    /// client sends; tool states are ~100 bytes.
+    pub max_request_bytes: usize,
+    /// Largest message the server sends (bytes): the geometry message of a large organ
+    /// (positions and triangles of its surface).
+    pub max_response_bytes: usize,
+    /// Bearer tokens accepted (`None`: no authentication; every client is "anonymous").
+    pub tokens: Option<Vec<String>>,
+    /// How sessions tick.
+    pub session: SessionConfig,
+}
+
+impl Default for ServerConfig {
+    fn default() -> Self {
+        Self {
+            scene_root: PathBuf::from("."),
+            bundle_root: PathBuf::from("."),
+            allow_paths: true,
+            max_sessions: 16,
+            max_frame_rate_hz: 60.0,
+            max_request_bytes: 1 << 20,
+            max_response_bytes: 64 << 20,
+            tokens: None,
+            session: SessionConfig::default(),
+        }
+    }
+}

@@ -1,0 +1,136 @@
+//! Every conversion between the wire contract (`vademecum.v1`) and engine/session types,
+//! and the validation that goes with it.
+
+use vademecum_engine::pipeline::{ToolInput, ToolKind};
+use vademecum_proto::v1 as pb;
+
+use crate::registry::{Entry, SceneSource};
+use crate::session::{Answer, Frame, SurfaceGeometry};
+
+fn vec3(v: Option<&pb::Vec3>) -> [f64; 3] {
+    v.map_or([0.0; 3], |v| [v.x, v.y, v.z])
+}
+
+fn pb_vec3(v: [f64; 3]) -> pb::Vec3 {
+    pb::Vec3 { x: v[0], y: v[1], z: v[2] }
+}
+
+/// A tool state as the tick reads it. Values are not checked here: the pipeline answers a
+/// non-finite or out-of-range state with zero force and the REJECTED_INPUT event, so a bad
+/// sample from a device never ends a stream.
+pub fn tool_input(t: &pb::ToolState) -> ToolInput {
+    ToolInput {
+        kind: match pb::ToolKind::try_from(t.kind) {
+            Ok(pb::ToolKind::Scalpel) => ToolKind::Scalpel,
+            Ok(pb::ToolKind::Grasper) => ToolKind::Grasper,
+            _ => ToolKind::Probe,
+        },
+        position_m: vec3(t.position_m.as_ref()),
+        velocity_m_s: vec3(t.velocity_m_s.as_ref()),
+        closure: t.closure,
+    }
+}
+
+/// The response to one tool state.
+pub fn tool_response(a: &Answer) -> pb::ToolResponse {
+    pb::ToolResponse {
+        seq: a.seq,
+        client_time_us: a.client_time_us,
+        force_n: Some(pb_vec3(a.state.force_n)),
+        contact: a.state.contact.map(|c| pb::Contact {
+            organ: c.organ as u32,
+            point_m: Some(pb_vec3(c.point_m)),
+            depth_m: c.depth_m,
+        }),
+        events: a.state.events.0,
+        server_received_us: a.received_us,
+        server_answered_us: a.answered_us,
+        tick: a.tick,
+    }
+}
+
+/// The scene of a create request.
+pub fn scene_source(r: &pb::CreateSessionRequest) -> Result<SceneSource, String> {
+    use pb::create_session_request::Scene as S;
+    match &r.scene {
+        Some(S::SceneToml(t)) => Ok(SceneSource::Inline(t.clone())),
+        Some(S::ScenePath(p)) => Ok(SceneSource::Path(p.clone())),
+        Some(S::Builtin(b)) => Ok(SceneSource::Builtin(b.clone())),
+        None => Err("set one of scene_toml, scene_path or builtin".into()),
+    }
+}
+
+fn f32_bytes(v: impl IntoIterator<Item = f32>) -> Vec<u8> {
+    v.into_iter().flat_map(f32::to_le_bytes).collect()
+}
+
+/// The first message of a viewing stream: the reference surfaces.
+pub fn geometry_frame(g: &SurfaceGeometry) -> pb::Frame {
+    pb::Frame {
+        geometry: Some(pb::Geometry {
+            organs: g
+                .organs
+                .iter()
+                .map(|o| pb::SurfaceMesh {
+                    organ: o.name.clone(),
+                    positions: f32_bytes(o.positions_m.iter().copied()),
+                    triangles: o.triangles.iter().flat_map(|t| t.to_le_bytes()).collect(),
+                    node_count: o.nodes.len() as u32,
+                })
+                .collect(),
+        }),
+        ..Default::default()
+    }
+}
+
+/// A displacement frame.
+pub fn frame(f: &Frame) -> pb::Frame {
+    pb::Frame {
+        seq: f.seq,
+        tick: f.tick,
+        time_s: f.time_s,
+        geometry: None,
+        organs: f
+            .displacements_m
+            .iter()
+            .map(|d| pb::OrganDisplacement {
+                displacements: f32_bytes(d.iter().copied()),
+            })
+            .collect(),
+        force_n: Some(pb_vec3(f.force_n)),
+    }
+}
+
+/// What GetSession and friends return.
+pub fn session_info(e: &Entry) -> pb::SessionInfo {
+    let s = &e.session;
+    pb::SessionInfo {
+        session_id: s.id().to_string(),
+        scene: s.scene().spec.scene.name.clone(),
+        label: e.label.clone(),
+        organs: s.scene().spec.organs.iter().map(|o| o.name.clone()).collect(),
+        effects: s.effects().iter().map(|x| x.to_string()).collect(),
+        tick_rate_hz: 1.0 / s.config().period.as_secs_f64(),
+        stats: Some(session_stats(e)),
+    }
+}
+
+/// Live statistics of a session.
+pub fn session_stats(e: &Entry) -> pb::SessionStats {
+    use std::sync::atomic::Ordering::Relaxed;
+    let st = e.session.stats().snapshot();
+    pb::SessionStats {
+        ticks: st.ticks,
+        deadline_misses: st.misses,
+        answered: st.answered,
+        rejected: st.rejected,
+        dropped: st.dropped,
+        frames: st.frames,
+        tick_work_p50_us: st.work_us.p50,
+        tick_work_p99_us: st.work_us.p99,
+        response_p50_us: st.response_us.p50,
+        response_p99_us: st.response_us.p99,
+        interacting_clients: e.interacting.load(Relaxed),
+        viewers: e.viewers.load(Relaxed),
+    }
+}

@@ -1,0 +1,107 @@
+//! A Prometheus text-format endpoint (`GET /metrics`): sessions, connected clients, and per
+//! session the tick-work and response-latency histograms, deadline misses and counters.
+
+use std::fmt::Write;
+use std::sync::atomic::Ordering;
+
+use hdrhistogram::Histogram;
+
+use crate::registry::Registry;
+
+/// Histogram bucket bounds (s).
+const BUCKETS_S: [f64; 12] = [5e-6, 1e-5, 2.5e-5, 5e-5, 1e-4, 2.5e-4, 5e-4, 1e-3, 2.5e-3, 5e-3, 1e-2, 1e-1];
+
+fn histogram(out: &mut String, name: &str, session: &str, h: &Histogram<u64>) {
+    for le in BUCKETS_S {
+        let n = h.count_between(0, (le * 1e9) as u64);
+        let _ = writeln!(out, "{name}_bucket{{session=\"{session}\",le=\"{le}\"}} {n}");
+    }
+    let _ = writeln!(out, "{name}_bucket{{session=\"{session}\",le=\"+Inf\"}} {}", h.len());
+    let _ = writeln!(out, "{name}_sum{{session=\"{session}\"}} {}", h.mean() * h.len() as f64 * 1e-9);
+    let _ = writeln!(out, "{name}_count{{session=\"{session}\"}} {}", h.len());
+}
+
+/// The exposition text for every session.
+pub fn render(registry: &Registry) -> String {
+    let all = registry.all();
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_sessions Sessions running.\n# TYPE vademecum_sessions gauge\nvademecum_sessions {}",
+        all.len()
+    );
+    let gauges = [
+        ("vademecum_interacting_clients", "Interaction streams open.", "gauge"),
+        ("vademecum_viewers", "Viewer streams open.", "gauge"),
+        ("vademecum_ticks_total", "Ticks run.", "counter"),
+        (
+            "vademecum_deadline_misses_total",
+            "Ticks started more than one period late.",
+            "counter",
+        ),
+        ("vademecum_answers_total", "Tool states answered.", "counter"),
+        (
+            "vademecum_rejected_inputs_total",
+            "Tool states rejected (non-finite or out of range).",
+            "counter",
+        ),
+        (
+            "vademecum_dropped_answers_total",
+            "Answers dropped because a reader fell behind.",
+            "counter",
+        ),
+        ("vademecum_frames_total", "Frames produced for viewers.", "counter"),
+    ];
+    for (i, (name, help, kind)) in gauges.iter().enumerate() {
+        let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
+        for e in &all {
+            let s = e.session.stats();
+            let v = match i {
+                0 => e.interacting.load(Ordering::Relaxed) as u64,
+                1 => e.viewers.load(Ordering::Relaxed) as u64,
+                2 => s.ticks.load(Ordering::Relaxed),
+                3 => s.misses.load(Ordering::Relaxed),
+                4 => s.answered.load(Ordering::Relaxed),
+                5 => s.rejected.load(Ordering::Relaxed),
+                6 => s.dropped.load(Ordering::Relaxed),
+                _ => s.frames.load(Ordering::Relaxed),
+            };
+            let _ = writeln!(out, "{name}{{session=\"{}\"}} {v}", e.session.id());
+        }
+    }
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_tick_work_seconds Work per tick.\n# TYPE vademecum_tick_work_seconds histogram"
+    );
+    let hs: Vec<_> = all
+        .iter()
+        .map(|e| (e.session.id().to_string(), e.session.stats().histograms()))
+        .collect();
+    for (id, h) in &hs {
+        histogram(&mut out, "vademecum_tick_work_seconds", id, &h.work);
+    }
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_response_seconds Tool state in to answer out, inside the server.\n# TYPE vademecum_response_seconds histogram"
+    );
+    for (id, h) in &hs {
+        histogram(&mut out, "vademecum_response_seconds", id, &h.response);
+    }
+    out
+}
+
+/// Serves `GET /metrics` on `listener` until `shutdown` resolves.
+pub async fn serve(
+    listener: tokio::net::TcpListener,
+    registry: Registry,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let app = axum::Router::new().route(
+        "/metrics",
+        axum::routing::get(move || {
+            let registry = registry.clone();
+            async move { ([("content-type", "text/plain; version=0.0.4")], render(&registry)) }
+        }),
+    );
+    axum::serve(listener, app).with_graceful_shutdown(shutdown).await
+}

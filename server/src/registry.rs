@@ -1,0 +1,245 @@
+//! The session registry: every live session with its owner, and the cache of loaded bundles
+//! shared read-only between sessions built on the same bundle.
+//!
+//! Shared state is a cheap-clone handle over `Arc<Shared>`. Its maps sit behind
+//! `std::sync::Mutex`es: no `.await` ever happens while one is held, and no tick thread ever
+//! takes them (sessions own their threads' data), so they never delay a force.
+
+use std::collections::HashMap;
+use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, Weak};
+
+use vademecum_engine::pgd::offline::{self, LoadedBundle};
+use vademecum_engine::scene::Scene;
+
+use crate::auth::Caller;
+use crate::config::ServerConfig;
+use crate::error::ServerError;
+use crate::session::Session;
+
+/// Where a session's scene comes from.
+#[derive(Debug, Clone)]
+pub enum SceneSource {
+    /// TOML text.
+    Inline(String),
+    /// A path under the scene root.
+    Path(String),
+    /// A built-in scene.
+    Builtin(String),
+}
+
+/// A live session and who owns it.
+#[derive(Debug)]
+pub struct Entry {
+    /// The client that created it.
+    pub owner: Caller,
+    /// Its label.
+    pub label: String,
+    /// The session.
+    pub session: Session,
+    /// Interaction streams open on it now.
+    pub interacting: AtomicU32,
+    /// Viewer streams open on it now.
+    pub viewers: AtomicU32,
+    /// Flips to true when the session is closed: open streams end.
+    pub closed: tokio::sync::watch::Sender<bool>,
+}
+
+/// Counts a stream on an [`Entry`] counter while alive.
+#[derive(Debug)]
+pub struct StreamGuard<'a>(&'a AtomicU32);
+
+impl<'a> StreamGuard<'a> {
+    /// Increments `c` until dropped.
+    pub fn new(c: &'a AtomicU32) -> Self {
+        c.fetch_add(1, Ordering::Relaxed);
+        Self(c)
+    }
+}
+
+impl Drop for StreamGuard<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+#[derive(Debug)]
+struct Shared {
+    config: ServerConfig,
+    sessions: Mutex<HashMap<String, Arc<Entry>>>,
+    bundles: Mutex<HashMap<PathBuf, Weak<LoadedBundle>>>,
+    next: AtomicU64,
+}
+
+/// A cheap-clone handle on the registry.
+#[derive(Debug, Clone)]
+pub struct Registry {
+    shared: Arc<Shared>,
+}
+
+/// A relative path with no `..`, no root and no prefix, joined under `root`.
+fn under(root: &Path, rel: &str, what: &str) -> Result<PathBuf, ServerError> {
+    let p = Path::new(rel);
+    if p.components().any(|c| !matches!(c, Component::Normal(_) | Component::CurDir)) {
+        return Err(ServerError::Denied(format!(
+            "{what} '{rel}' must be a relative path inside the server's root, without '..'"
+        )));
+    }
+    Ok(root.join(p))
+}
+
+impl Registry {
+    /// An empty registry.
+    pub fn new(config: ServerConfig) -> Self {
+        Self {
+            shared: Arc::new(Shared {
+                config,
+                sessions: Mutex::new(HashMap::new()),
+                bundles: Mutex::new(HashMap::new()),
+                next: AtomicU64::new(1),
+            }),
+        }
+    }
+
+    /// The server settings.
+    pub fn config(&self) -> &ServerConfig {
+        &self.shared.config
+    }
+
+    fn sessions(&self) -> std::sync::MutexGuard<'_, HashMap<String, Arc<Entry>>> {
+        self.shared.sessions.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    fn load_scene(&self, source: &SceneSource) -> Result<Scene, ServerError> {
+        let cfg = &self.shared.config;
+        match source {
+            SceneSource::Inline(text) => {
+                Scene::from_toml(text, cfg.scene_root.join("inline.toml")).map_err(|e| ServerError::Invalid(e.to_string()))
+            }
+            SceneSource::Builtin(name) => Scene::builtin(name).map_err(|e| ServerError::Invalid(e.to_string())),
+            SceneSource::Path(rel) => {
+                if !cfg.allow_paths {
+                    return Err(ServerError::Denied(
+                        "this server does not accept scene paths; send the scene text".into(),
+                    ));
+                }
+                let path = under(&cfg.scene_root, rel, "scene path")?;
+                if !path.is_file() {
+                    return Err(ServerError::NotFound(format!("no scene file '{rel}' on the server")));
+                }
+                Scene::load(&path).map_err(|e| ServerError::Invalid(e.to_string()))
+            }
+        }
+    }
+
+    /// The loaded bundle at `path`, from the cache or from disk.
+    fn bundle(&self, path: &Path) -> Result<Arc<LoadedBundle>, ServerError> {
+        let key = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+        if let Some(b) = self
+            .shared
+            .bundles
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .get(&key)
+            .and_then(Weak::upgrade)
+        {
+            return Ok(b);
+        }
+        let b = Arc::new(offline::load_bundle(path).map_err(|e| ServerError::Precondition(e.to_string()))?);
+        let mut cache = self.shared.bundles.lock().unwrap_or_else(|p| p.into_inner());
+        cache.retain(|_, w| w.strong_count() > 0);
+        cache.insert(key, Arc::downgrade(&b));
+        Ok(b)
+    }
+
+    /// Creates a session (blocking: reads scenes, meshes and bundles; call it off the
+    /// runtime with `spawn_blocking`).
+    pub fn create(&self, owner: Caller, source: SceneSource, bundle_dir: &str, label: String) -> Result<Arc<Entry>, ServerError> {
+        let cfg = &self.shared.config;
+        if label.chars().count() > 64 {
+            return Err(ServerError::Invalid("label is longer than 64 characters".into()));
+        }
+        if self.sessions().len() >= cfg.max_sessions {
+            return Err(ServerError::Exhausted(format!(
+                "the server runs its maximum of {} sessions",
+                cfg.max_sessions
+            )));
+        }
+        let scene = Arc::new(self.load_scene(&source)?);
+        let dir = under(&cfg.bundle_root, bundle_dir, "bundle folder")?;
+        let mut bundles = Vec::new();
+        for i in 0..scene.spec.organs.len() {
+            let name = &scene.spec.organs[i].name;
+            let path = dir.join(format!("{name}.bundle"));
+            let b = self.bundle(&path)?;
+            let mesh = scene.organ_mesh(i).map_err(|e| ServerError::Invalid(e.to_string()))?;
+            offline::check_matches(&path, &b.manifest, &scene, &mesh).map_err(|e| ServerError::Precondition(e.to_string()))?;
+            bundles.push(b);
+        }
+        let n = self.shared.next.fetch_add(1, Ordering::Relaxed);
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let id = format!("s{n}-{nanos:08x}");
+        let session = Session::start(id.clone(), scene, bundles, cfg.session.clone()).map_err(|e| ServerError::Invalid(e.to_string()))?;
+        let entry = Arc::new(Entry {
+            owner,
+            label,
+            session,
+            interacting: AtomicU32::new(0),
+            viewers: AtomicU32::new(0),
+            closed: tokio::sync::watch::channel(false).0,
+        });
+        let mut sessions = self.sessions();
+        if sessions.len() >= cfg.max_sessions {
+            return Err(ServerError::Exhausted(format!(
+                "the server runs its maximum of {} sessions",
+                cfg.max_sessions
+            )));
+        }
+        sessions.insert(id, entry.clone());
+        Ok(entry)
+    }
+
+    /// The caller's session `id`.
+    pub fn get(&self, owner: &Caller, id: &str) -> Result<Arc<Entry>, ServerError> {
+        match self.sessions().get(id) {
+            Some(e) if &e.owner == owner => Ok(e.clone()),
+            _ => Err(ServerError::UnknownSession(id.to_string())),
+        }
+    }
+
+    /// The caller's sessions, by id.
+    pub fn list(&self, owner: &Caller) -> Vec<Arc<Entry>> {
+        let mut v: Vec<_> = self.sessions().values().filter(|e| &e.owner == owner).cloned().collect();
+        v.sort_by(|a, b| a.session.id().cmp(b.session.id()));
+        v
+    }
+
+    /// Every session (metrics).
+    pub fn all(&self) -> Vec<Arc<Entry>> {
+        let mut v: Vec<_> = self.sessions().values().cloned().collect();
+        v.sort_by(|a, b| a.session.id().cmp(b.session.id()));
+        v
+    }
+
+    /// Removes the caller's session `id`, stops its threads and ends its streams. The
+    /// session's memory goes when its last stream lets go of it.
+    pub fn close(&self, owner: &Caller, id: &str) -> Result<Arc<Entry>, ServerError> {
+        let entry = self.get(owner, id)?;
+        self.sessions().remove(id);
+        entry.session.stop();
+        entry.closed.send_replace(true);
+        Ok(entry)
+    }
+
+    /// Closes every session (shutdown).
+    pub fn close_all(&self) {
+        let all: Vec<_> = self.sessions().drain().map(|(_, e)| e).collect();
+        for e in all {
+            e.session.stop();
+            e.closed.send_replace(true);
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! `vademecum.v1.Interaction`: tool states in, one response each, in order.
+//!
+//! Each stream gets a task that reads tool states, submits them to the session's tick
+//! thread (bounded queue, refused at once when full) and forwards the tick's answers. The
+//! answers come back through a channel of this stream alone, in submission order.
+
+use std::pin::Pin;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tokio::sync::mpsc;
+use tokio_stream::Stream;
+use tokio_stream::wrappers::ReceiverStream;
+use tonic::{Request, Response, Status, Streaming};
+use vademecum_proto::v1 as pb;
+
+use crate::auth::caller;
+use crate::convert;
+use crate::registry::{Entry, Registry, StreamGuard};
+use crate::session::{Answer, SubmitError, ToolCommand};
+
+/// Answers still in flight when the client closes its side are awaited this long at most.
+const DRAIN: Duration = Duration::from_secs(2);
+
+/// The Interaction service.
+#[derive(Debug, Clone)]
+pub struct InteractionService {
+    /// The sessions.
+    pub registry: Registry,
+}
+
+type ResponseStream = Pin<Box<dyn Stream<Item = Result<pb::ToolResponse, Status>> + Send>>;
+
+#[tonic::async_trait]
+impl pb::interaction_server::Interaction for InteractionService {
+    type InteractStream = ResponseStream;
+
+    async fn interact(&self, req: Request<Streaming<pb::ToolState>>) -> Result<Response<Self::InteractStream>, Status> {
+        let owner = caller(&req)?;
+        let mut inbound = req.into_inner();
+        let first = inbound
+            .message()
+            .await?
+            .ok_or_else(|| Status::invalid_argument("the stream ended before its first tool state"))?;
+        if first.session_id.is_empty() {
+            return Err(Status::invalid_argument("the first tool state must carry the session_id"));
+        }
+        let entry = self.registry.get(&owner, &first.session_id)?;
+        let (out, rx) = mpsc::channel(256);
+        tokio::spawn(pump(entry, inbound, first, out));
+        Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
+    }
+}
+
+fn submit(entry: &Entry, m: &pb::ToolState, reply: &mpsc::Sender<Answer>) -> Result<(), SubmitError> {
+    entry.session.submit(ToolCommand {
+        input: convert::tool_input(m),
+        seq: m.seq,
+        client_time_us: m.client_time_us,
+        received: Instant::now(),
+        reply: reply.clone(),
+    })
+}
+
+/// Reads tool states, submits them, forwards answers; ends when the client is done and
+/// answered, the client goes away, or the session closes.
+async fn pump(
+    entry: Arc<Entry>,
+    mut inbound: Streaming<pb::ToolState>,
+    first: pb::ToolState,
+    out: mpsc::Sender<Result<pb::ToolResponse, Status>>,
+) {
+    let _guard = StreamGuard::new(&entry.interacting);
+    let (reply, mut answers) = mpsc::channel::<Answer>(4096);
+    let mut closed = entry.closed.subscribe();
+    let id = first.session_id.clone();
+    let refuse = |e: SubmitError| match e {
+        SubmitError::Busy => Some(Status::resource_exhausted(e.to_string())),
+        SubmitError::Closed => None,
+    };
+    if let Err(e) = submit(&entry, &first, &reply) {
+        if let Some(s) = refuse(e) {
+            let _ = out.send(Err(s)).await;
+        }
+        return;
+    }
+    let (mut sent, mut answered) = (1u64, 0u64);
+    let mut client_done: Option<Instant> = None;
+    loop {
+        if client_done.is_some() && answered == sent {
+            return;
+        }
+        if client_done.is_some_and(|t| t.elapsed() > DRAIN) {
+            return;
+        }
+        tokio::select! {
+            m = inbound.message(), if client_done.is_none() => match m {
+                Ok(Some(m)) => {
+                    if !m.session_id.is_empty() && m.session_id != id {
+                        let _ = out.send(Err(Status::invalid_argument("a stream acts on one session; its session_id cannot change"))).await;
+                        return;
+                    }
+                    if let Err(e) = submit(&entry, &m, &reply) {
+                        if let Some(s) = refuse(e) {
+                            let _ = out.send(Err(s)).await;
+                        }
+                        return;
+                    }
+                    sent += 1;
+                }
+                Ok(None) => client_done = Some(Instant::now()),
+                Err(status) => {
+                    // a malformed message, or the client went away
+                    let _ = out.send(Err(status)).await;
+                    return;
+                }
+            },
+            a = answers.recv() => match a {
+                Some(a) => {
+                    answered += 1;
+                    if out.send(Ok(convert::tool_response(&a))).await.is_err() {
+                        return;
+                    }
+                }
+                None => return,
+            },
+            _ = closed.changed() => return,
+            _ = tokio::time::sleep(DRAIN), if client_done.is_some() => return,
+        }
+    }
+}

@@ -1,0 +1,267 @@
+//! The server as a separate process, driven through the client SDK: interaction answers
+//! every tool state in order with the engine's own force, viewers get frames at their rates
+//! while interaction continues, bad requests get clear status codes and the other sessions
+//! keep being served, tokens are enforced, metrics are exported.
+
+mod util;
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use vademecum_client::{Client, ErrorKind, SceneSpec, f32s, tool_at};
+use vademecum_engine::pgd::offline;
+use vademecum_engine::pipeline::{Events, Pipeline, ToolInput};
+use vademecum_engine::scene::Scene;
+
+/// The built-in organ's probe path used by the tests: circles over the middle of the
+/// accessible top surface (z ≈ 0.025 m there; probe radius 4 mm), pressing up to 5 mm deep
+/// and lifting off again.
+fn path(i: usize) -> [f64; 3] {
+    let s = i as f64 * 1e-3;
+    [
+        0.02 * (3.0 * s).cos(),
+        0.015 * (3.0 * s).sin(),
+        0.030 - 0.006 * (5.0 * s).sin().abs(),
+    ]
+}
+
+/// The engine's own answer for the same tool state, from the same bundle on disk.
+fn direct(root: &std::path::Path) -> Pipeline {
+    let scene = Scene::builtin("organ").unwrap();
+    let b = Arc::new(offline::load_bundle(&root.join("organ/lobe.bundle")).unwrap());
+    Pipeline::for_scene(&scene, &[b]).unwrap()
+}
+
+#[test]
+fn a_client_streams_5000_tool_states_and_gets_5000_engine_forces_in_order() {
+    let server = util::Server::start(&[], &[]);
+    let mut engine = direct(util::bundles());
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let session = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "e2e")
+            .await
+            .unwrap();
+        assert_eq!(session.info().effects, ["palpation"]);
+        assert_eq!(session.info().organs, ["lobe"]);
+        let mut tools = session.interact().await.unwrap();
+        let n = 5000;
+        let (mut received, mut touching) = (0usize, 0usize);
+        // keep at most 200 in flight, as a frontend streaming at a steady rate would
+        for i in 0..n + 200 {
+            if i < n {
+                let mut t = tool_at(i as u64, path(i));
+                t.client_time_us = 3 * i as u64;
+                tools.send(t).await.unwrap();
+            }
+            if i >= 200 {
+                let r = tools.next().await.unwrap().expect("a response per tool state");
+                assert_eq!(r.seq, received as u64, "responses out of order");
+                assert_eq!(r.client_time_us, 3 * received as u64);
+                let expected = engine.tick(&ToolInput {
+                    position_m: path(received),
+                    ..ToolInput::default()
+                });
+                let f = r.force_n.unwrap();
+                assert_eq!([f.x, f.y, f.z], expected.force_n, "tool state {received}");
+                assert_eq!(r.events, expected.events.0);
+                assert!(r.server_answered_us >= r.server_received_us);
+                touching += usize::from(r.events & Events::CONTACT != 0);
+                received += 1;
+            }
+        }
+        assert_eq!(received, n);
+        assert!(touching > 500, "the path should touch the organ often ({touching} of {n})");
+        tools.finish();
+        assert!(tools.next().await.unwrap().is_none(), "the stream ends once everything is answered");
+        let stats = session.close().await.unwrap();
+        assert_eq!((stats.answered, stats.dropped, stats.rejected), (n as u64, 0, 0));
+    });
+}
+
+#[test]
+fn viewers_at_30_and_5_hz_get_numbered_frames_while_interaction_continues() {
+    let server = util::Server::start(&[], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let session = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "view")
+            .await
+            .unwrap();
+        let watch = |rate: f64| {
+            let s = session.clone();
+            tokio::spawn(async move {
+                let mut frames = s.watch(rate).await.unwrap();
+                let first = frames.message().await.unwrap().unwrap();
+                let g = first.geometry.expect("the first frame carries the geometry");
+                let nodes = g.organs[0].node_count as usize;
+                assert_eq!(f32s(&g.organs[0].positions).len(), 3 * nodes);
+                let (mut seqs, mut moved) = (Vec::new(), false);
+                let until = Instant::now() + Duration::from_secs(3);
+                while Instant::now() < until {
+                    let Ok(Ok(Some(f))) = tokio::time::timeout(Duration::from_secs(1), frames.message()).await else {
+                        break;
+                    };
+                    assert_eq!(f32s(&f.organs[0].displacements).len(), 3 * nodes);
+                    moved |= f32s(&f.organs[0].displacements).iter().any(|&u| u != 0.0);
+                    seqs.push(f.seq);
+                }
+                (seqs, moved)
+            })
+        };
+        let viewers = [watch(30.0), watch(30.0), watch(5.0)];
+        let mut tools = session.interact().await.unwrap();
+        let start = Instant::now();
+        let mut i = 0;
+        while start.elapsed() < Duration::from_millis(3200) {
+            tools.send(tool_at(i as u64, path(i))).await.unwrap();
+            tools.next().await.unwrap().unwrap();
+            i += 1;
+            tokio::time::sleep(Duration::from_millis(1)).await;
+        }
+        let mut counts = Vec::new();
+        for v in viewers {
+            let (seqs, moved) = v.await.unwrap();
+            assert!(seqs.windows(2).all(|w| w[1] > w[0]), "frame numbers increase: {seqs:?}");
+            assert!(moved, "frames show the organ displaced under the probe");
+            counts.push(seqs.len());
+        }
+        // rates: behaviour, not timing — each 30 Hz viewer gets several times what the 5 Hz one gets
+        assert!(counts[0] >= 30 && counts[1] >= 30, "30 Hz viewers got {counts:?} frames in 3 s");
+        assert!((5..=20).contains(&counts[2]), "the 5 Hz viewer got {} frames in 3 s", counts[2]);
+        let stats = session.stats().await.unwrap();
+        assert!(stats.frames > 0 && stats.answered as usize == i);
+    });
+}
+
+#[test]
+fn bad_requests_get_clear_status_codes_and_other_sessions_keep_being_served() {
+    let server = util::Server::start(&["--max-sessions", "2"], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let good = client.create_session(SceneSpec::Builtin("organ".into()), "organ", "good").await.unwrap();
+        // unknown session
+        let e = client.session("nope").await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::NotFound, "{e}");
+        // no bundle there
+        let e = client.create_session(SceneSpec::Builtin("organ".into()), "missing", "").await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::FailedPrecondition, "{e}");
+        assert!(e.to_string().contains("lobe.bundle"), "{e}");
+        // a bundle from another scene
+        let e = client.create_session(SceneSpec::Builtin("patch".into()), "organ", "").await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::FailedPrecondition, "{e}");
+        // malformed scene text: file, line and key in the message
+        let e = client.create_session(SceneSpec::Toml("[scene]\nname = 3\n".into()), "organ", "").await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::InvalidArgument, "{e}");
+        assert!(e.to_string().contains("inline.toml:2"), "{e}");
+        // paths outside the roots
+        let e = client.create_session(SceneSpec::Path("../x.toml".into()), "organ", "").await.unwrap_err();
+        assert!(e.to_string().contains(".."), "{e}");
+        // oversize message (an inline scene over the 1 MiB request limit)
+        let e = client.create_session(SceneSpec::Toml("#".repeat(2 << 20)), "organ", "").await.unwrap_err();
+        // tonic refuses it while decoding, before any handler runs
+        assert!(
+            matches!(e, vademecum_client::SdkError::Status(ref s) if matches!(s.code(), tonic::Code::OutOfRange | tonic::Code::ResourceExhausted)),
+            "{e}"
+        );
+        // NaN poses are answered with zero force and counted, and the stream goes on
+        let mut tools = good.interact().await.unwrap();
+        tools.send(tool_at(0, [f64::NAN, 0.0, 0.05])).await.unwrap();
+        let r = tools.next().await.unwrap().unwrap();
+        let f = r.force_n.unwrap();
+        assert_eq!((f.x, f.y, f.z), (0.0, 0.0, 0.0));
+        assert!(r.events & Events::REJECTED_INPUT != 0);
+        tools.send(tool_at(1, path(0))).await.unwrap();
+        assert_eq!(tools.next().await.unwrap().unwrap().seq, 1);
+        // a client killed mid-stream: its own connection, dropped with tool states in flight
+        {
+            let other = Client::connect(server.url.clone()).await.unwrap();
+            let s = other.session(good.id()).await.unwrap();
+            let mut t = s.interact().await.unwrap();
+            for i in 0..100 {
+                t.send(tool_at(i, path(i as usize))).await.unwrap();
+            }
+            t.next().await.unwrap();
+        }
+        // the session cap
+        let _second = client.create_session(SceneSpec::Builtin("organ".into()), "organ", "second").await.unwrap();
+        let e = client.create_session(SceneSpec::Builtin("organ".into()), "organ", "third").await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ResourceExhausted, "{e}");
+        // and the first session is still served
+        for i in 2..50u64 {
+            tools.send(tool_at(i, path(i as usize))).await.unwrap();
+            assert_eq!(tools.next().await.unwrap().unwrap().seq, i);
+        }
+        let stats = good.stats().await.unwrap();
+        assert_eq!(stats.rejected, 1);
+    });
+}
+
+#[test]
+fn tokens_are_required_and_sessions_are_private_to_their_token() {
+    let server = util::Server::start(&[], &[("VADEMECUM_TOKENS", "alice-token,bob-token")]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let anon = Client::connect(server.url.clone()).await.unwrap();
+        assert_eq!(anon.list_sessions().await.unwrap_err().kind(), ErrorKind::Unauthenticated);
+        let wrong = Client::connect_with_token(server.url.clone(), Some("mallory")).await.unwrap();
+        assert_eq!(wrong.list_sessions().await.unwrap_err().kind(), ErrorKind::Unauthenticated);
+        let alice = Client::connect_with_token(server.url.clone(), Some("alice-token")).await.unwrap();
+        let bob = Client::connect_with_token(server.url.clone(), Some("bob-token")).await.unwrap();
+        let s = alice
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "a")
+            .await
+            .unwrap();
+        assert_eq!(alice.list_sessions().await.unwrap().len(), 1);
+        assert!(bob.list_sessions().await.unwrap().is_empty());
+        assert_eq!(bob.session(s.id()).await.unwrap_err().kind(), ErrorKind::NotFound);
+    });
+}
+
+#[test]
+fn metrics_export_tick_latency_histograms_misses_and_clients() {
+    let server = util::Server::start(&["--metrics", "127.0.0.1:0"], &[]);
+    let rt = util::runtime();
+    let text = rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let session = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "m")
+            .await
+            .unwrap();
+        let mut tools = session.interact().await.unwrap();
+        for i in 0..300u64 {
+            tools.send(tool_at(i, path(i as usize))).await.unwrap();
+            tools.next().await.unwrap().unwrap();
+        }
+        // scrape while the stream is open
+        let addr = server.metrics.clone().expect("metrics address");
+        tokio::task::spawn_blocking(move || {
+            use std::io::{Read, Write};
+            let mut s = std::net::TcpStream::connect(addr).unwrap();
+            s.write_all(b"GET /metrics HTTP/1.0\r\nHost: x\r\n\r\n").unwrap();
+            let mut out = String::new();
+            s.read_to_string(&mut out).unwrap();
+            out
+        })
+        .await
+        .unwrap()
+    });
+    assert!(text.starts_with("HTTP/1.0 200") || text.starts_with("HTTP/1.1 200"), "{text}");
+    assert!(text.contains("vademecum_sessions 1"), "{text}");
+    assert!(text.contains("vademecum_tick_work_seconds_bucket{session="), "{text}");
+    assert!(text.contains("vademecum_deadline_misses_total{session="), "{text}");
+    assert!(
+        text.contains("vademecum_interacting_clients{session=") && text.contains("} 1"),
+        "{text}"
+    );
+    let answers = text
+        .lines()
+        .find(|l| l.starts_with("vademecum_answers_total{"))
+        .and_then(|l| l.rsplit(' ').next())
+        .and_then(|v| v.parse::<u64>().ok())
+        .unwrap();
+    assert_eq!(answers, 300);
+}
