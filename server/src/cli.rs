@@ -253,6 +253,34 @@ reads the clock; the displacement field of the whole mesh and of the surface nod
 beside a plain streaming read of the same bytes. Percentiles are of individual calls."
     )]
     Pgd(BenchPgdArgs),
+    /// Real-time behaviour of sessions: tick latency with and without viewers, gRPC round
+    /// trip at 1 kHz, concurrent sessions — each beside a null loop.
+    #[command(
+        long_about = "Real-time behaviour of sessions on the built-in organ, each figure beside a null loop \
+measured in the same run (a thread sleeping to the same 1 ms deadlines, doing nothing): \
+a session's tick work and lateness with no viewer and with three (2 x 30 Hz, 5 Hz); the \
+gRPC round trip on loopback with one tool state per millisecond; deadline misses of N \
+concurrent sessions each playing the built-in palpation.\n\n\
+To measure what one core sustains, pin the process: taskset -c 0 vademecum bench session."
+    )]
+    Session(BenchSessionArgs),
+}
+
+/// Arguments of `vademecum bench session`.
+#[derive(Debug, Args)]
+pub struct BenchSessionArgs {
+    /// Seconds per measurement.
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Numbers of concurrent sessions to try.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2, 4, 8])]
+    pub concurrent: Vec<usize>,
+    /// Folder of the organ's bundle (built there when missing). Default: out/organ.
+    #[arg(long, value_name = "DIR")]
+    pub bundles: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum bench pgd`.

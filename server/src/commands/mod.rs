@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_pgd;
+mod bench_session;
 mod build;
 mod inspect;
 mod mesh_info;
@@ -26,5 +27,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Scene(c) => scene::run(c),
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),
         Command::Bench(BenchCommand::Pgd(a)) => bench_pgd::run(a),
+        Command::Bench(BenchCommand::Session(a)) => bench_session::run(a),
     }
 }

@@ -1,0 +1,267 @@
+//! `vademecum bench session`: real-time behaviour of sessions on this machine, each figure
+//! beside a null loop measured in the same run (a thread sleeping to the same 1 ms
+//! deadlines and doing nothing), so the OS wake-up floor and our overhead are told apart.
+//!
+//! 1. null loop; 2. a session's ticks with no viewer, then 3. with two 30 Hz viewers and one
+//!    5 Hz viewer; 4. the gRPC round trip on loopback at 1 kHz (a client sends a tool state
+//!    every millisecond and waits for its answer); 5. N concurrent sessions, each playing the
+//!    built-in palpation: deadline misses per N.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use hdrhistogram::Histogram;
+use serde::Serialize;
+use vademecum_engine::scene::Scene;
+use vademecum_server::session::stats::Percentiles;
+use vademecum_server::session::{Script, Session, SessionConfig, ToolCommand, Trajectory};
+
+use crate::cli::BenchSessionArgs;
+use crate::commands::build::ensure_bundles;
+
+#[derive(Debug, Serialize)]
+struct Row {
+    what: String,
+    samples: u64,
+    p50_us: f64,
+    p99_us: f64,
+    p999_us: f64,
+    max_us: f64,
+    misses: u64,
+}
+
+fn row(what: impl Into<String>, p: Percentiles, misses: u64) -> Row {
+    Row {
+        what: what.into(),
+        samples: p.count,
+        p50_us: p.p50,
+        p99_us: p.p99,
+        p999_us: p.p999,
+        max_us: p.max,
+        misses,
+    }
+}
+
+fn hist() -> Histogram<u64> {
+    Histogram::new_with_bounds(1, 10_000_000_000, 3).expect("valid bounds")
+}
+
+/// The null loop: sleep to 1 ms deadlines for `secs`, recording lateness (ns).
+fn null_loop(secs: f64) -> (Percentiles, u64) {
+    let period = Duration::from_millis(1);
+    let mut h = hist();
+    let mut misses = 0;
+    let end = Instant::now() + Duration::from_secs_f64(secs);
+    let mut next = Instant::now() + period;
+    while Instant::now() < end {
+        let now = Instant::now();
+        if next > now {
+            std::thread::sleep(next - now);
+        }
+        let late = Instant::now().saturating_duration_since(next);
+        let _ = h.record((late.as_nanos() as u64).max(1));
+        if late > period {
+            misses += 1;
+        }
+        next += period;
+        if Instant::now() > next + period * 10 {
+            next = Instant::now();
+        }
+    }
+    (Percentiles::of(&h), misses)
+}
+
+pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
+    if !(a.seconds > 0.0 && a.seconds <= 600.0) {
+        bail!("--seconds must lie in (0, 600], got {}", a.seconds);
+    }
+    let scene = Arc::new(Scene::builtin("organ")?);
+    let dir = a.bundles.clone().unwrap_or_else(|| PathBuf::from("out/organ"));
+    let bundles = ensure_bundles(&scene, &dir)?;
+    let traj = Trajectory::builtin_palpation(&bundles[0], 0.004, 0.004, 0.015).map_err(anyhow::Error::msg)?;
+    let mut rows = Vec::new();
+    let (p, m) = null_loop(a.seconds);
+    rows.push(row("null loop: lateness of a 1 ms sleep, no work", p, m));
+    // a session fed at 1 kHz by a thread, with and without viewers
+    for viewers in [0usize, 3] {
+        let s = Session::start(format!("bench{viewers}"), scene.clone(), bundles.clone(), SessionConfig::default())?;
+        let mut rx = Vec::new();
+        for k in 0..viewers {
+            let mut f = s.subscribe_frames();
+            let rate = if k < 2 { 30.0 } else { 5.0 };
+            rx.push(std::thread::spawn(move || {
+                let mut n = 0u64;
+                let end = Instant::now() + Duration::from_secs_f64(a.seconds);
+                while Instant::now() < end {
+                    std::thread::sleep(Duration::from_secs_f64(1.0 / rate));
+                    if f.has_changed().unwrap_or(false) {
+                        let frame = f.borrow_and_update().clone();
+                        n += u64::from(!frame.displacements_m.is_empty());
+                    }
+                }
+                n
+            }));
+        }
+        let (tx, mut answers) = tokio::sync::mpsc::channel(1024);
+        let end = Instant::now() + Duration::from_secs_f64(a.seconds);
+        let mut i = 0u64;
+        while Instant::now() < end {
+            let t = (i % 5000) as f64 * 1e-3;
+            let _ = s.submit(ToolCommand {
+                input: traj.at(t),
+                seq: i,
+                client_time_us: 0,
+                received: Instant::now(),
+                reply: tx.clone(),
+            });
+            while answers.try_recv().is_ok() {}
+            i += 1;
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let frames: u64 = rx.into_iter().map(|h| h.join().unwrap_or(0)).sum();
+        let st = s.close();
+        let label = if viewers == 0 {
+            "no viewer".to_string()
+        } else {
+            format!("{viewers} viewers (2 × 30 Hz, 5 Hz; {frames} frames taken)")
+        };
+        rows.push(row(format!("session tick work, {label}"), st.work_us, st.misses));
+        rows.push(row(format!("session tick lateness, {label}"), st.lateness_us, st.misses));
+        rows.push(row(
+            format!("tool state in → answer out, inside the session, {label}"),
+            st.response_us,
+            0,
+        ));
+    }
+    // gRPC round trip on loopback at 1 kHz
+    let rtt = grpc_round_trip(&dir, a.seconds)?;
+    rows.push(row(
+        "gRPC round trip on loopback, 1 tool state per ms (client send → response received)",
+        rtt,
+        0,
+    ));
+    // concurrent scripted sessions
+    for n in a.concurrent.iter().copied() {
+        let (p, m) = null_loop(a.seconds.min(5.0));
+        rows.push(row(format!("null loop before {n} concurrent sessions"), p, m));
+        let mut sessions = Vec::new();
+        for k in 0..n {
+            let (tx, mut rx) = tokio::sync::mpsc::channel(16384);
+            std::thread::spawn(move || while rx.blocking_recv().is_some() {});
+            sessions.push(Session::start_scripted(
+                format!("c{k}"),
+                scene.clone(),
+                bundles.clone(),
+                SessionConfig::default(),
+                Script {
+                    trajectory: traj.clone(),
+                    answers: tx,
+                },
+            )?);
+        }
+        let mut work = hist();
+        let mut late = hist();
+        let mut misses = 0;
+        for s in sessions {
+            let st = s.stats().clone();
+            let _ = s.wait();
+            let h = st.histograms();
+            let _ = work.add(&h.work);
+            let _ = late.add(&h.lateness);
+            misses += st.misses.load(std::sync::atomic::Ordering::Relaxed);
+        }
+        rows.push(row(
+            format!("{n} concurrent sessions (5 s palpation each): tick work"),
+            Percentiles::of(&work),
+            misses,
+        ));
+        rows.push(row(
+            format!("{n} concurrent sessions: tick lateness"),
+            Percentiles::of(&late),
+            misses,
+        ));
+    }
+    let mut out = std::io::stdout().lock();
+    if a.json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&rows)?)?;
+    } else {
+        writeln!(
+            out,
+            "| what | samples | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) | deadline misses |"
+        )?;
+        writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;
+        for r in &rows {
+            writeln!(
+                out,
+                "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} |",
+                r.what, r.samples, r.p50_us, r.p99_us, r.p999_us, r.max_us, r.misses
+            )?;
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A server in this process on a free loopback port, and a client sending one tool state
+/// per millisecond (paced by sleeping to deadlines), timing each answer.
+fn grpc_round_trip(bundle_dir: &std::path::Path, secs: f64) -> anyhow::Result<Percentiles> {
+    let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+    rt.block_on(async {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+        let addr = listener.local_addr()?;
+        let parent = bundle_dir.parent().map(PathBuf::from).unwrap_or_else(|| PathBuf::from("."));
+        let name = bundle_dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let config = vademecum_server::config::ServerConfig {
+            bundle_root: parent,
+            ..Default::default()
+        };
+        let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let server = tokio::spawn(vademecum_server::run(listener, None, config, async {
+            let _ = stop_rx.await;
+        }));
+        let client = vademecum_client::Client::connect(format!("http://{addr}")).await?;
+        let session = client
+            .create_session(vademecum_client::SceneSpec::Builtin("organ".into()), &name, "bench")
+            .await?;
+        let mut tools = session.interact().await?;
+        let mut h = hist();
+        let period = Duration::from_millis(1);
+        let end = Instant::now() + Duration::from_secs_f64(secs);
+        let mut next = Instant::now();
+        let mut i = 0u64;
+        while Instant::now() < end {
+            let now = Instant::now();
+            if next > now {
+                tokio::time::sleep(next - now).await;
+            }
+            let t0 = Instant::now();
+            let s = (i % 5000) as f64 * 1e-3;
+            tools
+                .send(vademecum_client::tool_at(
+                    i,
+                    [
+                        0.02 * (3.0 * s).cos(),
+                        0.015 * (3.0 * s).sin(),
+                        0.030 - 0.006 * (5.0 * s).sin().abs(),
+                    ],
+                ))
+                .await?;
+            let r = tools.next().await?.context("the server ended the stream")?;
+            anyhow::ensure!(r.seq == i, "answer {} for tool state {i}", r.seq);
+            let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
+            i += 1;
+            next += period;
+            if Instant::now() > next + period * 10 {
+                next = Instant::now();
+            }
+        }
+        tools.finish();
+        let _ = session.close().await;
+        let _ = stop_tx.send(());
+        let _ = server.await;
+        Ok(Percentiles::of(&h))
+    })
+}

@@ -1,0 +1,125 @@
+//! The wire contract is language-neutral: a Python client generated from the `.proto` files
+//! with grpcio (in this test's own virtual environment) creates a session on a server
+//! process and receives one force per tool state, in order; a malformed message gets a clear
+//! status and the session goes on being served.
+//!
+//! Needs `python3` with `venv` and access to PyPI (grpcio, grpcio-tools), which `.ci/run`
+//! checks for.
+
+mod util;
+
+use std::path::Path;
+use std::process::Command;
+
+const CLIENT: &str = r#"
+import json, sys
+import grpc
+sys.path.insert(0, sys.argv[2])
+from vademecum.v1 import session_pb2, session_pb2_grpc, interaction_pb2, interaction_pb2_grpc
+
+channel = grpc.insecure_channel(sys.argv[1])
+sessions = session_pb2_grpc.SessionsStub(channel)
+info = sessions.CreateSession(session_pb2.CreateSessionRequest(builtin="organ", bundle_dir="organ", label="python"))
+
+def tools():
+    for i in range(200):
+        z = 0.030 - 0.005 * (i % 100) / 100.0
+        yield interaction_pb2.ToolState(
+            session_id=info.session_id if i == 0 else "",
+            seq=i,
+            kind=interaction_pb2.TOOL_KIND_PROBE,
+            position_m=interaction_pb2.Vec3(x=0.0, y=0.0, z=z),
+        )
+
+stub = interaction_pb2_grpc.InteractionStub(channel)
+seqs, forces = [], []
+for r in stub.Interact(tools()):
+    seqs.append(r.seq)
+    forces.append([r.force_n.x, r.force_n.y, r.force_n.z])
+try:
+    sessions.GetSession(session_pb2.GetSessionRequest(session_id="no-such-session"))
+    missing = "OK"
+except grpc.RpcError as e:
+    missing = e.code().name
+# a malformed message: bytes that are not a GetSessionRequest
+raw = channel.unary_unary("/vademecum.v1.Sessions/GetSession", request_serializer=lambda b: b, response_deserializer=lambda b: b)
+try:
+    raw(b"\xff\xff\xff\xff")
+    malformed = ["OK", ""]
+except grpc.RpcError as e:
+    malformed = [e.code().name, e.details()]
+# and the session is still served afterwards
+after = sessions.GetSession(session_pb2.GetSessionRequest(session_id=info.session_id)).stats.answered
+sessions.CloseSession(session_pb2.CloseSessionRequest(session_id=info.session_id))
+print(json.dumps({"effects": list(info.effects), "seqs": seqs, "forces": forces, "missing": missing, "malformed": malformed, "after": after}))
+"#;
+
+fn run(cmd: &mut Command, what: &str) -> String {
+    let o = cmd.output().unwrap_or_else(|e| panic!("{what}: cannot run: {e}"));
+    assert!(
+        o.status.success(),
+        "{what} failed:\n{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn a_python_grpcio_client_creates_a_session_and_receives_forces() {
+    let venv = tempfile::tempdir().unwrap();
+    let v = venv.path();
+    run(Command::new("python3").args(["-m", "venv"]).arg(v.join("env")), "python3 -m venv");
+    let py = v.join("env/bin/python");
+    run(
+        Command::new(&py).args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+            "grpcio",
+            "grpcio-tools",
+        ]),
+        "pip install grpcio grpcio-tools",
+    );
+    let proto = Path::new(env!("CARGO_MANIFEST_DIR")).join("../proto");
+    let gen_dir = v.join("gen");
+    std::fs::create_dir_all(&gen_dir).unwrap();
+    let mut protoc = Command::new(&py);
+    protoc
+        .args(["-m", "grpc_tools.protoc", "-I"])
+        .arg(&proto)
+        .arg(format!("--python_out={}", gen_dir.display()))
+        .arg(format!("--grpc_python_out={}", gen_dir.display()));
+    for f in ["info", "session", "interaction", "viewing"] {
+        protoc.arg(format!("vademecum/v1/{f}.proto"));
+    }
+    run(&mut protoc, "grpc_tools.protoc");
+    let server = util::Server::start(&[], &[]);
+    let addr = server.url.trim_start_matches("http://").to_string();
+    std::fs::write(v.join("client.py"), CLIENT).unwrap();
+    let out = run(
+        Command::new(&py).arg(v.join("client.py")).arg(&addr).arg(&gen_dir),
+        "the Python client",
+    );
+    let r: serde_json::Value = serde_json::from_str(out.trim()).expect("the client prints JSON");
+    assert_eq!(r["effects"], serde_json::json!(["palpation"]));
+    let seqs: Vec<u64> = r["seqs"].as_array().unwrap().iter().map(|s| s.as_u64().unwrap()).collect();
+    assert_eq!(seqs, (0..200).collect::<Vec<_>>(), "one response per tool state, in order");
+    let pressing = r["forces"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f[2].as_f64().unwrap() > 0.0)
+        .count();
+    assert!(
+        pressing > 50,
+        "the probe pressing into the top of the organ is pushed back up ({pressing} of 200)"
+    );
+    assert_eq!(r["missing"], "NOT_FOUND");
+    // tonic refuses undecodable bytes before any handler runs, naming the decode failure
+    assert_eq!(r["malformed"][0], "INTERNAL", "{}", r["malformed"]);
+    assert!(r["malformed"][1].as_str().unwrap().contains("decode"), "{}", r["malformed"]);
+    assert_eq!(r["after"], 200);
+}
