@@ -132,13 +132,29 @@ impl Client {
 
     /// Connects and presents `token` on every call.
     pub async fn connect_with_token(addr: impl Into<String>, token: Option<&str>) -> Result<Self, SdkError> {
+        Self::connect_with(addr, token, None).await
+    }
+
+    /// Connects over TLS to `addr` (`https://…`), trusting the CA certificate `ca_pem` and
+    /// checking that the server's certificate names `domain`; presents `token` if given.
+    pub async fn connect_tls(addr: impl Into<String>, ca_pem: &[u8], domain: &str, token: Option<&str>) -> Result<Self, SdkError> {
+        let tls = tonic::transport::ClientTlsConfig::new()
+            .ca_certificate(tonic::transport::Certificate::from_pem(ca_pem))
+            .domain_name(domain);
+        Self::connect_with(addr, token, Some(tls)).await
+    }
+
+    async fn connect_with(addr: impl Into<String>, token: Option<&str>, tls: Option<tonic::transport::ClientTlsConfig>) -> Result<Self, SdkError> {
         let addr = addr.into();
         let token = match token {
             Some(t) => Token(Some(format!("Bearer {t}").parse().map_err(|_| SdkError::BadToken)?)),
             None => Token(None),
         };
-        let channel = Channel::from_shared(addr.clone())
-            .map_err(|_| SdkError::Closed)?
+        let mut endpoint = Channel::from_shared(addr.clone()).map_err(|_| SdkError::Closed)?;
+        if let Some(tls) = tls {
+            endpoint = endpoint.tls_config(tls).map_err(|source| SdkError::Connect { addr: addr.clone(), source })?;
+        }
+        let channel = endpoint
             .connect()
             .await
             .map_err(|source| SdkError::Connect { addr, source })?;

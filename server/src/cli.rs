@@ -75,7 +75,8 @@ Prints 'listening on ADDR' once ready. Stops on Ctrl-C: every session is closed 
 streams end.\n\n\
 Authentication: with --tokens-file or VADEMECUM_TOKENS (comma-separated), every call must \
 carry 'authorization: Bearer <token>', and a client reaches only the sessions created with \
-its token. Limits: requests up to 1 MiB (an inline scene), responses up to 64 MiB (the \
+its token. With --tls-cert and --tls-key the server speaks TLS (rustls); use it with tokens \
+for remote clients. Limits: requests up to 1 MiB (an inline scene), responses up to 64 MiB (the \
 geometry of a large organ).")]
     Serve(ServeArgs),
     /// Show what is inside a bundle.
@@ -187,6 +188,12 @@ pub struct ServeArgs {
     /// File with one accepted bearer token per line ('#' comments); enables authentication.
     #[arg(long, value_name = "FILE")]
     pub tokens_file: Option<PathBuf>,
+    /// TLS certificate chain (PEM); with --tls-key, serves TLS (rustls) for remote clients.
+    #[arg(long, value_name = "PEM", requires = "tls_key")]
+    pub tls_cert: Option<PathBuf>,
+    /// TLS private key (PEM).
+    #[arg(long, value_name = "PEM", requires = "tls_cert")]
+    pub tls_key: Option<PathBuf>,
 }
 
 /// Arguments of `vademecum inspect`.

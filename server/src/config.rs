@@ -24,6 +24,9 @@ pub struct ServerConfig {
     /// Largest message the server sends (bytes): the geometry message of a large organ
     /// (positions and triangles of its surface).
     pub max_response_bytes: usize,
+    /// TLS certificate chain and private key (PEM) for remote clients (`None`: plain
+    /// HTTP/2, for loopback and trusted networks).
+    pub tls: Option<(Vec<u8>, Vec<u8>)>,
     /// Bearer tokens accepted (`None`: no authentication; every client is "anonymous").
     pub tokens: Option<Vec<String>>,
     /// How sessions tick.
@@ -41,6 +44,7 @@ impl Default for ServerConfig {
             max_request_bytes: 1 << 20,
             max_response_bytes: 64 << 20,
             tokens: None,
+            tls: None,
             session: SessionConfig::default(),
         }
     }

@@ -95,7 +95,11 @@ pub async fn run(
             let _ = stop_tx.send(true);
         }
     };
-    tonic::transport::Server::builder()
+    let mut builder = tonic::transport::Server::builder();
+    if let Some((cert, key)) = &config.tls {
+        builder = builder.tls_config(tonic::transport::ServerTlsConfig::new().identity(tonic::transport::Identity::from_pem(cert, key)))?;
+    }
+    builder
         .add_service(health_service)
         .add_service(reflection)
         .add_service(InterceptedService::new(info, auth.clone()))

@@ -265,3 +265,33 @@ fn metrics_export_tick_latency_histograms_misses_and_clients() {
         .unwrap();
     assert_eq!(answers, 300);
 }
+
+#[test]
+fn tls_with_tokens_serves_remote_clients_and_refuses_plain_ones() {
+    let certs = tempfile::tempdir().unwrap();
+    let ck = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    let (cert, key) = (certs.path().join("cert.pem"), certs.path().join("key.pem"));
+    std::fs::write(&cert, ck.cert.pem()).unwrap();
+    std::fs::write(&key, ck.signing_key.serialize_pem()).unwrap();
+    let (c, k) = (cert.to_string_lossy().into_owned(), key.to_string_lossy().into_owned());
+    let server = util::Server::start(&["--tls-cert", &c, "--tls-key", &k], &[("VADEMECUM_TOKENS", "t0k3n")]);
+    let https = server.url.replace("http://127.0.0.1", "https://localhost");
+    let rt = util::runtime();
+    rt.block_on(async {
+        let ca = ck.cert.pem();
+        let client = Client::connect_tls(https.clone(), ca.as_bytes(), "localhost", Some("t0k3n")).await.unwrap();
+        let session = client.create_session(SceneSpec::Builtin("organ".into()), "organ", "tls").await.unwrap();
+        let mut tools = session.interact().await.unwrap();
+        tools.send(tool_at(0, path(0))).await.unwrap();
+        assert_eq!(tools.next().await.unwrap().unwrap().seq, 0);
+        // the right CA but no token
+        let anon = Client::connect_tls(https, ca.as_bytes(), "localhost", None).await.unwrap();
+        assert_eq!(anon.list_sessions().await.unwrap_err().kind(), ErrorKind::Unauthenticated);
+        // a plain-text client cannot talk to it
+        let plain = match Client::connect(server.url.clone()).await {
+            Ok(c) => c.list_sessions().await.map(|_| ()),
+            Err(e) => Err(e),
+        };
+        assert!(plain.is_err(), "a plain HTTP/2 client must not get through");
+    });
+}

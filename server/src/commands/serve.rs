@@ -35,7 +35,16 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     if !(a.max_frame_rate > 0.0 && a.max_frame_rate <= 240.0) {
         bail!("--max-frame-rate must lie in (0, 240] Hz, got {}", a.max_frame_rate);
     }
+    let tls = match (&a.tls_cert, &a.tls_key) {
+        (Some(c), Some(k)) => Some((
+            std::fs::read(c).with_context(|| format!("cannot read TLS certificate {}", c.display()))?,
+            std::fs::read(k).with_context(|| format!("cannot read TLS key {}", k.display()))?,
+        )),
+        (None, None) => None,
+        _ => bail!("--tls-cert and --tls-key go together"),
+    };
     let config = ServerConfig {
+        tls,
         scene_root: a.scene_root.clone(),
         bundle_root: a.bundle_root.clone(),
         allow_paths: !a.no_paths,
@@ -63,6 +72,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             if let Some(m) = &metrics {
                 writeln!(out, "metrics on http://{}/metrics", m.local_addr()?)?;
             }
+            writeln!(out, "transport: {}", if config.tls.is_some() { "TLS (rustls)" } else { "plain HTTP/2" })?;
             writeln!(
                 out,
                 "authentication: {}",
