@@ -144,7 +144,11 @@ impl Client {
         Self::connect_with(addr, token, Some(tls)).await
     }
 
-    async fn connect_with(addr: impl Into<String>, token: Option<&str>, tls: Option<tonic::transport::ClientTlsConfig>) -> Result<Self, SdkError> {
+    async fn connect_with(
+        addr: impl Into<String>,
+        token: Option<&str>,
+        tls: Option<tonic::transport::ClientTlsConfig>,
+    ) -> Result<Self, SdkError> {
         let addr = addr.into();
         let token = match token {
             Some(t) => Token(Some(format!("Bearer {t}").parse().map_err(|_| SdkError::BadToken)?)),
@@ -152,12 +156,12 @@ impl Client {
         };
         let mut endpoint = Channel::from_shared(addr.clone()).map_err(|_| SdkError::Closed)?;
         if let Some(tls) = tls {
-            endpoint = endpoint.tls_config(tls).map_err(|source| SdkError::Connect { addr: addr.clone(), source })?;
+            endpoint = endpoint.tls_config(tls).map_err(|source| SdkError::Connect {
+                addr: addr.clone(),
+                source,
+            })?;
         }
-        let channel = endpoint
-            .connect()
-            .await
-            .map_err(|source| SdkError::Connect { addr, source })?;
+        let channel = endpoint.connect().await.map_err(|source| SdkError::Connect { addr, source })?;
         Ok(Self { channel, token })
     }
 

@@ -6,25 +6,13 @@
 
 use std::path::PathBuf;
 
-use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
 
 fn default_build(scene: &Scene) -> offline::BuildReport {
-    let f = scene.spec.fidelity.pgd;
-    let opts = BuildOptions {
-        params: PgdParams {
-            global_tolerance: f.global_tolerance,
-            enrichment_tolerance: f.enrichment_tolerance,
-            max_modes: f.max_modes,
-            max_iterations: f.max_iterations,
-            block: f.block,
-        },
-        tolerance: f.tolerance,
-        recompress: true,
-        load_radius: offline::probe_radius(scene),
-    };
-    offline::build_organ(scene, 0, &opts, &mut |_| {}).unwrap().report
+    offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {})
+        .unwrap()
+        .report
 }
 
 fn check(r: &offline::BuildReport) {

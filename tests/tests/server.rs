@@ -279,8 +279,13 @@ fn tls_with_tokens_serves_remote_clients_and_refuses_plain_ones() {
     let rt = util::runtime();
     rt.block_on(async {
         let ca = ck.cert.pem();
-        let client = Client::connect_tls(https.clone(), ca.as_bytes(), "localhost", Some("t0k3n")).await.unwrap();
-        let session = client.create_session(SceneSpec::Builtin("organ".into()), "organ", "tls").await.unwrap();
+        let client = Client::connect_tls(https.clone(), ca.as_bytes(), "localhost", Some("t0k3n"))
+            .await
+            .unwrap();
+        let session = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "tls")
+            .await
+            .unwrap();
         let mut tools = session.interact().await.unwrap();
         tools.send(tool_at(0, path(0))).await.unwrap();
         assert_eq!(tools.next().await.unwrap().unwrap().seq, 0);

@@ -37,6 +37,25 @@ pub struct BuildOptions {
     pub load_radius: f64,
 }
 
+impl BuildOptions {
+    /// What a scene's `[fidelity.pgd]` asks for, with the load footprint of its probe.
+    pub fn for_scene(scene: &Scene, recompress: bool) -> Self {
+        let f = scene.spec.fidelity.pgd;
+        Self {
+            params: PgdParams {
+                global_tolerance: f.global_tolerance,
+                enrichment_tolerance: f.enrichment_tolerance,
+                max_modes: f.max_modes,
+                max_iterations: f.max_iterations,
+                block: f.block,
+            },
+            tolerance: f.tolerance,
+            recompress,
+            load_radius: probe_radius(scene),
+        }
+    }
+}
+
 /// A stage of [`build_organ`], for progress displays.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum BuildStage {

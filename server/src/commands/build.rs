@@ -6,30 +6,12 @@ use std::process::ExitCode;
 use std::sync::Arc;
 
 use anyhow::Context;
-use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle};
 use vademecum_engine::scene::Scene;
 
 use crate::cli::BuildArgs;
 use crate::commands::solve::load_scene;
 use crate::progress::Stages;
-
-/// The build options a scene's `[fidelity.pgd]` asks for.
-pub(crate) fn options(scene: &Scene, recompress: bool) -> BuildOptions {
-    let f = scene.spec.fidelity.pgd;
-    BuildOptions {
-        params: PgdParams {
-            global_tolerance: f.global_tolerance,
-            enrichment_tolerance: f.enrichment_tolerance,
-            max_modes: f.max_modes,
-            max_iterations: f.max_iterations,
-            block: f.block,
-        },
-        tolerance: f.tolerance,
-        recompress,
-        load_radius: offline::probe_radius(scene),
-    }
-}
 
 /// Builds organ `i` of `scene` with a progress display.
 pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) -> anyhow::Result<(Built, Stages)> {
@@ -71,7 +53,7 @@ pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Ar
             }
         };
         eprintln!("vademecum: building the vademecum of '{name}' ({reason})");
-        let (built, bar) = build_with_progress(scene, i, &options(scene, true))?;
+        let (built, bar) = build_with_progress(scene, i, &BuildOptions::for_scene(scene, true))?;
         bar.stage("writing bundle");
         offline::write_bundle(&path, scene, &built).with_context(|| format!("cannot write bundle {}", path.display()))?;
         bar.finish();
@@ -84,7 +66,7 @@ pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Ar
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
-    let opts = options(&scene, !a.no_recompress);
+    let opts = BuildOptions::for_scene(&scene, !a.no_recompress);
     let mut reports = Vec::new();
     let mut stdout = std::io::stdout().lock();
     for i in 0..scene.spec.organs.len() {

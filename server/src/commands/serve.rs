@@ -72,7 +72,11 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             if let Some(m) = &metrics {
                 writeln!(out, "metrics on http://{}/metrics", m.local_addr()?)?;
             }
-            writeln!(out, "transport: {}", if config.tls.is_some() { "TLS (rustls)" } else { "plain HTTP/2" })?;
+            writeln!(
+                out,
+                "transport: {}",
+                if config.tls.is_some() { "TLS (rustls)" } else { "plain HTTP/2" }
+            )?;
             writeln!(
                 out,
                 "authentication: {}",
