@@ -19,10 +19,11 @@
 //! streams end with OK), in-flight calls complete, and the sessions' threads are joined as
 //! the last stream lets go of each.
 //!
-//! The `vademecum` binary (`main.rs`, `cli.rs`, `commands/`) is a thin command line over this
-//! library and the engine.
+//! - [`cli_main`]: the `vademecum` command line (`cli` = clap definitions, `commands/` = one
+//!   file per subcommand); `main.rs` only calls [`cli_main::main_entry`].
 
 pub mod auth;
+pub mod cli_main;
 pub mod config;
 pub mod convert;
 pub mod error;

@@ -1,7 +1,8 @@
 //! The wire contract is language-neutral: a Python client generated from the `.proto` files
 //! with grpcio (in this test's own virtual environment) creates a session on a server
 //! process and receives one force per tool state, in order; a malformed message gets a clear
-//! status and the session goes on being served.
+//! status and the session goes on being served; a client process killed mid-stream is
+//! noticed and released while other sessions keep being served.
 //!
 //! Needs `python3` with `venv` and access to PyPI (grpcio, grpcio-tools), which `.ci/run`
 //! checks for.
@@ -52,6 +53,22 @@ except grpc.RpcError as e:
 after = sessions.GetSession(session_pb2.GetSessionRequest(session_id=info.session_id)).stats.answered
 sessions.CloseSession(session_pb2.CloseSessionRequest(session_id=info.session_id))
 print(json.dumps({"effects": list(info.effects), "seqs": seqs, "forces": forces, "missing": missing, "malformed": malformed, "after": after}))
+"#;
+
+/// Streams tool states until killed, saying "streaming" once answers flow.
+const FOREVER: &str = r#"
+import sys, itertools
+import grpc
+sys.path.insert(0, sys.argv[2])
+from vademecum.v1 import session_pb2, session_pb2_grpc, interaction_pb2, interaction_pb2_grpc
+channel = grpc.insecure_channel(sys.argv[1])
+info = session_pb2_grpc.SessionsStub(channel).CreateSession(session_pb2.CreateSessionRequest(builtin="organ", bundle_dir="organ"))
+def tools():
+    for i in itertools.count():
+        yield interaction_pb2.ToolState(session_id=info.session_id, seq=i, position_m=interaction_pb2.Vec3(z=0.028))
+for r in interaction_pb2_grpc.InteractionStub(channel).Interact(tools()):
+    if r.seq == 20:
+        print("streaming", info.session_id, flush=True)
 "#;
 
 fn run(cmd: &mut Command, what: &str) -> String {
@@ -122,4 +139,54 @@ fn a_python_grpcio_client_creates_a_session_and_receives_forces() {
     assert_eq!(r["malformed"][0], "INTERNAL", "{}", r["malformed"]);
     assert!(r["malformed"][1].as_str().unwrap().contains("decode"), "{}", r["malformed"]);
     assert_eq!(r["after"], 200);
+
+    // a client process killed mid-stream: the server notices, and keeps serving others
+    std::fs::write(v.join("forever.py"), FOREVER).unwrap();
+    let mut child = Command::new(&py)
+        .arg(v.join("forever.py"))
+        .arg(&addr)
+        .arg(&gen_dir)
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    std::io::BufRead::read_line(&mut std::io::BufReader::new(child.stdout.take().unwrap()), &mut line).unwrap();
+    assert!(line.starts_with("streaming"), "{line}");
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = vademecum_client::Client::connect(server.url.clone()).await.unwrap();
+        let s = client
+            .create_session(vademecum_client::SceneSpec::Builtin("organ".into()), "organ", "after the kill")
+            .await
+            .unwrap();
+        let mut tools = s.interact().await.unwrap();
+        for i in 0..100u64 {
+            tools.send(vademecum_client::tool_at(i, [0.0, 0.0, 0.028])).await.unwrap();
+            assert_eq!(tools.next().await.unwrap().unwrap().seq, i);
+        }
+        // the killed client's stream is gone from its session
+        let killed = client.list_sessions().await.unwrap();
+        let orphan = killed
+            .iter()
+            .find(|x| x.label.is_empty())
+            .expect("the killed client's session is listed");
+        let mut interacting = orphan.stats.unwrap_or_default().interacting_clients;
+        for _ in 0..100 {
+            if interacting == 0 {
+                break;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+            interacting = client
+                .session(&orphan.session_id)
+                .await
+                .unwrap()
+                .stats()
+                .await
+                .unwrap()
+                .interacting_clients;
+        }
+        assert_eq!(interacting, 0, "the killed client's stream was released");
+    });
 }

@@ -300,3 +300,54 @@ fn tls_with_tokens_serves_remote_clients_and_refuses_plain_ones() {
         assert!(plain.is_err(), "a plain HTTP/2 client must not get through");
     });
 }
+
+#[test]
+fn the_standard_health_service_and_reflection_describe_the_server() {
+    use tonic_health::pb::{HealthCheckRequest, health_check_response::ServingStatus, health_client::HealthClient};
+    use tonic_reflection::pb::v1::ServerReflectionRequest;
+    use tonic_reflection::pb::v1::server_reflection_client::ServerReflectionClient;
+    use tonic_reflection::pb::v1::server_reflection_request::MessageRequest;
+    use tonic_reflection::pb::v1::server_reflection_response::MessageResponse;
+    let server = util::Server::start(&[], &[("VADEMECUM_TOKENS", "t")]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let channel = tonic::transport::Channel::from_shared(server.url.clone())
+            .unwrap()
+            .connect()
+            .await
+            .unwrap();
+        // health and reflection answer without a token: orchestrators probe them
+        let mut health = HealthClient::new(channel.clone());
+        for service in ["vademecum.v1.Sessions", "vademecum.v1.Interaction", "vademecum.v1.Viewing"] {
+            let r = health
+                .check(HealthCheckRequest { service: service.into() })
+                .await
+                .unwrap()
+                .into_inner();
+            assert_eq!(r.status, ServingStatus::Serving as i32, "{service}");
+        }
+        let mut reflection = ServerReflectionClient::new(channel);
+        let req = ServerReflectionRequest {
+            host: String::new(),
+            message_request: Some(MessageRequest::ListServices(String::new())),
+        };
+        let mut responses = reflection
+            .server_reflection_info(tokio_stream::iter(vec![req]))
+            .await
+            .unwrap()
+            .into_inner();
+        let r = responses.message().await.unwrap().unwrap();
+        let Some(MessageResponse::ListServicesResponse(list)) = r.message_response else {
+            panic!("not a service list: {r:?}");
+        };
+        let names: Vec<String> = list.service.into_iter().map(|s| s.name).collect();
+        for s in [
+            "vademecum.v1.Sessions",
+            "vademecum.v1.Interaction",
+            "vademecum.v1.Viewing",
+            "vademecum.v1.Info",
+        ] {
+            assert!(names.iter().any(|n| n == s), "{s} missing from {names:?}");
+        }
+    });
+}

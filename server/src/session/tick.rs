@@ -86,10 +86,11 @@ impl TickLoop {
                 let input = script.trajectory.at(t);
                 let a = self.answer(tick, &input, tick, self.micros(start), start);
                 Histograms::record(&mut local.response, (a.answered_us - a.received_us) * 1000);
+                // counted before it leaves, so a reader that has the answer sees it counted
+                self.stats.answered.fetch_add(1, Ordering::Relaxed);
                 if script.answers.try_send(a).is_err() {
                     self.stats.dropped.fetch_add(1, Ordering::Relaxed);
                 }
-                self.stats.answered.fetch_add(1, Ordering::Relaxed);
                 state = Some(a.state);
                 last_input = Some(input);
                 self.script = Some(script);
@@ -102,10 +103,10 @@ impl TickLoop {
                             &mut local.response,
                             Instant::now().saturating_duration_since(c.received).as_nanos() as u64,
                         );
+                        self.stats.answered.fetch_add(1, Ordering::Relaxed);
                         if c.reply.try_send(a).is_err() {
                             self.stats.dropped.fetch_add(1, Ordering::Relaxed);
                         }
-                        self.stats.answered.fetch_add(1, Ordering::Relaxed);
                         state = Some(a.state);
                         if c.input.is_valid() {
                             last_input = Some(c.input);

@@ -10,23 +10,10 @@ use std::process::{Child, Command, Stdio};
 use std::sync::{OnceLock, mpsc};
 use std::time::Duration;
 
-/// The `vademecum` binary beside this test executable, brought up to date once per test
-/// run (`cargo build --profile test`, a no-op when `cargo test --workspace` just built it:
-/// this crate cannot name another package's binary, so cargo would not rebuild it for us).
+/// The `vademecum` command line, as this package's own binary (cargo builds it for these
+/// tests, with the features of this build).
 pub fn vademecum_bin() -> PathBuf {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        let exe = std::env::current_exe().expect("test executable path");
-        let dir = exe.parent().and_then(Path::parent).expect("target/<profile>");
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let ok = Command::new(cargo)
-            .args(["build", "--profile", "test", "-p", "vademecum-server", "--bin", "vademecum"])
-            .status()
-            .expect("cargo runs");
-        assert!(ok.success(), "cannot build the vademecum binary");
-        dir.join(format!("vademecum{}", std::env::consts::EXE_SUFFIX))
-    })
-    .clone()
+    PathBuf::from(env!("CARGO_BIN_EXE_vademecum-under-test"))
 }
 
 /// Runs `vademecum args…` in `dir` and returns its output, failing the test on error.
@@ -82,11 +69,11 @@ impl Server {
         let mut child = cmd.spawn().expect("server starts");
         let stdout = child.stdout.take().expect("piped stdout");
         let (tx, rx) = mpsc::channel();
+        // keep draining stdout for the server's whole life: closing the pipe early would make
+        // its next write fail (the broken pipe ends `vademecum` quietly)
         std::thread::spawn(move || {
             for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                if tx.send(line).is_err() {
-                    break;
-                }
+                let _ = tx.send(line);
             }
         });
         let (mut url, mut metrics) = (None, None);

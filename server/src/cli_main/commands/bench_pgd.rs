@@ -13,7 +13,7 @@ use vademecum_engine::pgd::contact::SurfaceContact;
 use vademecum_engine::pgd::offline;
 use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
 
-use crate::cli::BenchPgdArgs;
+use crate::cli_main::cli::BenchPgdArgs;
 
 #[derive(Debug, Serialize)]
 struct Stat {

@@ -9,9 +9,9 @@ use anyhow::Context;
 use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle};
 use vademecum_engine::scene::Scene;
 
-use crate::cli::BuildArgs;
-use crate::commands::solve::load_scene;
-use crate::progress::Stages;
+use crate::cli_main::cli::BuildArgs;
+use crate::cli_main::commands::solve::load_scene;
+use crate::cli_main::progress::Stages;
 
 /// Builds organ `i` of `scene` with a progress display.
 pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) -> anyhow::Result<(Built, Stages)> {

@@ -11,8 +11,8 @@ use vademecum_engine::fem::linear_static::{self, Timings};
 use vademecum_engine::mesh::vtk::{self, Field};
 use vademecum_engine::scene::Scene;
 
-use crate::cli::{SceneSource, SolveArgs};
-use crate::progress::Stages;
+use crate::cli_main::cli::{SceneSource, SolveArgs};
+use crate::cli_main::progress::Stages;
 
 /// The JSON summary of one organ (`--json`, and `summary.json`).
 #[derive(Debug, Serialize)]

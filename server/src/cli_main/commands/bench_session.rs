@@ -13,15 +13,15 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::session::stats::Percentiles;
+use crate::session::{Script, Session, SessionConfig, ToolCommand, Trajectory};
 use anyhow::{Context, bail};
 use hdrhistogram::Histogram;
 use serde::Serialize;
 use vademecum_engine::scene::Scene;
-use vademecum_server::session::stats::Percentiles;
-use vademecum_server::session::{Script, Session, SessionConfig, ToolCommand, Trajectory};
 
-use crate::cli::BenchSessionArgs;
-use crate::commands::build::ensure_bundles;
+use crate::cli_main::cli::BenchSessionArgs;
+use crate::cli_main::commands::build::ensure_bundles;
 
 #[derive(Debug, Serialize)]
 struct Row {
@@ -214,12 +214,12 @@ fn grpc_round_trip(bundle_dir: &std::path::Path, secs: f64) -> anyhow::Result<Pe
         let addr = listener.local_addr()?;
         let parent = bundle_dir.parent().map(PathBuf::from).unwrap_or_else(|| PathBuf::from("."));
         let name = bundle_dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        let config = vademecum_server::config::ServerConfig {
+        let config = crate::config::ServerConfig {
             bundle_root: parent,
             ..Default::default()
         };
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let server = tokio::spawn(vademecum_server::run(listener, None, config, async {
+        let server = tokio::spawn(crate::run(listener, None, config, async {
             let _ = stop_rx.await;
         }));
         let client = vademecum_client::Client::connect(format!("http://{addr}")).await?;

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::anyhow;
 use vademecum_engine::scene::{self, Scene};
 
-use crate::cli::SceneCommand;
+use crate::cli_main::cli::SceneCommand;
 
 pub fn run(c: SceneCommand) -> anyhow::Result<ExitCode> {
     let mut out = std::io::stdout().lock();

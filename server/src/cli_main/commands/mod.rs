@@ -13,7 +13,7 @@ mod solve;
 
 use std::process::ExitCode;
 
-use crate::cli::{BenchCommand, Cli, Command, MeshCommand};
+use crate::cli_main::cli::{BenchCommand, Cli, Command, MeshCommand};
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {

@@ -8,16 +8,16 @@ use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::session::stats::Percentiles;
+use crate::session::{Answer, Script, Session, SessionConfig, Trajectory};
 use anyhow::{Context, bail};
 use serde::Serialize;
 use vademecum_engine::mesh::vtk::{self, Field};
 use vademecum_engine::pipeline::Events;
-use vademecum_server::session::stats::Percentiles;
-use vademecum_server::session::{Answer, Script, Session, SessionConfig, Trajectory};
 
-use crate::cli::RunArgs;
-use crate::commands::build::ensure_bundles;
-use crate::commands::solve::load_scene;
+use crate::cli_main::cli::RunArgs;
+use crate::cli_main::commands::build::ensure_bundles;
+use crate::cli_main::commands::solve::load_scene;
 
 /// What `vademecum run` reports (also written as `summary.json`).
 #[derive(Debug, Serialize)]

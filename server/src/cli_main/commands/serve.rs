@@ -3,10 +3,10 @@
 use std::io::Write;
 use std::process::ExitCode;
 
+use crate::config::ServerConfig;
 use anyhow::{Context, bail};
-use vademecum_server::config::ServerConfig;
 
-use crate::cli::ServeArgs;
+use crate::cli_main::cli::ServeArgs;
 
 fn tokens(a: &ServeArgs) -> anyhow::Result<Option<Vec<String>>> {
     let mut tokens: Vec<String> = Vec::new();
@@ -88,7 +88,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             )?;
             out.flush()?;
         }
-        vademecum_server::run(listener, metrics, config, async {
+        crate::run(listener, metrics, config, async {
             let _ = tokio::signal::ctrl_c().await;
         })
         .await

@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::{Context, bail};
 use vademecum_engine::mesh::{self, quality};
 
-use crate::cli::MeshInfoArgs;
+use crate::cli_main::cli::MeshInfoArgs;
 
 pub fn run(a: MeshInfoArgs) -> anyhow::Result<ExitCode> {
     if !(a.scale.is_finite() && a.scale > 0.0) {

@@ -12,8 +12,8 @@ use vademecum_engine::fem::linear_static::{self, StaticProblem};
 use vademecum_engine::material::LinearElastic;
 use vademecum_engine::mesh::{Mesh, procedural, select::Region};
 
-use crate::cli::{BenchFeArgs, CellArg};
-use crate::progress::Stages;
+use crate::cli_main::cli::{BenchFeArgs, CellArg};
+use crate::cli_main::progress::Stages;
 
 #[derive(Debug, Serialize)]
 struct Row {

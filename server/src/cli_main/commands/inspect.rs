@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use vademecum_engine::pgd::offline;
 
-use crate::cli::InspectArgs;
+use crate::cli_main::cli::InspectArgs;
 
 pub fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     let b = offline::load_bundle(&a.bundle).with_context(|| format!("cannot load bundle {}", a.bundle.display()))?;
