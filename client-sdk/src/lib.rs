@@ -255,7 +255,7 @@ impl Session {
         let responses_fut = async move { c.interact(ReceiverStream::new(rx)).await };
         let interaction = Interaction {
             session_id: first_id,
-            tx,
+            tx: Some(tx),
             first_sent: false,
             pending: None,
         };
@@ -292,7 +292,8 @@ type ResponsesFuture = std::pin::Pin<Box<dyn Future<Output = Result<tonic::Respo
 /// A bidirectional stream of tool states and their responses.
 pub struct Interaction {
     session_id: String,
-    tx: mpsc::Sender<pb::ToolState>,
+    /// `None` once the client's side is finished.
+    tx: Option<mpsc::Sender<pb::ToolState>>,
     first_sent: bool,
     pending: Option<PendingResponses>,
 }
@@ -323,13 +324,13 @@ impl Interaction {
             state.session_id = self.session_id.clone();
             self.first_sent = true;
         }
-        self.tx.send(state).await.map_err(|_| SdkError::Closed)
+        let tx = self.tx.as_ref().ok_or(SdkError::Closed)?;
+        tx.send(state).await.map_err(|_| SdkError::Closed)
     }
 
     /// Ends the client's side of the stream: the server answers what was sent, then ends.
     pub fn finish(&mut self) {
-        let (tx, _) = mpsc::channel(1);
-        self.tx = tx;
+        self.tx = None;
     }
 
     async fn stream(&mut self) -> Result<&mut Streaming<pb::ToolResponse>, SdkError> {

@@ -322,16 +322,16 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     let (sep, greedy) = build::build(&k, &chol, &load_eqs, &opts.params, &mut |m, e| on(BuildStage::Mode(m, e)));
     let pgd_s = greedy.time_s;
     let clock = Instant::now();
-    let kept = if opts.recompress && sep.modes > 0 {
+    let recompressed = opts.recompress && sep.modes > 0;
+    let mut candidate = if recompressed {
         on(BuildStage::Recompression);
-        Some(compress::recompress(&sep, 0.0))
+        compress::recompress(&sep, 0.0)
     } else {
-        None
+        sep.clone()
     };
     let recompress_s = clock.elapsed().as_secs_f64();
     // The bundle stores the modes in f32: round them now, so the errors measured below are
     // those of the modes served and a loaded bundle equals the built vademecum exactly.
-    let mut candidate = kept.clone().unwrap_or_else(|| sep.clone());
     for x in candidate.f.iter_mut().chain(candidate.g.iter_mut()) {
         *x = *x as f32 as f64;
     }
@@ -350,8 +350,9 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         local.ptr.push(local.nbr.len());
     }
     let n_free = dofs.n_free();
-    let mut errs_greedy = brute::PrefixErrors::new(&sep);
-    let mut errs = kept.as_ref().map(|_| brute::PrefixErrors::new(&candidate));
+    // the greedy modes as built, measured too when the bundle keeps their recompression
+    let mut errs_greedy = recompressed.then(|| brute::PrefixErrors::new(&sep));
+    let mut errs = brute::PrefixErrors::new(&candidate);
     let clock = Instant::now();
     let mut solve_s = 0.0;
     let mut lap = Instant::now();
@@ -367,17 +368,20 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
                 }
             }
         }
-        errs_greedy.add_block(&sep, start, block);
-        if let Some(e) = errs.as_mut() {
-            e.add_block(&candidate, start, block);
+        errs.add_block(&candidate, start, block);
+        if let Some(e) = errs_greedy.as_mut() {
+            e.add_block(&sep, start, block);
         }
         on(BuildStage::Exact(start + block.len() / n_free, total));
         lap = Instant::now();
     });
     let exact_pass_s = clock.elapsed().as_secs_f64();
-    let greedy_curve = errs_greedy.curve();
-    let curve = errs.as_ref().map_or_else(|| greedy_curve.clone(), |e| e.curve());
-    let error_greedy = greedy_curve.last().copied().unwrap_or(1.0);
+    let curve = errs.curve();
+    let error_greedy = errs_greedy
+        .map_or_else(|| curve.clone(), |e| e.curve())
+        .last()
+        .copied()
+        .unwrap_or(1.0);
     let needed = curve.iter().position(|&e| e <= opts.tolerance).map(|i| i + 1);
     let target_met = needed.is_some();
     candidate.truncate(needed.unwrap_or(candidate.modes));
@@ -402,7 +406,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         load_radius: opts.load_radius,
         mean_patch_nodes: patches.iter().map(|p| p.0.len()).sum::<usize>() as f64 / patches.len() as f64,
         modes: final_sep.modes,
-        recompressed: kept.is_some(),
+        recompressed,
         tolerance: opts.tolerance,
         target_met,
         greedy,

@@ -177,11 +177,6 @@ impl Pipeline {
         Ok(Self { effects })
     }
 
-    /// Builds a pipeline from explicit effects (tests, tools).
-    pub fn from_effects(effects: Vec<Box<dyn Effect>>) -> Self {
-        Self { effects }
-    }
-
     /// Names of the effects, in tick order.
     pub fn effect_names(&self) -> Vec<&'static str> {
         self.effects.iter().map(|e| e.name()).collect()

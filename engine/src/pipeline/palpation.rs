@@ -33,11 +33,6 @@ impl Palpation {
             .collect();
         Self { organs, radius_m }
     }
-
-    /// Tip radius (m).
-    pub fn radius_m(&self) -> f64 {
-        self.radius_m
-    }
 }
 
 impl Effect for Palpation {

@@ -85,16 +85,14 @@ async fn pump(
         return;
     }
     let (mut sent, mut answered) = (1u64, 0u64);
-    let mut client_done: Option<Instant> = None;
+    // set when the client closes its side: the answers still in flight are awaited until then
+    let mut drain_until: Option<tokio::time::Instant> = None;
     loop {
-        if client_done.is_some() && answered == sent {
-            return;
-        }
-        if client_done.is_some_and(|t| t.elapsed() > DRAIN) {
+        if drain_until.is_some() && answered == sent {
             return;
         }
         tokio::select! {
-            m = inbound.message(), if client_done.is_none() => match m {
+            m = inbound.message(), if drain_until.is_none() => match m {
                 Ok(Some(m)) => {
                     if !m.session_id.is_empty() && m.session_id != id {
                         let _ = out.send(Err(Status::invalid_argument("a stream acts on one session; its session_id cannot change"))).await;
@@ -108,7 +106,7 @@ async fn pump(
                     }
                     sent += 1;
                 }
-                Ok(None) => client_done = Some(Instant::now()),
+                Ok(None) => drain_until = Some(tokio::time::Instant::now() + DRAIN),
                 Err(status) => {
                     // a malformed message, or the client went away
                     let _ = out.send(Err(status)).await;
@@ -125,7 +123,7 @@ async fn pump(
                 None => return,
             },
             _ = closed.changed() => return,
-            _ = tokio::time::sleep(DRAIN), if client_done.is_some() => return,
+            _ = tokio::time::sleep_until(drain_until.unwrap_or_else(tokio::time::Instant::now)), if drain_until.is_some() => return,
         }
     }
 }

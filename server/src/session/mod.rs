@@ -288,10 +288,8 @@ impl Session {
     /// Waits for a scripted session's tick thread to reach the end of its script, then
     /// closes it.
     pub fn wait(mut self) -> StatsSnapshot {
-        if let Some(t) = self.threads.first_mut() {
-            while !t.is_finished() {
-                std::thread::sleep(Duration::from_millis(5));
-            }
+        if !self.threads.is_empty() {
+            let _ = self.threads.remove(0).join();
         }
         self.shutdown();
         self.stats.snapshot()
