@@ -4,8 +4,10 @@
 //! - [`v1`]: the `vademecum.v1` package: `Info` (server identity), `Sessions` (create, list,
 //!   inspect, close), `Interaction` (bidirectional stream: tool states in, forces out) and
 //!   `Viewing` (server stream of displacement frames).
+//! - [`shm`]: the `#[repr(C)]` samples of the 1 kHz haptic path over iceoryx2 shared memory
+//!   (device bridge ⇄ session tick thread) and the services they travel on.
 //!
-//! This crate contains no logic: conversions to and from engine types live at the edges
+//! Apart from opening the shared-memory services with one set of settings, this crate contains no logic: conversions to and from engine types live at the edges
 //! (`server/src/convert.rs`, the client SDK).
 #![warn(missing_docs)]
 
@@ -14,6 +16,8 @@
 pub mod v1 {
     tonic::include_proto!("vademecum.v1");
 }
+
+pub mod shm;
 
 /// The encoded file descriptor set of every `.proto` here, for gRPC server reflection.
 pub const FILE_DESCRIPTOR_SET: &[u8] = tonic::include_file_descriptor_set!("vademecum_descriptor");

@@ -35,7 +35,8 @@ use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput};
 use vademecum_engine::scene::Scene;
 
 pub use frames::{Frame, SurfaceGeometry};
-pub use script::Trajectory;
+pub use script::{builtin_palpation, tool_at};
+pub use vademecum_bridge::trajectory::Trajectory;
 pub use stats::{StatsSnapshot, TickStats};
 
 /// A tool state sent to a session, with where to send its answer.

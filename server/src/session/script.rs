@@ -1,229 +1,73 @@
-//! Scripted tool trajectories for headless runs: keyframes `(t, position, closure)` read
-//! from CSV, linearly interpolated at every tick, and the built-in palpation of a scene.
-//!
-//! CSV format (header required, SI units, times increasing):
-//!
-//! ```text
-//! t_s,x_m,y_m,z_m[,closure]
-//! 0.0,0.0,0.0,0.05
-//! 1.0,0.0,0.0,0.03
-//! ```
+//! Scripted tool paths of headless runs: a [`Trajectory`] sampled at every tick as a probe's
+//! tool state, and the built-in palpation of a scene's organ.
 
-use std::path::Path;
-
-use serde::Deserialize;
+use vademecum_bridge::trajectory::Trajectory;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pipeline::{ToolInput, ToolKind};
 
-/// Why a trajectory could not be read.
-#[derive(Debug, thiserror::Error)]
-pub enum ScriptError {
-    /// The file could not be read or parsed.
-    #[error("{path}: {message}")]
-    Invalid {
-        /// The file.
-        path: String,
-        /// What is wrong, with the line where known.
-        message: String,
-    },
-}
-
-/// A keyframed tool trajectory.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Trajectory {
-    times: Vec<f64>,
-    positions: Vec<[f64; 3]>,
-    closures: Vec<f64>,
-}
-
-#[derive(Debug, Deserialize)]
-struct Row {
-    t_s: f64,
-    x_m: f64,
-    y_m: f64,
-    z_m: f64,
-    #[serde(default)]
-    closure: f64,
-}
-
-impl Trajectory {
-    /// From keyframes; times must be finite and strictly increasing, positions finite,
-    /// closures in [0, 1].
-    pub fn new(keys: Vec<(f64, [f64; 3], f64)>) -> Result<Self, String> {
-        if keys.is_empty() {
-            return Err("a trajectory needs at least one keyframe".into());
-        }
-        for (i, (t, p, c)) in keys.iter().enumerate() {
-            if !t.is_finite() || !p.iter().all(|x| x.is_finite()) {
-                return Err(format!("keyframe {}: time and position must be finite numbers", i + 1));
-            }
-            if !(0.0..=1.0).contains(c) {
-                return Err(format!("keyframe {}: closure {c} is outside [0, 1]", i + 1));
-            }
-            if i > 0 && *t <= keys[i - 1].0 {
-                return Err(format!("keyframe {}: time {t} s does not increase", i + 1));
-            }
-        }
-        Ok(Self {
-            times: keys.iter().map(|k| k.0).collect(),
-            positions: keys.iter().map(|k| k.1).collect(),
-            closures: keys.iter().map(|k| k.2).collect(),
-        })
-    }
-
-    /// Reads a CSV trajectory.
-    pub fn read(path: &Path) -> Result<Self, ScriptError> {
-        let bad = |message: String| ScriptError::Invalid {
-            path: path.display().to_string(),
-            message,
-        };
-        let mut r = csv::ReaderBuilder::new()
-            .trim(csv::Trim::All)
-            .from_path(path)
-            .map_err(|e| bad(e.to_string()))?;
-        let mut keys = Vec::new();
-        for row in r.deserialize::<Row>() {
-            let row = row.map_err(|e| bad(e.to_string()))?;
-            keys.push((row.t_s, [row.x_m, row.y_m, row.z_m], row.closure));
-        }
-        Self::new(keys).map_err(bad)
-    }
-
-    /// Duration (s) from the first keyframe to the last.
-    pub fn duration_s(&self) -> f64 {
-        self.times[self.times.len() - 1] - self.times[0]
-    }
-
-    /// The tool state at `t` seconds after the first keyframe (held at the ends).
-    pub fn at(&self, t: f64) -> ToolInput {
-        let t = t + self.times[0];
-        let i = self.times.partition_point(|&x| x <= t);
-        let (position_m, closure, velocity_m_s) = if i == 0 {
-            (self.positions[0], self.closures[0], [0.0; 3])
-        } else if i >= self.times.len() {
-            (self.positions[i - 1], self.closures[i - 1], [0.0; 3])
-        } else {
-            let (t0, t1) = (self.times[i - 1], self.times[i]);
-            let a = (t - t0) / (t1 - t0);
-            let (p0, p1) = (self.positions[i - 1], self.positions[i]);
-            let lerp = |k: usize| p0[k] + a * (p1[k] - p0[k]);
-            let vel = |k: usize| (p1[k] - p0[k]) / (t1 - t0);
-            (
-                [lerp(0), lerp(1), lerp(2)],
-                self.closures[i - 1] + a * (self.closures[i] - self.closures[i - 1]),
-                [vel(0), vel(1), vel(2)],
-            )
-        };
-        ToolInput {
-            kind: ToolKind::Probe,
-            position_m,
-            velocity_m_s,
-            closure,
-        }
-    }
-
-    /// The built-in palpation of an organ: a probe of radius `radius_m` comes down on the
-    /// middle of the accessible surface along its normal, presses `depth_m` deep, holds,
-    /// slides `slide_m` along the surface, and lifts off — five seconds in all.
-    ///
-    /// "Middle" is the load node nearest the centroid of the load nodes; the normal is the
-    /// area-weighted mean of the accessible triangles around it.
-    pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m: f64) -> Result<Self, String> {
-        let v = &b.vademecum;
-        let loads = v.load_nodes();
-        if loads.is_empty() {
-            return Err("the bundle has no load node to palpate".into());
-        }
-        let mut c = [0.0; 3];
-        for &n in loads {
-            for k in 0..3 {
-                c[k] += b.nodes[n][k] / loads.len() as f64;
-            }
-        }
-        let d2 = |n: usize| (0..3).map(|k| (b.nodes[n][k] - c[k]).powi(2)).sum::<f64>();
-        let s = *loads.iter().min_by(|&&a, &&bb| d2(a).total_cmp(&d2(bb))).expect("non-empty");
-        let mut normal = [0.0; 3];
-        for t in b.surface.iter().filter(|t| t.contains(&s) && t.iter().all(|&n| v.is_loadable(n))) {
-            let (p0, p1, p2) = (b.nodes[t[0]], b.nodes[t[1]], b.nodes[t[2]]);
-            let (e1, e2) = (
-                [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]],
-                [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]],
-            );
-            normal[0] += e1[1] * e2[2] - e1[2] * e2[1];
-            normal[1] += e1[2] * e2[0] - e1[0] * e2[2];
-            normal[2] += e1[0] * e2[1] - e1[1] * e2[0];
-        }
-        let len = normal.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if len.is_nan() || len <= 0.0 {
-            return Err("the middle of the accessible surface has no accessible triangle around it".into());
-        }
-        let n = normal.map(|x| x / len);
-        // a tangent: the axis least aligned with n, made orthogonal to it
-        let axis = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
-        let dot = axis[0] * n[0] + axis[1] * n[1] + axis[2] * n[2];
-        let t = [axis[0] - dot * n[0], axis[1] - dot * n[1], axis[2] - dot * n[2]];
-        let tl = t.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let t = t.map(|x| x / tl);
-        let p = b.nodes[s];
-        let at = |along_n: f64, along_t: f64| -> [f64; 3] { [0, 1, 2].map(|k| p[k] + along_n * n[k] + along_t * t[k]) };
-        let (up, down) = (radius_m + 0.003, radius_m - depth_m);
-        Self::new(vec![
-            (0.0, at(up, 0.0), 0.0),
-            (1.0, at(down, 0.0), 0.0),
-            (1.5, at(down, 0.0), 0.0),
-            (3.5, at(down, slide_m), 0.0),
-            (4.5, at(up, slide_m), 0.0),
-            (5.0, at(up, slide_m), 0.0),
-        ])
-    }
-
-    /// Writes the keyframes as CSV (the format [`Trajectory::read`] reads).
-    pub fn write(&self, path: &Path) -> std::io::Result<()> {
-        let mut w = csv::Writer::from_path(path)?;
-        w.write_record(["t_s", "x_m", "y_m", "z_m", "closure"])?;
-        for ((t, p), c) in self.times.iter().zip(&self.positions).zip(&self.closures) {
-            w.write_record([t, &p[0], &p[1], &p[2], c].map(|x| format!("{x:?}")))?;
-        }
-        w.flush()
+/// The probe state of `trajectory` at `t` seconds after its first keyframe.
+pub fn tool_at(trajectory: &Trajectory, t: f64) -> ToolInput {
+    let s = trajectory.at(t);
+    ToolInput {
+        kind: ToolKind::Probe,
+        position_m: s.position_m,
+        velocity_m_s: s.velocity_m_s,
+        closure: s.closure,
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn interpolates_between_keyframes_and_holds_at_the_ends() {
-        let tr = Trajectory::new(vec![(1.0, [0.0, 0.0, 0.0], 0.0), (3.0, [2.0, 0.0, -2.0], 1.0)]).unwrap();
-        assert_eq!(tr.duration_s(), 2.0);
-        let m = tr.at(1.0);
-        assert_eq!(m.position_m, [1.0, 0.0, -1.0]);
-        assert_eq!(m.velocity_m_s, [1.0, 0.0, -1.0]);
-        assert!((m.closure - 0.5).abs() < 1e-12);
-        assert_eq!(tr.at(-5.0).position_m, [0.0; 3]);
-        assert_eq!(tr.at(50.0).position_m, [2.0, 0.0, -2.0]);
+/// The built-in palpation of an organ: a probe of radius `radius_m` comes down on the
+/// middle of the accessible surface along its normal, presses `depth_m` deep, holds,
+/// slides `slide_m` along the surface, and lifts off — five seconds in all.
+///
+/// "Middle" is the load node nearest the centroid of the load nodes; the normal is the
+/// area-weighted mean of the accessible triangles around it.
+pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m: f64) -> Result<Trajectory, String> {
+    let v = &b.vademecum;
+    let loads = v.load_nodes();
+    if loads.is_empty() {
+        return Err("the bundle has no load node to palpate".into());
     }
-
-    #[test]
-    fn bad_trajectories_are_refused_with_the_keyframe() {
-        assert!(Trajectory::new(vec![]).is_err());
-        let e = Trajectory::new(vec![(0.0, [0.0; 3], 0.0), (0.0, [1.0; 3], 0.0)]).unwrap_err();
-        assert!(e.contains("keyframe 2"), "{e}");
-        let e = Trajectory::new(vec![(0.0, [f64::NAN, 0.0, 0.0], 0.0)]).unwrap_err();
-        assert!(e.contains("finite"), "{e}");
-        let e = Trajectory::new(vec![(0.0, [0.0; 3], 2.0)]).unwrap_err();
-        assert!(e.contains("closure"), "{e}");
+    let mut c = [0.0; 3];
+    for &n in loads {
+        for k in 0..3 {
+            c[k] += b.nodes[n][k] / loads.len() as f64;
+        }
     }
-
-    #[test]
-    fn csv_round_trips_and_reports_bad_rows() {
-        let dir = tempfile::tempdir().unwrap();
-        let p = dir.path().join("t.csv");
-        let tr = Trajectory::new(vec![(0.0, [0.1, 0.2, 0.3], 0.0), (0.5, [0.1, 0.2, 0.25], 0.25)]).unwrap();
-        tr.write(&p).unwrap();
-        assert_eq!(Trajectory::read(&p).unwrap(), tr);
-        std::fs::write(&p, "t_s,x_m,y_m,z_m\n0,0,0,0\n1,0,zero,0\n").unwrap();
-        let e = Trajectory::read(&p).unwrap_err().to_string();
-        assert!(e.contains("t.csv") && e.contains("line: 3"), "{e}");
+    let d2 = |n: usize| (0..3).map(|k| (b.nodes[n][k] - c[k]).powi(2)).sum::<f64>();
+    let s = *loads.iter().min_by(|&&a, &&bb| d2(a).total_cmp(&d2(bb))).expect("non-empty");
+    let mut normal = [0.0; 3];
+    for t in b.surface.iter().filter(|t| t.contains(&s) && t.iter().all(|&n| v.is_loadable(n))) {
+        let (p0, p1, p2) = (b.nodes[t[0]], b.nodes[t[1]], b.nodes[t[2]]);
+        let (e1, e2) = (
+            [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]],
+            [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]],
+        );
+        normal[0] += e1[1] * e2[2] - e1[2] * e2[1];
+        normal[1] += e1[2] * e2[0] - e1[0] * e2[2];
+        normal[2] += e1[0] * e2[1] - e1[1] * e2[0];
     }
+    let len = normal.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if len.is_nan() || len <= 0.0 {
+        return Err("the middle of the accessible surface has no accessible triangle around it".into());
+    }
+    let n = normal.map(|x| x / len);
+    // a tangent: the axis least aligned with n, made orthogonal to it
+    let axis = if n[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+    let dot = axis[0] * n[0] + axis[1] * n[1] + axis[2] * n[2];
+    let t = [axis[0] - dot * n[0], axis[1] - dot * n[1], axis[2] - dot * n[2]];
+    let tl = t.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let t = t.map(|x| x / tl);
+    let p = b.nodes[s];
+    let at = |along_n: f64, along_t: f64| -> [f64; 3] { [0, 1, 2].map(|k| p[k] + along_n * n[k] + along_t * t[k]) };
+    let (up, down) = (radius_m + 0.003, radius_m - depth_m);
+    Trajectory::new(vec![
+        (0.0, at(up, 0.0), 0.0),
+        (1.0, at(down, 0.0), 0.0),
+        (1.5, at(down, 0.0), 0.0),
+        (3.5, at(down, slide_m), 0.0),
+        (4.5, at(up, slide_m), 0.0),
+        (5.0, at(up, slide_m), 0.0),
+    ])
 }
+

@@ -83,7 +83,7 @@ impl TickLoop {
                 if t > script.trajectory.duration_s() + 0.5 * period.as_secs_f64() {
                     break 'ticks;
                 }
-                let input = script.trajectory.at(t);
+                let input = super::tool_at(&script.trajectory, t);
                 let a = self.answer(tick, &input, tick, self.micros(start), start);
                 Histograms::record(&mut local.response, (a.answered_us - a.received_us) * 1000);
                 // counted before it leaves, so a reader that has the answer sees it counted

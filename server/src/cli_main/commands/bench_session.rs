@@ -82,7 +82,7 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
     let scene = Arc::new(Scene::builtin("organ")?);
     let dir = a.bundles.clone().unwrap_or_else(|| PathBuf::from("out/organ"));
     let bundles = ensure_bundles(&scene, &dir)?;
-    let traj = Trajectory::builtin_palpation(&bundles[0], 0.004, 0.004, 0.015).map_err(anyhow::Error::msg)?;
+    let traj = crate::session::builtin_palpation(&bundles[0], 0.004, 0.004, 0.015).map_err(anyhow::Error::msg)?;
     let mut rows = Vec::new();
     let (p, m) = null_loop(a.seconds);
     rows.push(row("null loop: lateness of a 1 ms sleep, no work", p, m));
@@ -112,7 +112,7 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
         while Instant::now() < end {
             let t = (i % 5000) as f64 * 1e-3;
             let _ = s.submit(ToolCommand {
-                input: traj.at(t),
+                input: crate::session::tool_at(&traj, t),
                 seq: i,
                 client_time_us: 0,
                 received: Instant::now(),

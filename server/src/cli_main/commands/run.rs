@@ -67,7 +67,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let (trajectory, source) = match (scripted, &a.script) {
         (Some(t), Some(p)) => (t, p.display().to_string()),
         _ => (
-            Trajectory::builtin_palpation(&bundles[0], radius, a.depth, 0.015)
+            crate::session::builtin_palpation(&bundles[0], radius, a.depth, 0.015)
                 .map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?,
             format!(
                 "built-in palpation of '{}' ({} mm deep, 15 mm slide)",

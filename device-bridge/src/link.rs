@@ -1,0 +1,157 @@
+//! The bridge's side of a haptic channel: publish tool states and reports, receive forces.
+//!
+//! [`ShmLink`] talks to a session over iceoryx2 shared memory; [`NullLink`] answers every
+//! state at once with zero force and no IPC (the benchmark's null loop). Every port is created
+//! before the loop starts; per tick, a link only loans, writes and sends, or receives.
+
+use vademecum_proto::shm::{
+    self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher,
+    ShmSubscriber,
+};
+
+/// A per-tick transport failure, counted by the loop (the tick goes on in safe mode).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum LinkError {
+    /// No sample could be loaned (every slot is in flight).
+    #[error("no shared-memory sample could be loaned")]
+    Loan,
+    /// The sample could not be delivered.
+    #[error("the sample could not be delivered")]
+    Send,
+}
+
+/// The bridge's side of a haptic channel (see the [module docs](self)).
+pub trait Link {
+    /// Publishes this tick's tool state.
+    fn send_state(&mut self, state: &HapticState) -> Result<(), LinkError>;
+    /// The newest force received since the last call, if any (older ones are skipped and
+    /// counted in [`Link::skipped`]).
+    fn poll_command(&mut self) -> Option<HapticCommand>;
+    /// Publishes the bridge's counters.
+    fn send_report(&mut self, report: &BridgeReport) -> Result<(), LinkError>;
+    /// Forces received but superseded by a newer one before the bridge used them.
+    fn skipped(&self) -> u64;
+    /// Housekeeping off the hot path, when the server seems gone: removes the shared-memory
+    /// leftovers of crashed processes so that a restarted server can take the channel.
+    fn maintain(&mut self) {}
+}
+
+/// The iceoryx2 transport.
+#[derive(Debug)]
+pub struct ShmLink {
+    node: iceoryx2::prelude::Node<iceoryx2::prelude::ipc::Service>,
+    _services: HapticServices,
+    states: ShmPublisher<HapticState>,
+    commands: ShmSubscriber<HapticCommand>,
+    reports: ShmPublisher<BridgeReport>,
+    skipped: u64,
+}
+
+impl ShmLink {
+    /// Opens `channel` (creating its services if the server has not yet) and creates the
+    /// bridge's ports. Fails when another bridge already publishes on the channel.
+    pub fn open(channel: &HapticChannel) -> Result<Self, OpenError> {
+        let node = shm::node(&format!("vademecum-bridge-{}", std::process::id()))?;
+        let services = HapticServices::open(&node, channel)?;
+        let port = |what: &str, e: String| OpenError {
+            service: channel.service_name(what),
+            reason: if e.contains("ExceedsMaxSupported") {
+                format!("{e}: another bridge already drives this channel")
+            } else {
+                e
+            },
+        };
+        let states = services
+            .state
+            .publisher_builder()
+            .create()
+            .map_err(|e| port("state", format!("{e:?}")))?;
+        let commands = services
+            .command
+            .subscriber_builder()
+            .buffer_size(shm::SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| port("command", format!("{e:?}")))?;
+        let reports = services
+            .report
+            .publisher_builder()
+            .create()
+            .map_err(|e| port("report", format!("{e:?}")))?;
+        Ok(Self {
+            node,
+            _services: services,
+            states,
+            commands,
+            reports,
+            skipped: 0,
+        })
+    }
+}
+
+fn publish<T: Copy + std::fmt::Debug + iceoryx2::prelude::ZeroCopySend>(p: &ShmPublisher<T>, v: T) -> Result<(), LinkError> {
+    let sample = p.loan_uninit().map_err(|_| LinkError::Loan)?;
+    sample.write_payload(v).send().map(|_| ()).map_err(|_| LinkError::Send)
+}
+
+impl Link for ShmLink {
+    fn send_state(&mut self, state: &HapticState) -> Result<(), LinkError> {
+        publish(&self.states, *state)
+    }
+
+    fn poll_command(&mut self) -> Option<HapticCommand> {
+        let mut newest = None;
+        while let Ok(Some(sample)) = self.commands.receive() {
+            if newest.is_some() {
+                self.skipped += 1;
+            }
+            newest = Some(*sample);
+        }
+        newest
+    }
+
+    fn send_report(&mut self, report: &BridgeReport) -> Result<(), LinkError> {
+        publish(&self.reports, *report)
+    }
+
+    fn skipped(&self) -> u64 {
+        self.skipped
+    }
+
+    fn maintain(&mut self) {
+        self.node.try_cleanup_dead_nodes();
+    }
+}
+
+/// Answers every state at once with zero force, without IPC: the null loop.
+#[derive(Debug, Default)]
+pub struct NullLink {
+    pending: Option<HapticState>,
+    answered: u64,
+}
+
+impl Link for NullLink {
+    fn send_state(&mut self, state: &HapticState) -> Result<(), LinkError> {
+        self.pending = Some(*state);
+        Ok(())
+    }
+
+    fn poll_command(&mut self) -> Option<HapticCommand> {
+        let s = self.pending.take()?;
+        self.answered += 1;
+        Some(HapticCommand {
+            seq: self.answered,
+            state_seq: s.seq,
+            t_read_ns: s.t_read_ns,
+            t_answer_ns: shm::monotonic_ns(),
+            ..HapticCommand::default()
+        })
+    }
+
+    fn send_report(&mut self, _report: &BridgeReport) -> Result<(), LinkError> {
+        Ok(())
+    }
+
+    fn skipped(&self) -> u64 {
+        0
+    }
+}

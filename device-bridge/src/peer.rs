@@ -1,0 +1,177 @@
+//! The server's side of a haptic channel: wait for the bridge's tool state, answer it with a
+//! force, read the bridge's reports. A session's tick thread owns one; so does the echo peer
+//! of `vademecum bench haptic`.
+//!
+//! # Waiting for the bridge
+//!
+//! The bridge ticks on its own clock; a state arrives about every period. The peer waits for
+//! it by polling the subscriber (pub-sub wakes nobody by itself), with the session's
+//! [`WaitStrategy`]:
+//!
+//! - `Sleep`: the session keeps its own 1 kHz schedule and answers the newest state at each
+//!   of its ticks — no CPU spent waiting, but the force answers a state up to a period old
+//!   and reaches the bridge one tick late.
+//! - `Spin`: poll continuously until the state arrives: answered within microseconds; a
+//!   whole core per session.
+//! - `Hybrid` (default): sleep until `window` before the state is expected (the last arrival
+//!   plus one period), then poll: answered within microseconds when the OS wakes the thread
+//!   on time, at about `window / period` of a core.
+//!
+//! When no state arrived for [`IDLE_AFTER`], the bridge is taken as gone and every strategy
+//! sleeps: a session without a device pays nothing for the channel.
+
+use std::time::{Duration, Instant};
+
+use vademecum_proto::shm::{
+    self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher,
+    ShmSubscriber,
+};
+
+use crate::link::LinkError;
+use crate::timing::{self, WaitStrategy};
+
+/// With no state for this long, the peer stops spinning for the bridge.
+pub const IDLE_AFTER: Duration = Duration::from_millis(100);
+
+/// The server's side of a haptic channel (see the [module docs](self)).
+#[derive(Debug)]
+pub struct HapticPeer {
+    _node: iceoryx2::prelude::Node<iceoryx2::prelude::ipc::Service>,
+    _services: HapticServices,
+    states: ShmSubscriber<HapticState>,
+    commands: ShmPublisher<HapticCommand>,
+    reports: ShmSubscriber<BridgeReport>,
+    strategy: WaitStrategy,
+    window: Duration,
+    period: Duration,
+    last_arrival: Option<Instant>,
+    answered: u64,
+    skipped: u64,
+}
+
+impl HapticPeer {
+    /// Opens `channel` and creates the server's ports. Fails when another server already
+    /// answers on the channel (one publisher of forces per channel).
+    pub fn open(channel: &HapticChannel, strategy: WaitStrategy, window: Duration, period: Duration) -> Result<Self, OpenError> {
+        let node = shm::node(&format!("vademecum-session-{}", std::process::id()))?;
+        let services = HapticServices::open(&node, channel)?;
+        let port = |what: &str, e: String| OpenError {
+            service: channel.service_name(what),
+            reason: if e.contains("ExceedsMaxSupported") {
+                format!("{e}: another session already answers on this channel")
+            } else {
+                e
+            },
+        };
+        let commands = services
+            .command
+            .publisher_builder()
+            .create()
+            .map_err(|e| port("command", format!("{e:?}")))?;
+        let states = services
+            .state
+            .subscriber_builder()
+            .buffer_size(shm::SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| port("state", format!("{e:?}")))?;
+        let reports = services
+            .report
+            .subscriber_builder()
+            .buffer_size(shm::SUBSCRIBER_BUFFER)
+            .create()
+            .map_err(|e| port("report", format!("{e:?}")))?;
+        Ok(Self {
+            _node: node,
+            _services: services,
+            states,
+            commands,
+            reports,
+            strategy,
+            window,
+            period,
+            last_arrival: None,
+            answered: 0,
+            skipped: 0,
+        })
+    }
+
+    /// The newest state received, if any (older ones are skipped and counted).
+    fn poll(&mut self) -> Option<HapticState> {
+        let mut newest = None;
+        while let Ok(Some(sample)) = self.states.receive() {
+            if newest.is_some() {
+                self.skipped += 1;
+            }
+            newest = Some(*sample);
+        }
+        newest
+    }
+
+    /// Whether a bridge sent a state within [`IDLE_AFTER`].
+    pub fn bridge_active(&self) -> bool {
+        self.last_arrival.is_some_and(|t| t.elapsed() < IDLE_AFTER)
+    }
+
+    /// The strategy the next wait uses: the configured one while a bridge is active, sleep
+    /// otherwise.
+    pub fn effective_strategy(&self) -> WaitStrategy {
+        if self.bridge_active() { self.strategy } else { WaitStrategy::Sleep }
+    }
+
+    /// Waits for the bridge's next state until `deadline` (see the [module docs](self)).
+    pub fn wait_for_state(&mut self, deadline: Instant) -> Option<HapticState> {
+        let spin_from = match self.effective_strategy() {
+            WaitStrategy::Sleep => deadline,
+            WaitStrategy::Spin => Instant::now(),
+            WaitStrategy::Hybrid => {
+                let expected = self.last_arrival.map_or(deadline, |t| t + self.period);
+                expected.checked_sub(self.window).unwrap_or(expected).min(deadline)
+            }
+        };
+        let mut got = None;
+        timing::wait_between(spin_from, deadline, || {
+            got = self.poll();
+            got.is_some()
+        });
+        if got.is_some() {
+            self.last_arrival = Some(Instant::now());
+        }
+        got
+    }
+
+    /// Sends the force answering `state`.
+    pub fn answer(&mut self, state: &HapticState, force_n: [f64; 3], depth_m: f64, events: u32) -> Result<(), LinkError> {
+        self.answered += 1;
+        let cmd = HapticCommand {
+            seq: self.answered,
+            state_seq: state.seq,
+            t_read_ns: state.t_read_ns,
+            t_answer_ns: shm::monotonic_ns(),
+            force_n,
+            depth_m,
+            events,
+            reserved: 0,
+        };
+        let sample = self.commands.loan_uninit().map_err(|_| LinkError::Loan)?;
+        sample.write_payload(cmd).send().map(|_| ()).map_err(|_| LinkError::Send)
+    }
+
+    /// The newest bridge report since the last call.
+    pub fn poll_report(&mut self) -> Option<BridgeReport> {
+        let mut newest = None;
+        while let Ok(Some(sample)) = self.reports.receive() {
+            newest = Some(*sample);
+        }
+        newest
+    }
+
+    /// States answered.
+    pub fn answered(&self) -> u64 {
+        self.answered
+    }
+
+    /// States superseded by a newer one before they were answered.
+    pub fn skipped(&self) -> u64 {
+        self.skipped
+    }
+}

@@ -1,0 +1,183 @@
+//! Waiting for a deadline at 1 kHz, and the scheduling a real-time loop asks the OS for.
+//!
+//! A sleeping thread on a shared VM can wake tens of microseconds to a millisecond late;
+//! a spinning thread is on time but burns a core. [`WaitStrategy`] names the three ways we
+//! wait, and `vademecum bench haptic` measures what each costs (BENCHMARKS.md):
+//!
+//! - [`WaitStrategy::Sleep`]: `nanosleep` to the deadline. No CPU; the OS's wake-up jitter.
+//! - [`WaitStrategy::Spin`]: poll the clock until the deadline. On time; one core at 100 %.
+//! - [`WaitStrategy::Hybrid`]: sleep until `window` before the deadline, then spin. About
+//!   `window / period` of a core, on time unless the OS wakes the thread later than `window`.
+
+use std::time::{Duration, Instant};
+
+/// How a loop waits for its next deadline (see the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WaitStrategy {
+    /// Sleep to the deadline.
+    Sleep,
+    /// Spin on the clock to the deadline.
+    Spin,
+    /// Sleep until a window before the deadline, then spin.
+    #[default]
+    Hybrid,
+}
+
+impl std::str::FromStr for WaitStrategy {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "sleep" => Ok(Self::Sleep),
+            "spin" => Ok(Self::Spin),
+            "hybrid" => Ok(Self::Hybrid),
+            _ => Err(format!("unknown wait strategy {s:?}: use sleep, spin or hybrid")),
+        }
+    }
+}
+
+impl std::fmt::Display for WaitStrategy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Sleep => "sleep",
+            Self::Spin => "spin",
+            Self::Hybrid => "hybrid",
+        })
+    }
+}
+
+/// Default spin window of [`WaitStrategy::Hybrid`]: long enough to cover a typical wake-up
+/// delay of a sleeping thread on a VM (tens of µs), short enough to cost a fifth of a core
+/// at 1 kHz.
+pub const DEFAULT_SPIN_WINDOW: Duration = Duration::from_micros(200);
+
+/// Waits until `deadline`, or until `ready()` returns true, whichever comes first; returns
+/// whether `ready` fired. `ready` is polled while spinning, and once after a sleep.
+pub fn wait_until(deadline: Instant, strategy: WaitStrategy, window: Duration, ready: impl FnMut() -> bool) -> bool {
+    let spin_from = match strategy {
+        WaitStrategy::Sleep => deadline,
+        WaitStrategy::Spin => Instant::now(),
+        WaitStrategy::Hybrid => deadline.checked_sub(window).unwrap_or(deadline),
+    };
+    wait_between(spin_from, deadline, ready)
+}
+
+/// Sleeps until `spin_from`, then polls `ready` until it returns true or `deadline` passes;
+/// returns whether `ready` fired. `ready` is polled at least once.
+pub fn wait_between(spin_from: Instant, deadline: Instant, mut ready: impl FnMut() -> bool) -> bool {
+    let now = Instant::now();
+    if spin_from > now {
+        std::thread::sleep(spin_from - now);
+    }
+    loop {
+        if ready() {
+            return true;
+        }
+        if Instant::now() >= deadline {
+            return false;
+        }
+        std::hint::spin_loop();
+    }
+}
+
+/// CPU time consumed by the calling thread so far.
+pub fn thread_cpu_time() -> Duration {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is valid and writable; the thread CPU clock exists on Linux.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
+}
+
+/// What the OS granted a real-time loop.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RealtimeStatus {
+    /// `SCHED_FIFO` at this priority, or `None` (normal scheduling) with the reason.
+    pub fifo: Result<i32, String>,
+    /// Pinned to this CPU, or why not (`Ok(None)`: not asked).
+    pub cpu: Result<Option<usize>, String>,
+}
+
+impl std::fmt::Display for RealtimeStatus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.fifo {
+            Ok(p) => write!(f, "SCHED_FIFO priority {p}")?,
+            Err(e) => write!(f, "normal scheduling ({e})")?,
+        }
+        match &self.cpu {
+            Ok(Some(c)) => write!(f, ", pinned to CPU {c}"),
+            Ok(None) => write!(f, ", not pinned"),
+            Err(e) => write!(f, ", not pinned ({e})"),
+        }
+    }
+}
+
+/// Asks for `SCHED_FIFO` at `priority` (when `Some`) and pins the calling thread to `cpu`
+/// (when `Some`); whatever the OS refuses is reported, never fatal.
+///
+/// Busy-polling under `SCHED_FIFO` trips the kernel's real-time throttle (a ~50 ms stall
+/// every second by default), so callers ask for FIFO only with [`WaitStrategy::Sleep`] or
+/// [`WaitStrategy::Hybrid`].
+pub fn request_realtime(priority: Option<i32>, cpu: Option<usize>) -> RealtimeStatus {
+    let fifo = match priority {
+        None => Err("not asked".to_string()),
+        Some(p) => {
+            let param = libc::sched_param { sched_priority: p };
+            // SAFETY: plain syscall on the calling thread with a valid parameter struct.
+            let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+            if rc == 0 {
+                Ok(p)
+            } else {
+                Err(format!("SCHED_FIFO refused: {}", std::io::Error::last_os_error()))
+            }
+        }
+    };
+    let cpu = match cpu {
+        None => Ok(None),
+        Some(c) => {
+            // SAFETY: a zeroed cpu_set_t is a valid empty set; CPU_SET bounds-checks `c`.
+            let rc = unsafe {
+                let mut set: libc::cpu_set_t = std::mem::zeroed();
+                libc::CPU_SET(c, &mut set);
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set)
+            };
+            if rc == 0 {
+                Ok(Some(c))
+            } else {
+                Err(format!("CPU {c} refused: {}", std::io::Error::last_os_error()))
+            }
+        }
+    };
+    RealtimeStatus { fifo, cpu }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_strategy_reaches_the_deadline_and_never_returns_early() {
+        for s in [WaitStrategy::Sleep, WaitStrategy::Spin, WaitStrategy::Hybrid] {
+            let deadline = Instant::now() + Duration::from_micros(300);
+            assert!(!wait_until(deadline, s, DEFAULT_SPIN_WINDOW, || false));
+            assert!(Instant::now() >= deadline, "{s}");
+        }
+    }
+
+    #[test]
+    fn a_ready_condition_ends_the_wait_while_spinning() {
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let mut n = 0;
+        assert!(wait_until(deadline, WaitStrategy::Spin, DEFAULT_SPIN_WINDOW, || {
+            n += 1;
+            n == 3
+        }));
+        assert_eq!(n, 3);
+    }
+
+    #[test]
+    fn strategies_parse_from_their_names() {
+        for s in [WaitStrategy::Sleep, WaitStrategy::Spin, WaitStrategy::Hybrid] {
+            assert_eq!(s.to_string().parse::<WaitStrategy>(), Ok(s));
+        }
+        assert!("busy".parse::<WaitStrategy>().unwrap_err().contains("sleep, spin or hybrid"));
+    }
+}
