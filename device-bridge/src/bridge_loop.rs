@@ -166,7 +166,7 @@ fn histogram() -> Histogram<u64> {
 
 /// Runs the loop on the calling thread until the duration, the device's end, a server
 /// timeout, or `stop`; the device is released (zero force) on every way out.
-pub fn run<D: Device, L: Link>(device: &mut D, link: &mut L, p: &BridgeParams, stop: &Arc<AtomicBool>) -> Result<BridgeOutcome, BridgeError> {
+pub fn run<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &BridgeParams, stop: &Arc<AtomicBool>) -> Result<BridgeOutcome, BridgeError> {
     p.profile.validate().map_err(BridgeError::Params)?;
     if p.period.is_zero() || p.report_every == 0 {
         return Err(BridgeError::Params("the period and the report interval must be positive".into()));
@@ -176,7 +176,7 @@ pub fn run<D: Device, L: Link>(device: &mut D, link: &mut L, p: &BridgeParams, s
     result
 }
 
-fn run_inner<D: Device, L: Link>(device: &mut D, link: &mut L, p: &BridgeParams, stop: &Arc<AtomicBool>) -> Result<BridgeOutcome, BridgeError> {
+fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &BridgeParams, stop: &Arc<AtomicBool>) -> Result<BridgeOutcome, BridgeError> {
     let dt = p.period.as_secs_f64();
     let period_ns = p.period.as_nanos() as u64;
     let mut input = InputGuard::new(&p.profile, dt);

@@ -159,6 +159,24 @@ pub struct RunArgs {
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Drive the session from a device bridge instead of the script: open this haptic
+    /// channel (shared memory) and answer `vademecum-bridge --session CHANNEL` until
+    /// --duration or Ctrl-C. The built-in palpation is still written as
+    /// `<record>/trajectory.csv`, a hand script for `vademecum-bridge --device sim`.
+    #[arg(long, value_name = "CHANNEL")]
+    pub haptic: Option<String>,
+    /// With --haptic: stop after this many seconds (default: at Ctrl-C or SIGTERM).
+    #[arg(long, value_name = "S")]
+    pub duration: Option<f64>,
+    /// With --haptic: how the tick thread waits for the bridge's states: `hybrid` (sleep,
+    /// then poll the last --haptic-spin-us before a state is due; default), `spin` (poll
+    /// continuously: a whole core), `sleep` (answer at the session's own 1 kHz ticks: no
+    /// spinning, forces one tick late).
+    #[arg(long, value_name = "WAIT")]
+    pub haptic_wait: Option<vademecum_bridge::timing::WaitStrategy>,
+    /// With --haptic: spin window of the hybrid wait (µs).
+    #[arg(long, default_value_t = 200, value_name = "US")]
+    pub haptic_spin_us: u64,
 }
 
 /// Arguments of `vademecum serve`.

@@ -32,12 +32,15 @@ use std::time::{Duration, Instant};
 use tokio::sync::watch;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput};
+use vademecum_bridge::peer::HapticPeer;
+use vademecum_bridge::timing::WaitStrategy;
 use vademecum_engine::scene::Scene;
+use vademecum_proto::shm::{HapticChannel, OpenError};
 
 pub use frames::{Frame, SurfaceGeometry};
 pub use script::{builtin_palpation, tool_at};
 pub use vademecum_bridge::trajectory::Trajectory;
-pub use stats::{StatsSnapshot, TickStats};
+pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
 
 /// A tool state sent to a session, with where to send its answer.
 #[derive(Debug, Clone)]
@@ -71,6 +74,45 @@ pub struct Answer {
     pub state: TickState,
 }
 
+/// A session's haptic channel: where its device bridge sends tool states (see
+/// [`vademecum_bridge::peer`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HapticConfig {
+    /// The channel name the bridge opens (`vademecum-bridge --session <name>`).
+    pub channel: HapticChannel,
+    /// How the tick thread waits for the bridge's states.
+    pub wait: WaitStrategy,
+    /// Spin window of the hybrid wait.
+    pub spin_window: Duration,
+}
+
+impl HapticConfig {
+    /// The channel `name` with the default (hybrid) wait.
+    pub fn new(channel: HapticChannel) -> Self {
+        Self {
+            channel,
+            wait: WaitStrategy::Hybrid,
+            spin_window: vademecum_bridge::timing::DEFAULT_SPIN_WINDOW,
+        }
+    }
+}
+
+/// Why a session did not start.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The scene asks for what the pipeline cannot do.
+    #[error(transparent)]
+    Pipeline(#[from] PipelineError),
+    /// The haptic channel could not be opened.
+    #[error("haptic channel '{channel}': {source}")]
+    Haptic {
+        /// The channel.
+        channel: String,
+        /// Why.
+        source: OpenError,
+    },
+}
+
 /// How a session runs.
 #[derive(Debug, Clone)]
 pub struct SessionConfig {
@@ -81,6 +123,8 @@ pub struct SessionConfig {
     pub frame_rate_hz: f64,
     /// Capacity of the command queue.
     pub queue: usize,
+    /// The haptic channel, if a device bridge drives this session.
+    pub haptic: Option<HapticConfig>,
 }
 
 impl Default for SessionConfig {
@@ -89,6 +133,7 @@ impl Default for SessionConfig {
             period: Duration::from_millis(1),
             frame_rate_hz: 60.0,
             queue: 4096,
+            haptic: None,
         }
     }
 }
@@ -138,7 +183,7 @@ pub struct Script {
 
 impl Session {
     /// Starts a session on `scene` with one loaded bundle per organ.
-    pub fn start(id: String, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, config: SessionConfig) -> Result<Self, PipelineError> {
+    pub fn start(id: String, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, config: SessionConfig) -> Result<Self, SessionError> {
         Self::start_with(id, scene, bundles, config, None)
     }
 
@@ -150,7 +195,7 @@ impl Session {
         bundles: Vec<Arc<LoadedBundle>>,
         config: SessionConfig,
         script: Script,
-    ) -> Result<Self, PipelineError> {
+    ) -> Result<Self, SessionError> {
         Self::start_with(id, scene, bundles, config, Some(script))
     }
 
@@ -160,7 +205,7 @@ impl Session {
         bundles: Vec<Arc<LoadedBundle>>,
         config: SessionConfig,
         script: Option<Script>,
-    ) -> Result<Self, PipelineError> {
+    ) -> Result<Self, SessionError> {
         let pipeline = Pipeline::for_scene(&scene, &bundles)?;
         let effects = pipeline.effect_names();
         let geometry = Arc::new(SurfaceGeometry::of(&scene, &bundles));
@@ -180,10 +225,38 @@ impl Session {
             epoch,
             script,
         };
+        // the haptic peer's ports belong to the thread that uses them: the tick thread opens
+        // them before its loop and says whether it could
+        let haptic = config.haptic.clone();
+        let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<(), OpenError>>(1);
         let tick_thread = std::thread::Builder::new()
             .name(format!("tick-{id}"))
-            .spawn(move || tick_loop.run())
+            .spawn(move || {
+                let peer = match haptic {
+                    None => None,
+                    Some(h) => match HapticPeer::open(&h.channel, h.wait, h.spin_window, tick_loop.period) {
+                        Ok(p) => Some(p),
+                        Err(e) => {
+                            let _ = opened_tx.send(Err(e));
+                            return;
+                        }
+                    },
+                };
+                let _ = opened_tx.send(Ok(()));
+                tick_loop.run(peer)
+            })
             .expect("the OS can start a thread");
+        match opened_rx.recv() {
+            Ok(Ok(())) => {}
+            Ok(Err(source)) => {
+                let _ = tick_thread.join();
+                return Err(SessionError::Haptic {
+                    channel: config.haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
+                    source,
+                });
+            }
+            Err(_) => panic!("the tick thread ended before opening its haptic channel"),
+        }
         let producer = frames::FrameProducer::new(
             bundles.clone(),
             geometry.clone(),

@@ -25,6 +25,9 @@ pub struct Histograms {
     pub lateness: Histogram<u64>,
     /// From a tool state's arrival at the session to its answer leaving the tick (ns).
     pub response: Histogram<u64>,
+    /// Haptic channel: from the bridge's device read to the force published (ns) — the
+    /// shared-memory hop in plus the tick's work.
+    pub haptic: Histogram<u64>,
 }
 
 impl Default for Histograms {
@@ -33,6 +36,7 @@ impl Default for Histograms {
             work: histogram(),
             lateness: histogram(),
             response: histogram(),
+            haptic: histogram(),
         }
     }
 }
@@ -47,12 +51,14 @@ impl Histograms {
         let _ = self.work.add(&other.work);
         let _ = self.lateness.add(&other.lateness);
         let _ = self.response.add(&other.response);
+        let _ = self.haptic.add(&other.haptic);
     }
 
     fn reset(&mut self) {
         self.work.reset();
         self.lateness.reset();
         self.response.reset();
+        self.haptic.reset();
     }
 }
 
@@ -71,7 +77,103 @@ pub struct TickStats {
     pub dropped: AtomicU64,
     /// Frames produced for viewers.
     pub frames: AtomicU64,
+    /// Tool states from the haptic channel answered.
+    pub haptic_answered: AtomicU64,
+    /// Tool states from the haptic channel superseded by a newer one before being answered.
+    pub haptic_skipped: AtomicU64,
+    /// Forces that could not be published on the haptic channel.
+    pub haptic_errors: AtomicU64,
+    /// The bridge's latest report (zero until one arrives).
+    pub bridge: BridgeStats,
     histograms: Mutex<Histograms>,
+}
+
+/// The latest report of a session's device bridge, field by field as atomics (a reader may
+/// see fields of two consecutive reports; each is exact).
+#[derive(Debug, Default)]
+pub struct BridgeStats {
+    fields: [AtomicU64; 15],
+}
+
+/// A bridge report as plain numbers (µs for latencies).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+pub struct BridgeSnapshot {
+    /// Bridge ticks run.
+    pub ticks: u64,
+    /// Bridge ticks whose force was written more than a period late.
+    pub deadline_misses: u64,
+    /// Ticks with a fresh force.
+    pub fresh_forces: u64,
+    /// Ticks the watchdog held or faded the force.
+    pub watchdog_ticks: u64,
+    /// Device samples rejected as non-finite.
+    pub rejected_non_finite: u64,
+    /// Device samples whose jump was clamped.
+    pub clamped_jumps: u64,
+    /// Device samples clamped to the workspace.
+    pub clamped_workspace: u64,
+    /// Non-finite forces zeroed.
+    pub rejected_forces: u64,
+    /// Forces clamped to the device limit.
+    pub clamped_forces: u64,
+    /// Forces slewed by the rate limit.
+    pub rate_limited_forces: u64,
+    /// Device read → force written (µs).
+    pub latency_us: Percentiles,
+}
+
+impl BridgeStats {
+    /// Stores a report.
+    pub fn store(&self, r: &vademecum_proto::shm::BridgeReport) {
+        let v = [
+            r.t_ns,
+            r.ticks,
+            r.deadline_misses,
+            r.fresh_forces,
+            r.watchdog_ticks,
+            r.rejected_non_finite,
+            r.clamped_jumps,
+            r.clamped_workspace,
+            r.rejected_forces,
+            r.clamped_forces,
+            r.rate_limited_forces,
+            r.latency_p50_ns,
+            r.latency_p99_ns,
+            r.latency_p999_ns,
+            r.latency_max_ns,
+        ];
+        for (a, x) in self.fields.iter().zip(v) {
+            a.store(x, Ordering::Relaxed);
+        }
+    }
+
+    /// The latest report, or `None` before the first.
+    pub fn snapshot(&self) -> Option<BridgeSnapshot> {
+        let f = |i: usize| self.fields[i].load(Ordering::Relaxed);
+        if f(0) == 0 {
+            return None;
+        }
+        let us = |i: usize| f(i) as f64 / 1e3;
+        Some(BridgeSnapshot {
+            ticks: f(1),
+            deadline_misses: f(2),
+            fresh_forces: f(3),
+            watchdog_ticks: f(4),
+            rejected_non_finite: f(5),
+            clamped_jumps: f(6),
+            clamped_workspace: f(7),
+            rejected_forces: f(8),
+            clamped_forces: f(9),
+            rate_limited_forces: f(10),
+            latency_us: Percentiles {
+                count: f(3),
+                p50: us(11),
+                p99: us(12),
+                p999: us(13),
+                max: us(14),
+            },
+        })
+    }
 }
 
 impl TickStats {
@@ -106,6 +208,10 @@ impl TickStats {
             work_us: Percentiles::of(&h.work),
             lateness_us: Percentiles::of(&h.lateness),
             response_us: Percentiles::of(&h.response),
+            haptic_answered: self.haptic_answered.load(Ordering::Relaxed),
+            haptic_skipped: self.haptic_skipped.load(Ordering::Relaxed),
+            haptic_us: Percentiles::of(&h.haptic),
+            bridge: self.bridge.snapshot(),
         }
     }
 }
@@ -163,4 +269,12 @@ pub struct StatsSnapshot {
     pub lateness_us: Percentiles,
     /// Tool state in → answer out.
     pub response_us: Percentiles,
+    /// Haptic states answered.
+    pub haptic_answered: u64,
+    /// Haptic states superseded before being answered.
+    pub haptic_skipped: u64,
+    /// Bridge device read → force published by the session.
+    pub haptic_us: Percentiles,
+    /// The bridge's latest report.
+    pub bridge: Option<BridgeSnapshot>,
 }

@@ -5,7 +5,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
-use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput};
+use vademecum_bridge::peer::HapticPeer;
+use vademecum_bridge::timing::WaitStrategy;
+use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
+use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_SCALPEL};
 
 use super::stats::{Histograms, TickStats};
 use super::{Answer, Command, Script};
@@ -60,24 +63,58 @@ impl TickLoop {
         }
     }
 
-    pub fn run(mut self) {
+    /// Answers a state from the haptic channel at once.
+    fn answer_haptic(&mut self, peer: &mut HapticPeer, s: &HapticState, local: &mut Histograms) -> (ToolInput, TickState) {
+        let input = tool_input(s);
+        let state = self.pipeline.tick(&input);
+        if state.events.has(Events::REJECTED_INPUT) {
+            self.stats.rejected.fetch_add(1, Ordering::Relaxed);
+        }
+        let depth = state.contact.map_or(0.0, |c| c.depth_m);
+        if peer.answer(s, state.force_n, depth, state.events.0).is_err() {
+            self.stats.haptic_errors.fetch_add(1, Ordering::Relaxed);
+        }
+        Histograms::record(&mut local.haptic, shm::monotonic_ns().saturating_sub(s.t_read_ns));
+        self.stats.haptic_answered.fetch_add(1, Ordering::Relaxed);
+        (input, state)
+    }
+
+    /// Runs until stopped (or the script ends); with a haptic `peer`, the tick also answers
+    /// the device bridge (see [`vademecum_bridge::peer`] for how it waits).
+    pub fn run(mut self, mut peer: Option<HapticPeer>) {
         let mut local = Histograms::default();
         let period = self.period;
         let mut next = Instant::now() + period;
         let mut tick: u64 = 0;
         let mut last_input: Option<ToolInput> = None;
         'ticks: while !self.stop.load(Ordering::Relaxed) {
-            let now = Instant::now();
-            if next > now {
-                std::thread::sleep(next - now);
-            }
+            let arrived = match peer.as_mut() {
+                Some(p) => p.wait_for_state(next),
+                None => {
+                    let now = Instant::now();
+                    if next > now {
+                        std::thread::sleep(next - now);
+                    }
+                    None
+                }
+            };
             let start = Instant::now();
-            let late = start.saturating_duration_since(next);
-            Histograms::record(&mut local.lateness, late.as_nanos() as u64);
-            if late > period {
-                self.stats.misses.fetch_add(1, Ordering::Relaxed);
+            if start >= next {
+                // a deadline tick (not one woken early by the bridge)
+                let late = start.saturating_duration_since(next);
+                Histograms::record(&mut local.lateness, late.as_nanos() as u64);
+                if late > period {
+                    self.stats.misses.fetch_add(1, Ordering::Relaxed);
+                }
             }
             let mut state: Option<TickState> = None;
+            if let (Some(p), Some(s)) = (peer.as_mut(), arrived.as_ref()) {
+                let (input, st) = self.answer_haptic(p, s, &mut local);
+                state = Some(st);
+                if input.is_valid() {
+                    last_input = Some(input);
+                }
+            }
             if let Some(script) = self.script.take() {
                 let t = tick as f64 * period.as_secs_f64();
                 if t > script.trajectory.duration_s() + 0.5 * period.as_secs_f64() {
@@ -133,15 +170,45 @@ impl TickLoop {
             tick += 1;
             if tick.is_multiple_of(PUBLISH_EVERY) {
                 self.stats.publish(&mut local);
+                if let Some(p) = peer.as_mut() {
+                    if let Some(r) = p.poll_report() {
+                        self.stats.bridge.store(&r);
+                    }
+                    self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
+                }
             }
-            next += period;
+            match (&peer, arrived) {
+                // bridge-clocked: the next state is due a period after this one; the own
+                // deadline half a period later only covers a bridge that skips a beat
+                (Some(p), Some(_)) if p.effective_strategy() != WaitStrategy::Sleep => next = start + period + period / 2,
+                _ => next += period,
+            }
             let now = Instant::now();
             if now > next + period * MAX_CATCH_UP {
                 next = now;
             }
         }
+        if let Some(p) = peer.as_mut()
+            && let Some(r) = p.poll_report()
+        {
+            self.stats.bridge.store(&r);
+        }
         while !self.stats.publish(&mut local) {
             std::thread::yield_now();
         }
+    }
+}
+
+/// The engine's tool state for a haptic sample.
+fn tool_input(s: &HapticState) -> ToolInput {
+    ToolInput {
+        kind: match s.tool {
+            TOOL_SCALPEL => ToolKind::Scalpel,
+            TOOL_GRASPER => ToolKind::Grasper,
+            _ => ToolKind::Probe,
+        },
+        position_m: s.position_m,
+        velocity_m_s: s.velocity_m_s,
+        closure: s.closure,
     }
 }

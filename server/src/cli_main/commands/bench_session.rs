@@ -14,7 +14,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::session::stats::Percentiles;
-use crate::session::{Script, Session, SessionConfig, ToolCommand, Trajectory};
+use crate::session::{Script, Session, SessionConfig, ToolCommand};
 use anyhow::{Context, bail};
 use hdrhistogram::Histogram;
 use serde::Serialize;

@@ -7,6 +7,7 @@ mod build;
 mod inspect;
 mod mesh_info;
 mod run;
+mod run_haptic;
 mod scene;
 mod serve;
 mod solve;

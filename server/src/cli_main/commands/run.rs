@@ -50,6 +50,9 @@ struct Row {
 }
 
 pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
+    if a.haptic.is_none() && (a.duration.is_some() || a.haptic_wait.is_some()) {
+        bail!("--duration and --haptic-wait apply to haptic runs: add --haptic CHANNEL");
+    }
     if !(a.frame_rate > 0.0 && a.frame_rate <= 60.0) {
         bail!("--frame-rate must lie in (0, 60] frames per second, got {}", a.frame_rate);
     }
@@ -81,6 +84,9 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     trajectory
         .write(&record.join("trajectory.csv"))
         .with_context(|| format!("cannot write {}", record.join("trajectory.csv").display()))?;
+    if let Some(channel) = &a.haptic {
+        return super::run_haptic::run(&a, channel, scene, bundles, &record);
+    }
 
     let config = SessionConfig {
         frame_rate_hz: a.frame_rate,
