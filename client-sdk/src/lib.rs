@@ -178,6 +178,17 @@ impl Client {
     /// Starts a session on `scene` with the bundles in `bundle_dir` (on the server,
     /// relative to its bundle root).
     pub async fn create_session(&self, scene: SceneSpec, bundle_dir: &str, label: &str) -> Result<Session, SdkError> {
+        self.create(scene, bundle_dir, label, None).await
+    }
+
+    /// Starts a session with a shared-memory haptic channel for a device bridge on the
+    /// server's host (`vademecum-bridge --session <channel>`). `channel` empty: the channel is
+    /// named after the session id (see [`Session::info`]'s `haptic_channel`).
+    pub async fn create_haptic_session(&self, scene: SceneSpec, bundle_dir: &str, label: &str, channel: &str) -> Result<Session, SdkError> {
+        self.create(scene, bundle_dir, label, Some(channel)).await
+    }
+
+    async fn create(&self, scene: SceneSpec, bundle_dir: &str, label: &str, haptic: Option<&str>) -> Result<Session, SdkError> {
         use pb::create_session_request::Scene;
         let scene = match scene {
             SceneSpec::Builtin(b) => Scene::Builtin(b),
@@ -190,6 +201,8 @@ impl Client {
                 scene: Some(scene),
                 bundle_dir: bundle_dir.into(),
                 label: label.into(),
+                haptic: haptic.is_some(),
+                haptic_channel: haptic.unwrap_or_default().into(),
             })
             .await?
             .into_inner();

@@ -12,11 +12,12 @@
 //! - [`timing`]: wait strategies (sleep, spin, hybrid) and real-time scheduling requests.
 //! - [`trajectory`]: keyframed trajectories (the simulated hand; the server's scripted runs).
 //!
-//! The binary `vademecum-bridge` wires these together; the server depends on this crate for
+//! [`cli`] is the command line of the binary `vademecum-bridge`, which wires these together; the server depends on this crate for
 //! [`peer`] and for `vademecum bench haptic`. Never depends on the engine.
 #![warn(missing_docs)]
 
 pub mod bridge_loop;
+pub mod cli;
 pub mod device;
 pub mod guard;
 pub mod link;

@@ -112,6 +112,12 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
         effects: s.effects().iter().map(|x| x.to_string()).collect(),
         tick_rate_hz: 1.0 / s.config().period.as_secs_f64(),
         stats: Some(session_stats(e)),
+        haptic_channel: s
+            .config()
+            .haptic
+            .as_ref()
+            .map(|h| h.channel.name().to_string())
+            .unwrap_or_default(),
     }
 }
 
@@ -119,6 +125,7 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
 pub fn session_stats(e: &Entry) -> pb::SessionStats {
     use std::sync::atomic::Ordering::Relaxed;
     let st = e.session.stats().snapshot();
+    let b = st.bridge.unwrap_or_default();
     pb::SessionStats {
         ticks: st.ticks,
         deadline_misses: st.misses,
@@ -132,5 +139,11 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
         response_p99_us: st.response_us.p99,
         interacting_clients: e.interacting.load(Relaxed),
         viewers: e.viewers.load(Relaxed),
+        haptic_answered: st.haptic_answered,
+        bridge_latency_p50_us: b.latency_us.p50,
+        bridge_latency_p99_us: b.latency_us.p99,
+        bridge_deadline_misses: b.deadline_misses,
+        bridge_watchdog_ticks: b.watchdog_ticks,
+        bridge_input_rejections: b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
     }
 }

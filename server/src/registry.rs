@@ -16,7 +16,8 @@ use vademecum_engine::scene::Scene;
 use crate::auth::Caller;
 use crate::config::ServerConfig;
 use crate::error::ServerError;
-use crate::session::Session;
+use crate::session::{HapticConfig, Session, SessionError};
+use vademecum_proto::shm::HapticChannel;
 
 /// Where a session's scene comes from.
 #[derive(Debug, Clone)]
@@ -155,7 +156,17 @@ impl Registry {
 
     /// Creates a session (blocking: reads scenes, meshes and bundles; call it off the
     /// runtime with `spawn_blocking`).
-    pub fn create(&self, owner: Caller, source: SceneSource, bundle_dir: &str, label: String) -> Result<Arc<Entry>, ServerError> {
+    ///
+    /// `haptic`: `None`, no haptic channel; `Some("")`, a channel named after the session id;
+    /// `Some(name)`, that channel.
+    pub fn create(
+        &self,
+        owner: Caller,
+        source: SceneSource,
+        bundle_dir: &str,
+        label: String,
+        haptic: Option<&str>,
+    ) -> Result<Arc<Entry>, ServerError> {
         let cfg = &self.shared.config;
         if label.chars().count() > 64 {
             return Err(ServerError::Invalid("label is longer than 64 characters".into()));
@@ -182,7 +193,28 @@ impl Registry {
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos());
         let id = format!("s{n}-{nanos:08x}");
-        let session = Session::start(id.clone(), scene, bundles, cfg.session.clone()).map_err(|e| ServerError::Invalid(e.to_string()))?;
+        let mut session_cfg = cfg.session.clone();
+        if let Some(name) = haptic {
+            let name = if name.is_empty() { id.as_str() } else { name };
+            let channel = HapticChannel::new(name).map_err(|e| ServerError::Invalid(e.to_string()))?;
+            if self
+                .sessions()
+                .values()
+                .any(|e| e.session.config().haptic.as_ref().is_some_and(|h| h.channel == channel))
+            {
+                return Err(ServerError::Precondition(format!(
+                    "haptic channel '{name}' is in use by another session of this server; close it or pick another name"
+                )));
+            }
+            session_cfg.haptic = Some(match &cfg.session.haptic {
+                Some(h) => HapticConfig { channel, ..h.clone() },
+                None => HapticConfig::new(channel),
+            });
+        }
+        let session = Session::start(id.clone(), scene, bundles, session_cfg).map_err(|e| match e {
+            SessionError::Haptic { .. } => ServerError::Precondition(e.to_string()),
+            SessionError::Pipeline(_) => ServerError::Invalid(e.to_string()),
+        })?;
         let entry = Arc::new(Entry {
             owner,
             label,

@@ -10,7 +10,7 @@ use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput};
 use vademecum_engine::scene::Scene;
-use vademecum_server::session::{Answer, Session, SessionConfig, ToolCommand};
+use vademecum_server::session::{Answer, Session, SessionConfig, SessionError, ToolCommand};
 
 const SCENE: &str = r#"[scene]
 name = "slab"
@@ -233,6 +233,6 @@ fn a_scene_asking_for_an_effect_not_simulated_yet_is_refused() {
     );
     let scene = Arc::new(Scene::from_toml(&cutting, "cut.toml").unwrap());
     let e = Session::start("s4".into(), scene, bundles, SessionConfig::default()).unwrap_err();
-    assert!(matches!(e, PipelineError::Unsupported(_)), "{e}");
+    assert!(matches!(e, SessionError::Pipeline(PipelineError::Unsupported(_))), "{e}");
     assert!(e.to_string().contains("cutting"), "{e}");
 }

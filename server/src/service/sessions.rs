@@ -23,7 +23,10 @@ impl pb::sessions_server::Sessions for SessionsService {
         let source = convert::scene_source(&r).map_err(ServerError::Invalid)?;
         let registry = self.registry.clone();
         // reading scenes, meshes and bundles is blocking work: keep it off the runtime
-        let entry = tokio::task::spawn_blocking(move || registry.create(owner, source, &r.bundle_dir, r.label))
+        let entry = tokio::task::spawn_blocking(move || {
+            let haptic = r.haptic.then_some(r.haptic_channel.as_str());
+            registry.create(owner, source, &r.bundle_dir, r.label, haptic)
+        })
             .await
             .map_err(|_| ServerError::Internal("session creation was interrupted".into()))??;
         tracing::info!(session = entry.session.id(), scene = %entry.session.scene().spec.scene.name, "session created");

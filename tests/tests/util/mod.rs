@@ -116,3 +116,114 @@ pub fn runtime() -> tokio::runtime::Runtime {
         .build()
         .expect("runtime")
 }
+
+/// The device bridge command line, as this package's own binary.
+pub fn bridge_bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_bridge-under-test"))
+}
+
+/// A unique haptic channel name for one test.
+pub fn channel(test: &str) -> String {
+    format!("t{}-{test}", std::process::id())
+}
+
+/// A `vademecum run --haptic CHANNEL` process on the built-in organ (its bundle from
+/// [`bundles`]), recording into `record`; killed when dropped.
+pub struct HapticRun {
+    /// The process.
+    pub child: Child,
+}
+
+impl HapticRun {
+    /// Starts it and waits (at most 120 s) for its "haptic channel … open" line.
+    pub fn start(channel: &str, record: &Path, extra: &[&str]) -> Self {
+        let mut child = Command::new(vademecum_bin())
+            .args(["run", "--bundles", "organ", "--haptic", channel, "--record"])
+            .arg(record)
+            .args(extra)
+            .current_dir(bundles())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("vademecum run starts");
+        let stderr = child.stderr.take().expect("piped stderr");
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+                let _ = tx.send(line);
+            }
+        });
+        let deadline = std::time::Instant::now() + Duration::from_secs(120);
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            match rx.recv_timeout(left) {
+                Ok(l) if l.contains("haptic channel") && l.contains("open") => break,
+                Ok(_) => {}
+                Err(_) => {
+                    let _ = child.kill();
+                    panic!("vademecum run --haptic did not open its channel within 120 s");
+                }
+            }
+        }
+        // keep draining its stderr
+        std::thread::spawn(move || while rx.recv().is_ok() {});
+        Self { child }
+    }
+
+    /// Kills it at once (SIGKILL: a crash, leaving its shared memory behind).
+    pub fn crash(mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for HapticRun {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// One row of a bridge trace (`--record`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TraceRow {
+    pub tick: u64,
+    pub position_m: [f64; 3],
+    pub fresh: bool,
+    pub answers: Option<u64>,
+    pub received_n: [f64; 3],
+    pub output_n: [f64; 3],
+    pub input_adjusted: bool,
+}
+
+/// Reads a bridge trace.
+pub fn read_trace(path: &Path) -> Vec<TraceRow> {
+    let text = std::fs::read_to_string(path).expect("trace written");
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let (tick, x, fresh, answers, fx, ox, adj) = (
+        col("tick"),
+        col("x_m"),
+        col("fresh"),
+        col("answers"),
+        col("fx_n"),
+        col("out_x_n"),
+        col("input_adjusted"),
+    );
+    lines
+        .map(|l| {
+            let f: Vec<&str> = l.split(',').collect();
+            let num = |i: usize| f[i].parse::<f64>().expect("number");
+            TraceRow {
+                tick: f[tick].parse().expect("tick"),
+                position_m: [num(x), num(x + 1), num(x + 2)],
+                fresh: f[fresh] == "1",
+                answers: f[answers].parse().ok(),
+                received_n: [num(fx), num(fx + 1), num(fx + 2)],
+                output_n: [num(ox), num(ox + 1), num(ox + 2)],
+                input_adjusted: f[adj] == "1",
+            }
+        })
+        .collect()
+}

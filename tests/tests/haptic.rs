@@ -1,0 +1,195 @@
+//! The haptic path across processes: `vademecum run --haptic` (the server's session) and
+//! `vademecum-bridge` (sim and replay devices) talking over iceoryx2 shared memory.
+//!
+//! These machines are shared VMs whose scheduler can wake a thread a millisecond late: the
+//! tests assert behaviour (which force answers which position, what the watchdog does after
+//! the last fresh force, counted rejections), never timing.
+
+mod util;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use util::{HapticRun, TraceRow, bridge_bin, bundles, channel, read_trace};
+use vademecum_engine::pgd::offline::load_bundle;
+use vademecum_engine::pipeline::{Pipeline, ToolInput, ToolKind};
+use vademecum_engine::scene::Scene;
+
+/// The engine's force for each position, evaluated in this process from the same bundle.
+fn engine() -> Pipeline {
+    let scene = Scene::builtin("organ").unwrap();
+    let bundle = Arc::new(load_bundle(&bundles().join("organ/lobe.bundle")).unwrap());
+    Pipeline::for_scene(&scene, &[bundle]).unwrap()
+}
+
+fn force_at(p: &mut Pipeline, x: [f64; 3]) -> [f64; 3] {
+    p.tick(&ToolInput {
+        kind: ToolKind::Probe,
+        position_m: x,
+        ..ToolInput::default()
+    })
+    .force_n
+}
+
+/// A hand script of `reps` built-in palpations back to back (5 s each).
+fn repeated_palpation(record: &Path, reps: usize, out: &Path) {
+    let text = std::fs::read_to_string(record.join("trajectory.csv")).unwrap();
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    let mut csv = String::from("t_s,x_m,y_m,z_m,closure\n");
+    for r in 0..reps {
+        for (i, row) in rows.iter().enumerate() {
+            let mut f = row.split(',');
+            let t: f64 = f.next().unwrap().parse().unwrap();
+            if r > 0 && i == 0 {
+                continue; // the last keyframe of the previous round is this one's first
+            }
+            csv.push_str(&format!("{},{}\n", t + 5.0 * r as f64, f.collect::<Vec<_>>().join(",")));
+        }
+    }
+    std::fs::write(out, csv).unwrap();
+}
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// Every fresh force in `rows[range]` equals the engine's force at the position it answers
+/// (a position sent at most a few ticks earlier).
+fn assert_forces_match_engine(rows: &[TraceRow], range: std::ops::Range<usize>, engine: &mut Pipeline) -> usize {
+    let first = rows[0].tick;
+    let mut touching = 0;
+    for r in rows[range].iter().filter(|r| r.fresh) {
+        let answered = r.answers.expect("a fresh force answers a state");
+        let asked = rows[(answered - first) as usize];
+        assert_eq!(asked.tick, answered);
+        let want = force_at(engine, asked.position_m);
+        let err = norm([0, 1, 2].map(|k| r.received_n[k] - want[k]));
+        assert!(
+            err <= 1e-9 * (1.0 + norm(want)),
+            "tick {}: the server sent {:?} for the position of tick {answered}, the engine gives {want:?}",
+            r.tick,
+            r.received_n
+        );
+        touching += usize::from(norm(want) > 0.05);
+    }
+    touching
+}
+
+#[test]
+fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnects() {
+    let dir = tempfile::tempdir().unwrap();
+    let ch = channel("reconnect");
+    let server = HapticRun::start(&ch, &dir.path().join("a"), &[]);
+    let hand = dir.path().join("hand.csv");
+    repeated_palpation(&dir.path().join("a"), 4, &hand);
+    let trace = dir.path().join("trace.csv");
+    let bridge = Command::new(bridge_bin())
+        .args(["--session", &ch, "--device", "sim", "--no-realtime", "--duration", "17", "--json", "--script"])
+        .arg(&hand)
+        .arg("--record")
+        .arg(&trace)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    // 12 s at 1 kHz against the first server, then a crash mid-press (the third palpation
+    // holds the probe down from 11 s to 13.5 s)
+    let t0 = Instant::now();
+    std::thread::sleep(Duration::from_secs(12));
+    server.crash();
+    let crashed_at = t0.elapsed();
+    std::thread::sleep(Duration::from_millis(500));
+    let _again = HapticRun::start(&ch, &dir.path().join("b"), &[]);
+    let restarted_at = t0.elapsed();
+    let out = bridge.wait_with_output().unwrap();
+    assert!(out.status.success(), "the bridge waits through the crash and exits cleanly: {:?}", out.status);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["end"], "duration");
+
+    let rows = read_trace(&trace);
+    assert!(rows.len() >= 16_000, "{} ticks", rows.len());
+    // the gap: the longest run of ticks without a fresh force
+    let fresh: Vec<usize> = rows.iter().enumerate().filter(|(_, r)| r.fresh).map(|(i, _)| i).collect();
+    let (last_before, first_after) = fresh.windows(2).map(|w| (w[0], w[1])).max_by_key(|(a, b)| b - a).unwrap();
+    let gap_ms = (first_after - last_before) as f64;
+    assert!(
+        gap_ms >= 400.0,
+        "the server was down from {crashed_at:?} to {restarted_at:?}, yet the longest gap is {gap_ms} ticks"
+    );
+    // before the crash: ~10 s of forces, each the engine's for the position it answers
+    let mut engine = engine();
+    let touching = assert_forces_match_engine(&rows, 0..last_before + 1, &mut engine);
+    assert!(fresh.iter().filter(|&&i| i <= last_before).count() >= 10_000);
+    assert!(touching >= 3000, "the palpation presses for seconds: {touching} forces above 0.05 N");
+    // the crash came mid-press: the force was on, and is exactly zero 5 ticks later
+    assert!(norm(rows[last_before].output_n) > 0.05, "{:?}", rows[last_before]);
+    for r in &rows[last_before + 5..first_after] {
+        assert_eq!(r.output_n, [0.0; 3], "tick {} ({} after the last fresh force)", r.tick, r.tick - rows[last_before].tick);
+    }
+    // after the restart: fresh forces again, the engine's, in contact
+    let touching = assert_forces_match_engine(&rows, first_after..rows.len(), &mut engine);
+    assert!(touching > 500, "{touching} forces above 0.05 N after reconnecting");
+}
+
+#[test]
+fn bad_device_samples_are_clamped_counted_and_never_become_a_force_spike() {
+    let dir = tempfile::tempdir().unwrap();
+    let ch = channel("bad-input");
+    let _server = HapticRun::start(&ch, &dir.path().join("a"), &[]);
+    // a recording pressed into the organ (the built-in palpation's hold point), with a
+    // dropout, a 10 cm glitch and an excursion out of the workspace
+    let text = std::fs::read_to_string(dir.path().join("a/trajectory.csv")).unwrap();
+    let hold: Vec<f64> = text.lines().nth(3).unwrap().split(',').skip(1).take(3).map(|x| x.parse().unwrap()).collect();
+    let [x, y, z] = [hold[0], hold[1], hold[2]];
+    let mut rec = String::from("t_s,x_m,y_m,z_m\n");
+    for i in 0..1500 {
+        let t = i as f64 * 1e-3;
+        let p = match i {
+            500..=509 => [f64::NAN, y, z],
+            700 => [x, y, z - 0.1],
+            900..=919 => [x, y + 3.0, z],
+            _ => [x, y, z],
+        };
+        rec.push_str(&format!("{t},{},{},{}\n", p[0], p[1], p[2]));
+    }
+    let recording = dir.path().join("rec.csv");
+    std::fs::write(&recording, rec).unwrap();
+    let trace = dir.path().join("trace.csv");
+    let out = Command::new(bridge_bin())
+        .args(["--session", &ch, "--device", "replay", "--no-realtime", "--json", "--script"])
+        .arg(&recording)
+        .arg("--record")
+        .arg(&trace)
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["end"], "end of script");
+    assert!(s["rejected_non_finite"].as_u64().unwrap() >= 10, "{s}");
+    assert!(s["clamped_jumps"].as_u64().unwrap() >= 1, "{s}");
+    assert!(s["clamped_workspace"].as_u64().unwrap() >= 20, "{s}");
+    let rows = read_trace(&trace);
+    let (max_n, step_n) = (10.0, 1.0); // the sim profile: 10 N, 1000 N/s at 1 kHz
+    let mut prev = [0.0; 3];
+    for r in &rows {
+        assert!(r.position_m.iter().all(|c| c.is_finite()), "tick {}", r.tick);
+        assert!(norm(r.output_n) <= max_n + 1e-9, "tick {}: {:?}", r.tick, r.output_n);
+        // the force never grows faster than the rate limit (it may fall faster: the
+        // watchdog's fade to zero is a safety action, not a spike)
+        let rise = norm(r.output_n) - norm(prev);
+        assert!(rise <= step_n + 1e-9, "tick {}: the force grew by {rise} N", r.tick);
+        prev = r.output_n;
+    }
+    // the glitches moved the sent position by at most 2 mm per tick (2 m/s)
+    for w in rows.windows(2) {
+        let d = norm([0, 1, 2].map(|k| w[1].position_m[k] - w[0].position_m[k]));
+        assert!(d <= 2e-3 + 1e-12, "tick {}: the sent position jumped {d} m", w[1].tick);
+    }
+    assert!(rows.iter().any(|r| r.input_adjusted));
+    // and the forces the server did send are still the engine's for what was sent
+    let mut engine = engine();
+    assert!(assert_forces_match_engine(&rows, 0..rows.len(), &mut engine) > 500);
+}
