@@ -8,8 +8,9 @@
 //!    [`InputGuard`] (non-finite held, excursions and jumps clamped, counted);
 //! 3. publish the [`HapticState`] (organ frame);
 //! 4. take the newest force; if it does not yet answer this tick's state, poll for it up to
-//!    [`BridgeParams::answer_wait`] (only while answers do come within the tick, and on
-//!    every 16th tick to find out again — a server that answers a tick late costs no spinning);
+//!    [`BridgeParams::answer_wait`] (unless eight ticks in a row went unanswered in time: then
+//!    only on every 16th tick, so a server that answers a tick late, or is gone, costs no
+//!    spinning);
 //! 5. a force is *fresh* when it arrived since the last tick and answers a state read less
 //!    than [`STALE_AFTER_TICKS`] periods ago; otherwise the watchdog ages the last one
 //!    ([`watchdog_scale`]: zero four ticks after the last fresh force);
@@ -35,6 +36,10 @@ use crate::timing::{self, WaitStrategy};
 
 /// A force answering a state read this many periods ago or earlier is stale, not fresh.
 pub const STALE_AFTER_TICKS: u64 = 5;
+
+/// After this many ticks in a row without their own answer in time, the loop stops polling
+/// for it (the server answers a tick late, or is gone) and probes again every 16th tick.
+const GIVE_UP_WAITING: u32 = 8;
 
 /// After a stall longer than this many periods the loop restarts its schedule from now
 /// (the missed ticks are counted as misses, not run back to back).
@@ -132,8 +137,11 @@ pub struct BridgeOutcome {
     pub report: BridgeReport,
     /// Device read → force written over the fresh forces (ns).
     pub latency_ns: Histogram<u64>,
-    /// Lateness of each tick's start after its deadline (ns).
+    /// Lateness of each tick's start after its deadline (ns): the OS wake-up floor.
     pub lateness_ns: Histogram<u64>,
+    /// From each tick's deadline to its force written (ns): the wake-up floor plus the
+    /// tick's own work and IPC — the figure to compare with a null loop's.
+    pub completion_ns: Histogram<u64>,
     /// The first [`BridgeParams::trace_limit`] ticks.
     pub trace: Vec<TraceRow>,
     /// Ticks not traced.
@@ -183,6 +191,7 @@ fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Brid
     let mut force = ForceGuard::new(&p.profile, dt);
     let mut latency = histogram();
     let mut lateness = histogram();
+    let mut completion = histogram();
     let mut trace = Vec::with_capacity(p.trace_limit);
     let mut trace_dropped = 0u64;
     let mut link_errors = 0u64;
@@ -196,7 +205,7 @@ fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Brid
     let mut target_n = [0.0; 3];
     let mut received_n = [0.0; 3];
     let mut answers = u64::MAX;
-    let mut answered_in_tick = true;
+    let mut missed_in_tick: u32 = 0;
     let end = loop {
         if stop.load(Ordering::Relaxed) {
             break EndReason::Stopped;
@@ -239,7 +248,7 @@ fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Brid
         }
         // 4. take the newest force, polling a little for this tick's own answer
         let mut newest = link.poll_command();
-        let wait = !p.answer_wait.is_zero() && (answered_in_tick || tick.is_multiple_of(16));
+        let wait = !p.answer_wait.is_zero() && (missed_in_tick < GIVE_UP_WAITING || tick.is_multiple_of(16));
         if wait && newest.is_none_or(|c| c.state_seq != tick || c.t_read_ns != t_read_ns) {
             let until = Instant::now() + p.answer_wait;
             timing::wait_between(Instant::now(), until, || {
@@ -251,7 +260,11 @@ fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Brid
         }
         // 5. fresh, or aged by the watchdog
         let fresh = newest.filter(|c| c.t_read_ns >= t0_ns && t_read_ns.saturating_sub(c.t_read_ns) < STALE_AFTER_TICKS * period_ns);
-        answered_in_tick = fresh.is_some_and(|c| c.t_read_ns == t_read_ns);
+        if fresh.is_some_and(|c| c.t_read_ns == t_read_ns) {
+            missed_in_tick = 0;
+        } else {
+            missed_in_tick = missed_in_tick.saturating_add(1);
+        }
         if let Some(c) = fresh {
             age = 0;
             received_n = c.force_n;
@@ -272,7 +285,9 @@ fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Brid
         if let Some(c) = fresh {
             let _ = latency.record(t_write_ns.saturating_sub(c.t_read_ns).max(1));
         }
-        if Instant::now() > next + p.period {
+        let done = Instant::now();
+        let _ = completion.record(done.saturating_duration_since(next).as_nanos().max(1) as u64);
+        if done > next + p.period {
             r.deadline_misses += 1;
         }
         r.ticks += 1;
@@ -326,6 +341,7 @@ fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Brid
         report: r,
         latency_ns: latency,
         lateness_ns: lateness,
+        completion_ns: completion,
         trace,
         trace_dropped,
         skipped_forces: link.skipped(),

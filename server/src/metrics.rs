@@ -69,6 +69,7 @@ pub fn render(registry: &Registry) -> String {
             let _ = writeln!(out, "{name}{{session=\"{}\"}} {v}", e.session.id());
         }
     }
+    bridge_metrics(&mut out, &all);
     let _ = writeln!(
         out,
         "# HELP vademecum_tick_work_seconds Work per tick.\n# TYPE vademecum_tick_work_seconds histogram"
@@ -88,6 +89,63 @@ pub fn render(registry: &Registry) -> String {
         histogram(&mut out, "vademecum_response_seconds", id, &h.response);
     }
     out
+}
+
+/// Per session with a haptic channel: states answered, and the device bridge's own figures
+/// from its latest report (latency quantiles as a summary, counters).
+fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry>]) {
+    let haptic: Vec<_> = all.iter().filter(|e| e.session.config().haptic.is_some()).collect();
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_haptic_answers_total Tool states answered on the haptic channel.\n# TYPE vademecum_haptic_answers_total counter"
+    );
+    for e in &haptic {
+        let n = e.session.stats().haptic_answered.load(Ordering::Relaxed);
+        let _ = writeln!(out, "vademecum_haptic_answers_total{{session=\"{}\"}} {n}", e.session.id());
+    }
+    let reports: Vec<_> = haptic
+        .iter()
+        .filter_map(|e| e.session.stats().bridge.snapshot().map(|b| (e.session.id(), b)))
+        .collect();
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_bridge_latency_seconds Device read to force written, in the device bridge.\n# TYPE vademecum_bridge_latency_seconds summary"
+    );
+    for (id, b) in &reports {
+        for (q, v) in [("0.5", b.latency_us.p50), ("0.99", b.latency_us.p99), ("0.999", b.latency_us.p999), ("1", b.latency_us.max)] {
+            let _ = writeln!(out, "vademecum_bridge_latency_seconds{{session=\"{id}\",quantile=\"{q}\"}} {}", v * 1e-6);
+        }
+        let _ = writeln!(out, "vademecum_bridge_latency_seconds_count{{session=\"{id}\"}} {}", b.fresh_forces);
+    }
+    let counters: [(&str, &str, fn(&crate::session::BridgeSnapshot) -> u64); 5] = [
+        ("vademecum_bridge_ticks_total", "Device bridge ticks.", |b| b.ticks),
+        (
+            "vademecum_bridge_deadline_misses_total",
+            "Device bridge ticks that wrote their force more than a period late.",
+            |b| b.deadline_misses,
+        ),
+        (
+            "vademecum_bridge_watchdog_ticks_total",
+            "Device bridge ticks whose force the watchdog held or faded.",
+            |b| b.watchdog_ticks,
+        ),
+        (
+            "vademecum_bridge_input_rejections_total",
+            "Device samples held (non-finite) or clamped (jump, workspace).",
+            |b| b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+        ),
+        (
+            "vademecum_bridge_force_limits_total",
+            "Forces zeroed (non-finite), clamped or slewed by the bridge.",
+            |b| b.rejected_forces + b.clamped_forces + b.rate_limited_forces,
+        ),
+    ];
+    for (name, help, get) in counters {
+        let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} counter");
+        for (id, b) in &reports {
+            let _ = writeln!(out, "{name}{{session=\"{id}\"}} {}", get(b));
+        }
+    }
 }
 
 /// Serves `GET /metrics` on `listener` until `shutdown` resolves.

@@ -193,3 +193,67 @@ fn bad_device_samples_are_clamped_counted_and_never_become_a_force_spike() {
     let mut engine = engine();
     assert!(assert_forces_match_engine(&rows, 0..rows.len(), &mut engine) > 500);
 }
+
+/// Scrapes `GET /metrics` from `addr`.
+fn scrape(addr: &str) -> String {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.write_all(b"GET /metrics HTTP/1.0\r\nHost: x\r\n\r\n").unwrap();
+    let mut out = String::new();
+    s.read_to_string(&mut out).unwrap();
+    out
+}
+
+#[test]
+fn a_grpc_session_opens_a_haptic_channel_named_after_its_id_and_exports_the_bridges_figures() {
+    use vademecum_client::{Client, SceneSpec};
+    let server = util::Server::start(&["--metrics", "127.0.0.1:0"], &[]);
+    let rt = util::runtime();
+    let client = rt.block_on(Client::connect(server.url.clone())).unwrap();
+    let session = rt
+        .block_on(client.create_haptic_session(SceneSpec::Builtin("organ".into()), "organ", "haptic", ""))
+        .unwrap();
+    let id = session.info().session_id.clone();
+    assert_eq!(session.info().haptic_channel, id);
+    // one channel, one session: a second session on it is refused with the reason
+    let e = rt
+        .block_on(client.create_haptic_session(SceneSpec::Builtin("organ".into()), "organ", "", &id))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("in use"), "{e}");
+    let e = rt
+        .block_on(client.create_haptic_session(SceneSpec::Builtin("organ".into()), "organ", "", "no/slash"))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("haptic channel name"), "{e}");
+    // a bridge with a still device for 1.5 s
+    let out = Command::new(bridge_bin())
+        .args(["--session", &id, "--device", "null", "--no-realtime", "--duration", "1.5", "--json"])
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let fresh = s["fresh_forces"].as_u64().unwrap();
+    assert!(fresh > 1000, "{s}");
+    // the bridge's final report reaches the session's statistics and the metrics
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let stats = loop {
+        let st = rt.block_on(session.stats()).unwrap();
+        if st.bridge_latency_p50_us > 0.0 || Instant::now() > deadline {
+            break st;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(stats.haptic_answered >= fresh, "{stats:?}");
+    assert!(stats.bridge_latency_p50_us > 0.0 && stats.bridge_latency_p99_us >= stats.bridge_latency_p50_us, "{stats:?}");
+    let text = scrape(server.metrics.as_deref().unwrap());
+    for name in [
+        "vademecum_haptic_answers_total{session=",
+        "vademecum_bridge_latency_seconds{session=",
+        "vademecum_bridge_deadline_misses_total{session=",
+        "vademecum_bridge_watchdog_ticks_total{session=",
+    ] {
+        assert!(text.contains(name), "{name} missing from:\n{text}");
+    }
+}

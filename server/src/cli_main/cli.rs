@@ -289,6 +289,48 @@ concurrent sessions each playing the built-in palpation.\n\n\
 To measure what one core sustains, pin the process: taskset -c 0 vademecum bench session."
     )]
     Session(BenchSessionArgs),
+    /// The 1 kHz haptic path over shared memory: null loop, iceoryx2 round trip, full tick.
+    #[command(
+        long_about = "The 1 kHz haptic path on this machine, each figure beside a null loop measured in the \
+same run: (1) the device bridge's timing loop with no IPC and no work; (2) the bridge against an \
+echo peer over iceoryx2 shared memory (the iceoryx2 round trip); (3) the bridge's simulated \
+stylus palpating the built-in organ against a real session (the full tick). Reports device \
+read -> force written, deadline -> force written (compare with the null loop), deadline misses \
+and the CPU of the bridge's and the peer's threads.\n\n\
+--hog N adds N threads of busy work for the whole run; --wait and --peer-wait choose the wait \
+strategies (sleep, spin, hybrid)."
+    )]
+    Haptic(BenchHapticArgs),
+}
+
+/// Arguments of `vademecum bench haptic`.
+#[derive(Debug, Args)]
+pub struct BenchHapticArgs {
+    /// Seconds per phase.
+    #[arg(long, default_value_t = 60.0)]
+    pub seconds: f64,
+    /// How the bridge waits for its deadlines (sleep, spin, hybrid).
+    #[arg(long, default_value = "hybrid")]
+    pub wait: vademecum_bridge::timing::WaitStrategy,
+    /// How the peer (echo or session tick thread) waits for the bridge's states.
+    #[arg(long, default_value = "hybrid")]
+    pub peer_wait: vademecum_bridge::timing::WaitStrategy,
+    /// Spin window of the hybrid waits (µs).
+    #[arg(long, default_value_t = 200, value_name = "US")]
+    pub spin_window_us: u64,
+    /// Threads of busy work running during the whole benchmark.
+    #[arg(long, default_value_t = 0)]
+    pub hog: usize,
+    /// Ask for SCHED_FIFO for the bridge (80) and the peer (70) threads, as the bridge and
+    /// haptic sessions do (not with the spin wait).
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set)]
+    pub realtime: bool,
+    /// Folder of the organ's bundle (built there when missing). Default: out/organ.
+    #[arg(long, value_name = "DIR")]
+    pub bundles: Option<PathBuf>,
+    /// Print the results as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum bench session`.

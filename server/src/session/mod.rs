@@ -33,7 +33,7 @@ use tokio::sync::watch;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput};
 use vademecum_bridge::peer::HapticPeer;
-use vademecum_bridge::timing::WaitStrategy;
+use vademecum_bridge::timing::{RealtimeStatus, WaitStrategy};
 use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
 
@@ -84,6 +84,9 @@ pub struct HapticConfig {
     pub wait: WaitStrategy,
     /// Spin window of the hybrid wait.
     pub spin_window: Duration,
+    /// `SCHED_FIFO` priority asked for the tick thread (not with the spin wait, which would
+    /// trip the kernel's real-time throttle); refused gracefully when not permitted.
+    pub fifo_priority: Option<i32>,
 }
 
 impl HapticConfig {
@@ -93,6 +96,7 @@ impl HapticConfig {
             channel,
             wait: WaitStrategy::Hybrid,
             spin_window: vademecum_bridge::timing::DEFAULT_SPIN_WINDOW,
+            fifo_priority: Some(70),
         }
     }
 }
@@ -164,6 +168,7 @@ pub struct Session {
     threads: Vec<JoinHandle<()>>,
     epoch: Instant,
     config: SessionConfig,
+    realtime: Option<RealtimeStatus>,
 }
 
 /// What the tick thread receives.
@@ -228,26 +233,29 @@ impl Session {
         // the haptic peer's ports belong to the thread that uses them: the tick thread opens
         // them before its loop and says whether it could
         let haptic = config.haptic.clone();
-        let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<(), OpenError>>(1);
+        let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<Option<RealtimeStatus>, OpenError>>(1);
         let tick_thread = std::thread::Builder::new()
             .name(format!("tick-{id}"))
             .spawn(move || {
-                let peer = match haptic {
-                    None => None,
+                let (peer, rt) = match haptic {
+                    None => (None, None),
                     Some(h) => match HapticPeer::open(&h.channel, h.wait, h.spin_window, tick_loop.period) {
-                        Ok(p) => Some(p),
+                        Ok(p) => {
+                            let fifo = h.fifo_priority.filter(|_| h.wait != WaitStrategy::Spin);
+                            (Some(p), Some(vademecum_bridge::timing::request_realtime(fifo, None)))
+                        }
                         Err(e) => {
                             let _ = opened_tx.send(Err(e));
                             return;
                         }
                     },
                 };
-                let _ = opened_tx.send(Ok(()));
+                let _ = opened_tx.send(Ok(rt));
                 tick_loop.run(peer)
             })
             .expect("the OS can start a thread");
-        match opened_rx.recv() {
-            Ok(Ok(())) => {}
+        let realtime = match opened_rx.recv() {
+            Ok(Ok(rt)) => rt,
             Ok(Err(source)) => {
                 let _ = tick_thread.join();
                 return Err(SessionError::Haptic {
@@ -256,7 +264,7 @@ impl Session {
                 });
             }
             Err(_) => panic!("the tick thread ended before opening its haptic channel"),
-        }
+        };
         let producer = frames::FrameProducer::new(
             bundles.clone(),
             geometry.clone(),
@@ -284,6 +292,7 @@ impl Session {
             threads: vec![tick_thread, frame_thread],
             epoch,
             config,
+            realtime,
         })
     }
 
@@ -310,6 +319,11 @@ impl Session {
     /// The configuration it runs with.
     pub fn config(&self) -> &SessionConfig {
         &self.config
+    }
+
+    /// What the OS granted the tick thread of a haptic session (`None` without a channel).
+    pub fn realtime(&self) -> Option<&RealtimeStatus> {
+        self.realtime.as_ref()
     }
 
     /// When the session started (the origin of its timestamps).

@@ -85,6 +85,8 @@ pub struct TickStats {
     pub haptic_errors: AtomicU64,
     /// The bridge's latest report (zero until one arrives).
     pub bridge: BridgeStats,
+    /// CPU time of the tick thread (ns), updated every few ticks.
+    pub tick_cpu_ns: AtomicU64,
     histograms: Mutex<Histograms>,
 }
 

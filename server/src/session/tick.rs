@@ -170,6 +170,8 @@ impl TickLoop {
             tick += 1;
             if tick.is_multiple_of(PUBLISH_EVERY) {
                 self.stats.publish(&mut local);
+                let cpu = vademecum_bridge::timing::thread_cpu_time().as_nanos() as u64;
+                self.stats.tick_cpu_ns.store(cpu, Ordering::Relaxed);
                 if let Some(p) = peer.as_mut() {
                     if let Some(r) = p.poll_report() {
                         self.stats.bridge.store(&r);

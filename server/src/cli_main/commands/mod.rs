@@ -1,6 +1,7 @@
 //! The subcommands, one file each.
 
 mod bench;
+mod bench_haptic;
 mod bench_pgd;
 mod bench_session;
 mod build;
@@ -29,5 +30,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),
         Command::Bench(BenchCommand::Pgd(a)) => bench_pgd::run(a),
         Command::Bench(BenchCommand::Session(a)) => bench_session::run(a),
+        Command::Bench(BenchCommand::Haptic(a)) => bench_haptic::run(a),
     }
 }

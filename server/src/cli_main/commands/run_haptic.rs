@@ -59,8 +59,9 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
         ..SessionConfig::default()
     };
     let session = Session::start("run".into(), scene.clone(), bundles, config)?;
+    let rt = session.realtime().map(|r| r.to_string()).unwrap_or_default();
     eprintln!(
-        "vademecum: haptic channel '{}' open ({} wait); hand script for `vademecum-bridge --device sim`: {}",
+        "vademecum: haptic channel '{}' open ({} wait, tick thread: {rt}); hand script for `vademecum-bridge --device sim`: {}",
         channel.name(),
         wait,
         record.join("trajectory.csv").display()
