@@ -235,6 +235,9 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let duration = positive(a.duration, "--duration")?;
     let server_timeout = positive(a.server_timeout, "--server-timeout")?;
+    if a.wait == WaitStrategy::Event {
+        bail!("--wait event is for a session waiting on its bridge (vademecum run --haptic-wait event); the bridge waits for its deadlines with sleep, spin or hybrid");
+    }
     let channel = HapticChannel::new(&a.session)?;
     let profile = profile_of(&a)?;
     let mut device = open_device(&a)?;

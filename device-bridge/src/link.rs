@@ -44,6 +44,7 @@ pub struct ShmLink {
     states: ShmPublisher<HapticState>,
     commands: ShmSubscriber<HapticCommand>,
     reports: ShmPublisher<BridgeReport>,
+    wake: iceoryx2::port::notifier::Notifier<iceoryx2::prelude::ipc::Service>,
     skipped: u64,
 }
 
@@ -77,12 +78,18 @@ impl ShmLink {
             .publisher_builder()
             .create()
             .map_err(|e| port("report", format!("{e:?}")))?;
+        let wake = services
+            .wake
+            .notifier_builder()
+            .create()
+            .map_err(|e| port("wake", format!("{e:?}")))?;
         Ok(Self {
             node,
             _services: services,
             states,
             commands,
             reports,
+            wake,
             skipped: 0,
         })
     }
@@ -95,7 +102,9 @@ fn publish<T: Copy + std::fmt::Debug + iceoryx2::prelude::ZeroCopySend>(p: &ShmP
 
 impl Link for ShmLink {
     fn send_state(&mut self, state: &HapticState) -> Result<(), LinkError> {
-        publish(&self.states, *state)
+        publish(&self.states, *state)?;
+        // wakes a session that blocks on the event; free when nobody listens
+        self.wake.notify().map(|_| ()).map_err(|_| LinkError::Send)
     }
 
     fn poll_command(&mut self) -> Option<HapticCommand> {

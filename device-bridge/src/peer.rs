@@ -16,8 +16,10 @@
 //! - `Hybrid` (default): sleep until `window` before the state is expected (the last arrival
 //!   plus one period), then poll: answered within microseconds when the OS wakes the thread
 //!   on time, at about `window / period` of a core.
+//! - `Event`: block on the `wake` event the bridge raises after each state: no spinning;
+//!   each answer pays a kernel wake-up.
 //!
-//! When no state arrived for [`IDLE_AFTER`], the bridge is taken as gone and every strategy
+//! When no state arrived for [`IDLE_AFTER`], the bridge is taken as gone and every polling strategy
 //! sleeps: a session without a device pays nothing for the channel.
 
 use std::time::{Duration, Instant};
@@ -41,6 +43,7 @@ pub struct HapticPeer {
     states: ShmSubscriber<HapticState>,
     commands: ShmPublisher<HapticCommand>,
     reports: ShmSubscriber<BridgeReport>,
+    wake: Option<iceoryx2::port::listener::Listener<iceoryx2::prelude::ipc::Service>>,
     strategy: WaitStrategy,
     window: Duration,
     period: Duration,
@@ -80,12 +83,23 @@ impl HapticPeer {
             .buffer_size(shm::SUBSCRIBER_BUFFER)
             .create()
             .map_err(|e| port("report", format!("{e:?}")))?;
+        let wake = match strategy {
+            WaitStrategy::Event => Some(
+                services
+                    .wake
+                    .listener_builder()
+                    .create()
+                    .map_err(|e| port("wake", format!("{e:?}")))?,
+            ),
+            _ => None,
+        };
         Ok(Self {
             _node: node,
             _services: services,
             states,
             commands,
             reports,
+            wake,
             strategy,
             window,
             period,
@@ -115,12 +129,18 @@ impl HapticPeer {
     /// The strategy the next wait uses: the configured one while a bridge is active, sleep
     /// otherwise.
     pub fn effective_strategy(&self) -> WaitStrategy {
-        if self.bridge_active() { self.strategy } else { WaitStrategy::Sleep }
+        // blocking on the event costs nothing while the bridge is away
+        if self.bridge_active() || self.strategy == WaitStrategy::Event {
+            self.strategy
+        } else {
+            WaitStrategy::Sleep
+        }
     }
 
     /// Waits for the bridge's next state until `deadline` (see the [module docs](self)).
     pub fn wait_for_state(&mut self, deadline: Instant) -> Option<HapticState> {
         let spin_from = match self.effective_strategy() {
+            WaitStrategy::Event => return self.wait_for_event(deadline),
             WaitStrategy::Sleep => deadline,
             WaitStrategy::Spin => Instant::now(),
             WaitStrategy::Hybrid => {
@@ -137,6 +157,28 @@ impl HapticPeer {
             self.last_arrival = Some(Instant::now());
         }
         got
+    }
+
+    /// Blocks on the bridge's wake event until a state arrives or `deadline` passes.
+    fn wait_for_event(&mut self, deadline: Instant) -> Option<HapticState> {
+        loop {
+            if let Some(s) = self.poll() {
+                self.last_arrival = Some(Instant::now());
+                return Some(s);
+            }
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return None;
+            }
+            match &self.wake {
+                Some(l) => {
+                    if l.timed_wait(|_| {}, left).is_err() {
+                        std::thread::sleep(left);
+                    }
+                }
+                None => std::thread::sleep(left),
+            }
+        }
     }
 
     /// Sends the force answering `state`.

@@ -8,6 +8,8 @@
 //! - [`WaitStrategy::Spin`]: poll the clock until the deadline. On time; one core at 100 %.
 //! - [`WaitStrategy::Hybrid`]: sleep until `window` before the deadline, then spin. About
 //!   `window / period` of a core, on time unless the OS wakes the thread later than `window`.
+//! - [`WaitStrategy::Event`]: for a session waiting on its bridge only — block on the
+//!   iceoryx2 event the bridge raises after each state; the wake-up is a kernel round trip.
 
 use std::time::{Duration, Instant};
 
@@ -21,6 +23,9 @@ pub enum WaitStrategy {
     /// Sleep until a window before the deadline, then spin.
     #[default]
     Hybrid,
+    /// Block on the iceoryx2 event the bridge raises after each state (a session's wait for
+    /// the bridge only; a loop waiting for its own deadline sleeps).
+    Event,
 }
 
 impl std::str::FromStr for WaitStrategy {
@@ -30,7 +35,8 @@ impl std::str::FromStr for WaitStrategy {
             "sleep" => Ok(Self::Sleep),
             "spin" => Ok(Self::Spin),
             "hybrid" => Ok(Self::Hybrid),
-            _ => Err(format!("unknown wait strategy {s:?}: use sleep, spin or hybrid")),
+            "event" => Ok(Self::Event),
+            _ => Err(format!("unknown wait strategy {s:?}: use sleep, spin, hybrid or event")),
         }
     }
 }
@@ -41,6 +47,7 @@ impl std::fmt::Display for WaitStrategy {
             Self::Sleep => "sleep",
             Self::Spin => "spin",
             Self::Hybrid => "hybrid",
+            Self::Event => "event",
         })
     }
 }
@@ -54,7 +61,7 @@ pub const DEFAULT_SPIN_WINDOW: Duration = Duration::from_micros(200);
 /// whether `ready` fired. `ready` is polled while spinning, and once after a sleep.
 pub fn wait_until(deadline: Instant, strategy: WaitStrategy, window: Duration, ready: impl FnMut() -> bool) -> bool {
     let spin_from = match strategy {
-        WaitStrategy::Sleep => deadline,
+        WaitStrategy::Sleep | WaitStrategy::Event => deadline,
         WaitStrategy::Spin => Instant::now(),
         WaitStrategy::Hybrid => deadline.checked_sub(window).unwrap_or(deadline),
     };
@@ -175,9 +182,9 @@ mod tests {
 
     #[test]
     fn strategies_parse_from_their_names() {
-        for s in [WaitStrategy::Sleep, WaitStrategy::Spin, WaitStrategy::Hybrid] {
+        for s in [WaitStrategy::Sleep, WaitStrategy::Spin, WaitStrategy::Hybrid, WaitStrategy::Event] {
             assert_eq!(s.to_string().parse::<WaitStrategy>(), Ok(s));
         }
-        assert!("busy".parse::<WaitStrategy>().unwrap_err().contains("sleep, spin or hybrid"));
+        assert!("busy".parse::<WaitStrategy>().unwrap_err().contains("sleep, spin, hybrid or event"));
     }
 }

@@ -8,8 +8,9 @@
 //! - [`HapticCommand`]: server → bridge, one per state answered: the force to render.
 //! - [`BridgeReport`]: bridge → server, a few per second: the bridge's own counters and
 //!   latency percentiles, exported by the server's metrics.
-//! - [`HapticChannel`]: a validated channel name and the three service names under it.
-//! - [`HapticServices`]: the three services, opened or created with the shared settings.
+//! - [`HapticChannel`]: a validated channel name and the service names under it.
+//! - [`HapticServices`]: the services, opened or created with the shared settings (plus the
+//!   `wake` event a peer may block on instead of polling).
 //!
 //! Times are `CLOCK_MONOTONIC` nanoseconds ([`monotonic_ns`]), one clock for every process
 //! on the host, so a latency can be measured across the two processes.
@@ -19,6 +20,7 @@
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
 /// The tool state read from the device at one bridge tick (bridge → server).
@@ -131,7 +133,7 @@ impl std::fmt::Display for ChannelNameError {
 impl std::error::Error for ChannelNameError {}
 
 /// A haptic channel: the name a session and a bridge agree on (by default the session id),
-/// under which the three services live: `vademecum/haptic/<name>/{state,command,report}`.
+/// under which its services live: `vademecum/haptic/<name>/{state,command,report,wake}`.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct HapticChannel {
     name: String,
@@ -183,7 +185,7 @@ impl std::fmt::Display for OpenError {
 
 impl std::error::Error for OpenError {}
 
-/// The three services of a channel, opened (or created, whichever side comes first) with the
+/// The services of a channel, opened (or created, whichever side comes first) with the
 /// settings both sides share: one publisher per service, the newest samples kept (a slow
 /// reader loses old samples, never blocks a writer), no history for late joiners.
 #[derive(Debug)]
@@ -194,6 +196,9 @@ pub struct HapticServices {
     pub command: PubSubFactory<ipc::Service, HapticCommand, ()>,
     /// Bridge reports, bridge → server.
     pub report: PubSubFactory<ipc::Service, BridgeReport, ()>,
+    /// "A state was published", bridge → server: an event for peers that block on it
+    /// instead of polling (notifying costs the bridge nothing while nobody listens).
+    pub wake: EventFactory<ipc::Service>,
 }
 
 /// Samples a subscriber keeps before the oldest is overwritten.
@@ -221,6 +226,20 @@ fn open<T: std::fmt::Debug + ZeroCopySend>(
         .map_err(|e| bad(format!("{e:?}")))
 }
 
+fn open_event(node: &Node<ipc::Service>, name: &str) -> Result<EventFactory<ipc::Service>, OpenError> {
+    let bad = |reason: String| OpenError {
+        service: name.to_string(),
+        reason,
+    };
+    let service_name: ServiceName = name.try_into().map_err(|e| bad(format!("{e:?}")))?;
+    node.service_builder(&service_name)
+        .event()
+        .max_notifiers(MAX_SUBSCRIBERS)
+        .max_listeners(MAX_SUBSCRIBERS)
+        .open_or_create()
+        .map_err(|e| bad(format!("{e:?}")))
+}
+
 impl HapticServices {
     /// Opens or creates the channel's services on `node`.
     pub fn open(node: &Node<ipc::Service>, channel: &HapticChannel) -> Result<Self, OpenError> {
@@ -228,6 +247,7 @@ impl HapticServices {
             state: open(node, &channel.service_name("state"))?,
             command: open(node, &channel.service_name("command"))?,
             report: open(node, &channel.service_name("report"))?,
+            wake: open_event(node, &channel.service_name("wake"))?,
         })
     }
 }

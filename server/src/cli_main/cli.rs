@@ -170,8 +170,9 @@ pub struct RunArgs {
     pub duration: Option<f64>,
     /// With --haptic: how the tick thread waits for the bridge's states: `hybrid` (sleep,
     /// then poll the last --haptic-spin-us before a state is due; default), `spin` (poll
-    /// continuously: a whole core), `sleep` (answer at the session's own 1 kHz ticks: no
-    /// spinning, forces one tick late).
+    /// continuously: a whole core), `event` (block on the event the bridge raises after
+    /// each state: no spinning, a kernel wake-up per answer), `sleep` (answer at the
+    /// session's own 1 kHz ticks: no spinning, forces one tick late).
     #[arg(long, value_name = "WAIT")]
     pub haptic_wait: Option<vademecum_bridge::timing::WaitStrategy>,
     /// With --haptic: spin window of the hybrid wait (µs).
@@ -312,7 +313,8 @@ pub struct BenchHapticArgs {
     /// How the bridge waits for its deadlines (sleep, spin, hybrid).
     #[arg(long, default_value = "hybrid")]
     pub wait: vademecum_bridge::timing::WaitStrategy,
-    /// How the peer (echo or session tick thread) waits for the bridge's states.
+    /// How the peer (echo or session tick thread) waits for the bridge's states (sleep,
+    /// spin, hybrid, event).
     #[arg(long, default_value = "hybrid")]
     pub peer_wait: vademecum_bridge::timing::WaitStrategy,
     /// Spin window of the hybrid waits (µs).
