@@ -174,7 +174,12 @@ fn histogram() -> Histogram<u64> {
 
 /// Runs the loop on the calling thread until the duration, the device's end, a server
 /// timeout, or `stop`; the device is released (zero force) on every way out.
-pub fn run<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &BridgeParams, stop: &Arc<AtomicBool>) -> Result<BridgeOutcome, BridgeError> {
+pub fn run<D: Device + ?Sized, L: Link>(
+    device: &mut D,
+    link: &mut L,
+    p: &BridgeParams,
+    stop: &Arc<AtomicBool>,
+) -> Result<BridgeOutcome, BridgeError> {
     p.profile.validate().map_err(BridgeError::Params)?;
     if p.period.is_zero() || p.report_every == 0 {
         return Err(BridgeError::Params("the period and the report interval must be positive".into()));
@@ -184,7 +189,12 @@ pub fn run<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Bridge
     result
 }
 
-fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &BridgeParams, stop: &Arc<AtomicBool>) -> Result<BridgeOutcome, BridgeError> {
+fn run_inner<D: Device + ?Sized, L: Link>(
+    device: &mut D,
+    link: &mut L,
+    p: &BridgeParams,
+    stop: &Arc<AtomicBool>,
+) -> Result<BridgeOutcome, BridgeError> {
     let dt = p.period.as_secs_f64();
     let period_ns = p.period.as_nanos() as u64;
     let mut input = InputGuard::new(&p.profile, dt);
@@ -232,7 +242,11 @@ fn run_inner<D: Device + ?Sized, L: Link>(device: &mut D, link: &mut L, p: &Brid
         } else {
             p.frame.velocity_to_organ(reading.velocity_m_s)
         };
-        let closure = if reading.closure.is_finite() { reading.closure.clamp(0.0, 1.0) } else { 0.0 };
+        let closure = if reading.closure.is_finite() {
+            reading.closure.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         let state = HapticState {
             seq: tick,
             t_read_ns,
@@ -386,7 +400,11 @@ pub fn write_trace(path: &std::path::Path, trace: &[TraceRow]) -> std::io::Resul
     ])?;
     for t in trace {
         let f = |x: f64| format!("{x:?}");
-        let answers = if t.answers == u64::MAX { String::new() } else { t.answers.to_string() };
+        let answers = if t.answers == u64::MAX {
+            String::new()
+        } else {
+            t.answers.to_string()
+        };
         let age = if t.age == u32::MAX { String::new() } else { t.age.to_string() };
         w.write_record([
             t.tick.to_string(),
@@ -483,7 +501,10 @@ mod tests {
     #[test]
     fn the_force_fades_to_zero_within_five_ticks_when_the_server_goes_silent() {
         let stop = Arc::new(AtomicBool::new(false));
-        let mut link = Wall { up: true, ..Wall::default() };
+        let mut link = Wall {
+            up: true,
+            ..Wall::default()
+        };
         let mut dev = Pressed { writes: Vec::new() };
         // up for 50 ticks: the force ramps to 6 N (rate limit 1 N per tick) and holds
         let p = params(50);
@@ -538,7 +559,10 @@ mod tests {
         )
         .unwrap();
         let mut dev = Replay::read(&rec).unwrap();
-        let mut link = Wall { up: true, ..Wall::default() };
+        let mut link = Wall {
+            up: true,
+            ..Wall::default()
+        };
         let stop = Arc::new(AtomicBool::new(false));
         let out = run(&mut dev, &mut link, &params(1000), &stop).unwrap();
         assert_eq!(out.end, EndReason::DeviceFinished);
@@ -558,7 +582,10 @@ mod tests {
             prev = t.output_n;
         }
         for w in out.trace.windows(2) {
-            let d = (0..3).map(|k| (w[1].position_m[k] - w[0].position_m[k]).powi(2)).sum::<f64>().sqrt();
+            let d = (0..3)
+                .map(|k| (w[1].position_m[k] - w[0].position_m[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
             assert!(d <= p.max_speed_m_s * 1e-3 + 1e-12, "tick {}: moved {d} m", w[1].tick);
             assert!(w[1].position_m.iter().all(|c| c.is_finite()));
         }
@@ -577,7 +604,13 @@ mod tests {
     #[test]
     fn a_stop_request_ends_the_loop_and_a_silent_server_times_out() {
         let stop = Arc::new(AtomicBool::new(true));
-        let out = run(&mut NullDevice::default(), &mut NullLink::default(), &BridgeParams::default(), &stop).unwrap();
+        let out = run(
+            &mut NullDevice::default(),
+            &mut NullLink::default(),
+            &BridgeParams::default(),
+            &stop,
+        )
+        .unwrap();
         assert_eq!(out.end, EndReason::Stopped);
         let stop = Arc::new(AtomicBool::new(false));
         let p = BridgeParams {

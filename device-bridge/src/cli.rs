@@ -10,9 +10,6 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use anyhow::{Context, bail};
-use clap::{Parser, ValueEnum};
-use serde::Serialize;
 use crate::bridge_loop::{self, BridgeOutcome, BridgeParams, EndReason};
 use crate::device::replay::Replay;
 use crate::device::sim::{HandModel, SimStylus};
@@ -21,6 +18,9 @@ use crate::link::ShmLink;
 use crate::profile::{DeviceProfile, FrameMap, Workspace};
 use crate::timing::{self, WaitStrategy};
 use crate::trajectory::Trajectory;
+use anyhow::{Context, bail};
+use clap::{Parser, ValueEnum};
+use serde::Serialize;
 use vademecum_proto::shm::{self, HapticChannel};
 
 /// The device bridge of vademecum: reads a haptic device at 1 kHz, sends its tool state to a
@@ -236,7 +236,9 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
     let duration = positive(a.duration, "--duration")?;
     let server_timeout = positive(a.server_timeout, "--server-timeout")?;
     if a.wait == WaitStrategy::Event {
-        bail!("--wait event is for a session waiting on its bridge (vademecum run --haptic-wait event); the bridge waits for its deadlines with sleep, spin or hybrid");
+        bail!(
+            "--wait event is for a session waiting on its bridge (vademecum run --haptic-wait event); the bridge waits for its deadlines with sleep, spin or hybrid"
+        );
     }
     let channel = HapticChannel::new(&a.session)?;
     let profile = profile_of(&a)?;
@@ -293,7 +295,10 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
         print_summary(&summary);
     }
     Ok(if out.end == EndReason::ServerTimeout {
-        eprintln!("vademecum-bridge: no fresh force for {:?}: giving up", server_timeout.unwrap_or_default());
+        eprintln!(
+            "vademecum-bridge: no fresh force for {:?}: giving up",
+            server_timeout.unwrap_or_default()
+        );
         ExitCode::from(1)
     } else {
         ExitCode::SUCCESS
@@ -337,7 +342,10 @@ fn summarize(a: &Args, channel: &HapticChannel, device: &str, profile: &DevicePr
 
 fn print_summary(s: &Summary) {
     let pct = |n: u64| 100.0 * n as f64 / s.ticks.max(1) as f64;
-    eprintln!("vademecum-bridge: stopped ({}) after {:.2} s, {} ticks", s.end, s.duration_s, s.ticks);
+    eprintln!(
+        "vademecum-bridge: stopped ({}) after {:.2} s, {} ticks",
+        s.end, s.duration_s, s.ticks
+    );
     eprintln!(
         "  device read -> force written (fresh forces): p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs",
         s.latency_us.p50, s.latency_us.p99, s.latency_us.p999, s.latency_us.max

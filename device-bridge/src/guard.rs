@@ -107,7 +107,8 @@ impl InputGuard {
             raw_m
         } else {
             v.non_finite = true;
-            self.last.unwrap_or_else(|| [0, 1, 2].map(|k| 0.5 * (self.workspace.min_m[k] + self.workspace.max_m[k])))
+            self.last
+                .unwrap_or_else(|| [0, 1, 2].map(|k| 0.5 * (self.workspace.min_m[k] + self.workspace.max_m[k])))
         };
         if !self.workspace.contains(p) {
             v.outside = true;

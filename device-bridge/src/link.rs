@@ -5,8 +5,7 @@
 //! before the loop starts; per tick, a link only loans, writes and sends, or receives.
 
 use vademecum_proto::shm::{
-    self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher,
-    ShmSubscriber,
+    self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher, ShmSubscriber,
 };
 
 /// A per-tick transport failure, counted by the loop (the tick goes on in safe mode).

@@ -25,8 +25,7 @@
 use std::time::{Duration, Instant};
 
 use vademecum_proto::shm::{
-    self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher,
-    ShmSubscriber,
+    self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher, ShmSubscriber,
 };
 
 use crate::link::LinkError;

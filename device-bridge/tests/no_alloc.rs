@@ -97,4 +97,3 @@ fn over_shared_memory_the_loop_allocates_only_what_iceoryx2_does_per_sample() {
         "{short} allocations for 20 ticks, {long} for 300, iceoryx2 makes {per_sample} per sample"
     );
 }
-

@@ -142,9 +142,7 @@ pub struct HapticChannel {
 impl HapticChannel {
     /// Validates `name`: 1 to 64 characters among ASCII letters, digits, `-`, `_`, `.`.
     pub fn new(name: &str) -> Result<Self, ChannelNameError> {
-        let ok = !name.is_empty()
-            && name.len() <= 64
-            && name.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'));
+        let ok = !name.is_empty() && name.len() <= 64 && name.bytes().all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'_' | b'.'));
         if ok {
             Ok(Self { name: name.to_string() })
         } else {
@@ -206,10 +204,7 @@ pub const SUBSCRIBER_BUFFER: usize = 4;
 /// Subscribers per service (the peer plus monitoring tools).
 pub const MAX_SUBSCRIBERS: usize = 4;
 
-fn open<T: std::fmt::Debug + ZeroCopySend>(
-    node: &Node<ipc::Service>,
-    name: &str,
-) -> Result<PubSubFactory<ipc::Service, T, ()>, OpenError> {
+fn open<T: std::fmt::Debug + ZeroCopySend>(node: &Node<ipc::Service>, name: &str) -> Result<PubSubFactory<ipc::Service, T, ()>, OpenError> {
     let bad = |reason: String| OpenError {
         service: name.to_string(),
         reason,
@@ -300,10 +295,7 @@ mod tests {
             let e = HapticChannel::new(bad).unwrap_err();
             assert!(e.to_string().contains("haptic channel name"), "{e}");
         }
-        assert_eq!(
-            HapticChannel::new("s1").unwrap().service_name("state"),
-            "vademecum/haptic/s1/state"
-        );
+        assert_eq!(HapticChannel::new("s1").unwrap().service_name("state"), "vademecum/haptic/s1/state");
     }
 
     #[test]

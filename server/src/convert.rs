@@ -112,12 +112,7 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
         effects: s.effects().iter().map(|x| x.to_string()).collect(),
         tick_rate_hz: 1.0 / s.config().period.as_secs_f64(),
         stats: Some(session_stats(e)),
-        haptic_channel: s
-            .config()
-            .haptic
-            .as_ref()
-            .map(|h| h.channel.name().to_string())
-            .unwrap_or_default(),
+        haptic_channel: s.config().haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
     }
 }
 

@@ -112,8 +112,17 @@ fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry
         "# HELP vademecum_bridge_latency_seconds Device read to force written, in the device bridge.\n# TYPE vademecum_bridge_latency_seconds summary"
     );
     for (id, b) in &reports {
-        for (q, v) in [("0.5", b.latency_us.p50), ("0.99", b.latency_us.p99), ("0.999", b.latency_us.p999), ("1", b.latency_us.max)] {
-            let _ = writeln!(out, "vademecum_bridge_latency_seconds{{session=\"{id}\",quantile=\"{q}\"}} {}", v * 1e-6);
+        for (q, v) in [
+            ("0.5", b.latency_us.p50),
+            ("0.99", b.latency_us.p99),
+            ("0.999", b.latency_us.p999),
+            ("1", b.latency_us.max),
+        ] {
+            let _ = writeln!(
+                out,
+                "vademecum_bridge_latency_seconds{{session=\"{id}\",quantile=\"{q}\"}} {}",
+                v * 1e-6
+            );
         }
         let _ = writeln!(out, "vademecum_bridge_latency_seconds_count{{session=\"{id}\"}} {}", b.fresh_forces);
     }

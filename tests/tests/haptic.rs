@@ -86,7 +86,17 @@ fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnect
     repeated_palpation(&dir.path().join("a"), 4, &hand);
     let trace = dir.path().join("trace.csv");
     let bridge = Command::new(bridge_bin())
-        .args(["--session", &ch, "--device", "sim", "--no-realtime", "--duration", "17", "--json", "--script"])
+        .args([
+            "--session",
+            &ch,
+            "--device",
+            "sim",
+            "--no-realtime",
+            "--duration",
+            "17",
+            "--json",
+            "--script",
+        ])
         .arg(&hand)
         .arg("--record")
         .arg(&trace)
@@ -104,7 +114,11 @@ fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnect
     let _again = HapticRun::start(&ch, &dir.path().join("b"), &[]);
     let restarted_at = t0.elapsed();
     let out = bridge.wait_with_output().unwrap();
-    assert!(out.status.success(), "the bridge waits through the crash and exits cleanly: {:?}", out.status);
+    assert!(
+        out.status.success(),
+        "the bridge waits through the crash and exits cleanly: {:?}",
+        out.status
+    );
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(summary["end"], "duration");
 
@@ -122,11 +136,20 @@ fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnect
     let mut engine = engine();
     let touching = assert_forces_match_engine(&rows, 0..last_before + 1, &mut engine);
     assert!(fresh.iter().filter(|&&i| i <= last_before).count() >= 10_000);
-    assert!(touching >= 3000, "the palpation presses for seconds: {touching} forces above 0.05 N");
+    assert!(
+        touching >= 3000,
+        "the palpation presses for seconds: {touching} forces above 0.05 N"
+    );
     // the crash came mid-press: the force was on, and is exactly zero 5 ticks later
     assert!(norm(rows[last_before].output_n) > 0.05, "{:?}", rows[last_before]);
     for r in &rows[last_before + 5..first_after] {
-        assert_eq!(r.output_n, [0.0; 3], "tick {} ({} after the last fresh force)", r.tick, r.tick - rows[last_before].tick);
+        assert_eq!(
+            r.output_n,
+            [0.0; 3],
+            "tick {} ({} after the last fresh force)",
+            r.tick,
+            r.tick - rows[last_before].tick
+        );
     }
     // after the restart: fresh forces again, the engine's, in contact
     let touching = assert_forces_match_engine(&rows, first_after..rows.len(), &mut engine);
@@ -141,7 +164,15 @@ fn bad_device_samples_are_clamped_counted_and_never_become_a_force_spike() {
     // a recording pressed into the organ (the built-in palpation's hold point), with a
     // dropout, a 10 cm glitch and an excursion out of the workspace
     let text = std::fs::read_to_string(dir.path().join("a/trajectory.csv")).unwrap();
-    let hold: Vec<f64> = text.lines().nth(3).unwrap().split(',').skip(1).take(3).map(|x| x.parse().unwrap()).collect();
+    let hold: Vec<f64> = text
+        .lines()
+        .nth(3)
+        .unwrap()
+        .split(',')
+        .skip(1)
+        .take(3)
+        .map(|x| x.parse().unwrap())
+        .collect();
     let [x, y, z] = [hold[0], hold[1], hold[2]];
     let mut rec = String::from("t_s,x_m,y_m,z_m\n");
     for i in 0..1500 {
@@ -246,7 +277,10 @@ fn a_grpc_session_opens_a_haptic_channel_named_after_its_id_and_exports_the_brid
         std::thread::sleep(Duration::from_millis(50));
     };
     assert!(stats.haptic_answered >= fresh, "{stats:?}");
-    assert!(stats.bridge_latency_p50_us > 0.0 && stats.bridge_latency_p99_us >= stats.bridge_latency_p50_us, "{stats:?}");
+    assert!(
+        stats.bridge_latency_p50_us > 0.0 && stats.bridge_latency_p99_us >= stats.bridge_latency_p50_us,
+        "{stats:?}"
+    );
     let text = scrape(server.metrics.as_deref().unwrap());
     for name in [
         "vademecum_haptic_answers_total{session=",

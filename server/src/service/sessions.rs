@@ -27,8 +27,8 @@ impl pb::sessions_server::Sessions for SessionsService {
             let haptic = r.haptic.then_some(r.haptic_channel.as_str());
             registry.create(owner, source, &r.bundle_dir, r.label, haptic)
         })
-            .await
-            .map_err(|_| ServerError::Internal("session creation was interrupted".into()))??;
+        .await
+        .map_err(|_| ServerError::Internal("session creation was interrupted".into()))??;
         tracing::info!(session = entry.session.id(), scene = %entry.session.scene().spec.scene.name, "session created");
         Ok(Response::new(convert::session_info(&entry)))
     }

@@ -30,17 +30,17 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use tokio::sync::watch;
-use vademecum_engine::pgd::offline::LoadedBundle;
-use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput};
 use vademecum_bridge::peer::HapticPeer;
 use vademecum_bridge::timing::{RealtimeStatus, WaitStrategy};
+use vademecum_engine::pgd::offline::LoadedBundle;
+use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput};
 use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
 
 pub use frames::{Frame, SurfaceGeometry};
 pub use script::{builtin_palpation, tool_at};
-pub use vademecum_bridge::trajectory::Trajectory;
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
+pub use vademecum_bridge::trajectory::Trajectory;
 
 /// A tool state sent to a session, with where to send its answer.
 #[derive(Debug, Clone)]

@@ -70,4 +70,3 @@ pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m:
         (5.0, at(up, slide_m), 0.0),
     ])
 }
-

@@ -154,7 +154,12 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
             std::thread::spawn(move || hog(s))
         })
         .collect();
-    let bar = |what: &str| eprintln!("vademecum: bench haptic: {what} ({} s, {} wait, {} hog threads)", a.seconds, a.wait, a.hog);
+    let bar = |what: &str| {
+        eprintln!(
+            "vademecum: bench haptic: {what} ({} s, {} wait, {} hog threads)",
+            a.seconds, a.wait, a.hog
+        )
+    };
     let mut phases = Vec::new();
 
     bar("null loop");
@@ -167,26 +172,38 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let echo = {
         let (channel, stop, peer_wait, window) = (channel.clone(), echo_stop.clone(), a.peer_wait, params.window);
-        std::thread::Builder::new().name("bench-echo".into()).spawn(move || -> anyhow::Result<Duration> {
-            let mut peer = HapticPeer::open(&channel, peer_wait, window, period)?;
-            timing::request_realtime(fifo.map(|p| p - 10).filter(|_| peer_wait != WaitStrategy::Spin), None);
-            let _ = ready_tx.send(());
-            let cpu0 = timing::thread_cpu_time();
-            let mut next = Instant::now() + period;
-            while !stop.load(Ordering::Relaxed) {
-                if let Some(s) = peer.wait_for_state(next) {
-                    let _ = peer.answer(&s, [0.0; 3], 0.0, 0);
-                    next = Instant::now() + period + period / 2;
-                } else {
-                    next += period;
+        std::thread::Builder::new()
+            .name("bench-echo".into())
+            .spawn(move || -> anyhow::Result<Duration> {
+                let mut peer = HapticPeer::open(&channel, peer_wait, window, period)?;
+                timing::request_realtime(fifo.map(|p| p - 10).filter(|_| peer_wait != WaitStrategy::Spin), None);
+                let _ = ready_tx.send(());
+                let cpu0 = timing::thread_cpu_time();
+                let mut next = Instant::now() + period;
+                while !stop.load(Ordering::Relaxed) {
+                    // the session's schedule (session/tick.rs): bridge-clocked unless sleeping
+                    match peer.wait_for_state(next) {
+                        Some(s) => {
+                            let _ = peer.answer(&s, [0.0; 3], 0.0, 0);
+                            if peer.effective_strategy() == WaitStrategy::Sleep {
+                                next += period;
+                            } else {
+                                next = Instant::now() + period + period / 2;
+                            }
+                        }
+                        None => next += period,
+                    }
                 }
-            }
-            Ok(timing::thread_cpu_time().saturating_sub(cpu0))
-        })?
+                Ok(timing::thread_cpu_time().saturating_sub(cpu0))
+            })?
     };
-    ready_rx.recv().map_err(|_| anyhow::anyhow!("the echo peer could not open its channel"))?;
+    ready_rx
+        .recv()
+        .map_err(|_| anyhow::anyhow!("the echo peer could not open its channel"))?;
     let echo_channel = channel.clone();
-    let (rtt, _) = bridge_thread(params.clone(), fifo, move || Ok((NullDevice::default(), ShmLink::open(&echo_channel)?)))?;
+    let (rtt, _) = bridge_thread(params.clone(), fifo, move || {
+        Ok((NullDevice::default(), ShmLink::open(&echo_channel)?))
+    })?;
     echo_stop.store(true, Ordering::Relaxed);
     let echo_cpu = echo.join().map_err(|_| anyhow::anyhow!("the echo peer panicked"))??;
     phases.push(phase("iceoryx2 round trip", &rtt, echo_cpu));

@@ -104,8 +104,17 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
         writeln!(out, "{}", serde_json::to_string_pretty(&s)?)?;
         return Ok(ExitCode::SUCCESS);
     }
-    let p = |x: &Percentiles| format!("p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs", x.p50, x.p99, x.p999, x.max);
-    writeln!(out, "scene '{}' on haptic channel '{}' ({} wait), {:.1} s", s.scene, s.channel, s.wait, s.duration_s)?;
+    let p = |x: &Percentiles| {
+        format!(
+            "p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs",
+            x.p50, x.p99, x.p999, x.max
+        )
+    };
+    writeln!(
+        out,
+        "scene '{}' on haptic channel '{}' ({} wait), {:.1} s",
+        s.scene, s.channel, s.wait, s.duration_s
+    )?;
     writeln!(
         out,
         "  states answered {} ({} superseded before answering), rejected {}",
