@@ -53,35 +53,16 @@ impl ShmLink {
     pub fn open(channel: &HapticChannel) -> Result<Self, OpenError> {
         let node = shm::node(&format!("vademecum-bridge-{}", std::process::id()))?;
         let services = HapticServices::open(&node, channel)?;
-        let port = |what: &str, e: String| OpenError {
-            service: channel.service_name(what),
-            reason: if e.contains("ExceedsMaxSupported") {
-                format!("{e}: another bridge already drives this channel")
-            } else {
-                e
-            },
-        };
-        let states = services
-            .state
-            .publisher_builder()
-            .create()
-            .map_err(|e| port("state", format!("{e:?}")))?;
+        let port = |what: &str, e: &dyn std::fmt::Debug| OpenError::port(channel, what, e, "another bridge already drives this channel");
+        let states = services.state.publisher_builder().create().map_err(|e| port("state", &e))?;
         let commands = services
             .command
             .subscriber_builder()
             .buffer_size(shm::SUBSCRIBER_BUFFER)
             .create()
-            .map_err(|e| port("command", format!("{e:?}")))?;
-        let reports = services
-            .report
-            .publisher_builder()
-            .create()
-            .map_err(|e| port("report", format!("{e:?}")))?;
-        let wake = services
-            .wake
-            .notifier_builder()
-            .create()
-            .map_err(|e| port("wake", format!("{e:?}")))?;
+            .map_err(|e| port("command", &e))?;
+        let reports = services.report.publisher_builder().create().map_err(|e| port("report", &e))?;
+        let wake = services.wake.notifier_builder().create().map_err(|e| port("wake", &e))?;
         Ok(Self {
             node,
             _services: services,

@@ -57,39 +57,23 @@ impl HapticPeer {
     pub fn open(channel: &HapticChannel, strategy: WaitStrategy, window: Duration, period: Duration) -> Result<Self, OpenError> {
         let node = shm::node(&format!("vademecum-session-{}", std::process::id()))?;
         let services = HapticServices::open(&node, channel)?;
-        let port = |what: &str, e: String| OpenError {
-            service: channel.service_name(what),
-            reason: if e.contains("ExceedsMaxSupported") {
-                format!("{e}: another session already answers on this channel")
-            } else {
-                e
-            },
-        };
-        let commands = services
-            .command
-            .publisher_builder()
-            .create()
-            .map_err(|e| port("command", format!("{e:?}")))?;
+        let port =
+            |what: &str, e: &dyn std::fmt::Debug| OpenError::port(channel, what, e, "another session already answers on this channel");
+        let commands = services.command.publisher_builder().create().map_err(|e| port("command", &e))?;
         let states = services
             .state
             .subscriber_builder()
             .buffer_size(shm::SUBSCRIBER_BUFFER)
             .create()
-            .map_err(|e| port("state", format!("{e:?}")))?;
+            .map_err(|e| port("state", &e))?;
         let reports = services
             .report
             .subscriber_builder()
             .buffer_size(shm::SUBSCRIBER_BUFFER)
             .create()
-            .map_err(|e| port("report", format!("{e:?}")))?;
+            .map_err(|e| port("report", &e))?;
         let wake = match strategy {
-            WaitStrategy::Event => Some(
-                services
-                    .wake
-                    .listener_builder()
-                    .create()
-                    .map_err(|e| port("wake", format!("{e:?}")))?,
-            ),
+            WaitStrategy::Event => Some(services.wake.listener_builder().create().map_err(|e| port("wake", &e))?),
             _ => None,
         };
         Ok(Self {

@@ -45,14 +45,15 @@ pub struct Trajectory {
     closures: Vec<f64>,
 }
 
-#[derive(Debug, Deserialize)]
-struct Row {
-    t_s: f64,
-    x_m: f64,
-    y_m: f64,
-    z_m: f64,
+/// One CSV row, `t_s,x_m,y_m,z_m[,closure]` (also the replay driver's format).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+pub(crate) struct Row {
+    pub t_s: f64,
+    pub x_m: f64,
+    pub y_m: f64,
+    pub z_m: f64,
     #[serde(default)]
-    closure: f64,
+    pub closure: f64,
 }
 
 impl Trajectory {

@@ -183,6 +183,22 @@ impl std::fmt::Display for OpenError {
 
 impl std::error::Error for OpenError {}
 
+impl OpenError {
+    /// A port of `service` on `channel` could not be created because of `e`; `when_full` says
+    /// what a full port table means for the calling side (another bridge, another server).
+    pub fn port(channel: &HapticChannel, service: &str, e: impl std::fmt::Debug, when_full: &str) -> Self {
+        let e = format!("{e:?}");
+        Self {
+            service: channel.service_name(service),
+            reason: if e.contains("ExceedsMaxSupported") {
+                format!("{e}: {when_full}")
+            } else {
+                e
+            },
+        }
+    }
+}
+
 /// The services of a channel, opened (or created, whichever side comes first) with the
 /// settings both sides share: one publisher per service, the newest samples kept (a slow
 /// reader loses old samples, never blocks a writer), no history for late joiners.

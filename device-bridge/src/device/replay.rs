@@ -8,20 +8,8 @@
 
 use std::path::Path;
 
-use serde::Deserialize;
-
 use super::{Device, DeviceError, DeviceReading};
-
-/// One recorded sample.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
-struct Row {
-    t_s: f64,
-    x_m: f64,
-    y_m: f64,
-    z_m: f64,
-    #[serde(default)]
-    closure: f64,
-}
+use crate::trajectory::Row;
 
 /// Recorded samples played back (see the [module docs](self)).
 #[derive(Debug, Clone)]
