@@ -1,5 +1,7 @@
-//! Constitutive laws. The linear-elastic law lives here; hyperelastic laws join it as
-//! large-deformation models are added (one type per law, a single place to add a model).
+//! Constitutive laws: linear elasticity here, the hyperelastic laws of large deformations in
+//! [`hyperelastic`] (one type per law family, a single place to add a model).
+
+pub mod hyperelastic;
 
 use serde::{Deserialize, Serialize};
 
