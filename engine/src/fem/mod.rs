@@ -20,6 +20,7 @@
 
 pub mod assembly;
 pub mod element;
+pub mod hyperelastic;
 pub mod linear_static;
 pub mod loads;
 pub mod shape;
