@@ -121,21 +121,38 @@ impl HapticPeer {
     }
 
     /// Waits for the bridge's next state until `deadline` (see the [module docs](self)).
+    ///
+    /// The hybrid wait spins only inside a window around the state's predicted arrival
+    /// (phase-locked to the last arrival), never up to the deadline: a late bridge costs a
+    /// sleep, not a spinning thread that could starve it — the tick thread may run under
+    /// `SCHED_FIFO`, the bridge may not.
     pub fn wait_for_state(&mut self, deadline: Instant) -> Option<HapticState> {
-        let spin_from = match self.effective_strategy() {
+        let now = Instant::now();
+        let (spin_from, spin_until) = match self.effective_strategy() {
             WaitStrategy::Event => return self.wait_for_event(deadline),
-            WaitStrategy::Sleep => deadline,
-            WaitStrategy::Spin => Instant::now(),
+            WaitStrategy::Sleep => (deadline, deadline),
+            WaitStrategy::Spin => (now, deadline),
             WaitStrategy::Hybrid => {
-                let expected = self.last_arrival.map_or(deadline, |t| t + self.period);
-                expected.checked_sub(self.window).unwrap_or(expected).min(deadline)
+                let mut expected = self.last_arrival.map_or(deadline, |t| t + self.period);
+                while expected + self.window < now {
+                    expected += self.period;
+                }
+                let from = expected.checked_sub(self.window).unwrap_or(expected);
+                (from.min(deadline), (expected + self.window).min(deadline))
             }
         };
         let mut got = None;
-        timing::wait_between(spin_from, deadline, || {
+        timing::wait_between(spin_from, spin_until, || {
             got = self.poll();
             got.is_some()
         });
+        if got.is_none() && spin_until < deadline {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if !left.is_zero() {
+                std::thread::sleep(left);
+            }
+            got = self.poll();
+        }
         if got.is_some() {
             self.last_arrival = Some(Instant::now());
         }

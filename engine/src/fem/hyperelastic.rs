@@ -156,7 +156,9 @@ pub fn cell(
         let r = law.response(&c, part).ok_or(CellError::Inverted { det_f })?;
         energy += r.energy * dv;
         let sm = Matrix3::from_fn(|i, j| {
-            let p = VOIGT.iter().position(|&(a, b)| (a, b) == (i.min(j), i.max(j)) || (b, a) == (i.min(j), i.max(j)));
+            let p = VOIGT
+                .iter()
+                .position(|&(a, b)| (a, b) == (i.min(j), i.max(j)) || (b, a) == (i.min(j), i.max(j)));
             r.stress[p.expect("every pair has a Voigt index")]
         });
         let p = f * sm;
@@ -203,7 +205,9 @@ pub fn cell(
             }
             for b in 0..n {
                 // geometric: G_a · S G_b on the diagonal of the 3×3 block
-                let geo: f64 = (0..3).map(|ii| (0..3).map(|jj| s.g[a][ii] * sm[(ii, jj)] * s.g[b][jj]).sum::<f64>()).sum();
+                let geo: f64 = (0..3)
+                    .map(|ii| (0..3).map(|jj| s.g[a][ii] * sm[(ii, jj)] * s.g[b][jj]).sum::<f64>())
+                    .sum();
                 for i in 0..3 {
                     for kk in 0..3 {
                         // material: (B_b)ᵀ ℂ B_a, symmetric in (a,i) ↔ (b,k)
@@ -272,12 +276,18 @@ mod tests {
     }
 
     fn displacement(n: usize) -> Vec<f64> {
-        (0..3 * n).map(|i| 1e-3 * ((i as f64 * 1.7).sin() * 0.8 + 0.1 * (i % 3) as f64)).collect()
+        (0..3 * n)
+            .map(|i| 1e-3 * ((i as f64 * 1.7).sin() * 0.8 + 0.1 * (i % 3) as f64))
+            .collect()
     }
 
     fn laws() -> Vec<Hyperelastic> {
         let m = LinearElastic::new(3000.0, 0.49).unwrap();
-        vec![Hyperelastic::svk(&m), Hyperelastic::neo_hookean(&m), Hyperelastic::mooney_rivlin(&m, 0.3).unwrap()]
+        vec![
+            Hyperelastic::svk(&m),
+            Hyperelastic::neo_hookean(&m),
+            Hyperelastic::mooney_rivlin(&m, 0.3).unwrap(),
+        ]
     }
 
     /// Forces are the energy's gradient and the tangent the forces' Jacobian (central
@@ -308,7 +318,11 @@ mod tests {
                         assert!((fd - f[d]).abs() < 1e-5 * fmax, "{kind:?} {law:?} {vol:?} f[{d}]: {fd} vs {}", f[d]);
                         for e in 0..nd {
                             let kd = (fp[e] - fm[e]) / (2.0 * h);
-                            assert!((kd - k[e * nd + d]).abs() < 1e-5 * kmax, "{kind:?} {law:?} {vol:?} K[{e}][{d}]: {kd} vs {}", k[e * nd + d]);
+                            assert!(
+                                (kd - k[e * nd + d]).abs() < 1e-5 * kmax,
+                                "{kind:?} {law:?} {vol:?} K[{e}][{d}]: {kd} vs {}",
+                                k[e * nd + d]
+                            );
                         }
                     }
                     // symmetric (it is a Hessian)

@@ -23,6 +23,7 @@ pub mod element;
 pub mod hyperelastic;
 pub mod linear_static;
 pub mod loads;
+pub mod nonlinear_static;
 pub mod shape;
 
 pub use element::Locking;

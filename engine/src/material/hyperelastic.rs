@@ -282,7 +282,11 @@ mod tests {
                     // a shear perturbation moves two entries of C: dW = 2 ∂W/∂C_kl h
                     let mult = if VOIGT[q].0 == VOIGT[q].1 { 1.0 } else { 2.0 };
                     let fd = 2.0 * (wp - wm) / (2.0 * h) / mult;
-                    assert!((fd - r.stress[q]).abs() < 1e-6 * (1.0 + r.stress[q].abs()), "{law:?} {part:?} S[{q}]: {fd} vs {}", r.stress[q]);
+                    assert!(
+                        (fd - r.stress[q]).abs() < 1e-6 * (1.0 + r.stress[q].abs()),
+                        "{law:?} {part:?} S[{q}]: {fd} vs {}",
+                        r.stress[q]
+                    );
                 }
             }
         }
@@ -302,7 +306,11 @@ mod tests {
                     for p in 0..6 {
                         let fd = 2.0 * (sp[p] - sm[p]) / (2.0 * h) / mult;
                         let scale = 1.0 + r.tangent[p][q].abs();
-                        assert!((fd - r.tangent[p][q]).abs() < 1e-5 * scale, "{law:?} {part:?} C[{p}][{q}]: {fd} vs {}", r.tangent[p][q]);
+                        assert!(
+                            (fd - r.tangent[p][q]).abs() < 1e-5 * scale,
+                            "{law:?} {part:?} C[{p}][{q}]: {fd} vs {}",
+                            r.tangent[p][q]
+                        );
                     }
                 }
             }
