@@ -140,7 +140,7 @@ pub fn cell(
         let dv = det * tet_weight;
         volume += dv;
         // F = I + Σ_a u_a ⊗ G_a
-        let mut f = Matrix3::identity();
+        let mut f = Matrix3::<f64>::identity();
         for a in 0..n {
             for i in 0..3 {
                 for jj in 0..3 {
@@ -148,8 +148,8 @@ pub fn cell(
                 }
             }
         }
-        let det_f = f.determinant();
-        if !(det_f > 0.0) {
+        let det_f: f64 = f.determinant();
+        if det_f.is_nan() || det_f <= 0.0 {
             return Err(CellError::Inverted { det_f });
         }
         let c = f.transpose() * f;
@@ -220,7 +220,7 @@ pub fn cell(
     }
     if mean {
         let theta = v_current / volume;
-        if !(theta > 0.0) {
+        if theta.is_nan() || theta <= 0.0 {
             return Err(CellError::Volume { theta });
         }
         let (uu, du, ddu) = law.volumetric(theta);
@@ -230,7 +230,7 @@ pub fn cell(
                 fe[3 * a + i] += du * gsum[a][i];
             }
         }
-        if let Some(k) = ke.as_deref_mut() {
+        if let Some(k) = ke {
             for a in 0..n {
                 for b in 0..n {
                     for i in 0..3 {

@@ -236,7 +236,8 @@ pub fn solve(
             mesh.n_nodes()
         )));
     }
-    if params.steps == 0 || !(params.tolerance > 0.0) || !(params.min_step > 0.0) {
+    let positive = |x: f64| x.is_finite() && x > 0.0;
+    if params.steps == 0 || !positive(params.tolerance) || !positive(params.min_step) {
         return Err(NonlinearError::Invalid("steps, tolerance and minimum step must be positive".into()));
     }
     let dofs = DofMap::new(&problem.constrained);

@@ -151,7 +151,7 @@ impl Hyperelastic {
     /// `W`, `S` and `ℂ` at `C`, or `None` when `det C ≤ 0` (an inverted point).
     pub fn response(&self, c: &Matrix3<f64>, part: Part) -> Option<Response> {
         let det = c.determinant();
-        if !(det > 0.0) {
+        if det.is_nan() || det <= 0.0 {
             return None;
         }
         let id = Matrix3::identity();
