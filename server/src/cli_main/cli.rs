@@ -302,6 +302,32 @@ and the CPU of the bridge's and the peer's threads.\n\n\
 strategies (sleep, spin, hybrid)."
     )]
     Haptic(BenchHapticArgs),
+    /// The large-deformation solver against seed 004 Table 5.2 (neo-Hookean cube).
+    #[command(
+        long_about = "The full-order large-deformation solver (total Lagrangian hexahedra, Newton-Raphson) \
+against seed 004 Table 5.2: a 0.1 m Abaqus neo-Hookean cube (E = 3000 Pa, nu = 0.49), face y = 0 \
+clamped, face y = 0.1 m pulled 0.02 m with its x and z motion fixed; Abaqus (17,576 nodes, \
+hybrid elements) gives 0.06477 J and 6.109 N. Each --cells size runs with the mean-dilatation \
+element and with full integration (which locks); then --stretch values on --range-cells."
+    )]
+    Cube(BenchCubeArgs),
+}
+
+/// Arguments of `vademecum bench cube`.
+#[derive(Debug, Args)]
+pub struct BenchCubeArgs {
+    /// Cells per edge of the meshes compared with the seed at 20 % stretch.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![12, 15, 20, 25])]
+    pub cells: Vec<usize>,
+    /// Stretches (fraction of the edge) of the range study.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![0.4, 0.6, 0.8, 1.0])]
+    pub stretch: Vec<f64>,
+    /// Cells per edge of the range study.
+    #[arg(long, default_value_t = 12)]
+    pub range_cells: usize,
+    /// Print the rows as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum bench haptic`.
