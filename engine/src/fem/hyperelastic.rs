@@ -44,6 +44,30 @@ pub enum Volumetric {
     MeanDilatation,
 }
 
+/// The hyperelastic law of every cell (later scene entries override earlier ones).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LawMap {
+    /// The distinct laws.
+    pub laws: Vec<Hyperelastic>,
+    /// Index into `laws` for each cell.
+    pub of_cell: Vec<u16>,
+}
+
+impl LawMap {
+    /// One law for `n_cells` cells.
+    pub fn uniform(law: Hyperelastic, n_cells: usize) -> Self {
+        Self {
+            laws: vec![law],
+            of_cell: vec![0; n_cells],
+        }
+    }
+
+    /// The law of cell `c`.
+    pub fn of(&self, c: usize) -> &Hyperelastic {
+        &self.laws[self.of_cell[c] as usize]
+    }
+}
+
 /// A cell's deformation is not admissible.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum CellError {
@@ -248,6 +272,74 @@ pub fn cell(
         }
     }
     Ok(CellState { energy, volume })
+}
+
+/// Cauchy stress at the cell centre in Voigt order `[σxx, σyy, σzz, σyz, σxz, σxy]` (Pa):
+/// `σ = J⁻¹ F S Fᵀ`, with the volumetric part on the cell's volume ratio under
+/// [`Volumetric::MeanDilatation`] (`σ_vol = U'(θ) I`).
+pub fn cauchy_at_centre(
+    kind: CellKind,
+    x: &[[f64; 3]],
+    u: &[f64],
+    law: &Hyperelastic,
+    volumetric: Volumetric,
+    s: &mut CellScratch,
+) -> Result<[f64; 6], CellError> {
+    let n = kind.nodes_per_cell();
+    let mean = volumetric == Volumetric::MeanDilatation && law.splits();
+    let centre = match kind {
+        CellKind::Tet4 => s.points[0].1,
+        CellKind::Hex8 => shape::hex_dn([0.0; 3]),
+    };
+    let det = shape::physical_gradients(x, &centre[..n], &mut s.g[..n]);
+    if det <= 0.0 {
+        return Err(CellError::Reference { det });
+    }
+    let mut f = Matrix3::<f64>::identity();
+    for a in 0..n {
+        for i in 0..3 {
+            for jj in 0..3 {
+                f[(i, jj)] += u[3 * a + i] * s.g[a][jj];
+            }
+        }
+    }
+    let det_f: f64 = f.determinant();
+    if det_f.is_nan() || det_f <= 0.0 {
+        return Err(CellError::Inverted { det_f });
+    }
+    let part = if mean { Part::Isochoric } else { Part::Full };
+    let r = law.response(&(f.transpose() * f), part).ok_or(CellError::Inverted { det_f })?;
+    let sm = Matrix3::from_fn(|i, j| r.stress[voigt_index(i, j)]);
+    let mut sigma = f * sm * f.transpose() / det_f;
+    if mean {
+        // θ over the cell, from the same quadrature as the energy
+        let (mut v, mut vol) = (0.0, 0.0);
+        let tet_weight = if kind == CellKind::Tet4 { 1.0 / 6.0 } else { 1.0 };
+        for q in 0..s.points.len() {
+            let d = shape::physical_gradients(x, &s.points[q].1[..n], &mut s.g[..n]);
+            let mut fq = Matrix3::<f64>::identity();
+            for a in 0..n {
+                for i in 0..3 {
+                    for jj in 0..3 {
+                        fq[(i, jj)] += u[3 * a + i] * s.g[a][jj];
+                    }
+                }
+            }
+            vol += d * tet_weight;
+            v += fq.determinant() * d * tet_weight;
+        }
+        let (_, du, _) = law.volumetric(v / vol);
+        sigma += du * Matrix3::identity();
+    }
+    Ok(VOIGT.map(|(i, j)| sigma[(i, j)]))
+}
+
+fn voigt_index(i: usize, j: usize) -> usize {
+    let (a, b) = (i.min(j), i.max(j));
+    VOIGT
+        .iter()
+        .position(|&(p, q)| (p.min(q), p.max(q)) == (a, b))
+        .expect("every pair has a Voigt index")
 }
 
 #[cfg(test)]

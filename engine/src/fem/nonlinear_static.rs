@@ -22,9 +22,8 @@
 use std::sync::Arc;
 
 use super::assembly::{DofMap, SymmetricMatrix, SymmetricPattern};
-use super::hyperelastic::{self, CellError, CellScratch, Volumetric};
+use super::hyperelastic::{self, CellError, CellScratch, LawMap, Volumetric};
 use super::linear_static::StaticProblem;
-use crate::material::hyperelastic::Hyperelastic;
 use crate::mesh::Mesh;
 use crate::solve::{Cholesky, SolveError};
 
@@ -135,7 +134,7 @@ struct Assembled {
 
 struct Model<'a> {
     mesh: &'a Mesh,
-    law: Hyperelastic,
+    laws: &'a LawMap,
     volumetric: Volumetric,
     dofs: DofMap,
     pattern: Arc<SymmetricPattern>,
@@ -172,7 +171,7 @@ impl Model<'_> {
                 mesh.kind,
                 &x,
                 &ue,
-                &self.law,
+                self.laws.of(c),
                 self.volumetric,
                 &mut s,
                 &mut fe,
@@ -211,6 +210,16 @@ impl Model<'_> {
     }
 }
 
+/// Why a tangent could not be factorized, in the terms of a large-deformation solve.
+fn tangent_failure(e: SolveError) -> String {
+    match e {
+        SolveError::NotPositiveDefinite { pivot, n } => format!(
+            "the tangent stiffness is not positive definite at this deformation (pivot {pivot} of {n}): a material or structural instability — St Venant-Kirchhoff softens in compression, a slender part buckles — or an unconstrained rigid motion"
+        ),
+        SolveError::Internal(m) => format!("the factorization failed: {m}"),
+    }
+}
+
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -220,10 +229,11 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Solves `problem` (prescribed displacements and nodal forces, applied proportionally to
-/// the load factor) on `mesh` made of `law`; `progress(λ)` is called after each converged step.
+/// the load factor) on `mesh` made of `laws`; `progress(λ)` is called after each converged
+/// step.
 pub fn solve(
     mesh: &Mesh,
-    law: Hyperelastic,
+    laws: &LawMap,
     volumetric: Volumetric,
     problem: &StaticProblem,
     params: &NewtonParams,
@@ -242,9 +252,15 @@ pub fn solve(
     }
     let dofs = DofMap::new(&problem.constrained);
     let pattern = Arc::new(SymmetricPattern::build(mesh, &dofs));
+    if laws.of_cell.len() != mesh.n_cells() || laws.of_cell.iter().any(|&i| i as usize >= laws.laws.len()) {
+        return Err(NonlinearError::Invalid(format!(
+            "the law map must name a law for each of the {} cells",
+            mesh.n_cells()
+        )));
+    }
     let model = Model {
         mesh,
-        law,
+        laws,
         volumetric,
         dofs,
         pattern,
@@ -291,8 +307,7 @@ pub fn solve(
             for e in 0..nf {
                 rhs[e] += target * f_ext_f[e] - r0[e];
             }
-            let chol = factor(a.k.as_ref().expect("tangent assembled"))
-                .map_err(|e| (format!("the tangent is not positive definite ({e})"), f64::NAN))?;
+            let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e), f64::NAN))?;
             chol.solve_in_place(&mut rhs);
             let mut ut = u.clone();
             for d in 0..nd {
@@ -325,8 +340,7 @@ pub fn solve(
                     return Err((format!("{iterations} iterations"), residual));
                 }
                 iterations += 1;
-                let chol = factor(a.k.as_ref().expect("tangent assembled"))
-                    .map_err(|e| (format!("the tangent is not positive definite ({e})"), residual))?;
+                let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e), residual))?;
                 let mut du = r.clone();
                 chol.solve_in_place(&mut du);
                 let p0 = potential(a.energy, target, &ut);
@@ -381,4 +395,79 @@ pub fn solve(
         energy: last.energy,
         info,
     })
+}
+
+/// Solves like [`solve`] and reports the result in the form of a linear static solution
+/// (reactions on the constrained degrees of freedom, Cauchy stress and von Mises at cell
+/// centres, largest displacement), with the Newton time as the solve time.
+pub fn solve_static(
+    mesh: &Mesh,
+    laws: &LawMap,
+    volumetric: Volumetric,
+    problem: &StaticProblem,
+    params: &NewtonParams,
+    progress: impl FnMut(f64),
+) -> Result<(super::linear_static::StaticSolution, NewtonInfo), NonlinearError> {
+    let t = std::time::Instant::now();
+    let sol = solve(mesh, laws, volumetric, problem, params, progress)?;
+    let newton_s = t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let n = mesh.kind.nodes_per_cell();
+    let mut s = CellScratch::new(mesh.kind);
+    let (mut x, mut ue) = (vec![[0.0; 3]; n], vec![0.0; 3 * n]);
+    let mut stresses = Vec::with_capacity(mesh.n_cells());
+    for c in 0..mesh.n_cells() {
+        mesh.cell_coords(c, &mut x);
+        let cell = mesh.cell(c);
+        for a in 0..n {
+            for i in 0..3 {
+                ue[3 * a + i] = sol.u[3 * cell[a] + i];
+            }
+        }
+        let v = hyperelastic::cauchy_at_centre(mesh.kind, &x, &ue, laws.of(c), volumetric, &mut s)
+            .map_err(|source| NonlinearError::Mesh { cell: c, source })?;
+        // the linear solution's order: xx, yy, zz, xy, yz, zx
+        stresses.push([v[0], v[1], v[2], v[5], v[3], v[4]]);
+    }
+    let von_mises = stresses.iter().map(|&v| super::element::von_mises(v)).collect();
+    let reactions: Vec<f64> = (0..sol.u.len())
+        .map(|d| {
+            if problem.constrained[d] {
+                sol.f_int[d] - problem.forces[d]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let (mut max_displacement, mut max_displacement_node) = (0.0, 0);
+    for i in 0..mesh.n_nodes() {
+        let m = (0..3).map(|k| sol.u[3 * i + k].powi(2)).sum::<f64>().sqrt();
+        if m > max_displacement {
+            (max_displacement, max_displacement_node) = (m, i);
+        }
+    }
+    let dofs = DofMap::new(&problem.constrained);
+    let n_free = dofs.n_free();
+    let nnz = SymmetricPattern::build(mesh, &dofs).nnz();
+    let timings = super::linear_static::Timings {
+        solve_s: newton_s,
+        post_s: t.elapsed().as_secs_f64(),
+        ..Default::default()
+    };
+    Ok((
+        super::linear_static::StaticSolution {
+            u: sol.u,
+            reactions,
+            strain_energy: sol.energy,
+            residual: sol.info.residual,
+            stresses,
+            von_mises,
+            max_displacement,
+            max_displacement_node,
+            n_free,
+            nnz,
+            timings,
+        },
+        sol.info,
+    ))
 }

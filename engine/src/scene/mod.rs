@@ -16,8 +16,10 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use crate::fem::assembly::MaterialMap;
+use crate::fem::hyperelastic::LawMap;
 use crate::fem::linear_static::StaticProblem;
 use crate::fem::{Locking, loads};
+use crate::material::hyperelastic::Hyperelastic;
 use crate::material::{self, LinearElastic};
 use crate::mesh::boundary::Boundary;
 use crate::mesh::select::{GroupRef, Region, nearest_node};
@@ -365,6 +367,34 @@ impl Scene {
         Ok(())
     }
 
+    /// A material entry's small-strain moduli and, for a hyperelastic model, its law.
+    fn material_laws(&self, spec: &MaterialSpec, at: &[Seg<'_>]) -> Result<(LinearElastic, Option<Hyperelastic>), SceneError> {
+        let linear = |young: Option<f64>, poisson: Option<f64>| {
+            LinearElastic::new(young.unwrap_or(0.0), poisson.unwrap_or(0.0)).map_err(|e| self.error_at(at, e.to_string()))
+        };
+        Ok(match spec.model {
+            MaterialModel::Linear => (linear(spec.young, spec.poisson)?, None),
+            MaterialModel::Stvk => {
+                let m = linear(spec.young, spec.poisson)?;
+                (m, Some(Hyperelastic::svk(&m)))
+            }
+            MaterialModel::NeoHookean => {
+                let m = linear(spec.young, spec.poisson)?;
+                (m, Some(Hyperelastic::neo_hookean(&m)))
+            }
+            MaterialModel::MooneyRivlin => {
+                let (c10, c01, kappa) = (spec.c10.unwrap_or(0.0), spec.c01.unwrap_or(0.0), spec.bulk.unwrap_or(0.0));
+                // small-strain moduli: μ = 2 (C₁₀ + C₀₁), ν from K and μ
+                let mu = 2.0 * (c10 + c01);
+                let nu = (3.0 * kappa - 2.0 * mu) / (2.0 * (3.0 * kappa + mu));
+                (
+                    linear(Some(2.0 * mu * (1.0 + nu)), Some(nu))?,
+                    Some(Hyperelastic::MooneyRivlin { c10, c01, kappa }),
+                )
+            }
+        })
+    }
+
     /// Resolves a mesh path relative to the scene file's folder.
     pub fn resolve_path(&self, p: &str) -> PathBuf {
         let p = Path::new(p);
@@ -440,16 +470,21 @@ impl Scene {
         // Materials: later entries override earlier ones on the cells they cover.
         let mut of_cell: Vec<Option<u16>> = vec![None; mesh.n_cells()];
         let mut table = Vec::new();
+        let mut laws = Vec::new();
+        let mut index_of_first_law: Option<bool> = None;
         for (m, spec) in o.materials.iter().enumerate() {
             let at = base(&[Seg::Key("materials"), Seg::Index(m)]);
-            if spec.model != MaterialModel::Linear {
+            let (mat, law) = self.material_laws(spec, &at)?;
+            if index_of_first_law.is_none() {
+                index_of_first_law = Some(law.is_some());
+            }
+            if index_of_first_law != Some(law.is_some()) {
                 return Err(self.error_at(
                     &[at.clone(), vec![Seg::Key("model")]].concat(),
-                    "only model = \"linear\" is available in this version; hyperelastic models arrive with the large-deformation solver",
+                    "an organ's materials must be all linear or all hyperelastic (stvk, neo_hookean, mooney_rivlin)",
                 ));
             }
-            let mat = LinearElastic::new(spec.young.unwrap_or(0.0), spec.poisson.unwrap_or(0.0))
-                .map_err(|e| self.error_at(&at, e.to_string()))?;
+            laws.extend(law);
             table.push(mat);
             let idx = (table.len() - 1) as u16;
             let all = matches!(&spec.region, GroupRef::Name(n) if n == "all");
@@ -482,10 +517,15 @@ impl Scene {
                 ),
             ));
         }
+        let of_cell: Vec<u16> = of_cell.into_iter().map(|m| m.unwrap_or(0)).collect();
+        let laws = (!laws.is_empty()).then(|| LawMap {
+            laws,
+            of_cell: of_cell.clone(),
+        });
         let materials = MaterialMap {
             density: vec![o.density; table.len()],
             table,
-            of_cell: of_cell.into_iter().map(|m| m.unwrap_or(0)).collect(),
+            of_cell,
         };
 
         let boundary = Boundary::of(&mesh);
@@ -565,6 +605,7 @@ impl Scene {
             name: o.name.clone(),
             mesh,
             materials,
+            laws,
             locking: self.spec.fidelity.locking,
             problem,
             named_regions,
@@ -581,8 +622,12 @@ pub struct OrganModel {
     pub name: String,
     /// Its mesh (m).
     pub mesh: Mesh,
-    /// Materials per cell.
+    /// Materials per cell (for hyperelastic organs, their small-strain moduli: what the
+    /// linear vademecum and the mass use).
     pub materials: MaterialMap,
+    /// Hyperelastic laws per cell, when the organ's materials are hyperelastic (`None`:
+    /// linear elasticity).
+    pub laws: Option<LawMap>,
     /// Locking treatment.
     pub locking: Locking,
     /// Constraints and loads.

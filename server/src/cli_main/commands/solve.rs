@@ -7,7 +7,10 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use serde::Serialize;
+use vademecum_engine::fem::Locking;
+use vademecum_engine::fem::hyperelastic::Volumetric;
 use vademecum_engine::fem::linear_static::{self, Timings};
+use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
 use vademecum_engine::mesh::vtk::{self, Field};
 use vademecum_engine::scene::Scene;
 
@@ -32,7 +35,17 @@ struct OrganSummary {
     relative_residual: f64,
     solve_time_s: f64,
     timings: Timings,
+    /// Newton–Raphson steps, iterations and cuts, for hyperelastic organs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    newton: Option<NewtonSummary>,
     output: PathBuf,
+}
+
+#[derive(Debug, Serialize)]
+struct NewtonSummary {
+    steps: usize,
+    iterations: usize,
+    cuts: usize,
 }
 
 #[derive(Debug, Serialize)]
@@ -60,10 +73,30 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         let progress = Stages::start(&name);
         progress.stage("building mesh and loads");
         let model = scene.organ_model(i)?;
-        let sol = linear_static::solve(&model.mesh, &model.materials, model.locking, &model.problem, &mut |s| {
-            progress.stage(s.label())
-        })
-        .with_context(|| format!("organ '{name}' could not be solved"))?;
+        let (sol, newton) = match &model.laws {
+            None => (
+                linear_static::solve(&model.mesh, &model.materials, model.locking, &model.problem, &mut |s| {
+                    progress.stage(s.label())
+                })
+                .with_context(|| format!("organ '{name}' could not be solved"))?,
+                None,
+            ),
+            Some(laws) => {
+                // large deformations: full integration only when the scene asks for no
+                // locking treatment; otherwise the mean-dilatation element
+                let volumetric = match model.locking {
+                    Locking::None => Volumetric::PointWise,
+                    Locking::Sri | Locking::Bbar => Volumetric::MeanDilatation,
+                };
+                progress.stage("Newton-Raphson, large deformations");
+                let (sol, info) =
+                    nonlinear_static::solve_static(&model.mesh, laws, volumetric, &model.problem, &NewtonParams::default(), |l| {
+                        progress.stage(&format!("Newton-Raphson, load factor {l:.2}"))
+                    })
+                    .with_context(|| format!("organ '{name}' could not be solved"))?;
+                (sol, Some(info))
+            }
+        };
         progress.stage("writing .vtu");
         let file = out.join(format!("{name}.vtu"));
         let vm_max = sol.von_mises.iter().copied().fold(0.0, f64::max);
@@ -110,6 +143,11 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
             relative_residual: sol.residual,
             solve_time_s: sol.timings.total_s(),
             timings: sol.timings,
+            newton: newton.map(|i| NewtonSummary {
+                steps: i.steps,
+                iterations: i.iterations,
+                cuts: i.cuts,
+            }),
             output: file,
         });
     }
@@ -155,6 +193,13 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
                 "  time               {:.3} s (assembly {:.3}, analysis {:.3}, factorization {:.3}, solve {:.3}, post {:.3})",
                 o.solve_time_s, t.assembly_s, t.analysis_s, t.factorization_s, t.solve_s, t.post_s
             )?;
+            if let Some(n) = &o.newton {
+                writeln!(
+                    stdout,
+                    "  large deformations {} load steps, {} Newton iterations, {} step cuts",
+                    n.steps, n.iterations, n.cuts
+                )?;
+            }
             writeln!(stdout, "  result             {}", o.output.display())?;
         }
         writeln!(
