@@ -163,15 +163,7 @@ pub fn cell(
         }
         let dv = det * tet_weight;
         volume += dv;
-        // F = I + Σ_a u_a ⊗ G_a
-        let mut f = Matrix3::<f64>::identity();
-        for a in 0..n {
-            for i in 0..3 {
-                for jj in 0..3 {
-                    f[(i, jj)] += u[3 * a + i] * s.g[a][jj];
-                }
-            }
-        }
+        let f = deformation_gradient(u, &s.g[..n]);
         let det_f: f64 = f.determinant();
         if det_f.is_nan() || det_f <= 0.0 {
             return Err(CellError::Inverted { det_f });
@@ -295,14 +287,7 @@ pub fn cauchy_at_centre(
     if det <= 0.0 {
         return Err(CellError::Reference { det });
     }
-    let mut f = Matrix3::<f64>::identity();
-    for a in 0..n {
-        for i in 0..3 {
-            for jj in 0..3 {
-                f[(i, jj)] += u[3 * a + i] * s.g[a][jj];
-            }
-        }
-    }
+    let f = deformation_gradient(u, &s.g[..n]);
     let det_f: f64 = f.determinant();
     if det_f.is_nan() || det_f <= 0.0 {
         return Err(CellError::Inverted { det_f });
@@ -317,21 +302,26 @@ pub fn cauchy_at_centre(
         let tet_weight = if kind == CellKind::Tet4 { 1.0 / 6.0 } else { 1.0 };
         for q in 0..s.points.len() {
             let d = shape::physical_gradients(x, &s.points[q].1[..n], &mut s.g[..n]);
-            let mut fq = Matrix3::<f64>::identity();
-            for a in 0..n {
-                for i in 0..3 {
-                    for jj in 0..3 {
-                        fq[(i, jj)] += u[3 * a + i] * s.g[a][jj];
-                    }
-                }
-            }
             vol += d * tet_weight;
-            v += fq.determinant() * d * tet_weight;
+            v += deformation_gradient(u, &s.g[..n]).determinant() * d * tet_weight;
         }
         let (_, du, _) = law.volumetric(v / vol);
         sigma += du * Matrix3::identity();
     }
     Ok(VOIGT.map(|(i, j)| sigma[(i, j)]))
+}
+
+/// `F = I + Σ_a u_a ⊗ G_a` from nodal displacements `u` (flat) and reference gradients `g`.
+fn deformation_gradient(u: &[f64], g: &[[f64; 3]]) -> Matrix3<f64> {
+    let mut f = Matrix3::<f64>::identity();
+    for (a, ga) in g.iter().enumerate() {
+        for i in 0..3 {
+            for jj in 0..3 {
+                f[(i, jj)] += u[3 * a + i] * ga[jj];
+            }
+        }
+    }
+    f
 }
 
 fn voigt_index(i: usize, j: usize) -> usize {
