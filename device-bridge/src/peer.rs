@@ -159,6 +159,18 @@ impl HapticPeer {
         got
     }
 
+    /// The deadline after `previous` for a loop that waited with [`Self::wait_for_state`] and
+    /// woke at `woke`, having answered a state or not. Bridge-clocked while the peer does not
+    /// sleep: the next state is due a period after this one, and the loop's own deadline half
+    /// a period later only covers a bridge that skips a beat. Otherwise one period on.
+    pub fn next_deadline(&self, previous: Instant, woke: Instant, answered: bool) -> Instant {
+        if answered && self.effective_strategy() != WaitStrategy::Sleep {
+            woke + self.period + self.period / 2
+        } else {
+            previous + self.period
+        }
+    }
+
     /// Blocks on the bridge's wake event until a state arrives or `deadline` passes.
     fn wait_for_event(&mut self, deadline: Instant) -> Option<HapticState> {
         loop {

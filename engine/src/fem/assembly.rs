@@ -269,28 +269,45 @@ pub fn assemble_stiffness(
                 eqs[3 * a + i] = dofs.eq(3 * cell[a] + i);
             }
         }
-        for p in 0..nd {
-            let Some(rp) = eqs[p] else { continue };
-            for q in 0..nd {
-                match eqs[q] {
-                    // K_ff, lower triangle: row rp, column rq
-                    Some(rq) if rp >= rq => {
-                        let pos = k.pattern.position(rp, rq).expect("pattern covers every cell coupling");
-                        k.values[pos] += ke[p * nd + q];
-                    }
-                    Some(_) => {}
-                    // −K_fc ū_c
-                    None => {
-                        let ub = prescribed[3 * cell[q / 3] + q % 3];
-                        if ub != 0.0 {
-                            rhs[rp] -= ke[p * nd + q] * ub;
-                        }
+        scatter_cell(&mut k, &ke, cell, &eqs, Some(prescribed), rhs);
+    }
+    Ok(k)
+}
+
+/// Adds a cell matrix `ke` (`nd × nd`, row-major, `nd = eqs.len()`) of the cell with nodes
+/// `cell` into the lower triangle of `K_ff`, and `−K_fc ū_c` into `rhs` (length `n_free`) for
+/// the prescribed values `prescribed` (full length; `None`: no right-hand side). `eqs[p]` is
+/// the equation of the cell's degree of freedom `p`, `None` when it is constrained.
+pub fn scatter_cell(
+    k: &mut SymmetricMatrix,
+    ke: &[f64],
+    cell: &[usize],
+    eqs: &[Option<usize>],
+    prescribed: Option<&[f64]>,
+    rhs: &mut [f64],
+) {
+    let nd = eqs.len();
+    debug_assert_eq!(ke.len(), nd * nd);
+    for p in 0..nd {
+        let Some(rp) = eqs[p] else { continue };
+        for q in 0..nd {
+            match eqs[q] {
+                // K_ff, lower triangle: row rp, column rq
+                Some(rq) if rp >= rq => {
+                    let pos = k.pattern.position(rp, rq).expect("pattern covers every cell coupling");
+                    k.values[pos] += ke[p * nd + q];
+                }
+                Some(_) => {}
+                // −K_fc ū_c
+                None => {
+                    let ub = prescribed.map_or(0.0, |u| u[3 * cell[q / 3] + q % 3]);
+                    if ub != 0.0 {
+                        rhs[rp] -= ke[p * nd + q] * ub;
                     }
                 }
             }
         }
     }
-    Ok(k)
 }
 
 /// Internal forces `f_int = Σ_e K^e u_e` on every degree of freedom (full length), from the

@@ -21,7 +21,7 @@
 
 use std::sync::Arc;
 
-use super::assembly::{DofMap, SymmetricMatrix, SymmetricPattern};
+use super::assembly::{DofMap, SymmetricMatrix, SymmetricPattern, scatter_cell};
 use super::hyperelastic::{self, CellError, CellScratch, LawMap, Volumetric};
 use super::linear_static::StaticProblem;
 use crate::mesh::Mesh;
@@ -182,23 +182,8 @@ impl Model<'_> {
             for p in 0..nd {
                 f_int[3 * cell[p / 3] + p % 3] += fe[p];
             }
-            let Some(k) = k.as_mut() else { continue };
-            for p in 0..nd {
-                let Some(rp) = eqs[p] else { continue };
-                for q in 0..nd {
-                    match eqs[q] {
-                        Some(rq) if rp >= rq => {
-                            let pos = k.pattern.position(rp, rq).expect("pattern covers every cell coupling");
-                            k.values[pos] += ke[p * nd + q];
-                        }
-                        Some(_) => {}
-                        None => {
-                            if let Some(d) = delta_prescribed {
-                                predictor[rp] -= ke[p * nd + q] * d[3 * cell[q / 3] + q % 3];
-                            }
-                        }
-                    }
-                }
+            if let Some(k) = k.as_mut() {
+                scatter_cell(k, &ke, cell, &eqs, delta_prescribed, &mut predictor);
             }
         }
         Ok(Assembled {

@@ -6,7 +6,6 @@ use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use vademecum_bridge::peer::HapticPeer;
-use vademecum_bridge::timing::WaitStrategy;
 use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_SCALPEL};
 
@@ -179,12 +178,10 @@ impl TickLoop {
                     self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
                 }
             }
-            match (&peer, arrived) {
-                // bridge-clocked: the next state is due a period after this one; the own
-                // deadline half a period later only covers a bridge that skips a beat
-                (Some(p), Some(_)) if p.effective_strategy() != WaitStrategy::Sleep => next = start + period + period / 2,
-                _ => next += period,
-            }
+            next = match &peer {
+                Some(p) => p.next_deadline(next, start, arrived.is_some()),
+                None => next + period,
+            };
             let now = Instant::now();
             if now > next + period * MAX_CATCH_UP {
                 next = now;

@@ -181,18 +181,13 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
                 let cpu0 = timing::thread_cpu_time();
                 let mut next = Instant::now() + period;
                 while !stop.load(Ordering::Relaxed) {
-                    // the session's schedule (session/tick.rs): bridge-clocked unless sleeping
-                    match peer.wait_for_state(next) {
-                        Some(s) => {
-                            let _ = peer.answer(&s, [0.0; 3], 0.0, 0);
-                            if peer.effective_strategy() == WaitStrategy::Sleep {
-                                next += period;
-                            } else {
-                                next = Instant::now() + period + period / 2;
-                            }
-                        }
-                        None => next += period,
+                    // the session's schedule (session/tick.rs)
+                    let got = peer.wait_for_state(next);
+                    let woke = Instant::now();
+                    if let Some(s) = &got {
+                        let _ = peer.answer(s, [0.0; 3], 0.0, 0);
                     }
+                    next = peer.next_deadline(next, woke, got.is_some());
                 }
                 Ok(timing::thread_cpu_time().saturating_sub(cpu0))
             })?
