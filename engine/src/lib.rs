@@ -7,6 +7,8 @@
 //! - [`fem`]: shape functions, cell operators, assembly, loads, the static linear solve.
 //! - [`pgd`]: PGD computational vademecums (offline builder, brute-force reference, online
 //!   evaluator).
+//! - [`rom`]: reduced-order models for large deformations (POD, reduced St Venant–Kirchhoff,
+//!   the asymptotic numerical method).
 //! - [`pipeline`]: one simulation tick — tool state → contact → the scene's effects → force.
 //! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
 //! - [`bundle`]: the on-disk form of built vademecums (manifest + `.npy` + checksums).
@@ -23,5 +25,6 @@ pub mod material;
 pub mod mesh;
 pub mod pgd;
 pub mod pipeline;
+pub mod rom;
 pub mod scene;
 pub mod solve;

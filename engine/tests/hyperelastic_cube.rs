@@ -35,7 +35,7 @@ fn cube_with(
         volumetric,
         &p,
         &NewtonParams::default(),
-        |_| {},
+        |_, _| {},
     );
     (s, top)
 }

@@ -129,6 +129,27 @@ impl CellScratch {
     }
 }
 
+/// Visits the integration points of the reference cell `x`: `visit(dV₀, G)` with the point's
+/// weighted reference volume and the physical gradients `G_a = ∂N_a/∂X` of its `n` shape
+/// functions (the same rule [`cell`] integrates with).
+pub fn for_each_point(
+    kind: CellKind,
+    x: &[[f64; 3]],
+    s: &mut CellScratch,
+    mut visit: impl FnMut(f64, &[[f64; 3]]),
+) -> Result<(), CellError> {
+    let n = kind.nodes_per_cell();
+    let tet_weight = if kind == CellKind::Tet4 { 1.0 / 6.0 } else { 1.0 };
+    for q in 0..s.points.len() {
+        let det = shape::physical_gradients(x, &s.points[q].1[..n], &mut s.g[..n]);
+        if det <= 0.0 {
+            return Err(CellError::Reference { det });
+        }
+        visit(det * tet_weight, &s.g[..n]);
+    }
+    Ok(())
+}
+
 /// Energy, internal forces `fe` (length `3n`, overwritten) and, when `ke` is given, the tangent
 /// (`(3n)²`, row-major, overwritten) of one cell with reference coordinates `x` and nodal
 /// displacements `u` (flat, `3n`).

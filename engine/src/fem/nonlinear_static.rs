@@ -214,15 +214,15 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Solves `problem` (prescribed displacements and nodal forces, applied proportionally to
-/// the load factor) on `mesh` made of `laws`; `progress(λ)` is called after each converged
-/// step.
+/// the load factor) on `mesh` made of `laws`; `progress(λ, u)` is called after each converged
+/// step with its load factor and displacement (the snapshots of a POD basis).
 pub fn solve(
     mesh: &Mesh,
     laws: &LawMap,
     volumetric: Volumetric,
     problem: &StaticProblem,
     params: &NewtonParams,
-    mut progress: impl FnMut(f64),
+    mut progress: impl FnMut(f64, &[f64]),
 ) -> Result<NonlinearSolution, NonlinearError> {
     let nd = 3 * mesh.n_nodes();
     if problem.constrained.len() != nd || problem.prescribed.len() != nd || problem.forces.len() != nd {
@@ -357,7 +357,7 @@ pub fn solve(
                 info.iterations += iterations;
                 info.residual = residual;
                 info.path.push((lambda, last.energy));
-                progress(lambda);
+                progress(lambda, &u);
                 step = (step * 1.5).min(1.0 / params.steps as f64);
             }
             Err((reason, residual)) => {
@@ -391,10 +391,10 @@ pub fn solve_static(
     volumetric: Volumetric,
     problem: &StaticProblem,
     params: &NewtonParams,
-    progress: impl FnMut(f64),
+    mut progress: impl FnMut(f64),
 ) -> Result<(super::linear_static::StaticSolution, NewtonInfo), NonlinearError> {
     let t = std::time::Instant::now();
-    let sol = solve(mesh, laws, volumetric, problem, params, progress)?;
+    let sol = solve(mesh, laws, volumetric, problem, params, |l, _| progress(l))?;
     let newton_s = t.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
     let n = mesh.kind.nodes_per_cell();

@@ -54,7 +54,7 @@ fn solve(n: usize, volumetric: Volumetric, stretch: f64, steps: usize) -> anyhow
         ..NewtonParams::default()
     };
     let t = Instant::now();
-    let s = nonlinear_static::solve(&mesh, &LawMap::uniform(law, mesh.n_cells()), volumetric, &p, &params, |_| {})?;
+    let s = nonlinear_static::solve(&mesh, &LawMap::uniform(law, mesh.n_cells()), volumetric, &p, &params, |_, _| {})?;
     let force = s.reaction_sum(&top)[1];
     let seed = (stretch - 0.2).abs() < 1e-12;
     Ok(Row {

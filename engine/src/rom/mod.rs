@@ -1,0 +1,18 @@
+//! Reduced-order models for large deformations (seed 001): POD bases, the St Venant–Kirchhoff
+//! model in reduced coordinates, and the asymptotic numerical method on it.
+//!
+//! - [`pod`]: snapshots → SVD → an orthonormal basis `A` kept by an energy criterion; `AᵀKA`.
+//! - [`svk`]: the exact reduced internal force of St Venant–Kirchhoff as polynomial tensors
+//!   (`O(r⁴)` online, whatever the mesh).
+//! - [`anm`]: asymptotic expansions of the equilibrium branch in reduced coordinates with one
+//!   tangent per step, their validity radius, and continuation.
+//! - [`dense`]: small in-place Cholesky for the online solves.
+
+pub mod anm;
+pub mod dense;
+pub mod pod;
+pub mod svk;
+
+pub use anm::{AnmError, AnmParams, Path, Series};
+pub use pod::{Pod, PodCriterion, PodError};
+pub use svk::{ReduceError, ReducedSvk};
