@@ -86,7 +86,16 @@ fn the_reduced_model_is_the_projection_of_the_full_one() {
     let pattern = Arc::new(SymmetricPattern::build(&mesh, &dofs));
     let mut rhs = vec![0.0; dofs.n_free()];
     let materials = MaterialMap::uniform(mat, 1000.0, mesh.n_cells());
-    let k = assemble_stiffness(&mesh, &materials, Locking::None, &dofs, pattern, &vec![0.0; constrained.len()], &mut rhs).unwrap();
+    let k = assemble_stiffness(
+        &mesh,
+        &materials,
+        Locking::None,
+        &dofs,
+        pattern,
+        &vec![0.0; constrained.len()],
+        &mut rhs,
+    )
+    .unwrap();
     let k1 = pod.reduce_matrix(&dofs, &k);
     let scale = k1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     for (a, b) in red.k1.iter().zip(&k1) {
@@ -237,7 +246,10 @@ fn svk_crushed_in_reduced_coordinates_stops_with_a_diagnostic() {
     let e = anm::continuation(&red, &f, 1.0, &AnmParams::default()).unwrap_err();
     eprintln!("{e}");
     assert!(
-        matches!(e, AnmError::LimitPoint { .. } | AnmError::Unstable { .. } | AnmError::Stalled { .. }),
+        matches!(
+            e,
+            AnmError::LimitPoint { .. } | AnmError::Unstable { .. } | AnmError::Stalled { .. }
+        ),
         "{e:?}"
     );
     let lambda = match e {

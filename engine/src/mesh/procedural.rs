@@ -6,6 +6,7 @@
 //! - [`lobe`]: a smooth organ-like body: a flattened, slightly bent ellipsoid meshed with
 //!   tetrahedra, obtained by mapping a structured cube onto the unit ball (shell by shell,
 //!   `x' = x‖x‖_∞/‖x‖₂`) and then scaling and bending it.
+//! - [`dome`]: a thin spherical cap of hexahedra (a cornea-like shell, seed 001 §6.1).
 
 use super::{CellKind, Mesh};
 
@@ -193,10 +194,71 @@ pub fn lobe(p: &LobeParams) -> Mesh {
     })
 }
 
+/// A spherical cap shell: the sphere's radius of curvature (outer surface), the radius of its
+/// circular base, the shell thickness (all m), and `[n, n, layers]` divisions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DomeParams {
+    /// Radius of curvature of the outer surface (m).
+    pub curvature_radius: f64,
+    /// Radius of the base circle of the outer surface (m).
+    pub base_radius: f64,
+    /// Shell thickness (m).
+    pub thickness: f64,
+    /// Cells across the base (both directions) and through the thickness.
+    pub divisions: [usize; 3],
+}
+
+impl Default for DomeParams {
+    /// A human cornea: 7.8 mm radius of curvature, 11.5 mm across, 0.55 mm thick.
+    fn default() -> Self {
+        Self {
+            curvature_radius: 7.8e-3,
+            base_radius: 5.75e-3,
+            thickness: 0.55e-3,
+            divisions: [12, 12, 2],
+        }
+    }
+}
+
+/// A cap of hexahedra with its axis along z, base circle at `z = 0` and apex at
+/// `z = R − √(R² − a²)`. A structured square is mapped onto the base disc (ring by ring,
+/// `x' = x‖x‖_∞/‖x‖₂`, as [`lobe`] does in 3D), each disc point is lifted radially from the
+/// sphere's centre, and the layers run from the inner surface (radius `R − t`) to the outer
+/// one. The base ring is the square's boundary.
+pub fn dome(p: &DomeParams) -> Mesh {
+    let [n, _, layers] = p.divisions;
+    let mut hex = block_hex([-1.0, -1.0, 0.0], [2.0, 2.0, 1.0], [n, n, layers]);
+    let (r, a, t) = (p.curvature_radius, p.base_radius, p.thickness);
+    let centre = -(r * r - a * a).sqrt();
+    for q in &mut hex.nodes {
+        let d = cube_to_ball([q[0], q[1], 0.0]);
+        let (x, y) = (a * d[0], a * d[1]);
+        let dir = [x / r, y / r, (r * r - x * x - y * y).max(0.0).sqrt() / r];
+        let radius = r - t + t * q[2];
+        *q = [radius * dir[0], radius * dir[1], centre + radius * dir[2]];
+    }
+    hex
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::mesh::quality;
+
+    #[test]
+    fn the_dome_is_a_valid_shell_of_the_right_volume() {
+        let p = DomeParams::default();
+        let mut m = dome(&p);
+        m.check_cells().expect("dome cells are positive");
+        let v: f64 = quality::signed_volumes(&m).iter().sum();
+        // the shell between the two spherical caps of the same cone of directions
+        let (r, a, t) = (p.curvature_radius, p.base_radius, p.thickness);
+        let cos = (r * r - a * a).sqrt() / r;
+        let exact = 2.0 / 3.0 * std::f64::consts::PI * (1.0 - cos) * (r.powi(3) - (r - t).powi(3));
+        assert!((v - exact).abs() / exact < 0.03, "volume {v} vs {exact}");
+        let apex = m.nodes.iter().map(|q| q[2]).fold(f64::MIN, f64::max);
+        assert!((apex - (r - (r * r - a * a).sqrt())).abs() < 1e-12);
+    }
 
     #[test]
     fn blocks_have_expected_counts_and_volume() {

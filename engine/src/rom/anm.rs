@@ -370,12 +370,19 @@ impl Path {
     /// The reduced state at load factor `lambda` (between 0 and the path's end) into `out`;
     /// `false` when the path does not reach it.
     pub fn at_load(&self, lambda: f64, out: &mut [f64]) -> bool {
-        for (s, &end) in self.steps.iter().zip(&self.ends) {
-            if lambda <= s.load(end) {
-                if let Some(a) = s.solve_load(lambda, end) {
-                    s.eval(a, out);
-                    return true;
-                }
+        let last = self.steps.len().saturating_sub(1);
+        for (k, (s, &end)) in self.steps.iter().zip(&self.ends).enumerate() {
+            let top = s.load(end);
+            if lambda <= top
+                && let Some(a) = s.solve_load(lambda, end)
+            {
+                s.eval(a, out);
+                return true;
+            }
+            // the last step ends on its target up to the bisection's round-off
+            if k == last && (lambda - top).abs() <= 1e-12 * lambda.abs().max(1.0) {
+                s.eval(end, out);
+                return true;
             }
         }
         false

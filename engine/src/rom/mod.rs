@@ -6,11 +6,13 @@
 //!   (`O(r⁴)` online, whatever the mesh).
 //! - [`anm`]: asymptotic expansions of the equilibrium branch in reduced coordinates with one
 //!   tangent per step, their validity radius, and continuation.
+//! - [`study`]: ANM-POD against full Newton on a scene's load case (seed 001 §6).
 //! - [`dense`]: small in-place Cholesky for the online solves.
 
 pub mod anm;
 pub mod dense;
 pub mod pod;
+pub mod study;
 pub mod svk;
 
 pub use anm::{AnmError, AnmParams, Path, Series};

@@ -114,7 +114,7 @@ impl Pod {
     /// vectors of the free degrees of freedom for a test of the reduced model against the
     /// full one.
     pub fn from_columns(n: usize, basis: Vec<f64>) -> Result<Self, PodError> {
-        if n == 0 || basis.is_empty() || basis.len() % n != 0 {
+        if n == 0 || basis.is_empty() || !basis.len().is_multiple_of(n) {
             return Err(PodError::Shape(format!("{} entries for columns of {n}", basis.len())));
         }
         let modes = basis.len() / n;
@@ -213,11 +213,7 @@ mod tests {
                 v
             })
             .collect();
-        let keep = |energy| {
-            Pod::from_snapshots(&s, PodCriterion { energy, max_modes: 10 })
-                .unwrap()
-                .modes
-        };
+        let keep = |energy| Pod::from_snapshots(&s, PodCriterion { energy, max_modes: 10 }).unwrap().modes;
         assert_eq!(keep(0.99), 1);
         assert_eq!(keep(0.9999), 2);
         assert_eq!(keep(1.0), 4);
@@ -236,6 +232,9 @@ mod tests {
             Pod::from_snapshots(&[vec![1.0, f64::NAN]], PodCriterion::default()),
             Err(PodError::NotFinite(0))
         ));
-        assert!(matches!(Pod::from_snapshots(&[vec![0.0; 3]], PodCriterion::default()), Err(PodError::Zero)));
+        assert!(matches!(
+            Pod::from_snapshots(&[vec![0.0; 3]], PodCriterion::default()),
+            Err(PodError::Zero)
+        ));
     }
 }

@@ -136,7 +136,12 @@ impl ReducedSvk {
         for c in 0..mesh.n_cells() {
             let (lambda, mu) = match *laws.of(c) {
                 Hyperelastic::StVenantKirchhoff { lambda, mu } => (lambda, mu),
-                Hyperelastic::NeoHookean { .. } => return Err(ReduceError::NotPolynomial { cell: c, law: "neo-Hookean" }),
+                Hyperelastic::NeoHookean { .. } => {
+                    return Err(ReduceError::NotPolynomial {
+                        cell: c,
+                        law: "neo-Hookean",
+                    });
+                }
                 Hyperelastic::MooneyRivlin { .. } => {
                     return Err(ReduceError::NotPolynomial {
                         cell: c,
@@ -178,12 +183,12 @@ impl ReducedSvk {
                 for i in 0..r {
                     for j in i..r {
                         // Q_ij[I][J] = ¼ Σ_k (H_i[k][I] H_j[k][J] + H_j[k][I] H_i[k][J])
-                        let q = |a: usize, b: usize| {
-                            0.25 * (0..3)
-                                .map(|k| h[i][k][a] * h[j][k][b] + h[j][k][a] * h[i][k][b])
-                                .sum::<f64>()
-                        };
-                        put(r + pair[i * r + j], [q(0, 0), q(1, 1), q(2, 2), q(1, 2), q(0, 2), q(0, 1)], &mut chunk);
+                        let q = |a: usize, b: usize| 0.25 * (0..3).map(|k| h[i][k][a] * h[j][k][b] + h[j][k][a] * h[i][k][b]).sum::<f64>();
+                        put(
+                            r + pair[i * r + j],
+                            [q(0, 0), q(1, 1), q(2, 2), q(1, 2), q(0, 2), q(0, 1)],
+                            &mut chunk,
+                        );
                     }
                 }
                 rows += 1;

@@ -1,7 +1,7 @@
 //! Scenes compiled into the binary, so defaults need no files.
 
 /// Names of the built-in scenes; the first is the default.
-pub const BUILTIN_NAMES: [&str; 3] = ["organ", "patch", "cantilever"];
+pub const BUILTIN_NAMES: [&str; 4] = ["organ", "patch", "cantilever", "cornea"];
 
 /// The TOML text of a built-in scene.
 pub fn builtin(name: &str) -> Option<&'static str> {
@@ -9,6 +9,7 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "organ" => ORGAN,
         "patch" => PATCH,
         "cantilever" => CANTILEVER,
+        "cornea" => CORNEA,
         _ => return None,
     })
 }
@@ -135,6 +136,47 @@ half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }
 kind = "force"
 region = { box = { min = [1.0, 0.0, 0.0], max = [1.0, 0.1, 0.1] } }
 force = [0.0, 0.0, -1.0]
+
+[fidelity]
+locking = "none"
+"#;
+
+const CORNEA: &str = r#"# Seed 001, section 6.1: pinching a cornea-like dome (large deformations).
+[scene]
+name = "cornea"
+description = "A cornea-like spherical cap (radius of curvature 7.8 mm, 11.5 mm across, 0.55 mm thick; 24 x 24 x 3 hexahedra), St Venant-Kirchhoff, E = 2 MPa, nu = 0.48, clamped along its base; 0.014 N pressed down on each of its nine central nodes."
+
+[[organs]]
+name = "cornea"
+density = 1076.0                     # kg/m3
+
+[organs.mesh]
+builtin = "dome"
+curvature_radius = 7.8e-3            # m
+base_radius = 5.75e-3
+thickness = 0.55e-3
+divisions = [24, 24, 3]
+
+[[organs.materials]]
+model = "stvk"
+young = 2e6                          # Pa
+poisson = 0.48
+
+[organs.fixed]                       # the base ring (limbus)
+half_space = { point = [0.0, 0.0, 0.05e-3], normal = [0.0, 0.0, -1.0] }
+
+[organs.accessible]                  # the anterior surface
+half_space = { point = [0.0, 0.0, 0.5e-3], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]                     # the nine central nodes of the anterior surface (apex z = 2.53 mm)
+kind = "force"
+region = { box = { min = [-0.55e-3, -0.55e-3, 2.45e-3], max = [0.55e-3, 0.55e-3, 2.65e-3] } }
+force = [0.0, 0.0, -0.126]           # N in all: 0.014 N on each node (seed 001, section 6.1)
+
+[[tools]]
+kind = "probe"
+name = "probe"
+radius = 1.0e-3
 
 [fidelity]
 locking = "none"

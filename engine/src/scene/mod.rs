@@ -254,7 +254,7 @@ impl Scene {
             (None, None) => {
                 return Err(self.error_at(
                     at,
-                    "give a mesh `file` (.msh, .vtu, .vtk) or a `builtin` mesh (\"lobe\" or \"block\")",
+                    "give a mesh `file` (.msh, .vtu, .vtk) or a `builtin` mesh (\"lobe\", \"block\" or \"dome\")",
                 ));
             }
             _ => {}
@@ -264,6 +264,11 @@ impl Scene {
             ("origin", m.origin.is_some()),
             ("size", m.size.is_some()),
             ("cell", m.cell.is_some()),
+        ];
+        let dome_only = [
+            ("curvature_radius", m.curvature_radius.is_some()),
+            ("base_radius", m.base_radius.is_some()),
+            ("thickness", m.thickness.is_some()),
         ];
         let builtin_only = [("divisions", m.divisions.is_some())];
         let forbid = |list: &[(&'static str, bool)], why: &str| -> Result<(), SceneError> {
@@ -276,10 +281,12 @@ impl Scene {
             None => {
                 forbid(&lobe_only, "only applies to builtin = \"lobe\"")?;
                 forbid(&block_only, "only applies to builtin = \"block\"")?;
+                forbid(&dome_only, "only applies to builtin = \"dome\"")?;
                 forbid(&builtin_only, "only applies to built-in meshes")?;
             }
             Some(BuiltinMesh::Lobe) => {
                 forbid(&block_only, "only applies to builtin = \"block\"")?;
+                forbid(&dome_only, "only applies to builtin = \"dome\"")?;
                 if m.scale.is_some() {
                     return Err(self.error_at(
                         &key("scale"),
@@ -293,8 +300,38 @@ impl Scene {
                     return Err(self.error_at(&key("bend"), "bend must lie in [-2, 2]"));
                 }
             }
+            Some(BuiltinMesh::Dome) => {
+                forbid(&lobe_only, "only applies to builtin = \"lobe\"")?;
+                forbid(&block_only, "only applies to builtin = \"block\"")?;
+                if m.scale.is_some() {
+                    return Err(self.error_at(&key("scale"), "`scale` applies to mesh files; give a built-in dome its radii (m)"));
+                }
+                let d = procedural::DomeParams::default();
+                let (r, a, t) = (
+                    m.curvature_radius.unwrap_or(d.curvature_radius),
+                    m.base_radius.unwrap_or(d.base_radius),
+                    m.thickness.unwrap_or(d.thickness),
+                );
+                let ok = |v: f64| v.is_finite() && v > 0.0;
+                if !(ok(r) && ok(a) && ok(t)) {
+                    return Err(self.error_at(
+                        at,
+                        "the dome's curvature_radius, base_radius and thickness must be positive lengths (m)",
+                    ));
+                }
+                if a >= r || t >= 0.5 * r {
+                    return Err(self.error_at(
+                        at,
+                        "a dome needs base_radius < curvature_radius and a thickness well below the radius of curvature",
+                    ));
+                }
+                if m.divisions.is_some_and(|d| d[0] != d[1]) {
+                    return Err(self.error_at(&key("divisions"), "a dome has divisions = [n, n, layers] (the same n both ways)"));
+                }
+            }
             Some(BuiltinMesh::Block) => {
                 forbid(&lobe_only, "only applies to builtin = \"lobe\"")?;
+                forbid(&dome_only, "only applies to builtin = \"dome\"")?;
                 if m.scale.is_some() {
                     return Err(self.error_at(&key("scale"), "`scale` applies to mesh files; give a built-in block its `size` (m)"));
                 }
@@ -434,6 +471,18 @@ impl Scene {
                 let mut mesh = procedural::lobe(&p);
                 mesh.check_cells()
                     .map_err(|e| self.error_at(&at, format!("the lobe parameters give a bad mesh: {e}")))?;
+                mesh
+            }
+            (None, Some(BuiltinMesh::Dome)) => {
+                let d = procedural::DomeParams::default();
+                let mut mesh = procedural::dome(&procedural::DomeParams {
+                    curvature_radius: m.curvature_radius.unwrap_or(d.curvature_radius),
+                    base_radius: m.base_radius.unwrap_or(d.base_radius),
+                    thickness: m.thickness.unwrap_or(d.thickness),
+                    divisions: m.divisions.unwrap_or(d.divisions),
+                });
+                mesh.check_cells()
+                    .map_err(|e| self.error_at(&at, format!("the dome parameters give a bad mesh: {e}")))?;
                 mesh
             }
             (None, Some(BuiltinMesh::Block)) => {

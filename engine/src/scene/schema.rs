@@ -68,6 +68,9 @@ pub enum BuiltinMesh {
     Lobe,
     /// A structured box (`origin`, `size`, `divisions`, `cell`).
     Block,
+    /// A thin spherical cap of hexahedra, cornea-like (`curvature_radius`, `base_radius`,
+    /// `thickness`, `divisions = [n, n, layers]`); base circle at z = 0, apex up.
+    Dome,
 }
 
 /// `[organs.mesh]`: a mesh file or a built-in mesh. Exactly one of `file` and `builtin`.
@@ -94,6 +97,12 @@ pub struct MeshSpec {
     pub size: Option<[f64; 3]>,
     /// Block: cell kind (`hex8` or `tet4`). Default hex8.
     pub cell: Option<CellKind>,
+    /// Dome: radius of curvature of the outer surface (m).
+    pub curvature_radius: Option<f64>,
+    /// Dome: radius of the base circle (m).
+    pub base_radius: Option<f64>,
+    /// Dome: shell thickness (m).
+    pub thickness: Option<f64>,
 }
 
 /// Constitutive models a material may name.

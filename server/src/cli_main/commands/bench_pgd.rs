@@ -16,7 +16,7 @@ use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
 use crate::cli_main::cli::BenchPgdArgs;
 
 #[derive(Debug, Serialize)]
-struct Stat {
+pub(crate) struct Stat {
     what: String,
     calls: usize,
     p50_us: f64,
@@ -25,7 +25,7 @@ struct Stat {
     max_us: f64,
 }
 
-fn stat(what: &str, mut v: Vec<f64>) -> Stat {
+pub(crate) fn stat(what: &str, mut v: Vec<f64>) -> Stat {
     v.sort_by(f64::total_cmp);
     let q = |p: f64| v[((v.len() as f64 - 1.0) * p).round() as usize];
     Stat {
@@ -39,21 +39,21 @@ fn stat(what: &str, mut v: Vec<f64>) -> Stat {
 }
 
 /// A tiny deterministic generator (xorshift), so runs are repeatable.
-struct Rng(u64);
+pub(crate) struct Rng(pub(crate) u64);
 impl Rng {
-    fn next(&mut self) -> u64 {
+    pub(crate) fn next(&mut self) -> u64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
         self.0
     }
-    fn unit(&mut self) -> f64 {
+    pub(crate) fn unit(&mut self) -> f64 {
         (self.next() >> 11) as f64 / (1u64 << 53) as f64
     }
 }
 
 /// Times `n` calls of `f` (µs each), keeping its results alive.
-fn time_n(n: usize, mut f: impl FnMut() -> f64) -> Vec<f64> {
+pub(crate) fn time_n(n: usize, mut f: impl FnMut() -> f64) -> Vec<f64> {
     let mut acc = 0.0;
     let v = (0..n)
         .map(|_| {
@@ -304,15 +304,21 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
             v.n_nodes(),
             v.load_nodes().len()
         )?;
-        writeln!(out, "| what | calls | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) |")?;
-        writeln!(out, "|---|---:|---:|---:|---:|---:|")?;
-        for s in &stats {
-            writeln!(
-                out,
-                "| {} | {} | {:.2} | {:.2} | {:.2} | {:.1} |",
-                s.what, s.calls, s.p50_us, s.p99_us, s.p999_us, s.max_us
-            )?;
-        }
+        write_stats(&mut out, &stats)?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The percentile table of `stats` (Markdown, µs).
+pub(crate) fn write_stats(out: &mut impl Write, stats: &[Stat]) -> std::io::Result<()> {
+    writeln!(out, "| what | calls | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) |")?;
+    writeln!(out, "|---|---:|---:|---:|---:|---:|")?;
+    for s in stats {
+        writeln!(
+            out,
+            "| {} | {} | {:.2} | {:.2} | {:.2} | {:.1} |",
+            s.what, s.calls, s.p50_us, s.p99_us, s.p999_us, s.max_us
+        )?;
+    }
+    Ok(())
 }

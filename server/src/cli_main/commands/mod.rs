@@ -1,6 +1,7 @@
 //! The subcommands, one file each.
 
 mod bench;
+mod bench_anm;
 mod bench_cube;
 mod bench_haptic;
 mod bench_pgd;
@@ -33,5 +34,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Session(a)) => bench_session::run(a),
         Command::Bench(BenchCommand::Haptic(a)) => bench_haptic::run(a),
         Command::Bench(BenchCommand::Cube(a)) => bench_cube::run(a),
+        Command::Bench(BenchCommand::Anm(a)) => bench_anm::run(a),
     }
 }
