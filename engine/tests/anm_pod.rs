@@ -112,3 +112,48 @@ fn liver_palpation_orders_5_and_6_stay_within_5_percent_up_to_5_mm() {
         assert!(error(p.continuation, p.newton) < 1e-3, "continuation at λ = {}", p.lambda);
     }
 }
+
+#[test]
+fn interpolated_bases_between_lattice_positions_are_measured_against_full_newton() {
+    use vademecum_engine::rom::lattice::{self, LatticeParams};
+    // the cornea on a coarse mesh, so that 15 full paths take seconds
+    let text = vademecum_engine::scene::builtin("cornea")
+        .unwrap()
+        .replace("divisions = [24, 24, 3]", "divisions = [12, 12, 2]");
+    let scene = Scene::from_toml(&text, ".").unwrap();
+    let organ = scene.organ_model(0).unwrap();
+    let laws = organ.laws.clone().unwrap();
+    let params = LatticeParams {
+        side: 3,
+        spacing: 1.5e-3,
+        patch_radius: 1.0e-3,
+        load_steps: 4,
+        ..LatticeParams::default()
+    };
+    let s = lattice::interpolation_study(
+        &organ.mesh,
+        &laws,
+        &organ.materials,
+        &organ.problem,
+        &organ.accessible_nodes,
+        &params,
+        |_| {},
+    )
+    .unwrap();
+    assert_eq!(s.lattice.len(), 9);
+    assert_eq!(s.rows.len(), 6, "4 cell centres and 2 edge midpoints");
+    for row in &s.rows {
+        eprintln!("{row:?}");
+        assert!(row.newton.is_finite() && row.newton > 0.0);
+        assert!(row.nearest_m > 0.0, "test positions lie off the lattice");
+        for m in 0..lattice::METHODS.len() {
+            // every method gives a number or says why not, never NaN
+            assert!(!row.error[m].is_nan() && (row.error[m].is_finite() || !row.failures.is_empty()));
+            assert!((0.0..=1.0).contains(&row.projection[m]));
+        }
+        // PODI and Grassmann run on this case (nothing orthogonal between neighbours)
+        assert!(row.error[1].is_finite() && row.error[2].is_finite(), "{:?}", row.failures);
+    }
+    // at its own position a basis carries only the ANM truncation error
+    assert!(s.own_basis_error.iter().all(|&e| e < 1e-3), "{:?}", s.own_basis_error);
+}

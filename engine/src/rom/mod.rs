@@ -6,11 +6,17 @@
 //!   (`O(r⁴)` online, whatever the mesh).
 //! - [`anm`]: asymptotic expansions of the equilibrium branch in reduced coordinates with one
 //!   tangent per step, their validity radius, and continuation.
+//! - [`interpolate`]: bases between load positions — PODI (Procrustes-aligned) and the
+//!   Grassmann manifold's log/exp maps.
+//! - [`lattice`]: reduced models on a lattice of load positions and their interpolation
+//!   off it, against the full model.
 //! - [`study`]: ANM-POD against full Newton on a scene's load case (seed 001 §6).
 //! - [`dense`]: small in-place Cholesky for the online solves.
 
 pub mod anm;
 pub mod dense;
+pub mod interpolate;
+pub mod lattice;
 pub mod pod;
 pub mod study;
 pub mod svk;

@@ -323,6 +323,10 @@ the reduced model's tensors are built; then one asymptotic series from the unloa
 under the load at every load step. Writes the load-displacement plot (SVG) and prints the table, \
 the displacement each order reaches within 5 %, and the online cost per evaluation (p50/p99) \
 beside a null loop measured in the same run.\n\n\
+With --lattice SIDE, the same load (spread over the nodes within the probe's radius) is also \
+applied at the SIDE x SIDE positions of a lattice around the load point and at positions between \
+them; the reduced bases of the four nearest lattice positions are interpolated (nearest only, PODI, \
+Grassmann) and the resulting reduced models are compared with full Newton there.\n\n\
 Default scene: the built-in cornea. The seed's liver: vademecum bench anm scenes/liver_palpation_large.toml"
     )]
     Anm(BenchAnmArgs),
@@ -349,6 +353,18 @@ pub struct BenchAnmArgs {
     /// Orders of the one-series curves (1-8).
     #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2, 3, 4, 5, 6])]
     pub orders: Vec<usize>,
+    /// Also interpolate reduced models between the positions of a SIDE x SIDE lattice around
+    /// the load point and compare with full Newton at positions off the lattice (nearest
+    /// neighbour, PODI, Grassmann).
+    #[arg(long, value_name = "SIDE")]
+    pub lattice: Option<usize>,
+    /// Spacing of the lattice (m). Default: a tenth of the organ's size.
+    #[arg(long)]
+    pub spacing: Option<f64>,
+    /// Enrich each lattice basis with the linear responses to the load at the accessible nodes
+    /// within one spacing (so that it spans the loads around its position).
+    #[arg(long)]
+    pub enrich: bool,
     /// Where to write the load-displacement plot. Default: `out/<scene>/anm.svg`.
     #[arg(long)]
     pub plot: Option<PathBuf>,

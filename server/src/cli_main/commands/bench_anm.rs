@@ -12,9 +12,11 @@ use serde::Serialize;
 use vademecum_engine::fem::hyperelastic::LawMap;
 use vademecum_engine::material::hyperelastic::Hyperelastic;
 use vademecum_engine::rom::anm::{self, Series};
+use vademecum_engine::rom::lattice::{self, LatticeParams, LatticeStudy};
 use vademecum_engine::rom::study::{self, ReducedCase, Study, StudyParams};
 use vademecum_engine::rom::{AnmParams, PodCriterion};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::schema::ToolSpec;
 
 use super::bench_pgd::{Rng, Stat, stat, time_n, write_stats};
 use crate::cli_main::cli::BenchAnmArgs;
@@ -33,6 +35,7 @@ struct Report {
     study: Study,
     reach_mm: Vec<(usize, f64)>,
     online: Vec<Stat>,
+    interpolation: Option<LatticeStudy>,
     plot: PathBuf,
 }
 
@@ -167,6 +170,48 @@ pub fn run(a: BenchAnmArgs) -> anyhow::Result<ExitCode> {
         study::anm_pod(&organ.mesh, &laws, &organ.problem, &params, |s| bar.stage(s)).with_context(|| format!("organ '{}'", organ.name))?;
     bar.stage("online cost");
     let online = online(&case, study.force, a.calls)?;
+    let interpolation = match a.lattice {
+        None => None,
+        Some(side) => {
+            let size = {
+                let (lo, hi) = organ.mesh.bounding_box();
+                (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
+            };
+            let radius = scene
+                .spec
+                .tools
+                .iter()
+                .find_map(|t| match t {
+                    ToolSpec::Probe { radius, .. } => Some(*radius),
+                    _ => None,
+                })
+                .unwrap_or(0.0);
+            let params = LatticeParams {
+                side,
+                spacing: a.spacing.unwrap_or(size / 10.0),
+                patch_radius: radius,
+                pod: params.pod,
+                enrich: a.enrich,
+                ..LatticeParams::default()
+            };
+            let mut scaled = organ.problem.clone();
+            for f in &mut scaled.forces {
+                *f *= a.load_multiplier;
+            }
+            Some(
+                lattice::interpolation_study(
+                    &organ.mesh,
+                    &laws,
+                    &organ.materials,
+                    &scaled,
+                    &organ.accessible_nodes,
+                    &params,
+                    |s| bar.stage(s),
+                )
+                .context("interpolation study")?,
+            )
+        }
+    };
     let file = a
         .plot
         .clone()
@@ -190,6 +235,7 @@ pub fn run(a: BenchAnmArgs) -> anyhow::Result<ExitCode> {
         study,
         reach_mm,
         online,
+        interpolation,
         plot: file,
     };
     let mut out = std::io::stdout().lock();
@@ -274,5 +320,39 @@ fn print_report(out: &mut impl Write, r: &Report) -> std::io::Result<()> {
     writeln!(out)?;
     writeln!(out, "\nonline cost, r = {} (µs per call)", s.modes)?;
     write_stats(out, &r.online)?;
+    if let Some(l) = &r.interpolation {
+        writeln!(
+            out,
+            "\ninterpolation between {} lattice positions ({} modes each, four nearest, inverse-distance weights): \
+             relative error at the full load against full Newton there, and the projection error of that position's own Newton states on the basis",
+            l.lattice.len(),
+            l.modes
+        )?;
+        write!(out, "| position (mm) | to nearest (mm) | Newton (mm) | own basis |")?;
+        for m in lattice::METHODS {
+            write!(out, " {m} | projection |")?;
+        }
+        writeln!(out)?;
+        writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+        for (row, own) in l.rows.iter().zip(&l.own_basis_error) {
+            write!(
+                out,
+                "| {:.1}, {:.1}, {:.1} | {:.2} | {:.3} | {:.2} % |",
+                1e3 * row.centre[0],
+                1e3 * row.centre[1],
+                1e3 * row.centre[2],
+                1e3 * row.nearest_m,
+                1e3 * row.newton,
+                100.0 * own
+            )?;
+            for m in 0..lattice::METHODS.len() {
+                write!(out, " {:.2} % | {:.1e} |", 100.0 * row.error[m], row.projection[m])?;
+            }
+            writeln!(out)?;
+            for f in &row.failures {
+                writeln!(out, "  (failed: {f})")?;
+            }
+        }
+    }
     writeln!(out, "\nplot: {}", r.plot.display())
 }
