@@ -183,7 +183,7 @@ mod tests {
     #[test]
     fn weights_are_checked_and_inverse_distance_is_exact_at_nodes() {
         let a = orthonormal(6, 2, 5);
-        assert!(podi(&[a.clone()], &[0.5]).is_err());
+        assert!(podi(std::slice::from_ref(&a), &[0.5]).is_err());
         assert!(grassmann(&[a.clone(), a.clone()], &[1.0]).is_err());
         assert_eq!(inverse_distance_weights(&[0.3, 0.0, 1.0]), vec![0.0, 1.0, 0.0]);
         let w = inverse_distance_weights(&[1.0, 2.0]);
