@@ -236,3 +236,34 @@ fn solve_takes_the_large_deformation_path_for_a_neo_hookean_scene() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("all linear or all hyperelastic"), "{}", stderr(&o));
 }
+
+/// A scene with `effects.deformation = "large"`: `build` adds the ANM-POD lattice to the bundle
+/// (reported, stored, verified by `inspect`) and `run` serves it.
+#[test]
+fn a_large_deformation_scene_builds_its_lattice_and_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let show = vademecum(&["scene", "show", "cornea"], dir.path());
+    assert!(show.status.success());
+    let text = stdout(&show)
+        .replace("divisions = [24, 24, 3]", "divisions = [12, 12, 2]")
+        .replace("positions = 9", "positions = 3")
+        .replace("load_steps = 6", "load_steps = 4");
+    assert!(text.contains("deformation = \"large\""));
+    std::fs::write(dir.path().join("cornea.toml"), text).unwrap();
+    let o = vademecum(&["build", "cornea.toml", "--out", "b"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("ANM-POD lattice of 3 positions"), "{}", stdout(&o));
+    let bundle = dir.path().join("b/cornea.bundle");
+    for f in ["anm_nodes.npy", "anm_step_meta.npy", "anm_step_data.npy", "anm_probe.npy"] {
+        assert!(bundle.join(f).is_file(), "{f} missing");
+    }
+    let o = vademecum(&["inspect", "b/cornea.bundle"], dir.path());
+    assert!(o.status.success() && stdout(&o).contains("checksums verified"), "{}", stderr(&o));
+    let o = vademecum(&["run", "cornea.toml", "--bundles", "b", "--depth", "0.0003", "--json"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("building"), "the bundle is reused: {}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let peak = s["peak_force_n"].as_f64().unwrap();
+    assert!(peak.is_finite() && peak > 0.0, "{s}");
+    assert_eq!(s["dropped_answers"], 0);
+}

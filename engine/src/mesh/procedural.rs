@@ -224,7 +224,9 @@ impl Default for DomeParams {
 /// `z = R − √(R² − a²)`. A structured square is mapped onto the base disc (ring by ring,
 /// `x' = x‖x‖_∞/‖x‖₂`, as [`lobe`] does in 3D), each disc point is lifted radially from the
 /// sphere's centre, and the layers run from the inner surface (radius `R − t`) to the outer
-/// one. The base ring is the square's boundary.
+/// one. The base ring is the square's boundary. The outer surface is tagged as the physical
+/// group `anterior` (tag 1) and the inner one as `posterior` (tag 2), so scenes can select
+/// them (`{ group = "anterior" }`).
 pub fn dome(p: &DomeParams) -> Mesh {
     let [n, _, layers] = p.divisions;
     let mut hex = block_hex([-1.0, -1.0, 0.0], [2.0, 2.0, 1.0], [n, n, layers]);
@@ -236,6 +238,31 @@ pub fn dome(p: &DomeParams) -> Mesh {
         let dir = [x / r, y / r, (r * r - x * x - y * y).max(0.0).sqrt() / r];
         let radius = r - t + t * q[2];
         *q = [radius * dir[0], radius * dir[1], centre + radius * dir[2]];
+    }
+    let dims = [n, n, layers];
+    let surface = |k: usize, outward_up: bool| -> Vec<[usize; 4]> {
+        let mut quads = Vec::with_capacity(n * n);
+        for j in 0..n {
+            for i in 0..n {
+                let g = |a, b| grid_index(dims, a, b, k);
+                quads.push(if outward_up {
+                    [g(i, j), g(i + 1, j), g(i + 1, j + 1), g(i, j + 1)]
+                } else {
+                    [g(i, j), g(i, j + 1), g(i + 1, j + 1), g(i + 1, j)]
+                });
+            }
+        }
+        quads
+    };
+    for (tag, name, k, up) in [(1, "anterior", layers, true), (2, "posterior", 0, false)] {
+        hex.tagged_faces.insert(
+            tag,
+            super::TaggedFaces {
+                triangles: Vec::new(),
+                quads: surface(k, up),
+            },
+        );
+        hex.group_names.insert(tag, name.to_string());
     }
     hex
 }
@@ -258,6 +285,13 @@ mod tests {
         assert!((v - exact).abs() / exact < 0.03, "volume {v} vs {exact}");
         let apex = m.nodes.iter().map(|q| q[2]).fold(f64::MIN, f64::max);
         assert!((apex - (r - (r * r - a * a).sqrt())).abs() < 1e-12);
+        // the anterior group is the outer surface: every node at the outer radius
+        let outer: Vec<usize> = m.tagged_faces[&1].quads.iter().flatten().copied().collect();
+        let c = -(r * r - a * a).sqrt();
+        assert!(outer.iter().all(|&i| {
+            let q = m.nodes[i];
+            ((q[0] * q[0] + q[1] * q[1] + (q[2] - c).powi(2)).sqrt() - r).abs() < 1e-12
+        }));
     }
 
     #[test]

@@ -13,7 +13,12 @@ use super::vademecum::{LocalCompliance, Vademecum};
 use super::{brute, compress};
 use crate::bundle::{self, ArrayData, BundleError, Manifest};
 use crate::fem::assembly::{self, AssemblyError, DofMap, SymmetricMatrix, SymmetricPattern};
+use crate::fem::hyperelastic::LawMap;
+use crate::material::hyperelastic::Hyperelastic;
 use crate::mesh::Mesh;
+use crate::rom::palpation::{AnmLattice, AnmLatticeParams, LatticeArrays};
+use crate::rom::study::StudyError;
+use crate::scene::schema::DeformationModel;
 use crate::scene::{OrganModel, Scene, SceneError};
 use crate::solve::{self, Cholesky, SolveError};
 
@@ -35,6 +40,8 @@ pub struct BuildOptions {
     pub recompress: bool,
     /// Radius (m) of the tool footprint over which each unit load is spread (0: point loads).
     pub load_radius: f64,
+    /// Also build the large-deformation lattice (scenes with `effects.deformation = "large"`).
+    pub large: Option<AnmLatticeParams>,
 }
 
 impl BuildOptions {
@@ -52,6 +59,16 @@ impl BuildOptions {
             tolerance: f.tolerance,
             recompress,
             load_radius: probe_radius(scene),
+            large: (scene.spec.effects.deformation == DeformationModel::Large).then(|| {
+                let l = scene.spec.fidelity.large;
+                AnmLatticeParams {
+                    positions: l.positions,
+                    max_force: l.max_force,
+                    patch_radius: probe_radius(scene),
+                    load_steps: l.load_steps,
+                    modes: l.modes,
+                }
+            }),
         }
     }
 }
@@ -69,6 +86,8 @@ pub enum BuildStage {
     Recompression,
     /// Exact columns done out of total (contact compliances and error measurement).
     Exact(usize, usize),
+    /// Large-deformation lattice positions done out of total.
+    Lattice(usize, usize),
 }
 
 /// Why a build failed.
@@ -93,6 +112,9 @@ pub enum BuildError {
     /// The bundle could not be written.
     #[error(transparent)]
     Bundle(#[from] BundleError),
+    /// The large-deformation lattice could not be built.
+    #[error("large-deformation lattice: {0}")]
+    Large(#[from] StudyError),
 }
 
 /// What a build did (also stored in the bundle's manifest).
@@ -150,6 +172,10 @@ pub struct BuildReport {
     pub modes_bytes: usize,
     /// Bytes of the full parametric solution (all dofs × all load states, f64).
     pub full_bytes: usize,
+    /// Positions of the large-deformation lattice (0: none built).
+    pub anm_positions: usize,
+    /// Seconds spent on it.
+    pub anm_s: f64,
 }
 
 /// Everything a build produced.
@@ -161,6 +187,8 @@ pub struct Built {
     pub report: BuildReport,
     /// The organ model it was built from.
     pub model: OrganModel,
+    /// The large-deformation lattice, when the scene asks for it.
+    pub anm: Option<AnmLattice>,
 }
 
 /// Load nodes of an organ: accessible surface nodes with at least one free component.
@@ -397,7 +425,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     let vademecum = Vademecum::from_separated(final_sep, &dofs, &loads, &patches)
         .with_local(local)
         .expect("local compliances are consistent by construction");
-    let report = BuildReport {
+    let mut report = BuildReport {
         organ: model.name.clone(),
         nodes: mesh.n_nodes(),
         equations: dofs.n_free(),
@@ -422,8 +450,30 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         local_blocks: vademecum.local().map_or(0, |l| l.nbr.len()),
         modes_bytes: 4 * final_sep.modes * (mesh.n_dofs() + load_eqs.len()),
         full_bytes: 8 * mesh.n_dofs() * load_eqs.len(),
+        anm_positions: 0,
+        anm_s: 0.0,
     };
-    Ok(Built { vademecum, report, model })
+    let anm = match &opts.large {
+        None => None,
+        Some(params) => {
+            let clock = Instant::now();
+            // the seed's law: St Venant–Kirchhoff with each material's E and ν
+            let laws = LawMap {
+                laws: model.materials.table.iter().map(Hyperelastic::svk).collect(),
+                of_cell: model.materials.of_cell.clone(),
+            };
+            let lattice = AnmLattice::build(&model, &laws, params, |done, total| on(BuildStage::Lattice(done, total)))?;
+            report.anm_positions = lattice.positions.len();
+            report.anm_s = clock.elapsed().as_secs_f64();
+            Some(lattice)
+        }
+    };
+    Ok(Built {
+        vademecum,
+        report,
+        model,
+        anm,
+    })
 }
 
 /// Writes a built vademecum as a bundle in `dir`.
@@ -477,6 +527,27 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         ("local_nbr", vec![local_nbr.len() as u64], ArrayData::I64(&local_nbr)),
         ("local_c", vec![local_nbr.len() as u64, 3, 3], ArrayData::F64(&local_c)),
     ];
+    let mut arrays = arrays.to_vec();
+    let anm = built.anm.as_ref().map(AnmLattice::to_arrays);
+    if let Some(a) = &anm {
+        let len = |v: &[f64]| vec![v.len() as u64];
+        arrays.extend([
+            ("anm_max_force", len(&a.max_force), ArrayData::F64(&a.max_force)),
+            ("anm_nodes", vec![a.nodes.len() as u64], ArrayData::I64(&a.nodes)),
+            ("anm_points", vec![a.nodes.len() as u64, 3], ArrayData::F64(&a.points)),
+            ("anm_normals", vec![a.nodes.len() as u64, 3], ArrayData::F64(&a.normals)),
+            ("anm_d_linear", len(&a.d_linear), ArrayData::F64(&a.d_linear)),
+            ("anm_modes", vec![a.modes.len() as u64], ArrayData::I64(&a.modes)),
+            ("anm_probe", len(&a.probe), ArrayData::F64(&a.probe)),
+            ("anm_step_ptr", vec![a.step_ptr.len() as u64], ArrayData::I64(&a.step_ptr)),
+            (
+                "anm_step_meta",
+                vec![(a.step_meta.len() / 6) as u64, 6],
+                ArrayData::F64(&a.step_meta),
+            ),
+            ("anm_step_data", len(&a.step_data), ArrayData::F64(&a.step_data)),
+        ]);
+    }
     bundle::write(dir, manifest, &scene.source, &arrays)
 }
 
@@ -491,6 +562,8 @@ pub struct LoadedBundle {
     pub nodes: Vec<[f64; 3]>,
     /// Boundary surface triangles (node indices).
     pub surface: Vec<[usize; 3]>,
+    /// The large-deformation lattice, when the bundle has one.
+    pub anm: Option<AnmLattice>,
 }
 
 /// Loads and verifies a bundle (format, version, kind, checksums, shapes, consistency).
@@ -558,7 +631,27 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
         };
         vademecum = vademecum.with_local(local).map_err(bad)?;
     }
+    let anm = if manifest.arrays.contains_key("anm_nodes") {
+        let f = |name: &str| bundle::read_f64(dir, &manifest, name).map(|(_, v)| v);
+        let i = |name: &str| bundle::read_i64(dir, &manifest, name).map(|(_, v)| v);
+        let arrays = LatticeArrays {
+            max_force: f("anm_max_force")?,
+            nodes: i("anm_nodes")?,
+            points: f("anm_points")?,
+            normals: f("anm_normals")?,
+            d_linear: f("anm_d_linear")?,
+            modes: i("anm_modes")?,
+            probe: f("anm_probe")?,
+            step_ptr: i("anm_step_ptr")?,
+            step_meta: f("anm_step_meta")?,
+            step_data: f("anm_step_data")?,
+        };
+        Some(AnmLattice::from_arrays(&arrays, n_nodes).map_err(bad)?)
+    } else {
+        None
+    };
     Ok(LoadedBundle {
+        anm,
         manifest,
         vademecum,
         nodes: nodes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),

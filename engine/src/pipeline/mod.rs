@@ -4,9 +4,9 @@
 //! A [`Pipeline`] is assembled once per session from the scene's `[effects]` and the loaded
 //! vademecums; each [`Effect`] owns its state and its preallocated workspace, so a tick
 //! allocates nothing, and a scene that names only palpation carries no cutting state, no
-//! damage arrays and does no extra work per tick. Later effects (large deformation,
-//! cutting, tearing) implement [`Effect`] and are added in [`Pipeline::for_scene`] without
-//! touching the others.
+//! damage arrays and does no extra work per tick. Large deformations scale the palpation
+//! force by the organ's ANM-POD lattice; later effects (cutting, tearing) implement [`Effect`]
+//! and are added in [`Pipeline::for_scene`] without touching the others.
 //!
 //! # Layout
 //! - [`Effect`], [`ToolInput`], [`TickState`], [`Events`]: the contract between the tick
@@ -128,6 +128,14 @@ pub enum PipelineError {
         /// Bundles given.
         bundles: usize,
     },
+    /// The scene asks for large deformations but a bundle has no lattice.
+    #[error(
+        "the scene asks for large deformations but the bundle of organ {organ} has no large-deformation lattice; rebuild it with `vademecum build`"
+    )]
+    NoLattice {
+        /// The organ.
+        organ: usize,
+    },
     /// The scene has no probe tool to palpate with.
     #[error("the scene has no probe tool; add a [[tools]] entry with kind = \"probe\"")]
     NoProbe,
@@ -149,9 +157,6 @@ impl Pipeline {
     /// in scene order, shared read-only between sessions).
     pub fn for_scene(scene: &Scene, bundles: &[Arc<LoadedBundle>]) -> Result<Self, PipelineError> {
         let fx = &scene.spec.effects;
-        if fx.deformation == DeformationModel::Large {
-            return Err(PipelineError::Unsupported("large deformations (effects.deformation = \"large\")"));
-        }
         if fx.cutting {
             return Err(PipelineError::Unsupported("cutting (effects.cutting = true)"));
         }
@@ -173,7 +178,11 @@ impl Pipeline {
                 _ => None,
             })
             .ok_or(PipelineError::NoProbe)?;
-        let effects: Vec<Box<dyn Effect>> = vec![Box::new(Palpation::new(bundles.to_vec(), radius))];
+        let large = fx.deformation == DeformationModel::Large;
+        if large && let Some(i) = bundles.iter().position(|b| b.anm.is_none()) {
+            return Err(PipelineError::NoLattice { organ: i });
+        }
+        let effects: Vec<Box<dyn Effect>> = vec![Box::new(Palpation::new(bundles.to_vec(), radius, large))];
         Ok(Self { effects })
     }
 

@@ -6,6 +6,11 @@
 //! (exact local 3×3 blocks interpolated over the triangle), the force on the tissue
 //! `f = C(s)⁻¹δ` for the imposed surface displacement δ, and its reaction `−f` on the tool.
 //! No contact, a point the vademecum cannot load, or a singular compliance give zero force.
+//!
+//! With large deformations (`effects.deformation = "large"`), the force is then scaled by the
+//! organ's ANM-POD lattice ([`crate::rom::palpation`]): the ratio of the nonlinear to the linear
+//! force at this depth, blended over the four nearest lattice positions — `O(r · order)` per
+//! position, no allocation.
 
 use std::sync::Arc;
 
@@ -19,11 +24,26 @@ use crate::pgd::offline::LoadedBundle;
 pub struct Palpation {
     organs: Vec<(Arc<LoadedBundle>, SurfaceContact)>,
     radius_m: f64,
+    large: bool,
+    scratch: Vec<f64>,
 }
 
+/// Lattice positions blended per evaluation (seed 001 §6.1 interpolates among four).
+const NEIGHBOURS: usize = 4;
+
 impl Palpation {
-    /// Prepares the contact surfaces of `bundles` for a tip of radius `radius_m` (m).
-    pub fn new(bundles: Vec<Arc<LoadedBundle>>, radius_m: f64) -> Self {
+    /// Prepares the contact surfaces of `bundles` for a tip of radius `radius_m` (m); with
+    /// `large`, every bundle must carry a large-deformation lattice (checked by the pipeline).
+    pub fn new(bundles: Vec<Arc<LoadedBundle>>, radius_m: f64, large: bool) -> Self {
+        let scratch = vec![
+            0.0;
+            bundles
+                .iter()
+                .filter_map(|b| b.anm.as_ref())
+                .map(|l| l.max_modes())
+                .max()
+                .unwrap_or(0)
+        ];
         let organs = bundles
             .into_iter()
             .map(|b| {
@@ -31,7 +51,12 @@ impl Palpation {
                 (b, s)
             })
             .collect();
-        Self { organs, radius_m }
+        Self {
+            organs,
+            radius_m,
+            large,
+            scratch,
+        }
     }
 }
 
@@ -56,9 +81,22 @@ impl Effect for Palpation {
         let Some(c) = v.compliance(cp.nodes, cp.weights) else {
             return;
         };
-        let f = Vademecum::contact_force(&c, cp.penetration);
+        let mut f = Vademecum::contact_force(&c, cp.penetration);
         if f == [0.0; 3] {
             return;
+        }
+        if self.large
+            && let Some(lattice) = &self.organs[organ].0.anm
+        {
+            let nodes = &self.organs[organ].0.nodes;
+            let mut point = [0.0; 3];
+            for (a, &w) in cp.nodes.iter().zip(&cp.weights) {
+                for k in 0..3 {
+                    point[k] += w * nodes[*a][k];
+                }
+            }
+            let s = lattice.stiffness_ratio(point, cp.depth, NEIGHBOURS, &mut self.scratch);
+            f = f.map(|x| x * s.ratio);
         }
         let nodes = &self.organs[organ].0.nodes;
         let mut point = [0.0; 3];

@@ -10,6 +10,8 @@
 //!   Grassmann manifold's log/exp maps.
 //! - [`lattice`]: reduced models on a lattice of load positions and their interpolation
 //!   off it, against the full model.
+//! - [`palpation`]: the online large-deformation model — ANM paths on a lattice of surface
+//!   positions, served as a nonlinear force–depth law under the tool.
 //! - [`study`]: ANM-POD against full Newton on a scene's load case (seed 001 §6).
 //! - [`dense`]: small in-place Cholesky for the online solves.
 
@@ -17,6 +19,7 @@ pub mod anm;
 pub mod dense;
 pub mod interpolate;
 pub mod lattice;
+pub mod palpation;
 pub mod pod;
 pub mod study;
 pub mod svk;

@@ -165,8 +165,8 @@ poisson = 0.48
 [organs.fixed]                       # the base ring (limbus)
 half_space = { point = [0.0, 0.0, 0.05e-3], normal = [0.0, 0.0, -1.0] }
 
-[organs.accessible]                  # the anterior surface
-half_space = { point = [0.0, 0.0, 0.5e-3], normal = [0.0, 0.0, 1.0] }
+[organs.accessible]                  # the anterior surface (a group of the built-in dome)
+group = "anterior"
 
 [[organs.loads]]                     # the nine central nodes of the anterior surface (apex z = 2.53 mm)
 kind = "force"
@@ -178,6 +178,14 @@ kind = "probe"
 name = "probe"
 radius = 1.0e-3
 
+[effects]
+deformation = "large"                # ANM-POD lattice scaling the PGD contact force
+
 [fidelity]
 locking = "none"
+
+[fidelity.large]
+positions = 9
+max_force = 0.126                    # N, the seed's pinch
+load_steps = 6
 "#;

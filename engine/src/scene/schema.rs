@@ -266,6 +266,51 @@ pub struct Fidelity {
     /// Settings of the PGD vademecum builder.
     #[serde(default)]
     pub pgd: PgdFidelity,
+    /// Settings of the large-deformation lattice (used when `effects.deformation = "large"`).
+    #[serde(default)]
+    pub large: LargeFidelity,
+}
+
+/// `[fidelity.large]`: the lattice of ANM-POD models (seed 001) built for large deformations.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LargeFidelity {
+    /// Lattice positions over the accessible surface (farthest-point sampled).
+    #[serde(default = "default_large_positions")]
+    pub positions: usize,
+    /// Force (N) each position's path reaches; deeper presses extrapolate the law.
+    #[serde(default = "default_large_force")]
+    pub max_force: f64,
+    /// Full Newton load steps per position (the POD snapshots).
+    #[serde(default = "default_large_steps")]
+    pub load_steps: usize,
+    /// Most POD modes per position.
+    #[serde(default = "default_large_modes")]
+    pub modes: usize,
+}
+
+fn default_large_positions() -> usize {
+    16
+}
+fn default_large_force() -> f64 {
+    2.0
+}
+fn default_large_steps() -> usize {
+    6
+}
+fn default_large_modes() -> usize {
+    9
+}
+
+impl Default for LargeFidelity {
+    fn default() -> Self {
+        Self {
+            positions: default_large_positions(),
+            max_force: default_large_force(),
+            load_steps: default_large_steps(),
+            modes: default_large_modes(),
+        }
+    }
 }
 
 /// `[fidelity.pgd]`: stopping criteria of the PGD greedy enrichment (seed 000, Alg. 2.1).

@@ -97,7 +97,7 @@ geometry of a large organ).")]
 pub struct SceneSource {
     /// Scene file (TOML). Default: the built-in scene named by --builtin.
     pub scene: Option<PathBuf>,
-    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever).
+    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever, cornea).
     #[arg(long, default_value = "organ", conflicts_with = "scene")]
     pub builtin: String,
 }
@@ -250,7 +250,7 @@ pub struct MeshInfoArgs {
 pub enum SceneCommand {
     /// Print a built-in scene's TOML (a starting point for your own).
     Show {
-        /// Built-in scene name (organ, patch, cantilever).
+        /// Built-in scene name (organ, patch, cantilever, cornea).
         #[arg(default_value = "organ")]
         name: String,
     },

@@ -24,6 +24,9 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
         BuildStage::Mode(k, e) => bar.stage(&format!("mode {k}, energy {e:.2e} (stop below {eps:.1e})")),
         BuildStage::Recompression => bar.stage("recompressing (QR + SVD)"),
         BuildStage::Exact(done, total) => bar.stage(&format!("exact pass: compliances and errors, {done}/{total} load states")),
+        BuildStage::Lattice(done, total) => bar.stage(&format!(
+            "large deformations: full Newton, POD and ANM at lattice position {done}/{total}"
+        )),
     })
     .with_context(|| format!("cannot build organ '{name}'"))?;
     Ok((built, bar))
@@ -120,6 +123,14 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 )?;
             }
             writeln!(stdout, "  assembly/factor  {:.3} s / {:.3} s", r.assembly_s, r.factorization_s)?;
+            if let Some(l) = &built.anm {
+                let steps: usize = l.positions.iter().map(|p| p.path.steps.len()).sum();
+                writeln!(
+                    stdout,
+                    "  large            ANM-POD lattice of {} positions to {} N (St Venant-Kirchhoff; {} series in all), {:.2} s",
+                    r.anm_positions, l.max_force, steps, r.anm_s
+                )?;
+            }
             writeln!(
                 stdout,
                 "  size             {:.2} MB of modes (f32) vs {:.2} MB for the full parametric solution (f64)",

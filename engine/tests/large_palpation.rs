@@ -1,0 +1,170 @@
+//! The large-deformation palpation model served online (seed 001): the ANM-POD lattice against
+//! full Newton at its positions, its bundle form, and the pipeline that scales the linear
+//! vademecum's force by it.
+
+use std::sync::Arc;
+
+use vademecum_engine::fem::hyperelastic::{LawMap, Volumetric};
+use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
+use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::pipeline::{Pipeline, PipelineError, ToolInput};
+use vademecum_engine::rom::palpation::{AnmLattice, AnmLatticeParams};
+use vademecum_engine::scene::Scene;
+
+/// The built-in cornea on a coarse mesh, asking for large deformations with a small lattice.
+fn cornea(large: bool) -> Scene {
+    let text = vademecum_engine::scene::builtin("cornea")
+        .unwrap()
+        .replace("divisions = [24, 24, 3]", "divisions = [12, 12, 2]")
+        .replace("positions = 9", "positions = 3")
+        .replace("load_steps = 6", "load_steps = 4");
+    let text = if large {
+        text
+    } else {
+        text.replace("deformation = \"large\"", "deformation = \"linear\"")
+    };
+    Scene::from_toml(&text, ".").unwrap()
+}
+
+#[test]
+fn lattice_paths_give_the_full_model_force_depth_law_at_their_positions() {
+    let scene = cornea(false);
+    let organ = scene.organ_model(0).unwrap();
+    let laws = organ.laws.clone().unwrap();
+    let params = AnmLatticeParams {
+        positions: 3,
+        max_force: 0.126,
+        patch_radius: 1e-3,
+        load_steps: 4,
+        modes: 9,
+    };
+    let lattice = AnmLattice::build(&organ, &laws, &params, |_, _| {}).unwrap();
+    assert_eq!(lattice.positions.len(), 3);
+    let p = &lattice.positions[0];
+    // the first position is the accessible node nearest the centroid: on the dome's axis, the
+    // load pushing straight down
+    assert!(p.normal[2] < -0.99, "{:?}", p.normal);
+
+    // full Newton with the same load at the same position
+    let patch: Vec<usize> = organ
+        .accessible_nodes
+        .iter()
+        .copied()
+        .filter(|&n| (0..3).map(|k| (organ.mesh.nodes[n][k] - p.point[k]).powi(2)).sum::<f64>() <= 1e-6)
+        .collect();
+    let mut problem = organ.problem.clone();
+    problem.forces.fill(0.0);
+    vademecum_engine::fem::loads::add_distributed_force(&mut problem.forces, &patch, p.normal.map(|x| x * 0.126));
+    let mut curve = Vec::new();
+    let newton = NewtonParams {
+        steps: 8,
+        ..NewtonParams::default()
+    };
+    nonlinear_static::solve(
+        &organ.mesh,
+        &LawMap::clone(&laws),
+        Volumetric::PointWise,
+        &problem,
+        &newton,
+        |l, u| {
+            let d = patch
+                .iter()
+                .map(|&i| (0..3).map(|k| u[3 * i + k] * p.normal[k]).sum::<f64>())
+                .sum::<f64>()
+                / patch.len() as f64;
+            curve.push((l, d));
+        },
+    )
+    .unwrap();
+    let mut zeta = vec![0.0; lattice.max_modes()];
+    for &(l, d) in &curve {
+        // the lattice's law gives back the load factor Newton needed for that depth
+        let (lambda, extrapolated) = p.load_at_depth(d, &mut zeta);
+        assert!(!extrapolated);
+        assert!((lambda - l).abs() < 1e-3 * l, "depth {d}: λ {lambda} vs Newton {l}");
+    }
+    // strongly nonlinear: at the full load the linear model is far off, so the ratio of the
+    // nonlinear to the linear force differs from one
+    let (l_end, d_end) = *curve.last().unwrap();
+    let s = lattice.stiffness_ratio(p.point, d_end, 4, &mut zeta);
+    let (own, _) = p.load_at_depth(d_end, &mut zeta);
+    assert!(
+        (s.ratio - own * p.d_linear / d_end).abs() < 1e-12,
+        "at a lattice point its own ratio"
+    );
+    assert!((own - l_end).abs() < 1e-3 * l_end);
+    assert!((s.ratio - 1.0).abs() > 0.1, "ratio {}", s.ratio);
+    // small presses are linear
+    let tiny = lattice.stiffness_ratio(p.point, 1e-4 * d_end, 4, &mut zeta);
+    assert!((tiny.ratio - 1.0).abs() < 1e-2, "{}", tiny.ratio);
+    // past the path's end: extrapolated, finite, said so
+    let deep = lattice.stiffness_ratio(p.point, 3.0 * d_end, 4, &mut zeta);
+    assert!(deep.extrapolated && deep.ratio.is_finite() && deep.ratio > 0.0);
+    // between positions: a blend of neighbours, finite and positive
+    let mid = [0, 1, 2].map(|k| 0.5 * (p.point[k] + lattice.positions[1].point[k]));
+    let m = lattice.stiffness_ratio(mid, 0.5 * d_end, 4, &mut zeta);
+    assert!(m.ratio.is_finite() && m.ratio > 0.0);
+    // nonsense depths are harmless
+    for d in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        assert_eq!(lattice.stiffness_ratio(p.point, d, 4, &mut zeta).ratio, 1.0);
+    }
+
+    // the bundle form round-trips, and damaged arrays are refused
+    let arrays = lattice.to_arrays();
+    let n = organ.mesh.n_nodes();
+    assert_eq!(AnmLattice::from_arrays(&arrays, n).unwrap(), lattice);
+    let mut bad = arrays.clone();
+    bad.step_data.pop();
+    assert!(AnmLattice::from_arrays(&bad, n).is_err());
+    let mut bad = arrays.clone();
+    bad.probe[0] = f64::NAN;
+    assert!(AnmLattice::from_arrays(&bad, n).is_err());
+    let mut bad = arrays.clone();
+    bad.nodes[0] = n as i64;
+    assert!(AnmLattice::from_arrays(&bad, n).is_err());
+    let mut bad = arrays;
+    bad.step_meta[0] = 99.0;
+    assert!(AnmLattice::from_arrays(&bad, n).is_err());
+}
+
+#[test]
+fn a_large_deformation_scene_builds_a_lattice_bundle_and_the_pipeline_scales_the_force() {
+    let scene = cornea(true);
+    let opts = BuildOptions::for_scene(&scene, true);
+    assert!(opts.large.is_some());
+    let built = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
+    assert_eq!(built.report.anm_positions, 3);
+    let dir = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir.path(), &scene, &built).unwrap();
+    let bundle = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    let lattice = bundle.anm.clone().expect("the bundle carries the lattice");
+    assert_eq!(Some(&lattice), built.anm.as_ref());
+
+    // the probe pressing 0.3 mm into the apex: the large pipeline's force is the linear one
+    // scaled by the lattice's ratio there
+    let apex = lattice.positions[0].point;
+    let tool = ToolInput {
+        position_m: [apex[0], apex[1], apex[2] + 1.0e-3 - 0.3e-3],
+        ..ToolInput::default()
+    };
+    let mut large = Pipeline::for_scene(&scene, std::slice::from_ref(&bundle)).unwrap();
+    let mut linear = Pipeline::for_scene(&cornea(false), std::slice::from_ref(&bundle)).unwrap();
+    let (fl, fn_) = (linear.tick(&tool), large.tick(&tool));
+    let contact = fl.contact.expect("the probe touches the apex");
+    let mut zeta = vec![0.0; lattice.max_modes()];
+    let ratio = lattice.stiffness_ratio(contact.point_m, contact.depth_m, 4, &mut zeta).ratio;
+    assert!((ratio - 1.0).abs() > 0.01, "a press this deep is nonlinear: ratio {ratio}");
+    for k in 0..3 {
+        assert!((fn_.force_n[k] - ratio * fl.force_n[k]).abs() <= 1e-12 * (1.0 + fl.force_n[k].abs()));
+    }
+
+    // a bundle built without the lattice cannot serve a large-deformation scene
+    let plain = offline::build_organ(&cornea(false), 0, &BuildOptions::for_scene(&cornea(false), true), &mut |_| {}).unwrap();
+    let dir2 = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir2.path(), &cornea(false), &plain).unwrap();
+    let plain = Arc::new(offline::load_bundle(dir2.path()).unwrap());
+    assert!(plain.anm.is_none());
+    let e = Pipeline::for_scene(&scene, &[plain]).unwrap_err();
+    assert_eq!(e, PipelineError::NoLattice { organ: 0 });
+    assert!(e.to_string().contains("vademecum build"));
+}
