@@ -20,6 +20,7 @@ use nalgebra::DMatrix;
 
 use super::anm::{self, AnmParams};
 use super::interpolate::{self, InterpolationError};
+use super::palpation::{AnmLattice, AnmLatticeParams, AnmPosition};
 use super::pod::{Pod, PodCriterion};
 use super::study::StudyError;
 use super::svk::ReducedSvk;
@@ -85,6 +86,8 @@ pub struct Position {
     pub basis: DMatrix<f64>,
     /// Its Newton states (the snapshots).
     pub snapshots: Vec<Vec<f64>>,
+    /// Its ANM-POD force–depth law as a session serves it.
+    pub served: AnmPosition,
 }
 
 /// The errors at one test position.
@@ -104,6 +107,15 @@ pub struct TestRow {
     pub projection: [f64; 4],
     /// Why a method gave no result (its error is then infinite).
     pub failures: Vec<String>,
+    /// Relative error of the neighbours' responses blended with the same weights (their
+    /// displacements under their own loads at `λ = 1`).
+    pub response_error: f64,
+    /// What a session serves ([`super::palpation`]): the relative error of the force at this
+    /// position's full-load depth when the neighbours' nonlinear/linear force ratios are blended
+    /// and multiplied by this position's exact linear force.
+    pub served_error: f64,
+    /// The size of the nonlinear correction there, `|ratio − 1|` (what ignoring it would cost).
+    pub correction: f64,
 }
 
 /// The lattice study's result.
@@ -216,6 +228,22 @@ impl Setup<'_> {
             newton.push((l, self.under(&nodes, u)));
             snaps.push(u.to_vec());
         })?;
+        let hit = nodes[0];
+        let served = AnmLattice::position(
+            self.mesh,
+            self.laws,
+            &nodes,
+            self.base,
+            &AnmLatticeParams {
+                positions: 1,
+                max_force: self.force.iter().map(|x| x * x).sum::<f64>().sqrt(),
+                patch_radius: f64::INFINITY,
+                load_steps: self.params.load_steps,
+                modes: self.params.pod.max_modes,
+            },
+            hit,
+            self.direction,
+        )?;
         let size = snaps.last().map_or(0.0, |u| u.iter().map(|x| x * x).sum::<f64>().sqrt());
         snaps.extend(self.linear_responses(&nodes, size));
         let pod = Pod::from_snapshots(&snaps, self.params.pod)?;
@@ -235,6 +263,7 @@ impl Setup<'_> {
             centre,
             newton,
             snapshots: snaps,
+            served,
         })
     }
 
@@ -426,7 +455,24 @@ pub fn interpolation_study(
                 .reduced_at_full_load(&own, &test.nodes)
                 .map_or(f64::INFINITY, |d| ((d - newton) / newton).abs()),
         );
+        let blended: f64 = order
+            .iter()
+            .zip(&weights)
+            .map(|(&k, w)| w * lattice[k].newton.last().map_or(0.0, |&(_, d)| d))
+            .sum();
+        // the served law: blended ratios × this position's own linear force at its depth
+        let served = AnmLattice {
+            max_force: 0.0,
+            positions: order.iter().map(|&k| lattice[k].served.clone()).collect(),
+        };
+        let mut zeta = vec![0.0; served.max_modes().max(test.served.probe.len())];
+        let blend = served.stiffness_ratio(test.served.point, newton, params.neighbours, &mut zeta).ratio;
+        let (own_lambda, _) = test.served.load_at_depth(newton, &mut zeta);
+        let exact = own_lambda * test.served.d_linear / newton;
         rows.push(TestRow {
+            correction: ((1.0 - exact) / exact).abs(),
+            served_error: ((blend - exact) / exact).abs(),
+            response_error: ((blended - newton) / newton).abs(),
             centre: test.centre,
             nearest_m: distances[0],
             newton,

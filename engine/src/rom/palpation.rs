@@ -209,7 +209,8 @@ impl AnmLattice {
         }
         let mut positions = Vec::with_capacity(chosen.len());
         for (done, &node) in chosen.iter().enumerate() {
-            positions.push(Self::position(organ, laws, params, node, normals[node])?);
+            let inward = unit(normals[node]).expect("filtered").map(|x| -x);
+            positions.push(Self::position(mesh, laws, &organ.accessible_nodes, &organ.problem, params, node, inward)?);
             progress(done + 1, chosen.len());
         }
         Ok(Self {
@@ -218,22 +219,23 @@ impl AnmLattice {
         })
     }
 
-    fn position(
-        organ: &OrganModel,
+    /// One position: the load `max_force` along the unit `normal` at `node`, spread over the
+    /// accessible nodes within the patch radius, on the supports of `base`.
+    pub(crate) fn position(
+        mesh: &crate::mesh::Mesh,
         laws: &LawMap,
+        accessible: &[usize],
+        base: &crate::fem::linear_static::StaticProblem,
         params: &AnmLatticeParams,
         node: usize,
-        outward: [f64; 3],
+        normal: [f64; 3],
     ) -> Result<AnmPosition, StudyError> {
-        let mesh = &organ.mesh;
-        let normal = unit(outward).expect("filtered").map(|x| -x);
-        let patch: Vec<usize> = organ
-            .accessible_nodes
+        let patch: Vec<usize> = accessible
             .iter()
             .copied()
             .filter(|&n| n == node || dist2(mesh.nodes[n], mesh.nodes[node]) <= params.patch_radius.powi(2))
             .collect();
-        let mut problem = organ.problem.clone();
+        let mut problem = base.clone();
         problem.forces.fill(0.0);
         problem.prescribed.fill(0.0);
         crate::fem::loads::add_distributed_force(&mut problem.forces, &patch, normal.map(|x| x * params.max_force));

@@ -332,8 +332,8 @@ fn print_report(out: &mut impl Write, r: &Report) -> std::io::Result<()> {
         for m in lattice::METHODS {
             write!(out, " {m} | projection |")?;
         }
-        writeln!(out)?;
-        writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+        writeln!(out, " blended responses | served force (linear) |")?;
+        writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
         for (row, own) in l.rows.iter().zip(&l.own_basis_error) {
             write!(
                 out,
@@ -348,7 +348,13 @@ fn print_report(out: &mut impl Write, r: &Report) -> std::io::Result<()> {
             for m in 0..lattice::METHODS.len() {
                 write!(out, " {:.2} % | {:.1e} |", 100.0 * row.error[m], row.projection[m])?;
             }
-            writeln!(out)?;
+            writeln!(
+                out,
+                " {:.2} % | {:.2} % ({:.2} %) |",
+                100.0 * row.response_error,
+                100.0 * row.served_error,
+                100.0 * row.correction
+            )?;
             for f in &row.failures {
                 writeln!(out, "  (failed: {f})")?;
             }

@@ -291,6 +291,31 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
             tr,
         ),
     ];
+    if let Some(lattice) = &b.anm {
+        // the large-deformation law: a random lattice-neighbourhood point, a random depth up to
+        // twice the deepest path end
+        let deepest = lattice
+            .positions
+            .iter()
+            .map(|p| p.d_linear)
+            .fold(0.0, f64::max);
+        let mut zeta = vec![0.0; lattice.max_modes()];
+        let pts: Vec<[f64; 3]> = lattice.positions.iter().map(|p| p.point).collect();
+        let t = time_n(a.contacts, || {
+            let (i, j) = ((rng.next() % pts.len() as u64) as usize, (rng.next() % pts.len() as u64) as usize);
+            let w = rng.unit();
+            let p = [0, 1, 2].map(|k| w * pts[i][k] + (1.0 - w) * pts[j][k]);
+            lattice.stiffness_ratio(p, 2.0 * deepest * rng.unit(), 4, &mut zeta).ratio
+        });
+        stats.push(stat(
+            &format!(
+                "large deformations: force ratio from the ANM lattice (4 of {} positions, r <= {}, order 6)",
+                pts.len(),
+                lattice.max_modes()
+            ),
+            t,
+        ));
+    }
     stats.extend(stats_fields);
     let mut out = std::io::stdout().lock();
     if a.json {
