@@ -155,7 +155,12 @@ fn interpolated_bases_between_lattice_positions_are_measured_against_full_newton
         assert!(row.error[1].is_finite() && row.error[2].is_finite(), "{:?}", row.failures);
         // the served law (blended nonlinear/linear ratios): closer to the full model than
         // ignoring the nonlinearity, and within 5 % of the force
-        assert!(row.served_error < 0.5 * row.correction, "served {} vs correction {}", row.served_error, row.correction);
+        assert!(
+            row.served_error < 0.5 * row.correction,
+            "served {} vs correction {}",
+            row.served_error,
+            row.correction
+        );
         assert!(row.served_error < 0.05, "{}", row.served_error);
     }
     // at its own position a basis carries only the ANM truncation error

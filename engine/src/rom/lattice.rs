@@ -205,11 +205,7 @@ impl Setup<'_> {
     }
 
     fn under(&self, patch: &[usize], u: &[f64]) -> f64 {
-        patch
-            .iter()
-            .map(|&i| (0..3).map(|k| u[3 * i + k] * self.direction[k]).sum::<f64>())
-            .sum::<f64>()
-            / patch.len() as f64
+        super::mean_along(u, patch, self.direction)
     }
 
     fn position(&self, requested: [f64; 3]) -> Result<Position, StudyError> {
@@ -466,7 +462,9 @@ pub fn interpolation_study(
             positions: order.iter().map(|&k| lattice[k].served.clone()).collect(),
         };
         let mut zeta = vec![0.0; served.max_modes().max(test.served.probe.len())];
-        let blend = served.stiffness_ratio(test.served.point, newton, params.neighbours, &mut zeta).ratio;
+        let blend = served
+            .stiffness_ratio(test.served.point, newton, params.neighbours, &mut zeta)
+            .ratio;
         let (own_lambda, _) = test.served.load_at_depth(newton, &mut zeta);
         let exact = own_lambda * test.served.d_linear / newton;
         rows.push(TestRow {

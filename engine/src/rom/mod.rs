@@ -27,3 +27,13 @@ pub mod svk;
 pub use anm::{AnmError, AnmParams, Path, Series};
 pub use pod::{Pod, PodCriterion, PodError};
 pub use svk::{ReduceError, ReducedSvk};
+
+/// The mean displacement of `nodes` along the unit vector `direction` (`u` flat, 3 per node):
+/// "the displacement under the load" that the studies and the served law read.
+pub(crate) fn mean_along(u: &[f64], nodes: &[usize], direction: [f64; 3]) -> f64 {
+    nodes
+        .iter()
+        .map(|&i| (0..3).map(|k| u[3 * i + k] * direction[k]).sum::<f64>())
+        .sum::<f64>()
+        / nodes.len().max(1) as f64
+}

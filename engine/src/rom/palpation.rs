@@ -210,7 +210,15 @@ impl AnmLattice {
         let mut positions = Vec::with_capacity(chosen.len());
         for (done, &node) in chosen.iter().enumerate() {
             let inward = unit(normals[node]).expect("filtered").map(|x| -x);
-            positions.push(Self::position(mesh, laws, &organ.accessible_nodes, &organ.problem, params, node, inward)?);
+            positions.push(Self::position(
+                mesh,
+                laws,
+                &organ.accessible_nodes,
+                &organ.problem,
+                params,
+                node,
+                inward,
+            )?);
             progress(done + 1, chosen.len());
         }
         Ok(Self {
@@ -264,14 +272,7 @@ impl AnmLattice {
         )?;
         let model = ReducedSvk::build(mesh, laws, &pod)?;
         let f = pod.project(&problem.forces);
-        let under = |u: &[f64]| -> f64 {
-            patch
-                .iter()
-                .map(|&i| (0..3).map(|k| u[3 * i + k] * normal[k]).sum::<f64>())
-                .sum::<f64>()
-                / patch.len() as f64
-        };
-        let probe: Vec<f64> = (0..pod.modes).map(|k| under(pod.mode(k))).collect();
+        let probe: Vec<f64> = (0..pod.modes).map(|k| super::mean_along(pod.mode(k), &patch, normal)).collect();
         let path = anm::continuation(&model, &f, reached, &AnmParams::default())?;
         // linear displacement under the full load: the order-1 term at the origin
         let mut k = model.k1.clone();

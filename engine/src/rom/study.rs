@@ -196,13 +196,7 @@ pub fn anm_pod(
     }
     let problem = &problem;
     let (probe_nodes, direction, force) = probe_of(problem)?;
-    let under = |u: &[f64]| -> f64 {
-        probe_nodes
-            .iter()
-            .map(|&i| (0..3).map(|k| u[3 * i + k] * direction[k]).sum::<f64>())
-            .sum::<f64>()
-            / probe_nodes.len() as f64
-    };
+    let under = |u: &[f64]| super::mean_along(u, &probe_nodes, direction);
     let mut seconds = StudySeconds::default();
     let t = Instant::now();
     let mut snapshots: Vec<(f64, Vec<f64>)> = Vec::new();

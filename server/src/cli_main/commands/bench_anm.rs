@@ -16,7 +16,6 @@ use vademecum_engine::rom::lattice::{self, LatticeParams, LatticeStudy};
 use vademecum_engine::rom::study::{self, ReducedCase, Study, StudyParams};
 use vademecum_engine::rom::{AnmParams, PodCriterion};
 use vademecum_engine::scene::Scene;
-use vademecum_engine::scene::schema::ToolSpec;
 
 use super::bench_pgd::{Rng, Stat, stat, time_n, write_stats};
 use crate::cli_main::cli::BenchAnmArgs;
@@ -177,15 +176,7 @@ pub fn run(a: BenchAnmArgs) -> anyhow::Result<ExitCode> {
                 let (lo, hi) = organ.mesh.bounding_box();
                 (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)
             };
-            let radius = scene
-                .spec
-                .tools
-                .iter()
-                .find_map(|t| match t {
-                    ToolSpec::Probe { radius, .. } => Some(*radius),
-                    _ => None,
-                })
-                .unwrap_or(0.0);
+            let radius = vademecum_engine::pgd::offline::probe_radius(&scene);
             let params = LatticeParams {
                 side,
                 spacing: a.spacing.unwrap_or(size / 10.0),

@@ -294,11 +294,7 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
     if let Some(lattice) = &b.anm {
         // the large-deformation law: a random lattice-neighbourhood point, a random depth up to
         // twice the deepest path end
-        let deepest = lattice
-            .positions
-            .iter()
-            .map(|p| p.d_linear)
-            .fold(0.0, f64::max);
+        let deepest = lattice.positions.iter().map(|p| p.d_linear).fold(0.0, f64::max);
         let mut zeta = vec![0.0; lattice.max_modes()];
         let pts: Vec<[f64; 3]> = lattice.positions.iter().map(|p| p.point).collect();
         let t = time_n(a.contacts, || {
