@@ -401,7 +401,7 @@ impl AnmLattice {
             && a.d_linear.len() == p
             && a.modes.len() == p
             && a.step_ptr.len() == p + 1
-            && a.step_meta.len() % 6 == 0
+            && a.step_meta.len().is_multiple_of(6)
             && a.step_ptr.first() == Some(&0)
             && a.step_ptr.last().is_some_and(|&s| s as usize == a.step_meta.len() / 6)
             && a.step_ptr.windows(2).all(|w| w[0] <= w[1])
