@@ -51,6 +51,7 @@ fn built(max_modes: usize) -> (Scene, offline::Built) {
         tolerance: 1e-9,
         recompress: true,
         load_radius: offline::probe_radius(&scene),
+        large: None,
     };
     let b = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
     (scene, b)
@@ -342,6 +343,7 @@ fn the_build_keeps_the_fewest_modes_meeting_the_target() {
             tolerance,
             recompress: true,
             load_radius: offline::probe_radius(&scene),
+            large: None,
         };
         let r = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap().report;
         assert!(r.target_met && r.error <= tolerance, "error {} for target {tolerance}", r.error);
@@ -365,6 +367,7 @@ fn the_build_keeps_the_fewest_modes_meeting_the_target() {
         tolerance: 1e-6,
         recompress: true,
         load_radius: 0.0,
+        large: None,
     };
     let r = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap().report;
     assert!(!r.target_met && r.modes == 5 && r.error > 1e-6);

@@ -51,6 +51,7 @@ fn slab() -> (Arc<Scene>, Vec<Arc<LoadedBundle>>, tempfile::TempDir) {
         tolerance: 1e-3,
         recompress: true,
         load_radius: offline::probe_radius(&scene),
+        large: None,
     };
     let built = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
