@@ -153,6 +153,9 @@ fn interpolated_bases_between_lattice_positions_are_measured_against_full_newton
         }
         // PODI and Grassmann run on this case (nothing orthogonal between neighbours)
         assert!(row.error[1].is_finite() && row.error[2].is_finite(), "{:?}", row.failures);
+        // seed 001 §5 online (PODI basis, interpolated tangent, load and f_p^nl) runs and gives
+        // a number or says why not
+        assert!(!row.online_error.is_nan() && (row.online_error.is_finite() || !row.failures.is_empty()));
         // the served law (blended nonlinear/linear ratios): closer to the full model than
         // ignoring the nonlinearity, and within 5 % of the force
         assert!(

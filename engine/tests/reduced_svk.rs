@@ -258,3 +258,91 @@ fn svk_crushed_in_reduced_coordinates_stops_with_a_diagnostic() {
     };
     assert!(lambda.is_finite() && lambda > 0.0 && lambda < 1.0, "stopped at {lambda}");
 }
+
+#[test]
+fn seed_online_interpolation_reproduces_a_stored_model_and_ignores_basis_rotations() {
+    use nalgebra::{DMatrix, DVector};
+    use vademecum_engine::rom::podi_online::{Neighbourhood, StoredModel};
+    let (mesh, p, laws, tip) = cantilever(0.3, [0.0, 0.0, -2.0]);
+    let mut snaps = Vec::new();
+    nonlinear_static::solve(&mesh, &laws, Volumetric::PointWise, &p, &NewtonParams::default(), |_, u| {
+        snaps.push(u.to_vec())
+    })
+    .unwrap();
+    let pod = Pod::from_snapshots(&snaps, PodCriterion::default()).unwrap();
+    let r = pod.modes;
+    let red = ReducedSvk::build(&mesh, &laws, &pod).unwrap();
+    let f = pod.project(&p.forces);
+    let scale = anm::displacement_scale(&red, &f).unwrap();
+    let own = Series::expand(&red, &f, &vec![0.0; r], 0.0, 6, scale, 1e-6).unwrap();
+    let a = DMatrix::from_column_slice(pod.n, r, &pod.basis);
+    let k1 = DMatrix::from_row_slice(r, r, &red.k1);
+    // the same model in a rotated, sign-flipped basis: A Q, Qᵀ K Q
+    let q = {
+        let (c, s) = (0.6f64, 0.8f64);
+        let mut q = DMatrix::<f64>::identity(r, r);
+        q[(0, 0)] = c;
+        q[(0, 1)] = -s;
+        q[(1, 0)] = s;
+        q[(1, 1)] = c;
+        q[(r - 1, r - 1)] = -1.0;
+        q
+    };
+    let rotated = Series {
+        zeta: own
+            .zeta
+            .chunks_exact(r)
+            .flat_map(|z| (q.transpose() * DVector::from_column_slice(z)).iter().copied().collect::<Vec<_>>())
+            .collect(),
+        ..own.clone()
+    };
+    let aq = &a * &q;
+    let kq = q.transpose() * &k1 * &q;
+    let fq: Vec<f64> = (q.transpose() * DVector::from_column_slice(&f)).iter().copied().collect();
+    let stored = StoredModel::new(a.clone(), k1, &f, &own);
+    let stored_q = StoredModel::new(aq.clone(), kq, &fq, &rotated);
+    // K on the free dofs
+    let mat = LinearElastic::new(1e5, 0.3).unwrap();
+    let dofs = DofMap::new(&p.constrained);
+    let pattern = Arc::new(SymmetricPattern::build(&mesh, &dofs));
+    let mut rhs = vec![0.0; dofs.n_free()];
+    let k = assemble_stiffness(
+        &mesh,
+        &MaterialMap::uniform(mat, 1000.0, mesh.n_cells()),
+        Locking::None,
+        &dofs,
+        pattern,
+        &vec![0.0; p.constrained.len()],
+        &mut rhs,
+    )
+    .unwrap();
+    let fv = DVector::from_column_slice(&p.forces);
+    let probe_of = |b: &DMatrix<f64>| DVector::from_fn(r, |j, _| tip.iter().map(|&n| b[(3 * n + 2, j)]).sum::<f64>() / tip.len() as f64);
+    let tip_at = |s: &Series, probe: &DVector<f64>, lambda: f64| {
+        let a = s.solve_load(lambda, 8.0).unwrap();
+        let mut z = vec![0.0; r];
+        s.eval(a, &mut z);
+        probe.iter().zip(&z).map(|(p, z)| p * z).sum::<f64>()
+    };
+    let reference = tip_at(&own, &probe_of(&a), 0.5);
+    // one stored model, weight 1: its own series back
+    let one = Neighbourhood::new(vec![stored.clone()], &dofs, &k).unwrap();
+    let (s1, pr1) = one.series(&[1.0], &[a.transpose() * &fv], &[probe_of(&a)], 6, 1e-6).unwrap();
+    for (x, y) in s1.lambda.iter().zip(&own.lambda) {
+        assert!((x - y).abs() < 1e-9 * (1.0 + y.abs()), "λ_p {x} vs {y}");
+    }
+    assert!((tip_at(&s1, &pr1, 0.5) - reference).abs() < 1e-9 * reference.abs());
+    // the same model twice, once rotated, half and half: the same displacement
+    let two = Neighbourhood::new(vec![stored, stored_q], &dofs, &k).unwrap();
+    let (s2, pr2) = two
+        .series(
+            &[0.5, 0.5],
+            &[a.transpose() * &fv, aq.transpose() * &fv],
+            &[probe_of(&a), probe_of(&aq)],
+            6,
+            1e-6,
+        )
+        .unwrap();
+    let d2 = tip_at(&s2, &pr2, 0.5);
+    assert!((d2 - reference).abs() < 1e-8 * reference.abs(), "{d2} vs {reference}");
+}

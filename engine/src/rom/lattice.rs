@@ -16,12 +16,13 @@
 //! (each set weighted by `√w_k`, the standard PODI of the seed's Ref. 28), shows what a basis
 //! spanning the neighbourhood gains over interpolating one-position bases.
 
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 
 use super::anm::{self, AnmParams};
 use super::interpolate::{self, InterpolationError};
 use super::palpation::{AnmLattice, AnmLatticeParams, AnmPosition};
 use super::pod::{Pod, PodCriterion};
+use super::podi_online::{Neighbourhood, StoredModel};
 use super::study::StudyError;
 use super::svk::ReducedSvk;
 use crate::fem::Locking;
@@ -116,7 +117,15 @@ pub struct TestRow {
     pub served_error: f64,
     /// The size of the nonlinear correction there, `|ratio − 1|` (what ignoring it would cost).
     pub correction: f64,
+    /// Seed 001 §5 as published, online ([`super::podi_online`]): PODI basis, interpolated
+    /// tangent, load and nonlinear terms, one order-6 series — relative error at full load.
+    pub online_error: f64,
+    /// Its cost for this evaluation (µs, one call: a figure, not a benchmark).
+    pub online_us: f64,
 }
+
+/// Order of the series of the seed's online interpolation.
+const ONLINE_ORDER: usize = 6;
 
 /// The lattice study's result.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -352,15 +361,15 @@ pub fn interpolation_study(
         }
     }
     let direction = unit(force).ok_or_else(|| StudyError::Unsupported("the load case has no force".into()))?;
+    progress("tangent stiffness at the origin");
+    let dofs = DofMap::new(&base.constrained);
+    let pattern = std::sync::Arc::new(SymmetricPattern::build(mesh, &dofs));
+    let mut rhs = vec![0.0; dofs.n_free()];
+    let stiffness = assemble_stiffness(mesh, materials, Locking::None, &dofs, pattern, &base.prescribed, &mut rhs)
+        .map_err(|e| StudyError::Unsupported(e.to_string()))?;
     let linear = if params.enrich {
-        progress("tangent stiffness at the origin");
-        let dofs = DofMap::new(&base.constrained);
-        let pattern = std::sync::Arc::new(SymmetricPattern::build(mesh, &dofs));
-        let mut rhs = vec![0.0; dofs.n_free()];
-        let k = assemble_stiffness(mesh, materials, Locking::None, &dofs, pattern, &base.prescribed, &mut rhs)
-            .map_err(|e| StudyError::Unsupported(e.to_string()))?;
-        let chol = Cholesky::factor(&k).map_err(|e| StudyError::Unsupported(e.to_string()))?;
-        Some((dofs, chol))
+        let chol = Cholesky::factor(&stiffness).map_err(|e| StudyError::Unsupported(e.to_string()))?;
+        Some((dofs.clone(), chol))
     } else {
         None
     };
@@ -390,6 +399,21 @@ pub fn interpolation_study(
     let modes = lattice.iter().map(|p| p.basis.ncols()).min().unwrap_or(0);
     for p in &mut lattice {
         p.basis = p.basis.columns(0, modes).into_owned();
+    }
+    // the stored models of seed 001 §5 online: tangent, own series and its nonlinear terms
+    let mut stored = Vec::with_capacity(lattice.len());
+    for p in &lattice {
+        let pod = Pod::from_columns(p.basis.nrows(), p.basis.as_slice().to_vec())?;
+        let model = ReducedSvk::build(mesh, laws, &pod)?;
+        let f = pod.project(&setup.problem(&p.nodes).forces);
+        let scale = anm::displacement_scale(&model, &f)?;
+        let series = anm::Series::expand(&model, &f, &vec![0.0; modes], 0.0, ONLINE_ORDER, scale, 1e-6)?;
+        stored.push(StoredModel::new(
+            p.basis.clone(),
+            DMatrix::from_row_slice(modes, modes, &model.k1),
+            &f,
+            &series,
+        ));
     }
     // test positions: cell centres, then midpoints of the edges of the central cell
     let mut tests = Vec::new();
@@ -467,7 +491,44 @@ pub fn interpolation_study(
             .ratio;
         let (own_lambda, _) = test.served.load_at_depth(newton, &mut zeta);
         let exact = own_lambda * test.served.d_linear / newton;
+        // seed 001 §5 online: PODI basis, interpolated tangent, load and f_p^nl, one series
+        let hood = Neighbourhood::new(order.iter().map(|&k| stored[k].clone()).collect(), &dofs, &stiffness)
+            .map_err(|e| StudyError::Unsupported(e.to_string()))?;
+        let f_test = setup.problem(&test.nodes).forces;
+        let loads: Vec<DVector<f64>> = order
+            .iter()
+            .map(|&k| lattice[k].basis.transpose() * DVector::from_column_slice(&f_test))
+            .collect();
+        let probes: Vec<DVector<f64>> = order
+            .iter()
+            .map(|&k| {
+                let b = &lattice[k].basis;
+                DVector::from_fn(b.ncols(), |j, _| super::mean_along(b.column(j).as_slice(), &test.nodes, direction))
+            })
+            .collect();
+        let clock = std::time::Instant::now();
+        let online = hood.series(&weights, &loads, &probes, ONLINE_ORDER, 1e-6).map(|(s, probe)| {
+            let mut z = vec![0.0; modes];
+            s.solve_load(1.0, 8.0).map(|a| {
+                s.eval(a, &mut z);
+                probe.iter().zip(&z).map(|(p, z)| p * z).sum::<f64>()
+            })
+        });
+        let online_us = clock.elapsed().as_secs_f64() * 1e6;
+        let online_error = match online {
+            Ok(Some(d)) => ((d - newton) / newton).abs(),
+            Ok(None) => {
+                failures.push("seed §5 online: the series does not reach the full load".into());
+                f64::INFINITY
+            }
+            Err(e) => {
+                failures.push(format!("seed §5 online: {e}"));
+                f64::INFINITY
+            }
+        };
         rows.push(TestRow {
+            online_error,
+            online_us,
             correction: ((1.0 - exact) / exact).abs(),
             served_error: ((blend - exact) / exact).abs(),
             response_error: ((blended - newton) / newton).abs(),

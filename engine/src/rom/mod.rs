@@ -12,6 +12,8 @@
 //!   off it, against the full model.
 //! - [`palpation`]: the online large-deformation model — ANM paths on a lattice of surface
 //!   positions, served as a nonlinear force–depth law under the tool.
+//! - [`podi_online`]: seed 001 §5 online — a model at a new position from its neighbours'
+//!   stored models (PODI basis, interpolated tangent, load and nonlinear terms), mesh-free.
 //! - [`study`]: ANM-POD against full Newton on a scene's load case (seed 001 §6).
 //! - [`dense`]: small in-place Cholesky for the online solves.
 
@@ -21,6 +23,7 @@ pub mod interpolate;
 pub mod lattice;
 pub mod palpation;
 pub mod pod;
+pub mod podi_online;
 pub mod study;
 pub mod svk;
 

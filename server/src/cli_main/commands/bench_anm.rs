@@ -323,8 +323,8 @@ fn print_report(out: &mut impl Write, r: &Report) -> std::io::Result<()> {
         for m in lattice::METHODS {
             write!(out, " {m} | projection |")?;
         }
-        writeln!(out, " blended responses | served force (linear) |")?;
-        writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
+        writeln!(out, " seed §5 online (µs) | blended responses | served force (linear) |")?;
+        writeln!(out, "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")?;
         for (row, own) in l.rows.iter().zip(&l.own_basis_error) {
             write!(
                 out,
@@ -341,7 +341,9 @@ fn print_report(out: &mut impl Write, r: &Report) -> std::io::Result<()> {
             }
             writeln!(
                 out,
-                " {:.2} % | {:.2} % ({:.2} %) |",
+                " {:.2} % ({:.0}) | {:.2} % | {:.2} % ({:.2} %) |",
+                100.0 * row.online_error,
+                row.online_us,
                 100.0 * row.response_error,
                 100.0 * row.served_error,
                 100.0 * row.correction
