@@ -5,6 +5,8 @@
 //!   boundary surfaces, selections, quality, procedural meshes.
 //! - [`material`]: constitutive laws.
 //! - [`fem`]: shape functions, cell operators, assembly, loads, the static linear solve.
+//! - [`meshless`]: seed 004's element-free Galerkin reference solver (MLS shape functions,
+//!   background integration grid).
 //! - [`pgd`]: PGD computational vademecums (offline builder, brute-force reference, online
 //!   evaluator).
 //! - [`rom`]: reduced-order models for large deformations (POD, reduced St Venant–Kirchhoff,
@@ -23,6 +25,7 @@ pub mod bundle;
 pub mod fem;
 pub mod material;
 pub mod mesh;
+pub mod meshless;
 pub mod pgd;
 pub mod pipeline;
 pub mod rom;
