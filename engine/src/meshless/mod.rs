@@ -4,10 +4,13 @@
 //! - [`mls`]: MLS shape functions (linear basis, quartic spline weight, disc/ball supports)
 //!   and the node cloud with its neighbour search.
 //! - [`grid`]: the background grid of integration cells (one Gauss point per cell).
+//! - [`efg`]: total Lagrangian EFG forces, essential boundary conditions (Eq. 3.18) and
+//!   adaptive dynamic relaxation.
 //!
 //! The total Lagrangian neo-Hookean forces, adaptive dynamic relaxation, essential boundary
 //! conditions and cutting build on these.
 
+pub mod efg;
 pub mod grid;
 pub mod mls;
 

@@ -1,0 +1,371 @@
+//! Total Lagrangian element-free Galerkin with adaptive dynamic relaxation (seed 004 §3.2,
+//! the MTLADR algorithm; Joldes, Wittek & Miller 2011).
+//!
+//! # Internal forces (Eqs. 3.19–3.22)
+//! At each integration point (weight `w`, MLS gradients `∇φ_I` in the reference
+//! configuration): `F = I + Σ_I u_I ⊗ ∇φ_I` (in 2D, plane strain: `F₃₃ = 1`), `C = FᵀF`,
+//! `S = 2∂W/∂C` from the hyperelastic law, `P = FS`, and `f_I += w P ∇φ_I`. The `u_I` are field
+//! variables, not nodal displacements: MLS functions do not interpolate.
+//!
+//! # Essential boundary conditions (Eq. 3.18)
+//! For the nodes `b` on the essential boundary, the field variables are solved every step so
+//! that the *interpolated* displacement at those nodes is the prescribed one:
+//! `Φ_bb U_b = Ū − Φ_bm U_m`, with `Φ` the shape functions evaluated at the boundary nodes
+//! (`Φ_bb` factored once). The reaction conjugate to the prescribed displacements is then
+//! `R = Φ_bb⁻ᵀ f_b` (virtual work, at equilibrium of the free field variables).
+//!
+//! # Adaptive dynamic relaxation (Eqs. 3.3–3.8, 3.23–3.25)
+//! Explicit central differences with mass-proportional damping, time step `Δt = 1`:
+//! `u⁺ = u + β(u − u⁻) + α M⁻¹(f_ext − f_int(u))`, `α = 2/(2 + c)`, `β = (2 − c)/(2 + c)`,
+//! with the lumped masses scaled so that the highest frequency of `M⁻¹K` is below the stability
+//! limit 4 (a Gershgorin bound over the integration points, Eqs. 3.11–3.15 in spirit) and the
+//! damping `c = 2√ω²_min` from the estimate of the lowest frequency
+//! `ω²_min ≈ (u − u_l)ᵀ(f(u) − f(u_l)) / (u − u_l)ᵀM(u − u_l)` refreshed every few steps
+//! (Eq. 3.8). The loading phase ramps the prescribed displacements with light damping; the
+//! relaxation stops when the estimated absolute error `ρ*/(1 − ρ*) ‖u⁺ − u‖∞` falls below the
+//! tolerance, `ρ*` the corrected spectral radius of the iteration (Eq. 3.25, η = 0.2).
+
+use nalgebra::{DMatrix, Matrix3};
+
+use super::grid::IntegrationPoint;
+use super::mls::{MlsError, NodeCloud, ShapeValues};
+use crate::material::hyperelastic::{Hyperelastic, Part, VOIGT};
+
+/// A meshless large-deformation problem.
+#[derive(Debug, Clone)]
+pub struct EfgProblem {
+    /// The nodes and their supports (2D: plane strain; 3D).
+    pub cloud: NodeCloud,
+    /// Integration points.
+    pub points: Vec<IntegrationPoint>,
+    /// The material.
+    pub law: Hyperelastic,
+    /// Prescribed displacement components at load factor 1: `(node, component, value)`.
+    pub prescribed: Vec<(usize, usize, f64)>,
+}
+
+/// Settings of the relaxation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AdrParams {
+    /// Absolute accuracy of the displacement field (m), Eq. 3.24.
+    pub tolerance: f64,
+    /// Steps of the loading phase (prescribed displacements ramped linearly).
+    pub loading_steps: usize,
+    /// Most steps in all.
+    pub max_steps: usize,
+    /// Steps between two estimates of the lowest frequency.
+    pub update_every: usize,
+}
+
+impl Default for AdrParams {
+    fn default() -> Self {
+        Self {
+            tolerance: 1e-7,
+            loading_steps: 2000,
+            max_steps: 200_000,
+            update_every: 20,
+        }
+    }
+}
+
+/// Why the solve stopped.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EfgError {
+    /// Shape functions could not be built.
+    #[error(transparent)]
+    Shape(#[from] MlsError),
+    /// The boundary shape-function matrix is singular.
+    #[error("the essential-boundary shape-function matrix is singular: the boundary nodes' supports are degenerate")]
+    Boundary,
+    /// A material point inverted or the iteration diverged.
+    #[error("the relaxation diverged at step {step}: {why}")]
+    Diverged {
+        /// Step.
+        step: usize,
+        /// What happened.
+        why: String,
+    },
+    /// The step limit was reached.
+    #[error("no convergence in {steps} steps (estimated error {error:.3e} m, tolerance {tolerance:.1e} m)")]
+    NoConvergence {
+        /// Steps taken.
+        steps: usize,
+        /// Last error estimate.
+        error: f64,
+        /// The tolerance.
+        tolerance: f64,
+    },
+}
+
+/// A relaxed solution.
+#[derive(Debug, Clone)]
+pub struct EfgSolution {
+    /// Field variables (`dim` per node).
+    pub field: Vec<f64>,
+    /// Interpolated displacements at the nodes (`dim` per node).
+    pub displacement: Vec<f64>,
+    /// Strain energy (J; per metre of thickness in 2D).
+    pub energy: f64,
+    /// Reactions conjugate to the prescribed components, in the order of
+    /// [`EfgProblem::prescribed`] (N; per metre of thickness in 2D).
+    pub reactions: Vec<f64>,
+    /// Relaxation steps.
+    pub steps: usize,
+    /// Final error estimate (m).
+    pub error: f64,
+}
+
+struct Model {
+    dim: usize,
+    shapes: Vec<ShapeValues>,
+    weights: Vec<f64>,
+    law: Hyperelastic,
+}
+
+impl Model {
+    /// Internal forces (and energy); `None` when a point inverts.
+    fn forces(&self, u: &[f64], f: &mut [f64]) -> Option<f64> {
+        let d = self.dim;
+        f.fill(0.0);
+        let mut energy = 0.0;
+        for (s, &w) in self.shapes.iter().zip(&self.weights) {
+            let mut fm = Matrix3::<f64>::identity();
+            for (a, &i) in s.nodes.iter().enumerate() {
+                for k in 0..d {
+                    for j in 0..d {
+                        fm[(k, j)] += u[d * i + k] * s.grad[a * d + j];
+                    }
+                }
+            }
+            let c = fm.transpose() * fm;
+            let r = self.law.response(&c, Part::Full)?;
+            energy += w * r.energy;
+            let mut sm = Matrix3::zeros();
+            for (p, &(i, j)) in VOIGT.iter().enumerate() {
+                sm[(i, j)] = r.stress[p];
+                sm[(j, i)] = r.stress[p];
+            }
+            let pk = fm * sm;
+            for (a, &i) in s.nodes.iter().enumerate() {
+                for k in 0..d {
+                    f[d * i + k] += w * (0..d).map(|j| pk[(k, j)] * s.grad[a * d + j]).sum::<f64>();
+                }
+            }
+        }
+        energy.is_finite().then_some(energy)
+    }
+}
+
+/// Solves `problem` by adaptive dynamic relaxation; `progress(step, error)` now and then.
+pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(usize, f64)) -> Result<EfgSolution, EfgError> {
+    let cloud = &problem.cloud;
+    let d = cloud.dim();
+    let n = cloud.len();
+    let nd = d * n;
+    let mut shapes = Vec::with_capacity(problem.points.len());
+    for p in &problem.points {
+        let mut s = ShapeValues::default();
+        cloud.shape(p.x, &mut s)?;
+        shapes.push(s);
+    }
+    let model = Model {
+        dim: d,
+        weights: problem.points.iter().map(|p| p.weight).collect(),
+        shapes,
+        law: problem.law,
+    };
+    // essential boundary: the nodes with a prescribed component, their shape functions there
+    let mut bnodes: Vec<usize> = problem.prescribed.iter().map(|&(i, _, _)| i).collect();
+    bnodes.sort_unstable();
+    bnodes.dedup();
+    let bindex = |i: usize| bnodes.binary_search(&i).ok();
+    let mut at_b = Vec::with_capacity(bnodes.len());
+    for &i in &bnodes {
+        let mut s = ShapeValues::default();
+        cloud.shape(cloud.points()[i], &mut s)?;
+        at_b.push(s);
+    }
+    let nb = bnodes.len();
+    let mut phi_bb = DMatrix::<f64>::zeros(nb, nb);
+    for (r, s) in at_b.iter().enumerate() {
+        for (a, &j) in s.nodes.iter().enumerate() {
+            if let Some(c) = bindex(j) {
+                phi_bb[(r, c)] = s.phi[a];
+            }
+        }
+    }
+    let lu = phi_bb.clone().lu();
+    if !lu.is_invertible() {
+        return Err(EfgError::Boundary);
+    }
+    let lu_t = phi_bb.transpose().lu();
+    // which components are prescribed at each boundary node, and to what (at λ = 1)
+    let mut target = vec![None; nb * d];
+    for &(i, k, v) in &problem.prescribed {
+        target[bindex(i).expect("listed") * d + k] = Some(v);
+    }
+    let constrained: Vec<bool> = (0..nd)
+        .map(|q| bindex(q / d).is_some_and(|b| target[b * d + q % d].is_some()))
+        .collect();
+    // Eq. 3.18: U_b = Φ_bb⁻¹ (λŪ − Φ_bm U_m), component by component
+    let impose = |u: &mut [f64], lambda: f64| {
+        for k in 0..d {
+            let mut rhs = nalgebra::DVector::zeros(nb);
+            for (r, s) in at_b.iter().enumerate() {
+                let Some(v) = target[r * d + k] else {
+                    continue;
+                };
+                let mut x = lambda * v;
+                for (a, &j) in s.nodes.iter().enumerate() {
+                    if bindex(j).is_none_or(|c| target[c * d + k].is_none()) {
+                        x -= s.phi[a] * u[d * j + k];
+                    }
+                }
+                rhs[r] = x;
+            }
+            // rows without a target in this component: keep the current field variable
+            let mut m = phi_bb.clone();
+            for r in 0..nb {
+                if target[r * d + k].is_none() {
+                    m.row_mut(r).fill(0.0);
+                    m[(r, r)] = 1.0;
+                    rhs[r] = u[d * bnodes[r] + k];
+                }
+            }
+            if let Some(sol) = if (0..nb).all(|r| target[r * d + k].is_some()) {
+                lu.solve(&rhs)
+            } else {
+                m.lu().solve(&rhs)
+            } {
+                for r in 0..nb {
+                    u[d * bnodes[r] + k] = sol[r];
+                }
+            }
+        }
+    };
+    // masses: Gershgorin bound of the stiffness row sums, so that ω²_max ≤ 4 with Δt = 1
+    let modulus = match problem.law {
+        Hyperelastic::NeoHookean { mu, kappa } | Hyperelastic::MooneyRivlin { c10: mu, kappa, .. } => kappa + 4.0 / 3.0 * mu,
+        Hyperelastic::StVenantKirchhoff { lambda, mu } => lambda + 2.0 * mu,
+    };
+    let mut mass = vec![0.0; n];
+    for (s, &w) in model.shapes.iter().zip(&model.weights) {
+        let norms: Vec<f64> = (0..s.nodes.len())
+            .map(|a| (0..d).map(|k| s.grad[a * d + k].powi(2)).sum::<f64>().sqrt())
+            .collect();
+        let total: f64 = norms.iter().sum();
+        for (a, &i) in s.nodes.iter().enumerate() {
+            mass[i] += w * modulus * norms[a] * total * d as f64;
+        }
+    }
+    // safety for the stiffening of large strains
+    for m in &mut mass {
+        *m *= 1.5 / 4.0;
+        if *m <= 0.0 {
+            *m = f64::MIN_POSITIVE;
+        }
+    }
+    let mut u = vec![0.0; nd];
+    let mut prev = vec![0.0; nd];
+    let mut f = vec![0.0; nd];
+    let (mut ul, mut fl) = (u.clone(), vec![0.0; nd]);
+    let mut omega2: f64 = 1e-6;
+    let mut error = f64::INFINITY;
+    for step in 0..params.max_steps {
+        let lambda = ((step + 1) as f64 / params.loading_steps.max(1) as f64).min(1.0);
+        let loading = step < params.loading_steps;
+        model.forces(&u, &mut f).ok_or_else(|| EfgError::Diverged {
+            step,
+            why: "a material point inverted (det F ≤ 0)".into(),
+        })?;
+        if step % params.update_every.max(1) == 0 && step > 0 {
+            let (mut num, mut den) = (0.0, 0.0);
+            for q in 0..nd {
+                if !constrained[q] {
+                    let du = u[q] - ul[q];
+                    num += du * (f[q] - fl[q]);
+                    den += du * du * mass[q / d];
+                }
+            }
+            if den > 0.0 && num > 0.0 {
+                omega2 = (num / den).min(4.0);
+            }
+            ul.copy_from_slice(&u);
+            fl.copy_from_slice(&f);
+        }
+        // light damping while loading (ρ ≈ 0.999), the estimated optimum while relaxing
+        let c = if loading { 2e-3 } else { 2.0 * omega2.sqrt() };
+        let (alpha, beta) = (2.0 / (2.0 + c), (2.0 - c) / (2.0 + c));
+        let mut change = 0.0f64;
+        for q in 0..nd {
+            if constrained[q] {
+                continue;
+            }
+            let next = u[q] + beta * (u[q] - prev[q]) - alpha * f[q] / mass[q / d];
+            change = change.max((next - u[q]).abs());
+            prev[q] = u[q];
+            u[q] = next;
+        }
+        for q in 0..nd {
+            if constrained[q] {
+                prev[q] = u[q];
+            }
+        }
+        impose(&mut u, lambda);
+        if u.iter().any(|x| !x.is_finite()) {
+            return Err(EfgError::Diverged {
+                step,
+                why: "non-finite field variables".into(),
+            });
+        }
+        if !loading {
+            let w = omega2.sqrt();
+            let rho = (2.0 - w) / (2.0 + w);
+            let rho = rho + 0.2 * (1.0 - rho);
+            error = rho / (1.0 - rho) * change;
+            if step % 1000 == 0 {
+                progress(step, error);
+            }
+            if error < params.tolerance && step > params.loading_steps + 2 * params.update_every {
+                let energy = model.forces(&u, &mut f).unwrap_or(f64::NAN);
+                // reactions: Φ_bb⁻ᵀ f_b per component
+                let mut reactions = Vec::with_capacity(problem.prescribed.len());
+                let mut per = vec![0.0; nb * d];
+                for k in 0..d {
+                    let fb = nalgebra::DVector::from_iterator(nb, bnodes.iter().map(|&i| f[d * i + k]));
+                    if let Some(r) = lu_t.solve(&fb) {
+                        for b in 0..nb {
+                            per[b * d + k] = r[b];
+                        }
+                    }
+                }
+                for &(i, k, _) in &problem.prescribed {
+                    reactions.push(per[bindex(i).expect("listed") * d + k]);
+                }
+                let mut displacement = vec![0.0; nd];
+                let mut s = ShapeValues::default();
+                for i in 0..n {
+                    cloud.shape(cloud.points()[i], &mut s)?;
+                    for (a, &j) in s.nodes.iter().enumerate() {
+                        for k in 0..d {
+                            displacement[d * i + k] += s.phi[a] * u[d * j + k];
+                        }
+                    }
+                }
+                return Ok(EfgSolution {
+                    field: u,
+                    displacement,
+                    energy,
+                    reactions,
+                    steps: step + 1,
+                    error,
+                });
+            }
+        }
+    }
+    Err(EfgError::NoConvergence {
+        steps: params.max_steps,
+        error,
+        tolerance: params.tolerance,
+    })
+}
