@@ -26,6 +26,7 @@
 //! tolerance, `ρ*` the corrected spectral radius of the iteration (Eq. 3.25, η = 0.2).
 
 use nalgebra::{DMatrix, Matrix3};
+use rayon::prelude::*;
 
 use super::grid::IntegrationPoint;
 use super::mls::{MlsError, NodeCloud, ShapeValues};
@@ -120,6 +121,10 @@ pub struct EfgSolution {
 const MARGIN: f64 = 1.5;
 /// Power iterations for the highest frequency.
 const POWER_ITERATIONS: usize = 40;
+/// Steps between two measurements of the highest frequency.
+const RESCALE_EVERY: usize = 250;
+/// Integration points per parallel task.
+const PARALLEL_BLOCK: usize = 512;
 
 struct Model {
     dim: usize,
@@ -129,37 +134,102 @@ struct Model {
 }
 
 impl Model {
-    /// Internal forces (and energy); `None` when a point inverts.
-    fn forces(&self, u: &[f64], f: &mut [f64]) -> Option<f64> {
+    /// Adds one integration point's internal forces into `f`; its energy, or `None` when it
+    /// inverts.
+    fn point(&self, p: usize, u: &[f64], f: &mut [f64]) -> Option<f64> {
         let d = self.dim;
-        f.fill(0.0);
-        let mut energy = 0.0;
-        for (s, &w) in self.shapes.iter().zip(&self.weights) {
-            let mut fm = Matrix3::<f64>::identity();
-            for (a, &i) in s.nodes.iter().enumerate() {
-                for k in 0..d {
-                    for j in 0..d {
-                        fm[(k, j)] += u[d * i + k] * s.grad[a * d + j];
-                    }
-                }
-            }
-            let c = fm.transpose() * fm;
-            let r = self.law.response(&c, Part::Full)?;
-            energy += w * r.energy;
-            let mut sm = Matrix3::zeros();
-            for (p, &(i, j)) in VOIGT.iter().enumerate() {
-                sm[(i, j)] = r.stress[p];
-                sm[(j, i)] = r.stress[p];
-            }
-            let pk = fm * sm;
-            for (a, &i) in s.nodes.iter().enumerate() {
-                for k in 0..d {
-                    f[d * i + k] += w * (0..d).map(|j| pk[(k, j)] * s.grad[a * d + j]).sum::<f64>();
+        let (s, w) = (&self.shapes[p], self.weights[p]);
+        let mut fm = Matrix3::<f64>::identity();
+        for (a, &i) in s.nodes.iter().enumerate() {
+            for k in 0..d {
+                for j in 0..d {
+                    fm[(k, j)] += u[d * i + k] * s.grad[a * d + j];
                 }
             }
         }
-        energy.is_finite().then_some(energy)
+        let c = fm.transpose() * fm;
+        let r = self.law.response(&c, Part::Full)?;
+        let mut sm = Matrix3::zeros();
+        for (q, &(i, j)) in VOIGT.iter().enumerate() {
+            sm[(i, j)] = r.stress[q];
+            sm[(j, i)] = r.stress[q];
+        }
+        let pk = fm * sm;
+        for (a, &i) in s.nodes.iter().enumerate() {
+            for k in 0..d {
+                f[d * i + k] += w * (0..d).map(|j| pk[(k, j)] * s.grad[a * d + j]).sum::<f64>();
+            }
+        }
+        Some(w * r.energy)
     }
+
+    /// Internal forces (and energy), in parallel over blocks of integration points (rayon);
+    /// `None` when a point inverts.
+    fn forces(&self, u: &[f64], f: &mut [f64]) -> Option<f64> {
+        let n = self.shapes.len();
+        let threads = rayon::current_num_threads().max(1);
+        if threads == 1 || n < 2 * PARALLEL_BLOCK {
+            f.fill(0.0);
+            let mut e = 0.0;
+            for p in 0..n {
+                e += self.point(p, u, f)?;
+            }
+            return e.is_finite().then_some(e);
+        }
+        let blocks = n.div_ceil(PARALLEL_BLOCK);
+        let (sum, e) = (0..blocks)
+            .into_par_iter()
+            .map(|b| {
+                let mut local = vec![0.0; f.len()];
+                let mut e = 0.0;
+                for p in b * PARALLEL_BLOCK..((b + 1) * PARALLEL_BLOCK).min(n) {
+                    e += self.point(p, u, &mut local)?;
+                }
+                Some((local, e))
+            })
+            .try_reduce(
+                || (vec![0.0; f.len()], 0.0),
+                |(mut a, ea), (b, eb)| {
+                    for (x, y) in a.iter_mut().zip(&b) {
+                        *x += y;
+                    }
+                    Some((a, ea + eb))
+                },
+            )?;
+        f.copy_from_slice(&sum);
+        e.is_finite().then_some(e)
+    }
+}
+
+/// The highest frequency `ω²_max` of `M⁻¹K(u)` by power iteration from `dir` (updated), with
+/// `K(u)v` as a difference of internal forces over a step `eps`.
+fn highest_frequency(model: &Model, u: &[f64], mass: &[f64], constrained: &[bool], dir: &mut [f64], eps: f64, iterations: usize) -> f64 {
+    let d = model.dim;
+    let nd = u.len();
+    let mut f0 = vec![0.0; nd];
+    if model.forces(u, &mut f0).is_none() {
+        return f64::NAN;
+    }
+    let mut kv = vec![0.0; nd];
+    let mut probe = vec![0.0; nd];
+    let mut highest = 0.0;
+    for _ in 0..iterations {
+        let norm = dir.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm == 0.0 {
+            break;
+        }
+        for q in 0..nd {
+            probe[q] = u[q] + eps * dir[q] / norm;
+        }
+        if model.forces(&probe, &mut kv).is_none() {
+            return f64::NAN;
+        }
+        for q in 0..nd {
+            dir[q] = if constrained[q] { 0.0 } else { (kv[q] - f0[q]) / eps / mass[q / d] };
+        }
+        highest = dir.iter().map(|x| x * x).sum::<f64>().sqrt();
+    }
+    highest
 }
 
 /// Solves `problem` by adaptive dynamic relaxation; `progress(step, error)` now and then.
@@ -270,45 +340,28 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
         }
     }
     // The bound is loose by a factor of a few: measure the highest frequency of M⁻¹K at the
-    // reference state by power iteration (K v by a difference of internal forces) and scale
-    // the masses so that it sits at 4/MARGIN, leaving room for stiffening at large strains.
-    {
-        let size = cloud
-            .points()
-            .iter()
-            .flat_map(|p| p.iter().take(d).copied())
-            .fold(0.0f64, |a, x| a.max(x.abs()))
-            .max(f64::MIN_POSITIVE);
-        let eps = 1e-7 * size;
-        let mut v: Vec<f64> = (0..nd)
-            .map(|q| {
-                if constrained[q] {
-                    0.0
-                } else {
-                    ((q * 7919) % 13) as f64 - 6.0 + 0.5
-                }
-            })
-            .collect();
-        let mut kv = vec![0.0; nd];
-        let mut highest: f64 = 0.0;
-        for _ in 0..POWER_ITERATIONS {
-            let norm = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-            if norm == 0.0 {
-                break;
+    // reference state by power iteration and scale the masses so that it sits at 4/MARGIN;
+    // the measurement is repeated along the way, since large strains stiffen.
+    let size = cloud
+        .points()
+        .iter()
+        .flat_map(|p| p.iter().take(d).copied())
+        .fold(0.0f64, |a, x| a.max(x.abs()))
+        .max(f64::MIN_POSITIVE);
+    let mut probe_dir: Vec<f64> = (0..nd)
+        .map(|q| {
+            if constrained[q] {
+                0.0
+            } else {
+                ((q * 7919) % 13) as f64 - 6.0 + 0.5
             }
-            let probe: Vec<f64> = v.iter().map(|x| eps * x / norm).collect();
-            if model.forces(&probe, &mut kv).is_none() {
-                break;
-            }
-            for q in 0..nd {
-                v[q] = if constrained[q] { 0.0 } else { kv[q] / eps / mass[q / d] };
-            }
-            highest = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        }
-        if highest.is_finite() && highest > 0.0 {
-            for m in &mut mass {
-                *m *= highest * MARGIN / 4.0;
-            }
+        })
+        .collect();
+    let zero = vec![0.0; nd];
+    let highest = highest_frequency(&model, &zero, &mass, &constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS);
+    if highest.is_finite() && highest > 0.0 {
+        for m in &mut mass {
+            *m *= highest * MARGIN / 4.0;
         }
     }
     let mut u = vec![0.0; nd];
@@ -342,8 +395,20 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
         if step % params.update_every.max(1) == 0 && step > 0 {
             omega2 = estimate;
         }
-        // light damping while loading (ρ ≈ 0.999), the estimated optimum while relaxing
-        let c = if loading { 2e-3 } else { 2.0 * omega2.sqrt() };
+        // the estimated optimal damping, while loading as while relaxing: light damping during
+        // a fast ramp lets kinetic energy pile up at the moving boundary and invert it
+        if step > 0 && step % RESCALE_EVERY == 0 {
+            let now = highest_frequency(&model, &u, &mass, &constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS / 4);
+            if now.is_finite() && now * MARGIN > 4.0 {
+                let grow = now * MARGIN / 4.0;
+                for m in &mut mass {
+                    *m *= grow;
+                }
+                omega2 /= grow;
+                estimate /= grow;
+            }
+        }
+        let c = 2.0 * omega2.sqrt();
         let (alpha, beta) = (2.0 / (2.0 + c), (2.0 - c) / (2.0 + c));
         let mut change = 0.0f64;
         for q in 0..nd {

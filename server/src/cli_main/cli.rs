@@ -330,6 +330,36 @@ Grassmann) and the resulting reduced models are compared with full Newton there.
 Default scene: the built-in cornea. The seed's liver: vademecum bench anm scenes/liver_palpation_large.toml"
     )]
     Anm(BenchAnmArgs),
+    /// The meshless solver (seed 004, EFG + adaptive dynamic relaxation) against Table 3.2.
+    #[command(
+        long_about = "The meshless reference solver (element-free Galerkin with MLS shape functions, total \
+Lagrangian Abaqus neo-Hookean, adaptive dynamic relaxation) on seed 004's 0.1 m square in plane \
+strain (E = 3000 Pa, nu = 0.49), edge x = 0 clamped, edge x = 0.1 m pulled 20 % with its y motion \
+fixed; Abaqus (1,681 nodes) gives 0.847 J and 77.64 N per metre of thickness. Each --nodes size \
+runs with each --threads count (run time, relaxation steps); then --stretch values on \
+--range-nodes."
+    )]
+    Efg(BenchEfgArgs),
+}
+
+/// Arguments of `vademecum bench efg`.
+#[derive(Debug, Args)]
+pub struct BenchEfgArgs {
+    /// Nodes per edge of the squares compared with the seed.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![11, 21, 31, 41])]
+    pub nodes: Vec<usize>,
+    /// Thread counts to time each size with.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2])]
+    pub threads: Vec<usize>,
+    /// Stretches (fraction of the edge) of the range study.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![0.4, 0.6, 0.8, 1.0])]
+    pub stretch: Vec<f64>,
+    /// Nodes per edge of the range study.
+    #[arg(long, default_value_t = 21)]
+    pub range_nodes: usize,
+    /// Print the rows as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum bench anm`.
