@@ -61,7 +61,7 @@ fn run_one(n: usize, stretch: f64, threads: usize) -> anyhow::Result<Row> {
 }
 
 pub fn run(a: BenchEfgArgs) -> anyhow::Result<ExitCode> {
-    if a.nodes.iter().chain([&a.range_nodes]).any(|&n| !(3..=201).contains(&n)) || a.threads.iter().any(|&t| t == 0) {
+    if a.nodes.iter().chain([&a.range_nodes]).any(|&n| !(3..=201).contains(&n)) || a.threads.contains(&0) {
         bail!("--nodes must lie in 3..=201 per edge and --threads be at least 1");
     }
     let mut rows = Vec::new();
