@@ -122,3 +122,24 @@ pub fn run_fe(a: BenchFeArgs) -> anyhow::Result<ExitCode> {
     }
     Ok(ExitCode::SUCCESS)
 }
+
+/// Prints `rows` as pretty JSON, or as a Markdown table: the `header` titles, then `row` of
+/// each (the cells, already formatted).
+pub(crate) fn print_rows<T: Serialize>(json: bool, rows: &[T], header: &[&str], row: impl Fn(&T) -> Vec<String>) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    if json {
+        writeln!(out, "{}", serde_json::to_string_pretty(rows)?)?;
+        return Ok(());
+    }
+    writeln!(out, "| {} |", header.join(" | "))?;
+    writeln!(out, "|{}", "---:|".repeat(header.len()))?;
+    for r in rows {
+        writeln!(out, "| {} |", row(r).join(" | "))?;
+    }
+    Ok(())
+}
+
+/// A relative error as a signed percentage, or a dash when there is no reference.
+pub(crate) fn signed_percent(e: Option<f64>) -> String {
+    e.map_or("—".to_string(), |e| format!("{:+.2} %", 100.0 * e))
+}

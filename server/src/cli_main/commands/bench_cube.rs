@@ -4,7 +4,6 @@
 //! elements: 0.06477 J and 6.109 N at 20 % stretch), on n³ hexahedra, with the mean-dilatation
 //! (Q1/P0) element and with full integration (which locks); then the 40–100 % stretch range.
 
-use std::io::Write;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -17,6 +16,7 @@ use vademecum_engine::material::LinearElastic;
 use vademecum_engine::material::hyperelastic::Hyperelastic;
 use vademecum_engine::mesh::procedural::block_hex;
 
+use super::bench::{print_rows, signed_percent};
 use crate::cli_main::cli::BenchCubeArgs;
 
 /// Seed 004 Table 5.2 at 20 % stretch.
@@ -91,34 +91,35 @@ pub fn run(a: BenchCubeArgs) -> anyhow::Result<ExitCode> {
         eprintln!("vademecum: bench cube: {}³ cells, {:.0} % stretch", a.range_cells, 100.0 * s);
         rows.push(solve(a.range_cells, Volumetric::MeanDilatation, s, (s / 0.05).ceil() as usize)?);
     }
-    let mut out = std::io::stdout().lock();
-    if a.json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&rows)?)?;
-        return Ok(ExitCode::SUCCESS);
-    }
-    writeln!(
-        out,
-        "| cells | nodes | element | stretch | energy (J) | vs seed | reaction (N) | vs seed | steps / iterations / cuts | time (s) |"
+    print_rows(
+        a.json,
+        &rows,
+        &[
+            "cells",
+            "nodes",
+            "element",
+            "stretch",
+            "energy (J)",
+            "vs seed",
+            "reaction (N)",
+            "vs seed",
+            "steps / iterations / cuts",
+            "time (s)",
+        ],
+        |r| {
+            vec![
+                format!("{}³", r.cells),
+                r.nodes.to_string(),
+                r.element.to_string(),
+                format!("{:.0} %", 100.0 * r.stretch),
+                format!("{:.5}", r.energy_j),
+                signed_percent(r.energy_error),
+                format!("{:.4}", r.force_n),
+                signed_percent(r.force_error),
+                format!("{} / {} / {}", r.steps, r.iterations, r.cuts),
+                format!("{:.1}", r.seconds),
+            ]
+        },
     )?;
-    writeln!(out, "|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|")?;
-    let pct = |e: Option<f64>| e.map_or("—".to_string(), |e| format!("{:+.2} %", 100.0 * e));
-    for r in &rows {
-        writeln!(
-            out,
-            "| {}³ | {} | {} | {:.0} % | {:.5} | {} | {:.4} | {} | {} / {} / {} | {:.1} |",
-            r.cells,
-            r.nodes,
-            r.element,
-            100.0 * r.stretch,
-            r.energy_j,
-            pct(r.energy_error),
-            r.force_n,
-            pct(r.force_error),
-            r.steps,
-            r.iterations,
-            r.cuts,
-            r.seconds
-        )?;
-    }
     Ok(ExitCode::SUCCESS)
 }

@@ -1,7 +1,6 @@
 //! `vademecum bench efg`: the meshless solver (seed 004) against Table 3.2, its run time and
 //! relaxation steps against node count with 1 and 2 threads, and the 40–100 % stretch range.
 
-use std::io::Write;
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -10,6 +9,7 @@ use serde::Serialize;
 use vademecum_engine::meshless::efg::{self, AdrParams};
 use vademecum_engine::meshless::reference::{self, TABLE_3_2};
 
+use super::bench::{print_rows, signed_percent};
 use crate::cli_main::cli::BenchEfgArgs;
 use crate::cli_main::progress::Stages;
 
@@ -73,32 +73,35 @@ pub fn run(a: BenchEfgArgs) -> anyhow::Result<ExitCode> {
     for &s in &a.stretch {
         rows.push(run_one(a.range_nodes, s, *a.threads.last().unwrap_or(&1))?);
     }
-    let mut out = std::io::stdout().lock();
-    if a.json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&rows)?)?;
-        return Ok(ExitCode::SUCCESS);
-    }
-    writeln!(
-        out,
-        "| nodes | integration points | stretch | threads | energy (J/m) | vs seed | reaction (N/m) | vs seed | steps | time (s) |"
+    print_rows(
+        a.json,
+        &rows,
+        &[
+            "nodes",
+            "integration points",
+            "stretch",
+            "threads",
+            "energy (J/m)",
+            "vs seed",
+            "reaction (N/m)",
+            "vs seed",
+            "steps",
+            "time (s)",
+        ],
+        |r| {
+            vec![
+                r.nodes.to_string(),
+                r.integration_points.to_string(),
+                format!("{:.0} %", 100.0 * r.stretch),
+                r.threads.to_string(),
+                format!("{:.4}", r.energy_j),
+                signed_percent(r.energy_error),
+                format!("{:.3}", r.force_n),
+                signed_percent(r.force_error),
+                r.steps.to_string(),
+                format!("{:.2}", r.seconds),
+            ]
+        },
     )?;
-    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
-    let pct = |e: Option<f64>| e.map_or("—".to_string(), |e| format!("{:+.2} %", 100.0 * e));
-    for r in &rows {
-        writeln!(
-            out,
-            "| {} | {} | {:.0} % | {} | {:.4} | {} | {:.3} | {} | {} | {:.2} |",
-            r.nodes,
-            r.integration_points,
-            100.0 * r.stretch,
-            r.threads,
-            r.energy_j,
-            pct(r.energy_error),
-            r.force_n,
-            pct(r.force_error),
-            r.steps,
-            r.seconds
-        )?;
-    }
     Ok(ExitCode::SUCCESS)
 }
