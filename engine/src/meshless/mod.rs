@@ -6,7 +6,7 @@
 //! - [`grid`]: the background grid of integration cells (one Gauss point per cell).
 //! - [`efg`]: total Lagrangian EFG forces, essential boundary conditions (Eq. 3.18) and
 //!   adaptive dynamic relaxation.
-//! - [`reference`]: seed 004's verification problems (the Table 3.2 square).
+//! - [`mod@reference`]: seed 004's verification problems (the Table 3.2 square).
 //!
 //! The total Lagrangian neo-Hookean forces, adaptive dynamic relaxation, essential boundary
 //! conditions and cutting build on these.
