@@ -357,6 +357,9 @@ pub struct BenchEfgArgs {
     /// Nodes per edge of the range study.
     #[arg(long, default_value_t = 21)]
     pub range_nodes: usize,
+    /// Integration points per cell side: 1 (the seed's one point per cell) and/or 2 (2 x 2).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2])]
+    pub integration: Vec<usize>,
     /// Print the rows as JSON.
     #[arg(long)]
     pub json: bool,

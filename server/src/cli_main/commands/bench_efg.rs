@@ -17,6 +17,7 @@ use crate::cli_main::progress::Stages;
 struct Row {
     nodes: usize,
     integration_points: usize,
+    per_cell: usize,
     stretch: f64,
     threads: usize,
     energy_j: f64,
@@ -27,8 +28,8 @@ struct Row {
     seconds: f64,
 }
 
-fn run_one(n: usize, stretch: f64, threads: usize) -> anyhow::Result<Row> {
-    let case = reference::square(n, stretch, 0.49)?;
+fn run_one(n: usize, stretch: f64, threads: usize, q: usize) -> anyhow::Result<Row> {
+    let case = reference::square(n, stretch, 0.49, q)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -49,6 +50,7 @@ fn run_one(n: usize, stretch: f64, threads: usize) -> anyhow::Result<Row> {
     Ok(Row {
         nodes: n * n,
         integration_points: case.problem.points.len(),
+        per_cell: q * q,
         stretch,
         threads,
         energy_j: s.energy,
@@ -64,21 +66,27 @@ pub fn run(a: BenchEfgArgs) -> anyhow::Result<ExitCode> {
     if a.nodes.iter().chain([&a.range_nodes]).any(|&n| !(3..=201).contains(&n)) || a.threads.contains(&0) {
         bail!("--nodes must lie in 3..=201 per edge and --threads be at least 1");
     }
+    if a.integration.is_empty() || a.integration.iter().any(|&q| !(1..=4).contains(&q)) {
+        bail!("--integration takes points per cell side in 1..=4");
+    }
     let mut rows = Vec::new();
-    for &n in &a.nodes {
-        for &t in &a.threads {
-            rows.push(run_one(n, 0.2, t)?);
+    for &q in &a.integration {
+        for &n in &a.nodes {
+            for &t in &a.threads {
+                rows.push(run_one(n, 0.2, t, q)?);
+            }
         }
     }
+    let q = *a.integration.last().unwrap_or(&2);
     for &s in &a.stretch {
-        rows.push(run_one(a.range_nodes, s, *a.threads.last().unwrap_or(&1))?);
+        rows.push(run_one(a.range_nodes, s, *a.threads.last().unwrap_or(&1), q)?);
     }
     print_rows(
         a.json,
         &rows,
         &[
             "nodes",
-            "integration points",
+            "integration points (per cell)",
             "stretch",
             "threads",
             "energy (J/m)",
@@ -91,7 +99,7 @@ pub fn run(a: BenchEfgArgs) -> anyhow::Result<ExitCode> {
         |r| {
             vec![
                 r.nodes.to_string(),
-                r.integration_points.to_string(),
+                format!("{} ({})", r.integration_points, r.per_cell),
                 format!("{:.0} %", 100.0 * r.stretch),
                 r.threads.to_string(),
                 format!("{:.4}", r.energy_j),
