@@ -60,3 +60,37 @@ pub fn square(n: usize, stretch: f64, poisson: f64, q: usize) -> Result<Pulled, 
         pulled,
     })
 }
+
+/// Seed 004 Table 5.2 (Abaqus, 17,576 nodes) at 20 % stretch: strain energy (J) and reaction (N).
+pub const TABLE_5_2: (f64, f64) = (0.06477, 6.109);
+
+/// Seed 004 §5: the 0.1 m cube of the same material, `n³` nodes, `(n−1)³` cells with `q³`
+/// points each; face y = 0 clamped, face y = 0.1 m pulled `stretch × 0.1` m in y with its x
+/// and z motion fixed.
+pub fn cube(n: usize, stretch: f64, poisson: f64, q: usize) -> Result<Pulled, crate::material::MaterialError> {
+    let (n, q) = (n.max(2), q.max(1));
+    let h = 0.1 / (n - 1) as f64;
+    let pts: Vec<[f64; 3]> = (0..n * n * n)
+        .map(|i| [(i % n) as f64 * h, ((i / n) % n) as f64 * h, (i / (n * n)) as f64 * h])
+        .collect();
+    let mut prescribed = Vec::new();
+    let mut pulled = Vec::new();
+    for (i, p) in pts.iter().enumerate() {
+        let on = |y: f64| (p[1] - y).abs() < 1e-12;
+        if on(0.0) || on(0.1) {
+            let uy = if on(0.1) { 0.1 * stretch } else { 0.0 };
+            prescribed.extend([(i, 0, 0.0), (i, 1, uy), (i, 2, 0.0)]);
+            pulled.extend([false, on(0.1), false]);
+        }
+    }
+    let c = q * (n - 1);
+    Ok(Pulled {
+        problem: EfgProblem {
+            cloud: NodeCloud::new(3, pts.clone(), vec![SUPPORT * h; pts.len()]),
+            points: box_grid(3, [0.0; 3], [0.1; 3], [c, c, c], |_| true),
+            law: Hyperelastic::neo_hookean(&LinearElastic::new(3000.0, poisson)?),
+            prescribed,
+        },
+        pulled,
+    })
+}
