@@ -33,3 +33,15 @@ fn two_by_two_integration_converges_in_fewer_steps_to_the_same_answer() {
     // the near-zero-energy modes of one-point integration are what slows the relaxation
     assert!(s4.steps * 3 < s1.steps, "{} vs {}", s4.steps, s1.steps);
 }
+
+#[test]
+fn the_3d_cube_matches_table_5_2() {
+    // 15³ nodes, 2 × 2 × 2 points per cell (11³: +1.4 % in energy; 13³: +0.96 %)
+    let case = reference::cube(15, 0.2, 0.49, 2).unwrap();
+    let s = efg::solve(&case.problem, &AdrParams::default(), |_, _| {}).unwrap();
+    let (e, f) = (s.energy, case.force(&s));
+    eprintln!("15^3 nodes: W = {e:.5} J, F = {f:.4} N, {} steps", s.steps);
+    let (e_ref, f_ref) = reference::TABLE_5_2;
+    assert!((e - e_ref).abs() < 0.01 * e_ref, "energy {e}");
+    assert!((f - f_ref).abs() < 0.01 * f_ref, "force {f}");
+}

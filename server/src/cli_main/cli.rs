@@ -336,8 +336,9 @@ Default scene: the built-in cornea. The seed's liver: vademecum bench anm scenes
 Lagrangian Abaqus neo-Hookean, adaptive dynamic relaxation) on seed 004's 0.1 m square in plane \
 strain (E = 3000 Pa, nu = 0.49), edge x = 0 clamped, edge x = 0.1 m pulled 20 % with its y motion \
 fixed; Abaqus (1,681 nodes) gives 0.847 J and 77.64 N per metre of thickness. Each --nodes size \
-runs with each --threads count (run time, relaxation steps); then --stretch values on \
---range-nodes."
+runs with each --threads count and each --integration density (run time, relaxation steps); then \
+--stretch values on --range-nodes; then the 3D cube of Table 5.2 (0.06477 J, 6.109 N) at \
+--cube-nodes."
     )]
     Efg(BenchEfgArgs),
 }
@@ -357,6 +358,10 @@ pub struct BenchEfgArgs {
     /// Nodes per edge of the range study.
     #[arg(long, default_value_t = 21)]
     pub range_nodes: usize,
+    /// Nodes per edge of seed 004's 3D cube (Table 5.2), run with 2 x 2 x 2 points per cell
+    /// and the last --threads count (none: skip the cube).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![11, 13, 15])]
+    pub cube_nodes: Vec<usize>,
     /// Integration points per cell side: 1 (the seed's one point per cell) and/or 2 (2 x 2).
     #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2])]
     pub integration: Vec<usize>,
