@@ -54,7 +54,7 @@ fn check(bases: &[DMatrix<f64>], weights: &[f64]) -> Result<usize, Interpolation
 
 /// The orthonormal polar factor `U Vᵀ` of `m = U Σ Vᵀ`: the nearest matrix with orthonormal
 /// columns.
-fn polar(m: DMatrix<f64>) -> DMatrix<f64> {
+pub(crate) fn polar(m: DMatrix<f64>) -> DMatrix<f64> {
     let svd = m.svd(true, true);
     let (u, vt) = (svd.u.expect("computed"), svd.v_t.expect("computed"));
     u * vt

@@ -25,6 +25,7 @@ use super::pod::{Pod, PodCriterion};
 use super::podi_online::{Neighbourhood, StoredModel};
 use super::study::StudyError;
 use super::svk::ReducedSvk;
+use super::unit;
 use crate::fem::Locking;
 use crate::fem::assembly::{DofMap, MaterialMap, SymmetricPattern, assemble_stiffness};
 use crate::fem::hyperelastic::{LawMap, Volumetric};
@@ -142,11 +143,6 @@ pub struct LatticeStudy {
 
 /// Method names in the order of [`TestRow::error`].
 pub const METHODS: [&str; 4] = ["nearest", "PODI", "Grassmann", "snapshot POD"];
-
-fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
-    let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    (n > 0.0 && n.is_finite()).then(|| v.map(|x| x / n))
-}
 
 fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()

@@ -40,3 +40,9 @@ pub(crate) fn mean_along(u: &[f64], nodes: &[usize], direction: [f64; 3]) -> f64
         .sum::<f64>()
         / nodes.len().max(1) as f64
 }
+
+/// `v / |v|`, or `None` for a zero or non-finite vector.
+pub(crate) fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
+    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    (n > 0.0 && n.is_finite()).then(|| v.map(|x| x / n))
+}

@@ -30,6 +30,7 @@ use super::anm::{self, AnmParams, Path, Series};
 use super::pod::{Pod, PodCriterion};
 use super::study::StudyError;
 use super::svk::ReducedSvk;
+use super::unit;
 use crate::fem::hyperelastic::{LawMap, Volumetric};
 use crate::fem::nonlinear_static::{self, NewtonParams};
 use crate::mesh::boundary::triangle_area_normal;
@@ -96,11 +97,6 @@ pub struct Stiffening {
     pub ratio: f64,
     /// Whether some neighbour's path ended before this depth (the law was extrapolated).
     pub extrapolated: bool,
-}
-
-fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
-    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    (n > 0.0 && n.is_finite()).then(|| v.map(|x| x / n))
 }
 
 fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {

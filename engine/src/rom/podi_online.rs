@@ -27,7 +27,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::anm::{AnmError, Series};
-use super::interpolate::InterpolationError;
+use super::interpolate::{InterpolationError, polar};
 use crate::fem::assembly::{DofMap, SymmetricMatrix};
 
 /// What a stored model contributes online (its basis is needed offline only).
@@ -85,11 +85,6 @@ fn cross_stiffness(a: &DMatrix<f64>, b: &DMatrix<f64>, dofs: &DofMap, k: &Symmet
     out
 }
 
-fn polar(m: &DMatrix<f64>) -> DMatrix<f64> {
-    let svd = m.clone().svd(true, true);
-    svd.u.expect("computed") * svd.v_t.expect("computed")
-}
-
 impl Neighbourhood {
     /// Precomputes the pair blocks (offline, `O(N r²)` per pair); `k` is the stiffness at the
     /// origin on the free degrees of freedom of `dofs`.
@@ -131,7 +126,7 @@ impl Neighbourhood {
         }
         let r = self.models[0].basis.ncols();
         let r0 = (0..n).max_by(|&a, &b| w[a].total_cmp(&w[b])).unwrap_or(0);
-        let q: Vec<DMatrix<f64>> = (0..n).map(|k| polar(&self.m[k][r0])).collect();
+        let q: Vec<DMatrix<f64>> = (0..n).map(|k| polar(self.m[k][r0].clone())).collect();
         let (mut g, mut kr) = (DMatrix::<f64>::zeros(r, r), DMatrix::<f64>::zeros(r, r));
         for a in 0..n {
             for b in 0..n {
