@@ -1,5 +1,7 @@
 //! The meshless solver (seed 004) against its published references.
 
+use vademecum_engine::meshless::cut::Cut;
+use vademecum_engine::meshless::cutting;
 use vademecum_engine::meshless::efg::{self, AdrParams};
 use vademecum_engine::meshless::reference::{self, TABLE_3_2};
 
@@ -44,4 +46,155 @@ fn the_3d_cube_matches_table_5_2() {
     let (e_ref, f_ref) = reference::TABLE_5_2;
     assert!((e - e_ref).abs() < 0.01 * e_ref, "energy {e}");
     assert!((f - f_ref).abs() < 0.01 * f_ref, "force {f}");
+}
+
+#[test]
+fn cutting_along_fig_4_8_matches_table_4_2() {
+    use reference::{CutSetup, TABLE_4_2};
+    let study = reference::square_cut(&CutSetup::default(), &AdrParams::default(), |_, _, _| {}).unwrap();
+    let (e_ref, f_ref) = TABLE_4_2;
+    let energies: Vec<f64> = std::iter::once(study.uncut.energy)
+        .chain(study.stages.iter().map(|s| s.solution.energy))
+        .collect();
+    eprintln!("energies by stage {energies:?}");
+    assert!(energies.windows(2).all(|w| w[1] < w[0]), "each cut relaxes the stretched square");
+    let end = study.stages.last().unwrap();
+    let (e, f) = (end.solution.energy, end.force);
+    eprintln!(
+        "end of cutting: W = {e:.5} J ({:+.2} %), F = {f:.3} N ({:+.2} %)",
+        100.0 * (e / e_ref - 1.0),
+        100.0 * (f / f_ref - 1.0)
+    );
+    // ±1 % from the reconstruction of the reference's crack, ~0.5 % discretisation
+    assert!((e - e_ref).abs() < 0.02 * e_ref, "energy {e}");
+    assert!((f - f_ref).abs() < 0.02 * f_ref, "force {f}");
+    // nodes were split (the former tips) and inserted along the cut
+    assert!(study.stages.iter().skip(1).all(|s| s.nodes.split == 1));
+    assert!(study.stages.iter().all(|s| s.nodes.inserted > 0));
+    // the cut opens: across C–D, the faces separate by millimetres
+    let p = &study.reference_path;
+    let n = p.len();
+    let mid = [0.5 * (p[n - 2][0] + p[n - 1][0]), 0.5 * (p[n - 2][1] + p[n - 1][1]), 0.0];
+    let opening = efg::opening(&study.cloud, &end.solution.field, mid).unwrap();
+    eprintln!("opening at the middle of C-D: {:.3} mm", 1e3 * opening);
+    assert!(opening > 1e-3, "{opening}");
+}
+
+#[test]
+fn cutting_with_nodes_refined_around_the_cut_matches_table_4_2() {
+    use reference::{CutSetup, TABLE_4_2};
+    let setup = CutSetup {
+        refined: true,
+        ..CutSetup::default()
+    };
+    let study = reference::square_cut(&setup, &AdrParams::default(), |_, _, _| {}).unwrap();
+    let end = study.stages.last().unwrap();
+    let (e, f) = (end.solution.energy, end.force);
+    let (e_ref, f_ref) = TABLE_4_2;
+    eprintln!(
+        "refined ({} nodes): W = {e:.5} J ({:+.2} %), F = {f:.3} N ({:+.2} %)",
+        end.cloud_size,
+        100.0 * (e / e_ref - 1.0),
+        100.0 * (f / f_ref - 1.0)
+    );
+    assert!(end.cloud_size > 41 * 41 + 200, "nodes were added around the cut");
+    assert!((e - e_ref).abs() < 0.02 * e_ref, "energy {e}");
+    assert!((f - f_ref).abs() < 0.02 * f_ref, "force {f}");
+}
+
+/// The 21 × 21 square stretched by 20 %, then cut along `path` (reference configuration)
+/// and relaxed: (uncut, cut, its cloud, nodes split/inserted).
+fn cut_square(
+    path: &[[f64; 2]],
+) -> (
+    efg::EfgSolution,
+    efg::EfgSolution,
+    vademecum_engine::meshless::NodeCloud,
+    cutting::CutNodes,
+) {
+    let case = reference::square(21, 0.2, 0.49, 2).unwrap();
+    let uncut = efg::solve(&case.problem, &AdrParams::default(), |_, _| {}).unwrap();
+    let cut = Cut::path(path).unwrap();
+    let inside = |x: [f64; 3]| (0.0..=0.1).contains(&x[0]) && (0.0..=0.1).contains(&x[1]);
+    let (cloud, start, nodes) = cutting::cut_cloud(&case.problem.cloud, cut, &uncut.field, 0.005, inside).unwrap();
+    let mut problem = case.problem.clone();
+    problem.cloud = cloud;
+    let solution = efg::relax(&problem, &AdrParams::default(), &start, |_, _| {}).unwrap();
+    (uncut, solution, problem.cloud, nodes)
+}
+
+#[test]
+fn hard_case_a_cut_ending_inside_the_body_opens_behind_its_tip_only() {
+    // from beyond the top edge straight down to the middle, between two columns of nodes
+    let (uncut, cut, cloud, nodes) = cut_square(&[[0.0525, 0.11], [0.0525, 0.05]]);
+    assert_eq!(nodes.split, 0);
+    assert_eq!(
+        nodes.inserted,
+        2 * 10 + 1,
+        "pairs every spacing inside the body, one node at the tip"
+    );
+    assert!(cut.energy < 0.9 * uncut.energy, "{} vs {}", cut.energy, uncut.energy);
+    let open_behind = efg::opening(&cloud, &cut.field, [0.0525, 0.08, 0.0]).unwrap();
+    let ahead = efg::opening(&cloud, &cut.field, [0.0525, 0.03, 0.0]).unwrap();
+    eprintln!("opening 30 mm behind the tip {open_behind:.3e} m, 20 mm ahead {ahead:.3e} m");
+    assert!(open_behind > 1e-3, "the faces separate: {open_behind}");
+    assert!(ahead < 1e-12, "no jump where the body is not cut: {ahead}");
+}
+
+#[test]
+fn hard_case_a_node_exactly_on_the_cut_is_split() {
+    // the same cut on the node column x = 0.05, and 1 % of a spacing beside it, where a pair of
+    // nodes is inserted next to each node of the column: the extra row of field variables on
+    // one face makes that discretisation ~2 % softer at this resolution (21² nodes)
+    let (_, on, _, nodes) = cut_square(&[[0.05, 0.11], [0.05, 0.05]]);
+    let (_, beside, _, _) = cut_square(&[[0.05005, 0.11], [0.05005, 0.05]]);
+    assert_eq!(nodes.split, 10, "the nodes at y = 0.055 … 0.1 are split");
+    assert_eq!(nodes.inserted, 0, "the tip and every station already carry a node");
+    eprintln!("through nodes W = {:.5} J, beside them W = {:.5} J", on.energy, beside.energy);
+    assert!(on.error < AdrParams::default().tolerance);
+    assert!(on.energy >= beside.energy && on.energy < 1.03 * beside.energy);
+}
+
+#[test]
+fn hard_case_a_piece_cut_loose_relaxes_to_no_stress() {
+    // a cut right across: each half hangs from one clamped edge, stress free
+    let (uncut, cut, _, _) = cut_square(&[[0.0525, 0.11], [0.0525, -0.01]]);
+    eprintln!(
+        "cut across: W = {:.3e} J (uncut {:.3} J), {} steps",
+        cut.energy, uncut.energy, cut.steps
+    );
+    assert!(cut.energy < 1e-6 * uncut.energy, "{}", cut.energy);
+    assert!(cut.reactions.iter().all(|r| r.abs() < 1e-3), "no force through the cut");
+}
+
+#[test]
+fn hard_case_near_incompressibility_converges() {
+    // ν = 0.499: K/μ ≈ 830; the relaxation takes longer but stops on its error estimate
+    let case = reference::square(21, 0.2, 0.499, 2).unwrap();
+    let s = efg::solve(&case.problem, &AdrParams::default(), |_, _| {}).unwrap();
+    let base = reference::square(21, 0.2, 0.49, 2).unwrap();
+    let s0 = efg::solve(&base.problem, &AdrParams::default(), |_, _| {}).unwrap();
+    eprintln!(
+        "ν = 0.499: W = {:.4} J in {} steps (ν = 0.49: {:.4} J in {} steps)",
+        s.energy, s.steps, s0.energy, s0.steps
+    );
+    assert!(s.error < AdrParams::default().tolerance);
+    // a stiffer volumetric response, by a few per cent at most in plane strain
+    assert!(s.energy > s0.energy && s.energy < 1.05 * s0.energy, "{} vs {}", s.energy, s0.energy);
+}
+
+#[test]
+fn hard_case_a_100_percent_stretch_converges() {
+    let case = reference::square(21, 1.0, 0.49, 2).unwrap();
+    let s = efg::solve(&case.problem, &AdrParams::default(), |_, _| {}).unwrap();
+    eprintln!("100 %: W = {:.3} J, F = {:.2} N, {} steps", s.energy, case.force(&s), s.steps);
+    assert!(s.error < AdrParams::default().tolerance);
+    let n = 21;
+    for j in 0..n {
+        let i = j * n + n - 1;
+        assert!((s.displacement[2 * i] - 0.1).abs() < 1e-9, "the edge reaches twice its distance");
+    }
+    // the force of a neo-Hookean strip grows less than linearly with large stretch: 5× the
+    // stretch of Table 3.2 gives less than 5× its force
+    assert!(case.force(&s) > TABLE_3_2.1 && case.force(&s) < 5.0 * TABLE_3_2.1);
 }

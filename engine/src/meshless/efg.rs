@@ -75,6 +75,21 @@ pub enum EfgError {
     /// Shape functions could not be built.
     #[error(transparent)]
     Shape(#[from] MlsError),
+    /// A cut could not be built.
+    #[error(transparent)]
+    Cut(#[from] super::cut::CutError),
+    /// A point given on the deformed body could not be traced back to the reference body.
+    #[error(
+        "the point ({x:.4e}, {y:.4e}, {z:.4e}) of the deformed body could not be placed in the reference configuration (is it inside the body?)"
+    )]
+    Placement {
+        /// x (m).
+        x: f64,
+        /// y (m).
+        y: f64,
+        /// z (m).
+        z: f64,
+    },
     /// The boundary shape-function matrix is singular.
     #[error("the essential-boundary shape-function matrix is singular: the boundary nodes' supports are degenerate")]
     Boundary,
@@ -114,6 +129,9 @@ pub struct EfgSolution {
     pub steps: usize,
     /// Final error estimate (m).
     pub error: f64,
+    /// Times the relaxation started again with heavier masses after a material point
+    /// inverted in a transient.
+    pub restarts: usize,
 }
 
 /// Room left between the measured highest frequency at the reference state and the stability
@@ -123,6 +141,9 @@ const MARGIN: f64 = 1.5;
 const POWER_ITERATIONS: usize = 40;
 /// Steps between two measurements of the highest frequency.
 const RESCALE_EVERY: usize = 250;
+/// Restarts allowed after an inverted transient, and the mass factor of each.
+const MAX_RESTARTS: usize = 4;
+const RESTART_MASS: f64 = 4.0;
 /// Integration points per parallel task.
 const PARALLEL_BLOCK: usize = 512;
 
@@ -232,12 +253,35 @@ fn highest_frequency(model: &Model, u: &[f64], mass: &[f64], constrained: &[bool
     highest
 }
 
-/// Solves `problem` by adaptive dynamic relaxation; `progress(step, error)` now and then.
-pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(usize, f64)) -> Result<EfgSolution, EfgError> {
+/// Solves `problem` by adaptive dynamic relaxation from the reference state, the prescribed
+/// displacements ramped over `params.loading_steps`; `progress(step, error)` now and then.
+pub fn solve(problem: &EfgProblem, params: &AdrParams, progress: impl FnMut(usize, f64)) -> Result<EfgSolution, EfgError> {
+    run(problem, params, None, progress)
+}
+
+/// Relaxes `problem` from the field variables `start` (`dim` per node) with the prescribed
+/// displacements at their full value: the steady state after a change such as a cut (seed 004
+/// §4.2.3 (b)–(c): shape functions, masses and forces are rebuilt, the relaxation restarts).
+pub fn relax(problem: &EfgProblem, params: &AdrParams, start: &[f64], progress: impl FnMut(usize, f64)) -> Result<EfgSolution, EfgError> {
+    assert_eq!(
+        start.len(),
+        problem.cloud.dim() * problem.cloud.len(),
+        "field variables of the cloud"
+    );
+    run(problem, params, Some(start), progress)
+}
+
+fn run(
+    problem: &EfgProblem,
+    params: &AdrParams,
+    start: Option<&[f64]>,
+    mut progress: impl FnMut(usize, f64),
+) -> Result<EfgSolution, EfgError> {
     let cloud = &problem.cloud;
     let d = cloud.dim();
     let n = cloud.len();
     let nd = d * n;
+    let loading_steps = if start.is_some() { 0 } else { params.loading_steps };
     let mut shapes = Vec::with_capacity(problem.points.len());
     for p in &problem.points {
         let mut s = ShapeValues::default();
@@ -258,7 +302,7 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
     let mut at_b = Vec::with_capacity(bnodes.len());
     for &i in &bnodes {
         let mut s = ShapeValues::default();
-        cloud.shape(cloud.points()[i], &mut s)?;
+        cloud.shape_at_node(i, &mut s)?;
         at_b.push(s);
     }
     let nb = bnodes.len();
@@ -357,27 +401,58 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
             }
         })
         .collect();
-    let zero = vec![0.0; nd];
-    let highest = highest_frequency(&model, &zero, &mass, &constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS);
+    let mut u = start.map_or_else(|| vec![0.0; nd], <[f64]>::to_vec);
+    let highest = highest_frequency(&model, &u, &mass, &constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS);
     if highest.is_finite() && highest > 0.0 {
         for m in &mut mass {
             *m *= highest * MARGIN / 4.0;
         }
     }
-    let mut u = vec![0.0; nd];
-    let mut prev = vec![0.0; nd];
+    if start.is_some() {
+        impose(&mut u, 1.0);
+    }
+    let initial = u.clone();
+    let mut prev = u.clone();
     let mut f = vec![0.0; nd];
     let mut f_prev = vec![0.0; nd];
     let mut omega2: f64 = 1e-6;
     let mut estimate: f64 = 1e-6;
     let mut error = f64::INFINITY;
+    // first step of the current attempt, and attempts restarted with heavier masses
+    let (mut origin, mut restarts) = (0, 0);
     for step in 0..params.max_steps {
-        let lambda = ((step + 1) as f64 / params.loading_steps.max(1) as f64).min(1.0);
-        let loading = step < params.loading_steps;
-        model.forces(&u, &mut f).ok_or_else(|| EfgError::Diverged {
-            step,
-            why: "a material point inverted (det F ≤ 0)".into(),
-        })?;
+        let local = step - origin;
+        let lambda = ((local + 1) as f64 / loading_steps.max(1) as f64).min(1.0);
+        let loading = local < loading_steps;
+        let inverted = model.forces(&u, &mut f).is_none();
+        if inverted || u.iter().any(|x| !x.is_finite()) {
+            // A transient too violent for the explicit integration (e.g. the faces of a fresh
+            // cut springing open): start again with heavier masses, i.e. a smaller time step.
+            if restarts == MAX_RESTARTS {
+                return Err(EfgError::Diverged {
+                    step,
+                    why: format!(
+                        "{} after {MAX_RESTARTS} restarts with masses {}× heavier",
+                        if inverted {
+                            "a material point inverted (det F ≤ 0)"
+                        } else {
+                            "non-finite field variables"
+                        },
+                        RESTART_MASS.powi(MAX_RESTARTS as i32)
+                    ),
+                });
+            }
+            restarts += 1;
+            for m in &mut mass {
+                *m *= RESTART_MASS;
+            }
+            (omega2, estimate) = (1e-6, 1e-6);
+            u.copy_from_slice(&initial);
+            prev.copy_from_slice(&initial);
+            f_prev.fill(0.0);
+            origin = step + 1;
+            continue;
+        }
         // Eq. 3.8 with l = the previous step: the Rayleigh quotient of the last change, which
         // aligns with the slowest mode as the relaxation proceeds
         let (mut num, mut den) = (0.0, 0.0);
@@ -426,12 +501,6 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
             }
         }
         impose(&mut u, lambda);
-        if u.iter().any(|x| !x.is_finite()) {
-            return Err(EfgError::Diverged {
-                step,
-                why: "non-finite field variables".into(),
-            });
-        }
         if !loading {
             let w = omega2.sqrt();
             let rho = (2.0 - w) / (2.0 + w);
@@ -440,7 +509,7 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
             if step % 1000 == 0 {
                 progress(step, error);
             }
-            if error < params.tolerance && step > params.loading_steps + 2 * params.update_every {
+            if error < params.tolerance && local > loading_steps + 2 * params.update_every {
                 let energy = model.forces(&u, &mut f).unwrap_or(f64::NAN);
                 // reactions: Φ_bb⁻ᵀ f_b per component
                 let mut reactions = Vec::with_capacity(problem.prescribed.len());
@@ -459,7 +528,7 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
                 let mut displacement = vec![0.0; nd];
                 let mut s = ShapeValues::default();
                 for i in 0..n {
-                    cloud.shape(cloud.points()[i], &mut s)?;
+                    cloud.shape_at_node(i, &mut s)?;
                     for (a, &j) in s.nodes.iter().enumerate() {
                         for k in 0..d {
                             displacement[d * i + k] += s.phi[a] * u[d * j + k];
@@ -473,6 +542,7 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
                     reactions,
                     steps: step + 1,
                     error,
+                    restarts,
                 });
             }
         }
@@ -482,4 +552,71 @@ pub fn solve(problem: &EfgProblem, params: &AdrParams, mut progress: impl FnMut(
         error,
         tolerance: params.tolerance,
     })
+}
+
+/// The displacement `u(x) = Σ_I φ_I(x) u_I` and the deformation gradient
+/// `F = I + Σ_I u_I ⊗ ∇φ_I` at the reference position `x`.
+pub fn deformation_at(cloud: &NodeCloud, field: &[f64], x: [f64; 3]) -> Result<([f64; 3], Matrix3<f64>), MlsError> {
+    let d = cloud.dim();
+    let mut s = ShapeValues::default();
+    cloud.shape(x, &mut s)?;
+    let mut u = [0.0; 3];
+    let mut f = Matrix3::identity();
+    for (a, &i) in s.nodes.iter().enumerate() {
+        for k in 0..d {
+            u[k] += s.phi[a] * field[d * i + k];
+            for j in 0..d {
+                f[(k, j)] += field[d * i + k] * s.grad[a * d + j];
+            }
+        }
+    }
+    Ok((u, f))
+}
+
+/// The opening of the cut at `x` (reference configuration, on the cut): the displacement of
+/// the positive face minus that of the negative face, `|u⁺ − u⁻|`.
+pub fn opening(cloud: &NodeCloud, field: &[f64], x: [f64; 3]) -> Result<f64, MlsError> {
+    let d = cloud.dim();
+    let mut s = ShapeValues::default();
+    let mut u = [[0.0; 3]; 2];
+    for (face, side) in [1.0, -1.0].into_iter().enumerate() {
+        cloud.shape_on_side(x, side, &mut s)?;
+        for (a, &i) in s.nodes.iter().enumerate() {
+            for k in 0..d {
+                u[face][k] += s.phi[a] * field[d * i + k];
+            }
+        }
+    }
+    Ok((0..d).map(|k| (u[0][k] - u[1][k]).powi(2)).sum::<f64>().sqrt())
+}
+
+/// The reference position `X` of the material point now at `x` (`X + u(X) = x`), by Newton's
+/// method from `x` — how a cut drawn on the deformed body is placed in the total Lagrangian
+/// reference configuration. `None` when the iteration leaves the cloud or does not converge.
+pub fn pull_back(cloud: &NodeCloud, field: &[f64], x: [f64; 3]) -> Option<[f64; 3]> {
+    let d = cloud.dim();
+    let mut xr = x;
+    let size = cloud.radii().iter().copied().fold(0.0, f64::max);
+    for _ in 0..50 {
+        let (u, f) = deformation_at(cloud, field, xr).ok()?;
+        let mut r = nalgebra::Vector3::zeros();
+        for k in 0..d {
+            r[k] = xr[k] + u[k] - x[k];
+        }
+        if r.norm() <= 1e-12 * size.max(f64::MIN_POSITIVE) {
+            return Some(xr);
+        }
+        let fd = if d == 2 {
+            let mut m = f;
+            m[(2, 2)] = 1.0;
+            m
+        } else {
+            f
+        };
+        let step = fd.lu().solve(&r)?;
+        for k in 0..d {
+            xr[k] -= step[k];
+        }
+    }
+    None
 }

@@ -15,6 +15,11 @@
 //!
 //! The basis is evaluated in coordinates centred on `x` and scaled by the local support size,
 //! so `A` stays well conditioned for any physical units.
+//!
+//! With a cut ([`super::cut`]), a node's influence domain loses the points it cannot see
+//! through the cut (the visibility criterion).
+
+use super::cut::Cut;
 
 /// The quartic spline weight `w(r̄)` and its derivative `dw/dr̄` (Eq. 3.9).
 pub fn quartic_spline(r: f64) -> (f64, f64) {
@@ -69,6 +74,17 @@ pub struct NodeCloud {
     cell: f64,
     dims: [usize; 3],
     buckets: Vec<Vec<usize>>,
+    /// The cut, if any, with each node's side (±1, for nodes on the cut), its sight position
+    /// (see [`super::cut`]) and whether its influence domain reaches the cut.
+    cut: Option<CutState>,
+}
+
+#[derive(Debug, Clone)]
+struct CutState {
+    cut: Cut,
+    side: Vec<f64>,
+    sight: Vec<[f64; 3]>,
+    near: Vec<bool>,
 }
 
 /// Solves the `n × n` (n ≤ 4) symmetric system `a x = b` by Cholesky; `None` when `a` is not
@@ -147,6 +163,7 @@ impl NodeCloud {
             cell,
             dims,
             buckets: Vec::new(),
+            cut: None,
         };
         for (i, p) in cloud.points.iter().enumerate() {
             buckets[cloud.bucket_of(p)].push(i);
@@ -193,8 +210,49 @@ impl NodeCloud {
         &self.points
     }
 
-    /// Nodes whose influence domain contains `x` (sorted).
+    /// Node influence radii.
+    pub fn radii(&self) -> &[f64] {
+        &self.radius
+    }
+
+    /// The cut, if any.
+    pub fn cut(&self) -> Option<&Cut> {
+        self.cut.as_ref().map(|c| &c.cut)
+    }
+
+    /// The side (±1) of each node with respect to the cut (+1 without one); it matters only
+    /// for nodes on the cut.
+    pub fn sides(&self) -> Option<&[f64]> {
+        self.cut.as_ref().map(|c| c.side.as_slice())
+    }
+
+    /// The same nodes seen through `cut` (replacing any earlier one); `side[I]` (±1) allocates
+    /// node `I` to one face when it lies on the cut (seed 004 Fig. 4.3).
+    pub fn with_cut(mut self, cut: Cut, side: Vec<f64>) -> Self {
+        assert_eq!(side.len(), self.points.len(), "one side per node");
+        assert_eq!(cut.dim(), self.dim, "cut and cloud of one dimension");
+        let sight: Vec<[f64; 3]> = self.points.iter().zip(&side).map(|(p, &s)| cut.sight(*p, s)).collect();
+        // Eq. 4.14: the nodes whose influence domain reaches the cut
+        let near = self.points.iter().zip(&self.radius).map(|(p, &r)| cut.distance(*p) < r).collect();
+        self.cut = Some(CutState { cut, side, sight, near });
+        self
+    }
+
+    /// Where node `i` looks from, for the visibility criterion.
+    fn sight_of(&self, i: usize) -> [f64; 3] {
+        self.cut.as_ref().map_or(self.points[i], |c| c.sight[i])
+    }
+
+    /// Nodes whose influence domain contains `x` and, when there is a cut, that see `x`
+    /// (sorted).
     pub fn covering(&self, x: [f64; 3], out: &mut Vec<usize>) {
+        let sight = self.cut.as_ref().map_or(x, |c| c.cut.sight(x, 1.0));
+        self.covering_seen(x, sight, out);
+    }
+
+    /// [`NodeCloud::covering`] with the visibility judged from `sight` (`x` itself, or `x`
+    /// shifted off the cut to one of its faces).
+    fn covering_seen(&self, x: [f64; 3], sight: [f64; 3], out: &mut Vec<usize>) {
         out.clear();
         let c = self.coords(&x);
         let range = |k: usize| {
@@ -209,7 +267,7 @@ impl NodeCloud {
                 for bx in range(0) {
                     for &i in &self.buckets[(bz * self.dims[1] + by) * self.dims[0] + bx] {
                         let d2: f64 = (0..self.dim).map(|k| (x[k] - self.points[i][k]).powi(2)).sum();
-                        if d2 < self.radius[i] * self.radius[i] {
+                        if d2 < self.radius[i] * self.radius[i] && self.visible(i, sight) {
                             out.push(i);
                         }
                     }
@@ -219,11 +277,36 @@ impl NodeCloud {
         out.sort_unstable();
     }
 
-    /// The shape functions and their gradients at `x` into `out`.
+    /// Eqs. 4.15–4.17: whether node `i` sees a point whose sight position is `sight`.
+    fn visible(&self, i: usize, sight: [f64; 3]) -> bool {
+        match &self.cut {
+            Some(c) if c.near[i] => !c.cut.blocks(c.sight[i], sight),
+            _ => true,
+        }
+    }
+
+    /// The shape functions and their gradients at `x` into `out` (a point on the cut is
+    /// allocated to the positive face).
     pub fn shape(&self, x: [f64; 3], out: &mut ShapeValues) -> Result<(), MlsError> {
+        let sight = self.cut.as_ref().map_or(x, |c| c.cut.sight(x, 1.0));
+        self.shape_seen(x, sight, out)
+    }
+
+    /// The shape functions at node `i`'s position, on node `i`'s face of the cut.
+    pub fn shape_at_node(&self, i: usize, out: &mut ShapeValues) -> Result<(), MlsError> {
+        self.shape_seen(self.points[i], self.sight_of(i), out)
+    }
+
+    /// The shape functions at `x` on the face `side` (±1) of the cut.
+    pub fn shape_on_side(&self, x: [f64; 3], side: f64, out: &mut ShapeValues) -> Result<(), MlsError> {
+        let sight = self.cut.as_ref().map_or(x, |c| c.cut.sight(x, side));
+        self.shape_seen(x, sight, out)
+    }
+
+    fn shape_seen(&self, x: [f64; 3], sight: [f64; 3], out: &mut ShapeValues) -> Result<(), MlsError> {
         let dim = self.dim;
         let m = dim + 1;
-        self.covering(x, &mut out.nodes);
+        self.covering_seen(x, sight, &mut out.nodes);
         let n = out.nodes.len();
         // local coordinates: centred on x, scaled by the mean support radius
         let h = if n > 0 {

@@ -11,6 +11,8 @@
 //! The total Lagrangian neo-Hookean forces, adaptive dynamic relaxation, essential boundary
 //! conditions and cutting build on these.
 
+pub mod cut;
+pub mod cutting;
 pub mod efg;
 pub mod grid;
 pub mod mls;
