@@ -198,3 +198,32 @@ fn hard_case_a_100_percent_stretch_converges() {
     // stretch of Table 3.2 gives less than 5× its force
     assert!(case.force(&s) > TABLE_3_2.1 && case.force(&s) < 5.0 * TABLE_3_2.1);
 }
+
+#[test]
+fn a_3d_cut_across_the_cube_sets_both_pieces_free() {
+    // the cube of Table 5.2 (9³ nodes), stretched, then cut right across at y = 0.05 m by a
+    // blade swept through the whole section: each half hangs from one face, stress free
+    let case = reference::cube(9, 0.2, 0.49, 2).unwrap();
+    let uncut = efg::solve(&case.problem, &AdrParams::default(), |_, _| {}).unwrap();
+    let blade = [
+        ([-0.01, 0.05, -0.01], [-0.01, 0.05, 0.11]),
+        ([0.11, 0.05, -0.01], [0.11, 0.05, 0.11]),
+    ];
+    let cut = Cut::swept(&blade).unwrap();
+    let inside = |x: [f64; 3]| x.iter().all(|v| (0.0..=0.1).contains(v));
+    let (cloud, start, nodes) = cutting::cut_cloud(&case.problem.cloud, cut, &uncut.field, 0.0125, inside).unwrap();
+    assert_eq!(
+        nodes,
+        cutting::CutNodes { split: 81, inserted: 0 },
+        "the node layer y = 0.05 m is split"
+    );
+    let mut problem = case.problem.clone();
+    problem.cloud = cloud;
+    let s = efg::relax(&problem, &AdrParams::default(), &start, |_, _| {}).unwrap();
+    eprintln!(
+        "cut across: W = {:.3e} J (uncut {:.4} J), {} steps",
+        s.energy, uncut.energy, s.steps
+    );
+    assert!(s.energy < 1e-6 * uncut.energy);
+    assert!(case.force(&s).abs() < 1e-4, "no force through the cut: {}", case.force(&s));
+}

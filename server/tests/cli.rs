@@ -267,3 +267,52 @@ fn a_large_deformation_scene_builds_its_lattice_and_runs() {
     assert!(peak.is_finite() && peak > 0.0, "{s}");
     assert_eq!(s["dropped_answers"], 0);
 }
+
+/// `fidelity.solver = "meshless"`: the same summary, from element-free Galerkin, with the
+/// scene's pre-planned cut made on the stretched cube (seed 004 chapter 6).
+#[test]
+fn solve_on_a_meshless_scene_prints_the_same_summary_and_cuts() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/cube_cut_meshless.toml")).unwrap();
+    // 9³ nodes keep the test short; the cut plane y = 0.05 m still runs through a node layer
+    let scene = scene.replace("divisions = [10, 10, 10]", "divisions = [8, 8, 8]");
+    std::fs::write(dir.path().join("cut.toml"), &scene).unwrap();
+    let o = vademecum(&["solve", "cut.toml", "--json"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let organ = &v["organs"][0];
+    assert_eq!(organ["solver"], "meshless");
+    let m = &organ["meshless"];
+    // before the cut: seed 004 Table 5.2 (0.06477 J) within the 9³-node discretisation error
+    let uncut = m["uncut_strain_energy_j"].as_f64().unwrap();
+    assert!((uncut / 0.06477 - 1.0).abs() < 0.04, "uncut energy {uncut} J");
+    // the cut through half the section relieves much of it; the clamp and the pulled face
+    // carry equal and opposite forces
+    let w = organ["strain_energy_j"].as_f64().unwrap();
+    assert!(w < 0.8 * uncut && w > 0.2 * uncut, "cut energy {w} J vs {uncut} J");
+    let (fixed, pulled) = (
+        organ["reaction_force_n"]["fixed"][1].as_f64().unwrap(),
+        organ["reaction_force_n"]["pulled"][1].as_f64().unwrap(),
+    );
+    assert!(pulled > 0.0 && (fixed + pulled).abs() < 1e-3 * pulled, "{fixed} {pulled}");
+    // the nodes of the plane y = 0.05 m between x = 0.05 and 0.1 m are split (5 × 9)
+    assert_eq!(m["nodes_split"], 45, "{m}");
+    assert!(m["relaxation_steps"].as_u64().unwrap() > 0 && m["cloud_nodes"].as_u64().unwrap() == 729 + 45);
+    assert!(dir.path().join("out/cube_cut/cube.vtu").is_file());
+    // a cut is refused without the meshless solver, with its key
+    let fem = scene.replace("solver = \"meshless\"", "solver = \"fem\"");
+    std::fs::write(dir.path().join("fem.toml"), fem).unwrap();
+    let o = vademecum(&["solve", "fem.toml"], dir.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("organs[0].cuts[0]") && stderr(&o).contains("meshless"),
+        "{}",
+        stderr(&o)
+    );
+    // a linear material is refused by the meshless solver with a clear message
+    let linear = scene.replace("model = \"neo_hookean\"", "model = \"linear\"");
+    std::fs::write(dir.path().join("linear.toml"), linear).unwrap();
+    let o = vademecum(&["solve", "linear.toml"], dir.path());
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("hyperelastic material"), "{}", stderr(&o));
+}

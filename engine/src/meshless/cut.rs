@@ -52,6 +52,9 @@ pub enum CutError {
         /// Second.
         to: usize,
     },
+    /// Two 2D paths combined.
+    #[error("separate 2D cutting paths cannot be combined; a 2D cut progresses with advance()")]
+    Union,
     /// 2D and 3D pieces mixed.
     #[error("a {expected}D cut cannot take a {got}D piece")]
     Dimension {
@@ -205,6 +208,8 @@ pub struct Cut {
     facets: Vec<Facet>,
     /// 2D: the path `T₀…Tₙ`; 3D: the blade positions, two points each.
     path: Vec<[f64; 3]>,
+    /// 3D: the swept quadrilaterals `(a_k, b_k, b_{k+1}, a_{k+1})`.
+    quads: Vec<[[f64; 3]; 4]>,
 }
 
 /// Relative tolerance (of the cut's size) for "on the cut".
@@ -218,6 +223,7 @@ impl Cut {
             dim: 2,
             facets: Vec::new(),
             path: Vec::new(),
+            quads: Vec::new(),
         };
         if points.len() < 2 {
             return Err(CutError::Degenerate { segment: 0 });
@@ -278,6 +284,7 @@ impl Cut {
             dim: 3,
             facets: Vec::new(),
             path: Vec::new(),
+            quads: Vec::new(),
         };
         if blade.len() < 2 {
             return Err(CutError::Degenerate { segment: 0 });
@@ -296,8 +303,28 @@ impl Cut {
                 return Err(CutError::NoArea { from: k, to: k + 1 });
             }
             cut.facets.extend(t1.into_iter().chain(t2));
+            cut.quads.push([a0, b0, b1, a1]);
         }
         Ok(cut)
+    }
+
+    /// This 3D cut and `other` together (e.g. two separate incisions).
+    pub fn union(&self, other: &Cut) -> Result<Cut, CutError> {
+        if self.dim != 3 || other.dim != 3 {
+            return Err(if self.dim == other.dim {
+                CutError::Union
+            } else {
+                CutError::Dimension {
+                    expected: self.dim,
+                    got: other.dim,
+                }
+            });
+        }
+        let mut out = self.clone();
+        out.facets.extend_from_slice(&other.facets);
+        out.path.extend_from_slice(&other.path);
+        out.quads.extend_from_slice(&other.quads);
+        Ok(out)
     }
 
     /// Space dimension.
@@ -377,7 +404,8 @@ impl Cut {
     }
 
     /// Points along a 2D path every `spacing` or less (both ends of each segment included, the
-    /// tip last), for the discretisation of the cut by nodes; in 3D, a grid on each facet.
+    /// tip last), for the discretisation of the cut by nodes; in 3D, a grid over each swept
+    /// quadrilateral, `spacing` or less apart along the blade and along the sweep.
     pub fn stations(&self, spacing: f64) -> Vec<[f64; 3]> {
         let mut out: Vec<[f64; 3]> = Vec::new();
         let tol = self.tolerance();
@@ -386,23 +414,22 @@ impl Cut {
                 out.push(p);
             }
         };
-        for f in &self.facets {
-            if f.is_segment() {
-                let k = (f.length / spacing).ceil().max(1.0) as usize;
-                for i in 0..=k {
-                    let s = -f.length + f.length * i as f64 / k as f64;
-                    push(add(f.vertices[1], scale(f.direction, s)), &mut out);
-                }
-            } else {
-                let [a, b, c] = f.vertices;
-                let k = (norm(sub(b, a)).max(norm(sub(c, a))).max(norm(sub(c, b))) / spacing)
-                    .ceil()
-                    .max(1.0) as usize;
-                for i in 0..=k {
-                    for j in 0..=k - i {
-                        let (u, v) = (i as f64 / k as f64, j as f64 / k as f64);
-                        push(add(a, add(scale(sub(b, a), u), scale(sub(c, a), v))), &mut out);
-                    }
+        let steps = |l: f64| (l / spacing * (1.0 - 1e-9)).ceil().max(1.0) as usize;
+        for f in self.facets.iter().filter(|f| f.is_segment()) {
+            let k = steps(f.length);
+            for i in 0..=k {
+                let s = -f.length + f.length * i as f64 / k as f64;
+                push(add(f.vertices[1], scale(f.direction, s)), &mut out);
+            }
+        }
+        for &[a0, b0, b1, a1] in &self.quads {
+            let ks = steps(norm(sub(b0, a0)).max(norm(sub(b1, a1))));
+            let kt = steps(norm(sub(a1, a0)).max(norm(sub(b1, b0))));
+            for j in 0..=kt {
+                let t = j as f64 / kt as f64;
+                let (a, b) = (add(a0, scale(sub(a1, a0), t)), add(b0, scale(sub(b1, b0), t)));
+                for i in 0..=ks {
+                    push(add(a, scale(sub(b, a), i as f64 / ks as f64)), &mut out);
                 }
             }
         }

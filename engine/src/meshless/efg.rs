@@ -43,6 +43,10 @@ pub struct EfgProblem {
     pub law: Hyperelastic,
     /// Prescribed displacement components at load factor 1: `(node, component, value)`.
     pub prescribed: Vec<(usize, usize, f64)>,
+    /// Point forces at load factor 1, at node positions: `(node, force)` (N; per metre in 2D).
+    /// Applied through the shape functions, `f_I = Σ_J φ_I(x_J) F_J` (MLS functions do not
+    /// interpolate).
+    pub loads: Vec<(usize, [f64; 3])>,
 }
 
 /// Settings of the relaxation.
@@ -129,6 +133,8 @@ pub struct EfgSolution {
     pub steps: usize,
     /// Final error estimate (m).
     pub error: f64,
+    /// `‖f_int − f_ext‖ / ‖f_int‖` over the free field variables at the end.
+    pub residual: f64,
     /// Times the relaxation started again with heavier masses after a material point
     /// inverted in a transient.
     pub restarts: usize,
@@ -306,6 +312,17 @@ fn run(
         at_b.push(s);
     }
     let nb = bnodes.len();
+    // external forces through the shape functions at the loaded nodes
+    let mut f_ext = vec![0.0; nd];
+    for &(j, force) in &problem.loads {
+        let mut s = ShapeValues::default();
+        cloud.shape_at_node(j, &mut s)?;
+        for (a, &i) in s.nodes.iter().enumerate() {
+            for k in 0..d {
+                f_ext[d * i + k] += s.phi[a] * force[k];
+            }
+        }
+    }
     let mut phi_bb = DMatrix::<f64>::zeros(nb, nb);
     for (r, s) in at_b.iter().enumerate() {
         for (a, &j) in s.nodes.iter().enumerate() {
@@ -453,6 +470,10 @@ fn run(
             origin = step + 1;
             continue;
         }
+        // the out-of-balance force f_int − λ f_ext
+        for (fq, e) in f.iter_mut().zip(&f_ext) {
+            *fq -= lambda * e;
+        }
         // Eq. 3.8 with l = the previous step: the Rayleigh quotient of the last change, which
         // aligns with the slowest mode as the relaxation proceeds
         let (mut num, mut den) = (0.0, 0.0);
@@ -511,6 +532,11 @@ fn run(
             }
             if error < params.tolerance && local > loading_steps + 2 * params.update_every {
                 let energy = model.forces(&u, &mut f).unwrap_or(f64::NAN);
+                let scale = f.iter().map(|x| x * x).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+                for (fq, e) in f.iter_mut().zip(&f_ext) {
+                    *fq -= e;
+                }
+                let residual = (0..nd).filter(|&q| !constrained[q]).map(|q| f[q] * f[q]).sum::<f64>().sqrt() / scale;
                 // reactions: Φ_bb⁻ᵀ f_b per component
                 let mut reactions = Vec::with_capacity(problem.prescribed.len());
                 let mut per = vec![0.0; nb * d];
@@ -542,6 +568,7 @@ fn run(
                     reactions,
                     steps: step + 1,
                     error,
+                    residual,
                     restarts,
                 });
             }

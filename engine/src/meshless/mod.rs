@@ -16,6 +16,7 @@ pub mod cutting;
 pub mod efg;
 pub mod grid;
 pub mod mls;
+pub mod organ;
 pub mod reference;
 
 pub use mls::{MlsError, NodeCloud, ShapeValues};

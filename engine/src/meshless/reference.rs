@@ -56,6 +56,7 @@ pub fn square(n: usize, stretch: f64, poisson: f64, q: usize) -> Result<Pulled, 
             points: box_grid(2, [0.0; 3], [0.1, 0.1, 0.0], [q * (n - 1), q * (n - 1), 1], |_| true),
             law: Hyperelastic::neo_hookean(&LinearElastic::new(3000.0, poisson)?),
             prescribed,
+            loads: Vec::new(),
         },
         pulled,
     })
@@ -90,6 +91,7 @@ pub fn cube(n: usize, stretch: f64, poisson: f64, q: usize) -> Result<Pulled, cr
             points: box_grid(3, [0.0; 3], [0.1; 3], [c, c, c], |_| true),
             law: Hyperelastic::neo_hookean(&LinearElastic::new(3000.0, poisson)?),
             prescribed,
+            loads: Vec::new(),
         },
         pulled,
     })

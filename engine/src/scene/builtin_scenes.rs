@@ -1,7 +1,7 @@
 //! Scenes compiled into the binary, so defaults need no files.
 
 /// Names of the built-in scenes; the first is the default.
-pub const BUILTIN_NAMES: [&str; 4] = ["organ", "patch", "cantilever", "cornea"];
+pub const BUILTIN_NAMES: [&str; 5] = ["organ", "patch", "cantilever", "cornea", "stretch"];
 
 /// The TOML text of a built-in scene.
 pub fn builtin(name: &str) -> Option<&'static str> {
@@ -10,6 +10,7 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "patch" => PATCH,
         "cantilever" => CANTILEVER,
         "cornea" => CORNEA,
+        "stretch" => STRETCH,
         _ => return None,
     })
 }
@@ -188,4 +189,42 @@ locking = "none"
 positions = 9
 max_force = 0.126                    # N, the seed's pinch
 load_steps = 6
+"#;
+
+const STRETCH: &str = r#"# Seed 004, Table 5.2, by the meshless solver: a soft cube stretched by 20 %.
+[scene]
+name = "stretch"
+description = "A 0.1 m cube of brain-like neo-Hookean material (E = 3000 Pa, nu = 0.49), face y = 0 clamped, face y = 0.1 m pulled 0.02 m with its x and z motion fixed; solved by element-free Galerkin with adaptive dynamic relaxation (13^3 nodes). Abaqus (seed 004, 17,576 nodes): 0.06477 J, 6.109 N."
+
+[[organs]]
+name = "cube"
+density = 1000.0
+
+[organs.mesh]
+builtin = "block"
+size = [0.1, 0.1, 0.1]
+divisions = [12, 12, 12]
+cell = "hex8"
+
+[[organs.materials]]
+model = "neo_hookean"
+young = 3000.0
+poisson = 0.49
+
+[organs.fixed]
+box = { min = [0.0, 0.0, 0.0], max = [0.1, 0.0, 0.1] }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]
+kind = "displacement"
+name = "pulled"
+region = { box = { min = [0.0, 0.1, 0.0], max = [0.1, 0.1, 0.1] } }
+x = 0.0
+y = 0.02
+z = 0.0
+
+[fidelity]
+solver = "meshless"
 "#;

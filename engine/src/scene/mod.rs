@@ -24,6 +24,7 @@ use crate::material::{self, LinearElastic};
 use crate::mesh::boundary::Boundary;
 use crate::mesh::select::{GroupRef, Region, nearest_node};
 use crate::mesh::{self, CellKind, Mesh, procedural};
+use crate::meshless::cut::Cut;
 pub use builtin_scenes::{BUILTIN_NAMES, builtin};
 use locate::Seg;
 use schema::*;
@@ -239,6 +240,47 @@ impl Scene {
         }
         if p.max_modes == 0 || p.max_iterations == 0 || p.block == 0 {
             return Err(self.error_at(&pgd, "max_modes, max_iterations and block must be at least 1"));
+        }
+        self.validate_meshless()
+    }
+
+    /// `[fidelity.meshless]` and the organs' cuts.
+    fn validate_meshless(&self) -> Result<(), SceneError> {
+        let s = &self.spec;
+        let m = &s.fidelity.meshless;
+        let key = |k: &'static str| [Seg::Key("fidelity"), Seg::Key("meshless"), Seg::Key(k)];
+        if !(m.support.is_finite() && m.support > 1.0 && m.support <= 10.0) {
+            return Err(self.error_at(
+                &key("support"),
+                "the influence radius must lie in (1, 10] mean edge lengths (2.2 is the usual choice)",
+            ));
+        }
+        if !(1..=2).contains(&m.integration) {
+            return Err(self.error_at(&key("integration"), "integration must be 1 or 2 points per cell and axis"));
+        }
+        if !(m.tolerance.is_finite() && m.tolerance > 0.0) {
+            return Err(self.error_at(&key("tolerance"), "the tolerance must be a positive length (m)"));
+        }
+        if m.max_steps == 0 || m.max_steps <= m.loading_steps {
+            return Err(self.error_at(&key("max_steps"), "max_steps must exceed loading_steps"));
+        }
+        for (o, organ) in s.organs.iter().enumerate() {
+            for (c, cut) in organ.cuts.iter().enumerate() {
+                let at = [Seg::Key("organs"), Seg::Index(o), Seg::Key("cuts"), Seg::Index(c)];
+                if s.fidelity.solver != SolverKind::Meshless {
+                    return Err(self.error_at(
+                        &at,
+                        "pre-planned cuts are made by the meshless solver: set fidelity.solver = \"meshless\"",
+                    ));
+                }
+                if !s.effects.cutting {
+                    return Err(self.error_at(&at, "the organ has cuts but cutting is off: set effects.cutting = true"));
+                }
+                let blade: Vec<([f64; 3], [f64; 3])> = cut.blade.iter().map(|b| (b[0], b[1])).collect();
+                if let Err(e) = Cut::swept(&blade) {
+                    return Err(self.error_at(&[&at[..], &[Seg::Key("blade")]].concat(), e.to_string()));
+                }
+            }
         }
         Ok(())
     }
@@ -506,6 +548,24 @@ impl Scene {
     pub fn organ_model(&self, index: usize) -> Result<OrganModel, SceneError> {
         let mesh = self.organ_mesh(index)?;
         self.organ_model_with_mesh(index, mesh)
+    }
+
+    /// Organ `index`'s pre-planned cuts (validated when the scene was read).
+    pub fn organ_cuts(&self, index: usize) -> Result<Vec<Cut>, SceneError> {
+        self.spec.organs[index]
+            .cuts
+            .iter()
+            .enumerate()
+            .map(|(c, cut)| {
+                let blade: Vec<([f64; 3], [f64; 3])> = cut.blade.iter().map(|b| (b[0], b[1])).collect();
+                Cut::swept(&blade).map_err(|e| {
+                    self.error_at(
+                        &[Seg::Key("organs"), Seg::Index(index), Seg::Key("cuts"), Seg::Index(c)],
+                        e.to_string(),
+                    )
+                })
+            })
+            .collect()
     }
 
     /// Like [`Scene::organ_model`], with a mesh already built (e.g. to reuse it).

@@ -58,6 +58,19 @@ pub struct OrganSpec {
     /// Static loads applied by `vademecum solve`.
     #[serde(default)]
     pub loads: Vec<LoadSpec>,
+    /// Pre-planned cuts, made by the meshless solver on the loaded organ (needs
+    /// `fidelity.solver = "meshless"` and `effects.cutting = true`).
+    #[serde(default)]
+    pub cuts: Vec<CutSpec>,
+}
+
+/// `[[organs.cuts]]`: a cut swept by a straight blade, in the mesh's (reference) coordinates.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CutSpec {
+    /// Successive blade positions, each the blade's two end points (m); each step from one
+    /// position to the next sweeps a quadrilateral of the cut surface.
+    pub blade: Vec<[[f64; 3]; 2]>,
 }
 
 /// Built-in procedural meshes.
@@ -269,6 +282,73 @@ pub struct Fidelity {
     /// Settings of the large-deformation lattice (used when `effects.deformation = "large"`).
     #[serde(default)]
     pub large: LargeFidelity,
+    /// The solver of `vademecum solve`: finite elements (default) or the meshless reference.
+    #[serde(default)]
+    pub solver: SolverKind,
+    /// Settings of the meshless solver.
+    #[serde(default)]
+    pub meshless: MeshlessFidelity,
+}
+
+/// Which solver `vademecum solve` runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverKind {
+    /// Finite elements: linear, or Newton–Raphson for hyperelastic organs.
+    #[default]
+    Fem,
+    /// Element-free Galerkin with adaptive dynamic relaxation (seed 004), hyperelastic organs.
+    Meshless,
+}
+
+/// `[fidelity.meshless]`: the meshless (EFG, adaptive dynamic relaxation) solver.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshlessFidelity {
+    /// Influence radius of each node, in mean lengths of the mesh edges at the node.
+    #[serde(default = "default_support")]
+    pub support: f64,
+    /// Integration points per cell and axis: 1 (cell centres) or 2 (4 per tetrahedron, 8 per
+    /// hexahedron; the relaxation then needs far fewer steps).
+    #[serde(default = "default_integration")]
+    pub integration: usize,
+    /// Absolute accuracy of the displacements at which the relaxation stops (m).
+    #[serde(default = "default_meshless_tolerance")]
+    pub tolerance: f64,
+    /// Relaxation steps over which the loads are ramped.
+    #[serde(default = "default_loading_steps")]
+    pub loading_steps: usize,
+    /// Most relaxation steps in all.
+    #[serde(default = "default_max_steps")]
+    pub max_steps: usize,
+}
+
+fn default_support() -> f64 {
+    2.2
+}
+fn default_integration() -> usize {
+    2
+}
+fn default_meshless_tolerance() -> f64 {
+    1e-7
+}
+fn default_loading_steps() -> usize {
+    2000
+}
+fn default_max_steps() -> usize {
+    200_000
+}
+
+impl Default for MeshlessFidelity {
+    fn default() -> Self {
+        Self {
+            support: default_support(),
+            integration: default_integration(),
+            tolerance: default_meshless_tolerance(),
+            loading_steps: default_loading_steps(),
+            max_steps: default_max_steps(),
+        }
+    }
 }
 
 /// `[fidelity.large]`: the lattice of ANM-POD models (seed 001) built for large deformations.

@@ -11,8 +11,12 @@ use vademecum_engine::fem::Locking;
 use vademecum_engine::fem::hyperelastic::Volumetric;
 use vademecum_engine::fem::linear_static::{self, Timings};
 use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
+use vademecum_engine::mesh::Mesh;
 use vademecum_engine::mesh::vtk::{self, Field};
-use vademecum_engine::scene::Scene;
+use vademecum_engine::meshless::efg::AdrParams;
+use vademecum_engine::meshless::organ::{self, OrganSettings};
+use vademecum_engine::scene::schema::SolverKind;
+use vademecum_engine::scene::{OrganModel, Scene};
 
 use crate::cli_main::cli::{SceneSource, SolveArgs};
 use crate::cli_main::progress::Stages;
@@ -38,7 +42,32 @@ struct OrganSummary {
     /// Newton–Raphson steps, iterations and cuts, for hyperelastic organs.
     #[serde(skip_serializing_if = "Option::is_none")]
     newton: Option<NewtonSummary>,
+    /// `fem` or `meshless`.
+    solver: &'static str,
+    /// The meshless solver's discretisation, relaxation and cuts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    meshless: Option<MeshlessSummary>,
     output: PathBuf,
+}
+
+#[derive(Debug, Serialize)]
+struct MeshlessSummary {
+    /// Nodes of the cloud (the mesh's, plus those the cuts added).
+    cloud_nodes: usize,
+    integration_points: usize,
+    /// Relaxation steps of the last relaxation (after the last cut, if any).
+    relaxation_steps: usize,
+    /// Estimated absolute error of the displacements (m).
+    error_estimate_m: f64,
+    /// Restarts with heavier masses after an inverted transient.
+    restarts: usize,
+    threads: usize,
+    /// Strain energy of the loaded organ before its cuts (J).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    uncut_strain_energy_j: Option<f64>,
+    cuts: usize,
+    nodes_split: usize,
+    nodes_inserted: usize,
 }
 
 #[derive(Debug, Serialize)]
@@ -73,6 +102,11 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         let progress = Stages::start(&name);
         progress.stage("building mesh and loads");
         let model = scene.organ_model(i)?;
+        if scene.spec.fidelity.solver == SolverKind::Meshless {
+            organs.push(solve_meshless(&scene, i, &model, &out, &progress)?);
+            progress.finish();
+            continue;
+        }
         let (sol, newton) = match &model.laws {
             None => (
                 linear_static::solve(&model.mesh, &model.materials, model.locking, &model.problem, &mut |s| {
@@ -148,6 +182,8 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
                 iterations: i.iterations,
                 cuts: i.cuts,
             }),
+            solver: "fem",
+            meshless: None,
             output: file,
         });
     }
@@ -193,6 +229,20 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
                 "  time               {:.3} s (assembly {:.3}, analysis {:.3}, factorization {:.3}, solve {:.3}, post {:.3})",
                 o.solve_time_s, t.assembly_s, t.analysis_s, t.factorization_s, t.solve_s, t.post_s
             )?;
+            if let Some(m) = &o.meshless {
+                writeln!(
+                    stdout,
+                    "  meshless           {} cloud nodes, {} integration points, {} relaxation steps (error {:.1e} m), {} thread(s)",
+                    m.cloud_nodes, m.integration_points, m.relaxation_steps, m.error_estimate_m, m.threads
+                )?;
+                if let Some(e) = m.uncut_strain_energy_j {
+                    writeln!(
+                        stdout,
+                        "  cuts               {} ({} nodes split, {} inserted); strain energy before cutting {e:.6e} J",
+                        m.cuts, m.nodes_split, m.nodes_inserted
+                    )?;
+                }
+            }
             if let Some(n) = &o.newton {
                 writeln!(
                     stdout,
@@ -208,4 +258,134 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         )?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `fidelity.solver = "meshless"`: the organ by EFG and adaptive dynamic relaxation (seed 004),
+/// with its pre-planned cuts; the same summary and .vtu as the finite-element solve.
+fn solve_meshless(
+    scene: &Scene,
+    index: usize,
+    model: &OrganModel,
+    out: &std::path::Path,
+    progress: &Stages,
+) -> anyhow::Result<OrganSummary> {
+    let name = &model.name;
+    let law = match &model.laws {
+        Some(laws) if laws.laws.len() == 1 => laws.laws[0],
+        Some(_) => anyhow::bail!("organ '{name}': the meshless solver takes one material per organ"),
+        None => anyhow::bail!(
+            "organ '{name}': the meshless solver is nonlinear; give the organ a hyperelastic material (neo_hookean, stvk or mooney_rivlin)"
+        ),
+    };
+    let f = &scene.spec.fidelity.meshless;
+    let settings = OrganSettings {
+        support: f.support,
+        integration: f.integration,
+        params: AdrParams {
+            tolerance: f.tolerance,
+            loading_steps: f.loading_steps,
+            max_steps: f.max_steps,
+            ..AdrParams::default()
+        },
+    };
+    let cuts = scene.organ_cuts(index)?;
+    let started = std::time::Instant::now();
+    progress.stage("meshless: shape functions");
+    let result = organ::solve(&model.mesh, law, &model.problem, &cuts, &settings, |stage, step, error| {
+        let what = if stage == 0 {
+            "loading".to_string()
+        } else {
+            format!("after cut {stage}")
+        };
+        progress.stage(&format!("meshless relaxation {what}: step {step}, error {error:.1e} m"));
+    })
+    .with_context(|| format!("organ '{name}' could not be solved by the meshless solver"))?;
+    let solve_time_s = started.elapsed().as_secs_f64();
+    progress.stage("writing .vtu");
+    let sol = &result.solution;
+    let mesh: &Mesh = &model.mesh;
+    // reactions: the conjugate of each prescribed component, summed per named region
+    let entries = &result.prescribed;
+    let mut nodal = vec![0.0; 3 * mesh.n_nodes()];
+    for (&(node, k, _), r) in entries.iter().zip(&sol.reactions) {
+        nodal[3 * node + k] += r;
+    }
+    let reaction_force_n = model
+        .named_regions
+        .iter()
+        .map(|(n, nodes)| {
+            let mut sum = [0.0; 3];
+            for &i in nodes {
+                for k in 0..3 {
+                    sum[k] += nodal[3 * i + k];
+                }
+            }
+            (n.clone(), sum)
+        })
+        .collect();
+    let (mut max_d, mut max_node) = (0.0, 0);
+    for i in 0..mesh.n_nodes() {
+        let d = (0..3).map(|k| result.displacement[3 * i + k].powi(2)).sum::<f64>().sqrt();
+        if d > max_d {
+            (max_d, max_node) = (d, i);
+        }
+    }
+    let file = out.join(format!("{name}.vtu"));
+    vtk::write_vtu(
+        &file,
+        mesh,
+        &[
+            Field {
+                name: "displacement",
+                components: 3,
+                values: &result.displacement,
+            },
+            Field {
+                name: "reaction",
+                components: 3,
+                values: &nodal,
+            },
+        ],
+        &[Field {
+            name: "von_mises",
+            components: 1,
+            values: &result.von_mises,
+        }],
+    )?;
+    let free = 3 * result.cloud.len() - entries.len();
+    Ok(OrganSummary {
+        name: name.clone(),
+        cell_kind: mesh.kind.name(),
+        nodes: mesh.n_nodes(),
+        cells: mesh.n_cells(),
+        dofs: 3 * result.cloud.len(),
+        equations: free,
+        nonzeros_lower: 0,
+        strain_energy_j: sol.energy,
+        max_displacement_m: max_d,
+        max_displacement_node: max_node,
+        max_von_mises_pa: result.von_mises.iter().copied().fold(0.0, f64::max),
+        reaction_force_n,
+        relative_residual: sol.residual,
+        solve_time_s,
+        timings: Timings {
+            solve_s: solve_time_s,
+            ..Timings::default()
+        },
+        newton: None,
+        solver: "meshless",
+        meshless: Some(MeshlessSummary {
+            cloud_nodes: result.cloud.len(),
+            integration_points: result.integration_points,
+            relaxation_steps: sol.steps,
+            error_estimate_m: sol.error,
+            restarts: sol.restarts,
+            threads: rayon::current_num_threads(),
+            uncut_strain_energy_j: result.uncut.as_ref().map(|u| u.energy),
+            cuts: cuts.len(),
+            nodes_split: result.cut_nodes.split,
+            nodes_inserted: result.cut_nodes.inserted,
+        }),
+        output: file,
+    })
 }
