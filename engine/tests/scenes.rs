@@ -18,7 +18,15 @@ fn every_builtin_scene_solves_in_equilibrium() {
                 let total: f64 = (0..m.mesh.n_nodes())
                     .map(|n| sol.reactions[3 * n + k] + m.problem.forces[3 * n + k])
                     .sum();
-                let scale = m.problem.forces.iter().map(|f| f.abs()).sum::<f64>().max(1e-30);
+                // forces, or the reactions of prescribed displacements when there are none
+                let scale = m
+                    .problem
+                    .forces
+                    .iter()
+                    .chain(&sol.reactions)
+                    .map(|f| f.abs())
+                    .sum::<f64>()
+                    .max(1e-30);
                 assert!(total.abs() < 1e-9 * scale, "{name}: force balance {k}: {total}");
             }
             assert!(sol.strain_energy > 0.0 && sol.max_displacement > 0.0);

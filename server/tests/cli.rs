@@ -175,59 +175,30 @@ fn run_refuses_a_bad_trajectory_with_its_line() {
     assert!(!e.contains("building"), "a bad script fails before any build: {e}");
 }
 
-/// Seed 004 Table 5.2 through a scene file: a neo-Hookean material makes `vademecum solve`
-/// take the large-deformation path (Newton–Raphson, mean-dilatation hexahedra).
-const NEO_HOOKEAN_CUBE: &str = r#"[scene]
-name = "cube"
-description = "Seed 004 Table 5.2: neo-Hookean cube pulled 20 %."
-
-[[organs]]
-name = "cube"
-density = 1000.0
-
-[organs.mesh]
-builtin = "block"
-size = [0.1, 0.1, 0.1]
-divisions = [12, 12, 12]
-cell = "hex8"
-
-[[organs.materials]]
-model = "neo_hookean"
-young = 3000.0
-poisson = 0.49
-
-[organs.fixed]
-box = { min = [0.0, 0.0, 0.0], max = [0.1, 0.0, 0.1] }
-
-[organs.accessible]
-half_space = { point = [0.0, 0.1, 0.0], normal = [0.0, 1.0, 0.0] }
-
-[[organs.loads]]
-kind = "displacement"
-name = "pull"
-region = { box = { min = [0.0, 0.1, 0.0], max = [0.1, 0.1, 0.1] } }
-x = 0.0
-y = 0.02
-z = 0.0
-"#;
-
 #[test]
 fn solve_takes_the_large_deformation_path_for_a_neo_hookean_scene() {
+    // seed 004 Table 5.2 (the built-in 'stretch' scene) with the finite-element solver: a
+    // neo-Hookean material makes `vademecum solve` take the large-deformation path
+    // (Newton–Raphson, mean-dilatation hexahedra)
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("cube.toml"), NEO_HOOKEAN_CUBE).unwrap();
+    let show = vademecum(&["scene", "show", "stretch"], dir.path());
+    assert!(show.status.success());
+    let cube = stdout(&show).replace("solver = \"meshless\"", "solver = \"fem\"");
+    assert!(cube.contains("solver = \"fem\""));
+    std::fs::write(dir.path().join("cube.toml"), &cube).unwrap();
     let o = vademecum(&["solve", "cube.toml", "--json"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     let organ = &v["organs"][0];
     // Abaqus (17,576 nodes): 0.06477 J, 6.109 N; 12³ mean dilatation is within 1 %
     let w = organ["strain_energy_j"].as_f64().unwrap();
-    let f = organ["reaction_force_n"]["pull"][1].as_f64().unwrap();
+    let f = organ["reaction_force_n"]["pulled"][1].as_f64().unwrap();
     assert!((w / 0.06477 - 1.0).abs() < 0.01, "energy {w} J");
     assert!((f / 6.109 - 1.0).abs() < 0.01, "reaction {f} N");
     assert!(organ["newton"]["iterations"].as_u64().unwrap() > 0, "{organ}");
     assert!(organ["max_von_mises_pa"].as_f64().unwrap() > 0.0);
     // mixing linear and hyperelastic materials in one organ is refused with the key
-    let mixed = NEO_HOOKEAN_CUBE.replace(
+    let mixed = cube.replace(
         "[organs.fixed]",
         "[[organs.materials]]\nregion = \"all\"\nmodel = \"linear\"\nyoung = 3000.0\npoisson = 0.3\n\n[organs.fixed]",
     );

@@ -58,25 +58,8 @@ pub struct OrganSolution {
 pub fn node_radii(mesh: &Mesh, support: f64) -> Vec<f64> {
     let mut sum = vec![0.0; mesh.n_nodes()];
     let mut count = vec![0usize; mesh.n_nodes()];
-    let edges: &[(usize, usize)] = match mesh.kind {
-        CellKind::Tet4 => &[(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)],
-        CellKind::Hex8 => &[
-            (0, 1),
-            (1, 2),
-            (2, 3),
-            (3, 0),
-            (4, 5),
-            (5, 6),
-            (6, 7),
-            (7, 4),
-            (0, 4),
-            (1, 5),
-            (2, 6),
-            (3, 7),
-        ],
-    };
     for cell in mesh.cells_iter() {
-        for &(a, b) in edges {
+        for &(a, b) in crate::mesh::quality::edges(mesh.kind) {
             let (i, j) = (cell[a], cell[b]);
             let l = (0..3).map(|k| (mesh.nodes[i][k] - mesh.nodes[j][k]).powi(2)).sum::<f64>().sqrt();
             for n in [i, j] {

@@ -97,7 +97,7 @@ geometry of a large organ).")]
 pub struct SceneSource {
     /// Scene file (TOML). Default: the built-in scene named by --builtin.
     pub scene: Option<PathBuf>,
-    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever, cornea).
+    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever, cornea, stretch).
     #[arg(long, default_value = "organ", conflicts_with = "scene")]
     pub builtin: String,
 }
@@ -250,7 +250,7 @@ pub struct MeshInfoArgs {
 pub enum SceneCommand {
     /// Print a built-in scene's TOML (a starting point for your own).
     Show {
-        /// Built-in scene name (organ, patch, cantilever, cornea).
+        /// Built-in scene name (organ, patch, cantilever, cornea, stretch).
         #[arg(default_value = "organ")]
         name: String,
     },
@@ -338,7 +338,12 @@ strain (E = 3000 Pa, nu = 0.49), edge x = 0 clamped, edge x = 0.1 m pulled 20 % 
 fixed; Abaqus (1,681 nodes) gives 0.847 J and 77.64 N per metre of thickness. Each --nodes size \
 runs with each --threads count and each --integration density (run time, relaxation steps); then \
 --stretch values on --range-nodes; then the 3D cube of Table 5.2 (0.06477 J, 6.109 N) at \
---cube-nodes."
+--cube-nodes with each --threads count, and at the --stretch values on --cube-range-nodes.\n\n\
+Cutting (seed 004 section 4.3): the stretched square is cut along A(0.05, 0.09) B(0.059, 0.082) \
+C(0.066, 0.075) D(0.058, 0.052) (points on the stretched body, traced back to the material points \
+there; the cut enters from the top edge through A) in three stages, relaxed after each; Abaqus \
+(pre-cut square, 7,813 nodes) gives 0.507 J and 46.91 N. Each --cut-nodes size runs with regular \
+nodes and with nodes refined around the cut; --plot draws the cut specimen."
     )]
     Efg(BenchEfgArgs),
 }
@@ -365,6 +370,18 @@ pub struct BenchEfgArgs {
     /// Integration points per cell side: 1 (the seed's one point per cell) and/or 2 (2 x 2).
     #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2])]
     pub integration: Vec<usize>,
+    /// Nodes per edge of the cube's stretch range study (none: skip it).
+    #[arg(long)]
+    pub cube_range_nodes: Option<usize>,
+    /// Nodes per edge of the cutting study of Fig. 4.8 (none: skip it).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![41, 61])]
+    pub cut_nodes: Vec<usize>,
+    /// Also start the cut at A itself, leaving the 0.05 mm ligament between A and the edge.
+    #[arg(long)]
+    pub cut_at_a: bool,
+    /// Draw the cut specimen at the end of cutting (SVG), from the first --cut-nodes size.
+    #[arg(long, value_name = "SVG")]
+    pub plot: Option<PathBuf>,
     /// Print the rows as JSON.
     #[arg(long)]
     pub json: bool,
