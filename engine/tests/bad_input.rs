@@ -255,3 +255,34 @@ fn a_fixed_region_that_allows_rigid_motion_is_a_clear_solver_error() {
     }
     assert!(e.to_string().contains("rotation"), "{e}");
 }
+
+#[test]
+fn bad_meshless_settings_and_cuts_name_the_key() {
+    let meshless = GOOD_SCENE.to_string() + "\n[fidelity]\nsolver = \"meshless\"\n";
+    Scene::from_toml(&meshless, "s.toml").unwrap();
+    for (setting, key) in [
+        ("support = 0.5", "fidelity.meshless.support"),
+        ("integration = 3", "fidelity.meshless.integration"),
+        ("tolerance = -1e-7", "fidelity.meshless.tolerance"),
+        ("loading_steps = 10\nmax_steps = 5", "fidelity.meshless.max_steps"),
+    ] {
+        let bad = format!("{meshless}\n[fidelity.meshless]\n{setting}\n");
+        let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+        assert_eq!(e.key.as_deref(), Some(key), "{setting}: {e}");
+    }
+    // a cut needs cutting on (and a scalpel), and blade positions that sweep an area
+    let cut = "\n[[organs.cuts]]\nblade = [[[0.0, 0.05, 0.0], [0.0, 0.05, 0.1]], [[0.1, 0.05, 0.0], [0.1, 0.05, 0.1]]]\n";
+    let with_cut = GOOD_SCENE.replace("[organs.fixed]", &format!("{cut}\n[organs.fixed]"));
+    let e = Scene::from_toml(&(with_cut.clone() + "\n[fidelity]\nsolver = \"meshless\"\n"), "s.toml").unwrap_err();
+    assert!(e.to_string().contains("effects.cutting = true"), "{e}");
+    let tools = "\n[[tools]]\nkind = \"scalpel\"\nname = \"s\"\nblade_length = 0.02\ncut_force = 1.0\n\n[effects]\ncutting = true\n\n[fidelity]\nsolver = \"meshless\"\n";
+    let ok = Scene::from_toml(&(with_cut.clone() + tools), "s.toml").unwrap();
+    assert_eq!(ok.organ_cuts(0).unwrap().len(), 1);
+    let flat = with_cut.replace("[[0.1, 0.05, 0.0], [0.1, 0.05, 0.1]]", "[[0.0, 0.05, 0.0], [0.0, 0.05, 0.1]]");
+    let e = Scene::from_toml(&(flat + tools), "s.toml").unwrap_err();
+    assert_eq!(e.key.as_deref(), Some("organs[0].cuts[0].blade"));
+    assert!(e.to_string().contains("sweep no area"), "{e}");
+    let nan = with_cut.replace("0.05, 0.1]]]", "nan, 0.1]]]");
+    let e = Scene::from_toml(&(nan + tools), "s.toml").unwrap_err();
+    assert!(e.to_string().contains("not finite"), "{e}");
+}
