@@ -22,6 +22,7 @@
 #![allow(non_snake_case)]
 
 pub mod bundle;
+pub mod dense;
 pub mod fem;
 pub mod material;
 pub mod mesh;

@@ -20,6 +20,7 @@
 //! through the cut (the visibility criterion).
 
 use super::cut::Cut;
+use crate::dense::{cholesky_relative, cholesky_solve};
 
 /// The quartic spline weight `w(r̄)` and its derivative `dw/dr̄` (Eq. 3.9).
 pub fn quartic_spline(r: f64) -> (f64, f64) {
@@ -85,48 +86,6 @@ struct CutState {
     side: Vec<f64>,
     sight: Vec<[f64; 3]>,
     near: Vec<bool>,
-}
-
-/// Solves the `n × n` (n ≤ 4) symmetric system `a x = b` by Cholesky; `None` when `a` is not
-/// (numerically) positive definite.
-fn spd_solve(a: &[[f64; 4]; 4], n: usize, b: &[f64; 4]) -> Option<[f64; 4]> {
-    let mut l = [[0.0; 4]; 4];
-    let scale = (0..n).map(|i| a[i][i].abs()).fold(0.0, f64::max);
-    for j in 0..n {
-        let mut d = a[j][j];
-        for k in 0..j {
-            d -= l[j][k] * l[j][k];
-        }
-        if d.is_nan() || d <= 1e-12 * scale {
-            return None;
-        }
-        let d = d.sqrt();
-        l[j][j] = d;
-        for i in j + 1..n {
-            let mut s = a[i][j];
-            for k in 0..j {
-                s -= l[i][k] * l[j][k];
-            }
-            l[i][j] = s / d;
-        }
-    }
-    let mut y = [0.0; 4];
-    for i in 0..n {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i][k] * y[k];
-        }
-        y[i] = s / l[i][i];
-    }
-    let mut x = [0.0; 4];
-    for i in (0..n).rev() {
-        let mut s = y[i];
-        for k in i + 1..n {
-            s -= l[k][i] * x[k];
-        }
-        x[i] = s / l[i][i];
-    }
-    Some(x)
 }
 
 impl NodeCloud {
@@ -358,17 +317,27 @@ impl NodeCloud {
         // The basis in a frame centred on x: p(y) = [1, (y − x)/h] (an affine change of basis
         // leaves the MLS functions unchanged). At y = x, p = e₀ and ∂p/∂y_k = e_{k+1}/h; the
         // frame is held fixed while differentiating, so A,k comes from the weights alone.
-        let e0 = [1.0, 0.0, 0.0, 0.0];
-        let gamma = spd_solve(&a, m, &e0).ok_or_else(|| singular(n))?;
+        // one factorisation of A for γ and its derivatives; a relative pivot floor reports
+        // nodes (nearly) on a line or plane as singular instead of inverting noise
+        let mut l = [0.0; 16];
+        for r in 0..m {
+            for c in 0..m {
+                l[r * m + c] = a[r][c];
+            }
+        }
+        cholesky_relative(&mut l[..m * m], m, 1e-12).map_err(|_| singular(n))?;
+        let mut gamma = [0.0; 4];
+        gamma[0] = 1.0;
+        cholesky_solve(&l[..m * m], m, &mut gamma[..m]);
         let mut dgamma = [[0.0; 4]; 3];
         for k in 0..dim {
             // A γ,k = p,k − A,k γ
-            let mut rhs = [0.0; 4];
+            let rhs = &mut dgamma[k];
             rhs[k + 1] = 1.0 / h;
             for r in 0..m {
                 rhs[r] -= (0..m).map(|c| da[k][r][c] * gamma[c]).sum::<f64>();
             }
-            dgamma[k] = spd_solve(&a, m, &rhs).ok_or_else(|| singular(n))?;
+            cholesky_solve(&l[..m * m], m, &mut rhs[..m]);
         }
         out.phi.clear();
         out.grad.clear();

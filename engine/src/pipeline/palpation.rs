@@ -85,25 +85,19 @@ impl Effect for Palpation {
         if f == [0.0; 3] {
             return;
         }
-        if self.large
-            && let Some(lattice) = &self.organs[organ].0.anm
-        {
-            let nodes = &self.organs[organ].0.nodes;
-            let mut point = [0.0; 3];
-            for (a, &w) in cp.nodes.iter().zip(&cp.weights) {
-                for k in 0..3 {
-                    point[k] += w * nodes[*a][k];
-                }
-            }
-            let s = lattice.stiffness_ratio(point, cp.depth, NEIGHBOURS, &mut self.scratch);
-            f = f.map(|x| x * s.ratio);
-        }
+        // the contact point on the reference surface
         let nodes = &self.organs[organ].0.nodes;
         let mut point = [0.0; 3];
         for (a, &w) in cp.nodes.iter().zip(&cp.weights) {
             for k in 0..3 {
                 point[k] += w * nodes[*a][k];
             }
+        }
+        if self.large
+            && let Some(lattice) = &self.organs[organ].0.anm
+        {
+            let s = lattice.stiffness_ratio(point, cp.depth, NEIGHBOURS, &mut self.scratch);
+            f = f.map(|x| x * s.ratio);
         }
         state.force_n = [state.force_n[0] - f[0], state.force_n[1] - f[1], state.force_n[2] - f[2]];
         state.contact = Some(Contact {

@@ -30,9 +30,9 @@
 //! load. The one-step use of seed 001 §6 (one series from the unloaded state, tangent at the
 //! origin) is [`Series`] evaluated past its radius, which is where its error grows.
 
-use super::dense::{cholesky, cholesky_solve};
 use super::pod::dot;
 use super::svk::ReducedSvk;
+use crate::dense::{cholesky, cholesky_solve};
 
 /// Highest order supported.
 pub const MAX_ORDER: usize = 8;

@@ -15,10 +15,9 @@
 //! - [`podi_online`]: seed 001 §5 online — a model at a new position from its neighbours'
 //!   stored models (PODI basis, interpolated tangent, load and nonlinear terms), mesh-free.
 //! - [`study`]: ANM-POD against full Newton on a scene's load case (seed 001 §6).
-//! - [`dense`]: small in-place Cholesky for the online solves.
+//! - [`crate::dense`] (outside this module): the small in-place Cholesky of the online solves.
 
 pub mod anm;
-pub mod dense;
 pub mod interpolate;
 pub mod lattice;
 pub mod palpation;

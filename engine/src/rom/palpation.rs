@@ -272,9 +272,9 @@ impl AnmLattice {
         let path = anm::continuation(&model, &f, reached, &AnmParams::default())?;
         // linear displacement under the full load: the order-1 term at the origin
         let mut k = model.k1.clone();
-        super::dense::cholesky(&mut k, pod.modes).map_err(|pivot| anm::AnmError::Unstable { lambda: 0.0, pivot })?;
+        crate::dense::cholesky(&mut k, pod.modes).map_err(|pivot| anm::AnmError::Unstable { lambda: 0.0, pivot })?;
         let mut z = f.clone();
-        super::dense::cholesky_solve(&k, pod.modes, &mut z);
+        crate::dense::cholesky_solve(&k, pod.modes, &mut z);
         let d_linear = probe.iter().zip(&z).map(|(p, z)| p * z).sum();
         Ok(AnmPosition {
             node,

@@ -1,16 +1,25 @@
-//! Dense symmetric positive definite solves of reduced size (`r × r`, row-major), in place,
-//! for the online paths: no allocation, no threads.
+//! Small dense symmetric positive definite solves (`n × n`, row-major), in place: the reduced
+//! systems of the online paths (`rom`) and the MLS moment matrices (`meshless::mls`). No
+//! allocation, no threads.
 
 /// Overwrites the lower triangle of `a` (`n × n`, row-major) with its Cholesky factor `L`
 /// (`a = L Lᵀ`). Fails with the index of the first pivot that is not positive (or not
 /// finite): the matrix is not positive definite.
 pub fn cholesky(a: &mut [f64], n: usize) -> Result<(), usize> {
+    cholesky_relative(a, n, 0.0)
+}
+
+/// [`cholesky`], also failing when a squared pivot falls to `relative` times the largest
+/// diagonal entry or below: the matrix is numerically singular (e.g. an MLS moment matrix of
+/// nodes nearly on one line).
+pub fn cholesky_relative(a: &mut [f64], n: usize, relative: f64) -> Result<(), usize> {
+    let floor = relative * (0..n).map(|i| a[i * n + i].abs()).fold(0.0, f64::max);
     for j in 0..n {
         let mut d = a[j * n + j];
         for k in 0..j {
             d -= a[j * n + k] * a[j * n + k];
         }
-        if d.is_nan() || d <= 0.0 || !d.is_finite() {
+        if d.is_nan() || d <= floor || d <= 0.0 || !d.is_finite() {
             return Err(j);
         }
         let d = d.sqrt();
@@ -61,5 +70,9 @@ mod tests {
         assert_eq!(cholesky(&mut indefinite, 2), Err(1));
         let mut nan = [f64::NAN];
         assert_eq!(cholesky(&mut nan, 1), Err(0));
+        // positive but negligible against the diagonal: singular with a relative floor
+        let mut nearly = [1.0, 1.0, 1.0, 1.0 + 1e-14];
+        assert!(cholesky(&mut nearly.clone(), 2).is_ok());
+        assert_eq!(cholesky_relative(&mut nearly, 2, 1e-12), Err(1));
     }
 }
