@@ -270,6 +270,13 @@ fn solve_on_a_meshless_scene_prints_the_same_summary_and_cuts() {
     assert_eq!(m["nodes_split"], 45, "{m}");
     assert!(m["relaxation_steps"].as_u64().unwrap() > 0 && m["cloud_nodes"].as_u64().unwrap() == 729 + 45);
     assert!(dir.path().join("out/cube_cut/cube.vtu").is_file());
+    // the node cloud shows both faces of the cut: 45 nodes on each, flagged ±1
+    let cloud = std::fs::read_to_string(dir.path().join("out/cube_cut/cube_nodes.vtu")).unwrap();
+    assert!(cloud.contains("NumberOfPoints=\"774\""), "{}", &cloud[..300]);
+    let face = cloud.split("Name=\"face\"").nth(1).unwrap().split("</DataArray>").next().unwrap();
+    let values: Vec<f64> = face.split_whitespace().filter_map(|t| t.parse().ok()).collect();
+    assert_eq!(values.iter().filter(|&&v| v == 1.0).count(), 45);
+    assert_eq!(values.iter().filter(|&&v| v == -1.0).count(), 45);
     // a cut is refused without the meshless solver, with its key
     let fem = scene.replace("solver = \"meshless\"", "solver = \"fem\"");
     std::fs::write(dir.path().join("fem.toml"), fem).unwrap();

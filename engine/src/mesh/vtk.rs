@@ -239,7 +239,14 @@ pub fn write_surface_vtu(path: &Path, positions: &[[f64; 3]], triangles: &[usize
     write_unstructured(path, positions, triangles, 3, 5, None, point_data, &[])
 }
 
-/// The `.vtu` writer behind [`write_vtu`] and [`write_surface_vtu`]: cells of one type with
+/// Writes a cloud of points as an ASCII `.vtu` (one VTK vertex per point) with point data —
+/// e.g. a meshless solver's nodes, which a mesh cannot show once a cut has split them.
+pub fn write_points_vtu(path: &Path, positions: &[[f64; 3]], point_data: &[Field<'_>]) -> Result<(), MeshError> {
+    let cells: Vec<usize> = (0..positions.len()).collect();
+    write_unstructured(path, positions, &cells, 1, 1, None, point_data, &[])
+}
+
+/// The `.vtu` writer behind [`write_vtu`], [`write_surface_vtu`] and [`write_points_vtu`]: cells of one type with
 /// `npc` nodes each, flat in `cells`; `regions` (integers) becomes the `region` cell array.
 #[allow(clippy::too_many_arguments)]
 fn write_unstructured(

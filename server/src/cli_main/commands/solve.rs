@@ -68,6 +68,9 @@ struct MeshlessSummary {
     cuts: usize,
     nodes_split: usize,
     nodes_inserted: usize,
+    /// The node cloud (with both faces of the cuts), for organs with cuts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cloud_output: Option<PathBuf>,
 }
 
 #[derive(Debug, Serialize)]
@@ -242,6 +245,9 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
                         m.cuts, m.nodes_split, m.nodes_inserted
                     )?;
                 }
+                if let Some(f) = &m.cloud_output {
+                    writeln!(stdout, "  node cloud         {} (both faces of the cuts)", f.display())?;
+                }
             }
             if let Some(n) = &o.newton {
                 writeln!(
@@ -352,6 +358,38 @@ fn solve_meshless(
             values: &result.von_mises,
         }],
     )?;
+    // with cuts, the mesh cannot show the opening: the node cloud, each node displaced by its
+    // face's displacement, can (ParaView: Warp By Vector on 'displacement')
+    let cloud_output = if cuts.is_empty() {
+        None
+    } else {
+        let cloud_file = out.join(format!("{name}_nodes.vtu"));
+        let sides = result.cloud.sides().unwrap_or(&[]);
+        let cut = result.cloud.cut();
+        let face: Vec<f64> = (0..result.cloud.len())
+            .map(|i| match cut {
+                Some(c) if c.distance(result.cloud.points()[i]) < 1e-9 * mesh.diameter() => sides.get(i).copied().unwrap_or(0.0),
+                _ => 0.0,
+            })
+            .collect();
+        vtk::write_points_vtu(
+            &cloud_file,
+            result.cloud.points(),
+            &[
+                Field {
+                    name: "displacement",
+                    components: 3,
+                    values: &sol.displacement,
+                },
+                Field {
+                    name: "face",
+                    components: 1,
+                    values: &face,
+                },
+            ],
+        )?;
+        Some(cloud_file)
+    };
     let free = 3 * result.cloud.len() - entries.len();
     Ok(OrganSummary {
         name: name.clone(),
@@ -385,6 +423,7 @@ fn solve_meshless(
             cuts: cuts.len(),
             nodes_split: result.cut_nodes.split,
             nodes_inserted: result.cut_nodes.inserted,
+            cloud_output,
         }),
         output: file,
     })
