@@ -315,8 +315,7 @@ pub fn cauchy_at_centre(
     }
     let part = if mean { Part::Isochoric } else { Part::Full };
     let r = law.response(&(f.transpose() * f), part).ok_or(CellError::Inverted { det_f })?;
-    let sm = Matrix3::from_fn(|i, j| r.stress[voigt_index(i, j)]);
-    let mut sigma = f * sm * f.transpose() / det_f;
+    let mut sigma = f * r.stress_tensor() * f.transpose() / det_f;
     if mean {
         // θ over the cell, from the same quadrature as the energy
         let (mut v, mut vol) = (0.0, 0.0);
@@ -343,14 +342,6 @@ fn deformation_gradient(u: &[f64], g: &[[f64; 3]]) -> Matrix3<f64> {
         }
     }
     f
-}
-
-fn voigt_index(i: usize, j: usize) -> usize {
-    let (a, b) = (i.min(j), i.max(j));
-    VOIGT
-        .iter()
-        .position(|&(p, q)| (p.min(q), p.max(q)) == (a, b))
-        .expect("every pair has a Voigt index")
 }
 
 #[cfg(test)]

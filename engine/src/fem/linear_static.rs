@@ -154,13 +154,7 @@ impl StaticSolution {
 
     /// Sum of reactions over `nodes` (N).
     pub fn reaction_sum(&self, nodes: &[usize]) -> [f64; 3] {
-        let mut r = [0.0; 3];
-        for &n in nodes {
-            for i in 0..3 {
-                r[i] += self.reactions[3 * n + i];
-            }
-        }
-        r
+        super::node_sum(&self.reactions, nodes)
     }
 }
 

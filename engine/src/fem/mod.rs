@@ -27,3 +27,15 @@ pub mod nonlinear_static;
 pub mod shape;
 
 pub use element::Locking;
+
+/// The sum over `nodes` of a field with three components per node (e.g. the reactions on a
+/// region, N).
+pub fn node_sum(values: &[f64], nodes: &[usize]) -> [f64; 3] {
+    let mut s = [0.0; 3];
+    for &n in nodes {
+        for i in 0..3 {
+            s[i] += values[3 * n + i];
+        }
+    }
+    s
+}

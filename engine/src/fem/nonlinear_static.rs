@@ -84,13 +84,7 @@ pub struct NonlinearSolution {
 impl NonlinearSolution {
     /// Sum of the reactions over `nodes` (N).
     pub fn reaction_sum(&self, nodes: &[usize]) -> [f64; 3] {
-        let mut s = [0.0; 3];
-        for &n in nodes {
-            for i in 0..3 {
-                s[i] += self.f_int[3 * n + i];
-            }
-        }
-        s
+        super::node_sum(&self.f_int, nodes)
     }
 }
 

@@ -96,6 +96,18 @@ fn sym_product(b: &Matrix3<f64>, s: f64, out: &mut [[f64; 6]; 6]) {
     }
 }
 
+impl Response {
+    /// `S` as a symmetric 3 × 3 matrix.
+    pub fn stress_tensor(&self) -> Matrix3<f64> {
+        let mut s = Matrix3::zeros();
+        for (q, &(i, j)) in VOIGT.iter().enumerate() {
+            s[(i, j)] = self.stress[q];
+            s[(j, i)] = self.stress[q];
+        }
+        s
+    }
+}
+
 fn voigt(m: &Matrix3<f64>) -> [f64; 6] {
     VOIGT.map(|(i, j)| m[(i, j)])
 }

@@ -87,9 +87,7 @@ pub fn cut_cloud(
             points.push(p);
             radius.push(r);
             side.push(face);
-            for k in 0..d {
-                values.push(s.nodes.iter().zip(&s.phi).map(|(&j, f)| f * field[d * j + k]).sum());
-            }
+            values.extend_from_slice(&s.interpolate(field, d)[..d]);
             count.inserted += 1;
         }
         added.push(p);

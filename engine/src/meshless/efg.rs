@@ -30,7 +30,7 @@ use rayon::prelude::*;
 
 use super::grid::IntegrationPoint;
 use super::mls::{MlsError, NodeCloud, ShapeValues};
-use crate::material::hyperelastic::{Hyperelastic, Part, VOIGT};
+use crate::material::hyperelastic::{Hyperelastic, Part};
 
 /// A meshless large-deformation problem.
 #[derive(Debug, Clone)]
@@ -166,22 +166,9 @@ impl Model {
     fn point(&self, p: usize, u: &[f64], f: &mut [f64]) -> Option<f64> {
         let d = self.dim;
         let (s, w) = (&self.shapes[p], self.weights[p]);
-        let mut fm = Matrix3::<f64>::identity();
-        for (a, &i) in s.nodes.iter().enumerate() {
-            for k in 0..d {
-                for j in 0..d {
-                    fm[(k, j)] += u[d * i + k] * s.grad[a * d + j];
-                }
-            }
-        }
-        let c = fm.transpose() * fm;
-        let r = self.law.response(&c, Part::Full)?;
-        let mut sm = Matrix3::zeros();
-        for (q, &(i, j)) in VOIGT.iter().enumerate() {
-            sm[(i, j)] = r.stress[q];
-            sm[(j, i)] = r.stress[q];
-        }
-        let pk = fm * sm;
+        let fm = s.deformation_gradient(u, d);
+        let r = self.law.response(&(fm.transpose() * fm), Part::Full)?;
+        let pk = fm * r.stress_tensor();
         for (a, &i) in s.nodes.iter().enumerate() {
             for k in 0..d {
                 f[d * i + k] += w * (0..d).map(|j| pk[(k, j)] * s.grad[a * d + j]).sum::<f64>();
@@ -491,8 +478,7 @@ fn run(
         if step % params.update_every.max(1) == 0 && step > 0 {
             omega2 = estimate;
         }
-        // the estimated optimal damping, while loading as while relaxing: light damping during
-        // a fast ramp lets kinetic energy pile up at the moving boundary and invert it
+        // large strains stiffen: re-measure the highest frequency and grow the masses
         if step > 0 && step % RESCALE_EVERY == 0 {
             let now = highest_frequency(&model, &u, &mass, &constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS / 4);
             if now.is_finite() && now * MARGIN > 4.0 {
@@ -504,6 +490,8 @@ fn run(
                 estimate /= grow;
             }
         }
+        // the estimated optimal damping, while loading as while relaxing: light damping during
+        // a fast ramp lets kinetic energy pile up at the moving boundary and invert it
         let c = 2.0 * omega2.sqrt();
         let (alpha, beta) = (2.0 / (2.0 + c), (2.0 - c) / (2.0 + c));
         let mut change = 0.0f64;
@@ -551,15 +539,11 @@ fn run(
                 for &(i, k, _) in &problem.prescribed {
                     reactions.push(per[bindex(i).expect("listed") * d + k]);
                 }
-                let mut displacement = vec![0.0; nd];
+                let mut displacement = Vec::with_capacity(nd);
                 let mut s = ShapeValues::default();
                 for i in 0..n {
                     cloud.shape_at_node(i, &mut s)?;
-                    for (a, &j) in s.nodes.iter().enumerate() {
-                        for k in 0..d {
-                            displacement[d * i + k] += s.phi[a] * u[d * j + k];
-                        }
-                    }
+                    displacement.extend_from_slice(&s.interpolate(&u, d)[..d]);
                 }
                 return Ok(EfgSolution {
                     field: u,
@@ -587,17 +571,7 @@ pub fn deformation_at(cloud: &NodeCloud, field: &[f64], x: [f64; 3]) -> Result<(
     let d = cloud.dim();
     let mut s = ShapeValues::default();
     cloud.shape(x, &mut s)?;
-    let mut u = [0.0; 3];
-    let mut f = Matrix3::identity();
-    for (a, &i) in s.nodes.iter().enumerate() {
-        for k in 0..d {
-            u[k] += s.phi[a] * field[d * i + k];
-            for j in 0..d {
-                f[(k, j)] += field[d * i + k] * s.grad[a * d + j];
-            }
-        }
-    }
-    Ok((u, f))
+    Ok((s.interpolate(field, d), s.deformation_gradient(field, d)))
 }
 
 /// The opening of the cut at `x` (reference configuration, on the cut): the displacement of
@@ -608,11 +582,7 @@ pub fn opening(cloud: &NodeCloud, field: &[f64], x: [f64; 3]) -> Result<f64, Mls
     let mut u = [[0.0; 3]; 2];
     for (face, side) in [1.0, -1.0].into_iter().enumerate() {
         cloud.shape_on_side(x, side, &mut s)?;
-        for (a, &i) in s.nodes.iter().enumerate() {
-            for k in 0..d {
-                u[face][k] += s.phi[a] * field[d * i + k];
-            }
-        }
+        u[face] = s.interpolate(field, d);
     }
     Ok((0..d).map(|k| (u[0][k] - u[1][k]).powi(2)).sum::<f64>().sqrt())
 }
@@ -633,14 +603,8 @@ pub fn pull_back(cloud: &NodeCloud, field: &[f64], x: [f64; 3]) -> Option<[f64; 
         if r.norm() <= 1e-12 * size.max(f64::MIN_POSITIVE) {
             return Some(xr);
         }
-        let fd = if d == 2 {
-            let mut m = f;
-            m[(2, 2)] = 1.0;
-            m
-        } else {
-            f
-        };
-        let step = fd.lu().solve(&r)?;
+        // in 2D, F₃₃ = 1 and r₃ = 0: the third row and column leave the step alone
+        let step = f.lu().solve(&r)?;
         for k in 0..d {
             xr[k] -= step[k];
         }

@@ -65,6 +65,34 @@ pub struct ShapeValues {
     pub grad: Vec<f64>,
 }
 
+impl ShapeValues {
+    /// The approximation `Σ_I φ_I u_I` of a field with `dim` components per node (`u`, flat;
+    /// the components beyond `dim` are 0).
+    pub fn interpolate(&self, u: &[f64], dim: usize) -> [f64; 3] {
+        let mut v = [0.0; 3];
+        for (&i, &phi) in self.nodes.iter().zip(&self.phi) {
+            for k in 0..dim {
+                v[k] += phi * u[dim * i + k];
+            }
+        }
+        v
+    }
+
+    /// The deformation gradient `F = I + Σ_I u_I ⊗ ∇φ_I` of the displacement field variables
+    /// `u` (`dim` per node; in 2D, plane strain: `F₃₃ = 1`).
+    pub fn deformation_gradient(&self, u: &[f64], dim: usize) -> nalgebra::Matrix3<f64> {
+        let mut f = nalgebra::Matrix3::identity();
+        for (a, &i) in self.nodes.iter().enumerate() {
+            for k in 0..dim {
+                for j in 0..dim {
+                    f[(k, j)] += u[dim * i + k] * self.grad[a * dim + j];
+                }
+            }
+        }
+        f
+    }
+}
+
 /// A cloud of nodes with their influence radii and a uniform bucket grid for the search.
 #[derive(Debug, Clone)]
 pub struct NodeCloud {
@@ -247,8 +275,7 @@ impl NodeCloud {
     /// The shape functions and their gradients at `x` into `out` (a point on the cut is
     /// allocated to the positive face).
     pub fn shape(&self, x: [f64; 3], out: &mut ShapeValues) -> Result<(), MlsError> {
-        let sight = self.cut.as_ref().map_or(x, |c| c.cut.sight(x, 1.0));
-        self.shape_seen(x, sight, out)
+        self.shape_on_side(x, 1.0, out)
     }
 
     /// The shape functions at node `i`'s position, on node `i`'s face of the cut.

@@ -18,7 +18,7 @@ use super::mls::NodeCloud;
 use crate::fem::element::von_mises;
 use crate::fem::linear_static::StaticProblem;
 use crate::fem::shape;
-use crate::material::hyperelastic::{Hyperelastic, Part, VOIGT};
+use crate::material::hyperelastic::{Hyperelastic, Part};
 use crate::mesh::{CellKind, Mesh};
 
 /// How an organ is discretised and relaxed.
@@ -49,9 +49,18 @@ pub struct OrganSolution {
     pub von_mises: Vec<f64>,
     /// Integration points.
     pub integration_points: usize,
-    /// The prescribed components `(node, component, value)`, in the order of the
-    /// solution's reactions.
-    pub prescribed: Vec<(usize, usize, f64)>,
+    /// Reactions at the mesh's nodes (3 per node, N): the conjugate of each prescribed
+    /// component, zero elsewhere.
+    pub reactions: Vec<f64>,
+    /// Prescribed components.
+    pub prescribed: usize,
+}
+
+impl OrganSolution {
+    /// Sum of the reactions over `nodes` (N).
+    pub fn reaction_sum(&self, nodes: &[usize]) -> [f64; 3] {
+        crate::fem::node_sum(&self.reactions, nodes)
+    }
 }
 
 /// Influence radii: `support` × the mean length of the edges of the cells at each node.
@@ -149,10 +158,14 @@ pub fn inside(mesh: &Mesh, x: [f64; 3]) -> bool {
         }
         let mut xi = [0.0; 3];
         for _ in 0..20 {
-            let (n, dn): (Vec<f64>, Vec<[f64; 3]>) = match mesh.kind {
-                CellKind::Tet4 => (vec![1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]], shape::TET_DN.to_vec()),
-                CellKind::Hex8 => (shape::hex_n(xi).to_vec(), shape::hex_dn(xi).to_vec()),
-            };
+            let (mut n, mut dn) = ([0.0; 8], [[0.0; 3]; 8]);
+            match mesh.kind {
+                CellKind::Tet4 => {
+                    n[..4].copy_from_slice(&[1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]]);
+                    dn[..4].copy_from_slice(&shape::TET_DN);
+                }
+                CellKind::Hex8 => (n, dn) = (shape::hex_n(xi), shape::hex_dn(xi)),
+            }
             let mut r = nalgebra::Vector3::<f64>::zeros();
             let mut j = Matrix3::<f64>::zeros();
             for a in 0..npc {
@@ -244,6 +257,10 @@ pub fn solve(
         }
     }
     let displacement = solution.displacement[..3 * mesh.n_nodes()].to_vec();
+    let mut reactions = vec![0.0; 3 * mesh.n_nodes()];
+    for (&(node, k, _), r) in problem.prescribed.iter().zip(&solution.reactions) {
+        reactions[3 * node + k] += r;
+    }
     let von_mises = cell_von_mises(mesh, &problem.cloud, &solution.field, &law);
     Ok(OrganSolution {
         uncut,
@@ -253,7 +270,8 @@ pub fn solve(
         displacement,
         von_mises,
         integration_points,
-        prescribed: problem.prescribed,
+        reactions,
+        prescribed: problem.prescribed.len(),
     })
 }
 
@@ -277,12 +295,7 @@ fn cell_von_mises(mesh: &Mesh, cloud: &NodeCloud, field: &[f64], law: &Hyperelas
             let Some(r) = law.response(&(f.transpose() * f), Part::Full) else {
                 return 0.0;
             };
-            let mut s = Matrix3::zeros();
-            for (q, &(i, j)) in VOIGT.iter().enumerate() {
-                s[(i, j)] = r.stress[q];
-                s[(j, i)] = r.stress[q];
-            }
-            let sigma = f * s * f.transpose() / f.determinant();
+            let sigma = f * r.stress_tensor() * f.transpose() / f.determinant();
             von_mises([
                 sigma[(0, 0)],
                 sigma[(1, 1)],

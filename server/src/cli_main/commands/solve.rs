@@ -310,24 +310,10 @@ fn solve_meshless(
     progress.stage("writing .vtu");
     let sol = &result.solution;
     let mesh: &Mesh = &model.mesh;
-    // reactions: the conjugate of each prescribed component, summed per named region
-    let entries = &result.prescribed;
-    let mut nodal = vec![0.0; 3 * mesh.n_nodes()];
-    for (&(node, k, _), r) in entries.iter().zip(&sol.reactions) {
-        nodal[3 * node + k] += r;
-    }
     let reaction_force_n = model
         .named_regions
         .iter()
-        .map(|(n, nodes)| {
-            let mut sum = [0.0; 3];
-            for &i in nodes {
-                for k in 0..3 {
-                    sum[k] += nodal[3 * i + k];
-                }
-            }
-            (n.clone(), sum)
-        })
+        .map(|(n, nodes)| (n.clone(), result.reaction_sum(nodes)))
         .collect();
     let (mut max_d, mut max_node) = (0.0, 0);
     for i in 0..mesh.n_nodes() {
@@ -349,7 +335,7 @@ fn solve_meshless(
             Field {
                 name: "reaction",
                 components: 3,
-                values: &nodal,
+                values: &result.reactions,
             },
         ],
         &[Field {
@@ -390,7 +376,7 @@ fn solve_meshless(
         )?;
         Some(cloud_file)
     };
-    let free = 3 * result.cloud.len() - entries.len();
+    let free = 3 * result.cloud.len() - result.prescribed;
     Ok(OrganSummary {
         name: name.clone(),
         cell_kind: mesh.kind.name(),
