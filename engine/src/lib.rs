@@ -1,6 +1,7 @@
 //! Numerics of vademecum: meshes, materials, finite elements, sparse solvers and scenes.
 //!
 //! # Layout
+//! - [`contact`]: a spherical tool tip against an organ's surface, tracked by a proxy.
 //! - [`mesh`]: volume meshes (tet4, hex8), Gmsh and VTK readers, `.vtu`/`.pvd` writers,
 //!   boundary surfaces, selections, quality, procedural meshes.
 //! - [`material`]: constitutive laws.
@@ -22,6 +23,7 @@
 #![allow(non_snake_case)]
 
 pub mod bundle;
+pub mod contact;
 pub mod dense;
 pub mod fem;
 pub mod material;

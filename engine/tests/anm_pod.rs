@@ -1,6 +1,8 @@
 //! ANM-POD (seed 001 §6) against full Newton–Raphson on the same mesh: the built-in cornea
 //! (§6.1) and the liver palpation (§6.2, on the shared OpenHELP mesh when it is present).
 
+mod common;
+
 use std::path::PathBuf;
 
 use vademecum_engine::fem::hyperelastic::LawMap;
@@ -71,15 +73,8 @@ fn the_cornea_pinched_by_anm_pod_follows_newton() {
 }
 
 fn shared_scene() -> Option<PathBuf> {
-    let dir = std::env::var_os("VADEMECUM_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared"));
-    if dir.join("data/meshes/derived/openhelp_liver_tet_h20.msh").is_file() {
-        Some(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../scenes/liver_palpation_large.toml"))
-    } else {
-        eprintln!("skipped: shared data not found at {} (set VADEMECUM_SHARED)", dir.display());
-        None
-    }
+    common::shared_data()?;
+    Some(common::repo_root().join("scenes/liver_palpation_large.toml"))
 }
 
 #[test]

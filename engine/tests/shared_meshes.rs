@@ -4,7 +4,9 @@
 //!
 //! The data lives beside the repository, never in it. Set `VADEMECUM_SHARED` to its folder;
 //! by default `../shared` next to the checkout is used. When it is absent, each test says it
-//! is skipped and passes.
+//! is skipped and passes — except under CI (`CI` set), where it fails.
+
+mod common;
 
 use std::path::PathBuf;
 
@@ -12,16 +14,7 @@ use vademecum_engine::mesh::{self, CellKind};
 use vademecum_engine::scene::Scene;
 
 fn shared() -> Option<PathBuf> {
-    let dir = std::env::var_os("VADEMECUM_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared"));
-    let meshes = dir.join("data/meshes");
-    if meshes.is_dir() {
-        Some(meshes)
-    } else {
-        eprintln!("skipped: shared data not found at {} (set VADEMECUM_SHARED)", meshes.display());
-        None
-    }
+    common::shared_data().map(|d| d.join("data/meshes"))
 }
 
 /// (file, nodes, used nodes, cells, kind) from SOURCES.md.

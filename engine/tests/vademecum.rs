@@ -206,53 +206,68 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
 }
 
 #[test]
-fn probe_contact_gives_force_only_when_touching_the_accessible_surface() {
-    use vademecum_engine::pgd::contact::SurfaceContact;
-    let (_, b) = built(400);
-    let v = &b.vademecum;
-    let mesh = &b.model.mesh;
-    let surface = b.model.boundary.triangles();
-    let c = SurfaceContact::new(&mesh.nodes, &surface, v);
-    assert!(!c.is_empty());
-    let r = 0.004;
-    let force_at = |tip: [f64; 3]| -> [f64; 3] {
-        match c.query(tip, r) {
-            Some(cp) => {
-                let comp = v.compliance(cp.nodes, cp.weights).unwrap();
-                Vademecum::contact_force(&comp, cp.penetration)
-            }
-            None => [0.0; 3],
-        }
+fn the_probe_feels_the_tissue_on_the_accessible_surface_and_the_support_below() {
+    use std::sync::Arc;
+    use vademecum_engine::pipeline::{Events, Pipeline, ToolInput};
+    let (scene, b) = built(400);
+    let dir = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir.path(), &scene, &b).unwrap();
+    let bundle = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    let r = 0.012;
+    let fresh = || Pipeline::for_scene(&scene, std::slice::from_ref(&bundle)).unwrap();
+    let at = |p: &mut Pipeline, tip: [f64; 3]| {
+        p.tick(&ToolInput {
+            position_m: tip,
+            ..ToolInput::default()
+        })
     };
-    // pressing 1 mm into the top face (z = 0.02): the tissue is pushed down
-    let tip = [0.04, 0.02, 0.02 + r - 0.001];
-    let cp = c.query(tip, r).expect("touching");
-    assert!((cp.depth - 0.001).abs() < 1e-12 && cp.penetration[2] < 0.0);
-    let f = force_at(tip);
+    // pressing 1 mm into the top face (z = 0.02): the tool is pushed back up
+    let mut p = fresh();
+    let s = at(&mut p, [0.04, 0.02, 0.02 + r - 0.001]);
+    let c = s.contact.expect("touching");
+    assert!((c.depth_m - 0.001).abs() < 1e-12, "{}", c.depth_m);
+    let f = s.force_n;
     assert!(
-        f[2] < 0.0 && f[0].abs() < 0.2 * f[2].abs() && f[1].abs() < 0.2 * f[2].abs(),
+        f[2] > 0.0 && f[0].abs() < 0.2 * f[2] && f[1].abs() < 0.2 * f[2],
         "mostly along the normal: {f:?}"
     );
+    // the tissue carries all of it on the accessible face
+    for k in 0..3 {
+        assert!((c.tissue_force_n[k] + f[k]).abs() <= 1e-12 * f[2]);
+    }
+    // the force is exactly the vademecum's C(s)⁻¹δ
+    let comp = bundle.vademecum.compliance(c.nodes, c.weights).unwrap();
+    let direct = Vademecum::contact_force(&comp, [0.0, 0.0, -0.001]);
+    for k in 0..3 {
+        assert!((direct[k] + f[k]).abs() <= 1e-9 * f[2], "{direct:?} vs {f:?}");
+    }
     // deeper press, larger force
-    let f2 = force_at([0.04, 0.02, 0.02 + r - 0.002]);
-    assert!(f2[2] < f[2]);
+    let f2 = at(&mut p, [0.04, 0.02, 0.02 + r - 0.002]).force_n;
+    assert!(f2[2] > f[2]);
     // sliding by small steps changes the force by small amounts (continuity)
-    let mut prev = force_at([0.03, 0.013, 0.02 + r - 0.001]);
+    let mut prev = at(&mut p, [0.03, 0.013, 0.02 + r - 0.001]).force_n;
     for i in 1..=200 {
         let x = 0.03 + 0.02 * i as f64 / 200.0;
         let y = 0.013 + 0.014 * i as f64 / 200.0;
-        let f = force_at([x, y, 0.02 + r - 0.001]);
+        let f = at(&mut p, [x, y, 0.02 + r - 0.001]).force_n;
         assert!(
             (f[2] - prev[2]).abs() < 0.1 * prev[2].abs(),
             "jump from {prev:?} to {f:?} at step {i}"
         );
         prev = f;
     }
-    // far above, NaN, below the fixed bottom: no contact, zero force
-    assert_eq!(force_at([0.04, 0.02, 0.05]), [0.0; 3]);
-    assert_eq!(force_at([f64::NAN, 0.02, 0.02]), [0.0; 3]);
-    assert!(c.query([0.04, 0.02, 0.02], f64::NAN).is_none());
-    assert_eq!(force_at([0.04, 0.02, -0.003]), [0.0; 3]);
+    // far above: released, zero force; NaN: rejected, zero force
+    assert_eq!(at(&mut p, [0.04, 0.02, 0.05]).force_n, [0.0; 3]);
+    let s = at(&mut p, [f64::NAN, 0.02, 0.02]);
+    assert!(s.events.has(Events::REJECTED_INPUT) && s.force_n == [0.0; 3]);
+    // coming up from below the fixed bottom: the rigid support pushes the tool away, and the
+    // tissue carries nothing
+    let mut p = fresh();
+    assert_eq!(at(&mut p, [0.04, 0.02, -0.05]).force_n, [0.0; 3]);
+    let s = at(&mut p, [0.04, 0.02, -0.003 - r + 0.012]);
+    let c = s.contact.expect("touching the support");
+    assert!(s.force_n[2] < 0.0, "{:?}", s.force_n);
+    assert_eq!(c.tissue_force_n, [0.0; 3]);
 }
 
 #[test]

@@ -4,7 +4,7 @@
 //! positions ≤ 1e-3 against the brute-force solution on the same mesh, with fewer bytes
 //! than the full parametric solution.
 
-use std::path::PathBuf;
+mod common;
 
 use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
@@ -35,21 +35,8 @@ fn builtin_organ_reaches_1e_3_at_the_default_tolerance() {
 
 #[test]
 fn liver_reaches_1e_3_at_the_default_tolerance() {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let shared = std::env::var_os("VADEMECUM_SHARED")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root.join("../shared"));
-    let mesh = shared.join("data/meshes/derived/openhelp_liver_tet_h20.msh");
-    if !mesh.is_file() {
-        eprintln!("skipped: {} not found (set VADEMECUM_SHARED)", mesh.display());
-        return;
-    }
-    let text = std::fs::read_to_string(root.join("scenes/liver_h20.toml")).unwrap();
-    let text = text.replace(
-        "../../shared/data/meshes/derived/openhelp_liver_tet_h20.msh",
-        &mesh.to_string_lossy(),
-    );
-    let scene = Scene::from_toml(&text, root.join("scenes/liver_h20.toml")).unwrap();
+    let Some(shared) = common::shared_data() else { return };
+    let scene = common::shared_scene("liver_h20.toml", &shared);
     let r = default_build(&scene);
     assert_eq!((r.nodes, r.load_states), (3463, 501));
     check(&r);

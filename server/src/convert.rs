@@ -23,11 +23,17 @@ pub fn tool_input(t: &pb::ToolState) -> ToolInput {
         kind: match pb::ToolKind::try_from(t.kind) {
             Ok(pb::ToolKind::Scalpel) => ToolKind::Scalpel,
             Ok(pb::ToolKind::Grasper) => ToolKind::Grasper,
-            _ => ToolKind::Probe,
+            Ok(pb::ToolKind::Probe) | Ok(pb::ToolKind::Unspecified) => ToolKind::Probe,
+            _ => ToolKind::Other,
         },
         position_m: vec3(t.position_m.as_ref()),
         velocity_m_s: vec3(t.velocity_m_s.as_ref()),
         closure: t.closure,
+        orientation: match &t.orientation {
+            None => [1.0, 0.0, 0.0, 0.0],
+            Some(q) if [q.w, q.x, q.y, q.z] == [0.0; 4] => [1.0, 0.0, 0.0, 0.0],
+            Some(q) => [q.w, q.x, q.y, q.z],
+        },
     }
 }
 
@@ -41,6 +47,7 @@ pub fn tool_response(a: &Answer) -> pb::ToolResponse {
             organ: c.organ as u32,
             point_m: Some(pb_vec3(c.point_m)),
             depth_m: c.depth_m,
+            proxy_m: Some(pb_vec3(c.proxy_m)),
         }),
         events: a.state.events.0,
         server_received_us: a.received_us,

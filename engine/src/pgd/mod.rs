@@ -31,7 +31,6 @@
 pub mod brute;
 pub mod build;
 pub mod compress;
-pub mod contact;
 pub mod offline;
 pub mod vademecum;
 

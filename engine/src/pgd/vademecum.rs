@@ -18,6 +18,9 @@ use crate::fem::assembly::DofMap;
 /// Marker of a node that carries no load state.
 const NOT_LOADABLE: u32 = u32::MAX;
 
+/// Smallest accepted `|det C| / ‖C‖_F³` of a contact compliance (see [`Vademecum::contact_force`]).
+const MIN_RELATIVE_DET: f64 = 1e-10;
+
 /// Exact local compliances between neighbouring load nodes: for load node j, the 3×3 blocks
 /// `C(b ← j)_{id}` = patch-averaged displacement i at load node b for a unit force in
 /// direction d over j's patch, for every b sharing a surface triangle with j (and j itself).
@@ -286,14 +289,18 @@ impl Vademecum {
     }
 
     /// The contact force (N) that displaces a surface point by `penetration` (m):
-    /// `f = C⁻¹ δ`. Returns zero for a non-finite input or a singular compliance.
+    /// `f = C⁻¹ δ`. Returns zero for a non-finite input or an ill-conditioned compliance:
+    /// `|det C| ≤ 10⁻¹⁰ ‖C‖_F³` (relative, so independent of units and tissue stiffness; for
+    /// eigenvalues 1, 1, ε the ratio is about ε/3, so condition numbers beyond about 3·10⁹
+    /// are refused, where Cramer's rule in f64 would lose most digits).
     pub fn contact_force(c: &[[f64; 3]; 3], penetration: [f64; 3]) -> [f64; 3] {
         if penetration.iter().any(|v| !v.is_finite()) {
             return [0.0; 3];
         }
         let det = c[0][0] * (c[1][1] * c[2][2] - c[1][2] * c[2][1]) - c[0][1] * (c[1][0] * c[2][2] - c[1][2] * c[2][0])
             + c[0][2] * (c[1][0] * c[2][1] - c[1][1] * c[2][0]);
-        if !(det.is_finite() && det.abs() > 0.0) {
+        let norm = c.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+        if !(det.is_finite() && norm.is_finite() && det.abs() > MIN_RELATIVE_DET * norm * norm * norm) {
             return [0.0; 3];
         }
         // Cramer's rule

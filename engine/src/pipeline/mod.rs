@@ -11,8 +11,8 @@
 //! # Layout
 //! - [`Effect`], [`ToolInput`], [`TickState`], [`Events`]: the contract between the tick
 //!   driver (the server's tick thread) and the effects.
-//! - [`palpation`]: the linear PGD deformation effect (contact of a spherical tip with the
-//!   accessible surface, force `f = C(s)⁻¹δ` from the vademecum).
+//! - [`palpation`]: the linear PGD deformation effect (a spherical tip tracked on the
+//!   organ's surface by a proxy, force `f = C(s)⁻¹δ` from the vademecum).
 
 pub mod palpation;
 
@@ -20,7 +20,7 @@ use std::sync::Arc;
 
 use crate::pgd::offline::LoadedBundle;
 use crate::scene::Scene;
-use crate::scene::schema::{DeformationModel, ToolSpec};
+use crate::scene::schema::{DeformationModel, GLOBAL_FORCE_LIMIT_N, ToolSpec};
 
 pub use palpation::Palpation;
 
@@ -34,10 +34,12 @@ pub enum ToolKind {
     Scalpel,
     /// A grasper.
     Grasper,
+    /// A kind this version does not know (a wire value out of the enum).
+    Other,
 }
 
 /// What the tick reads from the tool (SI units).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ToolInput {
     /// Tool kind.
     pub kind: ToolKind,
@@ -47,12 +49,45 @@ pub struct ToolInput {
     pub velocity_m_s: [f64; 3],
     /// Blade engagement or jaw closure, 0 (open) to 1 (closed).
     pub closure: f64,
+    /// Tool orientation as a unit quaternion `[w, x, y, z]`.
+    pub orientation: [f64; 4],
 }
 
+impl Default for ToolInput {
+    /// A probe at the origin, at rest, open, with the identity orientation.
+    fn default() -> Self {
+        Self {
+            kind: ToolKind::Probe,
+            position_m: [0.0; 3],
+            velocity_m_s: [0.0; 3],
+            closure: 0.0,
+            orientation: [1.0, 0.0, 0.0, 0.0],
+        }
+    }
+}
+
+/// How far a quaternion's norm may stray from 1 (clients may send f32-normalised or slightly
+/// drifted quaternions; anything farther is not an orientation).
+pub const QUATERNION_NORM_TOLERANCE: f64 = 0.1;
+
+/// The largest speed a tool state may carry (m/s): ten times a surgeon's fastest motion.
+pub const MAX_TOOL_SPEED_M_S: f64 = 10.0;
+
 impl ToolInput {
-    /// Whether every field is finite and the closure lies in [0, 1].
+    /// Whether every field is finite, the closure lies in [0, 1], the speed is at most
+    /// [`MAX_TOOL_SPEED_M_S`] and the orientation's norm is within
+    /// [`QUATERNION_NORM_TOLERANCE`] of 1.
     pub fn is_valid(&self) -> bool {
-        self.position_m.iter().chain(&self.velocity_m_s).all(|v| v.is_finite()) && (0.0..=1.0).contains(&self.closure)
+        let q2: f64 = self.orientation.iter().map(|x| x * x).sum();
+        let v2: f64 = self.velocity_m_s.iter().map(|x| x * x).sum();
+        self.position_m
+            .iter()
+            .chain(&self.velocity_m_s)
+            .chain(&self.orientation)
+            .all(|v| v.is_finite())
+            && (0.0..=1.0).contains(&self.closure)
+            && v2 <= MAX_TOOL_SPEED_M_S * MAX_TOOL_SPEED_M_S
+            && (q2.sqrt() - 1.0).abs() <= QUATERNION_NORM_TOLERANCE
     }
 }
 
@@ -69,6 +104,11 @@ impl Events {
     pub const CUT_ADVANCED: u32 = 4;
     /// Tissue tore (tearing effect).
     pub const TISSUE_TORN: u32 = 8;
+    /// The contact is deeper than the model's precomputed range (the large-deformation
+    /// lattice's paths): the force continues along the last computed stiffness.
+    pub const BEYOND_RANGE: u32 = 16;
+    /// The force reached the tool's `max_force` and was clamped to it (direction kept).
+    pub const FORCE_SATURATED: u32 = 32;
 
     /// Whether flag `f` is set.
     pub fn has(self, f: u32) -> bool {
@@ -85,10 +125,18 @@ pub struct Contact {
     pub nodes: [usize; 3],
     /// Barycentric weights of the contact point in it.
     pub weights: [f64; 3],
-    /// Contact point on the reference surface (m).
+    /// Point on the reference surface where the tissue is loaded (m): the proxy, or, where
+    /// the proxy touches nodes the vademecum cannot load, the nearest point of the loadable
+    /// nodes (`nodes` and `weights` describe it).
     pub point_m: [f64; 3],
-    /// Penetration depth (m, positive).
+    /// The proxy: where the tool rests on the reference surface (m).
+    pub proxy_m: [f64; 3],
+    /// Penetration depth (m, positive): how far the tip's sphere reaches below the surface
+    /// at the proxy, along the surface normal.
     pub depth_m: f64,
+    /// The part of the force the deformable tissue carries at `point_m` (N, on the tissue;
+    /// the rest goes into the rigid support).
+    pub tissue_force_n: [f64; 3],
 }
 
 /// What a tick produces, filled in by the effects in order. `Copy` and small: the tick
@@ -111,6 +159,9 @@ pub trait Effect: Send {
     /// Advances the effect by one tick for tool input `tool`, reading and updating `state`.
     /// Must not allocate, block or log.
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState);
+    /// Forgets the state carried from tick to tick (the contact proxy): the next tick starts
+    /// as if the tool had just appeared.
+    fn reset(&mut self) {}
 }
 
 /// Why a pipeline could not be assembled.
@@ -144,7 +195,16 @@ pub enum PipelineError {
 /// The effects of a session, in tick order.
 pub struct Pipeline {
     effects: Vec<Box<dyn Effect>>,
+    /// The probe's force limit (N).
+    max_force_n: f64,
+    /// Where tool positions are accepted: the organs' bounding box grown by
+    /// [`WORKSPACE_MARGIN_M`].
+    workspace: crate::contact::Bounds,
 }
+
+/// How far outside the organs' bounding box a tool position is still accepted (m); farther
+/// positions are rejected as out of range (a device or client in the wrong units or frame).
+pub const WORKSPACE_MARGIN_M: f64 = 1.0;
 
 impl std::fmt::Debug for Pipeline {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -169,12 +229,12 @@ impl Pipeline {
                 bundles: bundles.len(),
             });
         }
-        let radius = scene
+        let (radius, max_force) = scene
             .spec
             .tools
             .iter()
             .find_map(|t| match t {
-                ToolSpec::Probe { radius, .. } => Some(*radius),
+                ToolSpec::Probe { radius, max_force, .. } => Some((*radius, *max_force)),
                 _ => None,
             })
             .ok_or(PipelineError::NoProbe)?;
@@ -183,7 +243,22 @@ impl Pipeline {
             return Err(PipelineError::NoLattice { organ: i });
         }
         let effects: Vec<Box<dyn Effect>> = vec![Box::new(Palpation::new(bundles.to_vec(), radius, large))];
-        Ok(Self { effects })
+        let mut workspace = crate::contact::Bounds {
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+        };
+        for b in bundles {
+            let o = crate::contact::Bounds::of(&b.nodes, &b.surface);
+            for k in 0..3 {
+                workspace.min[k] = workspace.min[k].min(o.min[k] - WORKSPACE_MARGIN_M);
+                workspace.max[k] = workspace.max[k].max(o.max[k] + WORKSPACE_MARGIN_M);
+            }
+        }
+        Ok(Self {
+            effects,
+            max_force_n: max_force.clamp(0.0, GLOBAL_FORCE_LIMIT_N),
+            workspace,
+        })
     }
 
     /// Names of the effects, in tick order.
@@ -191,11 +266,37 @@ impl Pipeline {
         self.effects.iter().map(|e| e.name()).collect()
     }
 
-    /// One tick: every effect in order. A non-finite or out-of-range tool state gives zero
-    /// force and the `REJECTED_INPUT` event, and no effect sees it.
+    /// The tool kinds this pipeline simulates (a palpation scene: the probe only).
+    pub fn accepts(&self, kind: ToolKind) -> bool {
+        kind == ToolKind::Probe
+    }
+
+    /// Where tool positions are accepted (the organs' box grown by [`WORKSPACE_MARGIN_M`]).
+    pub fn workspace(&self) -> crate::contact::Bounds {
+        self.workspace
+    }
+
+    /// The largest force magnitude a tick returns (N): the probe's `max_force`.
+    pub fn max_force_n(&self) -> f64 {
+        self.max_force_n
+    }
+
+    /// Forgets every effect's tick-to-tick state (the contact proxy).
+    pub fn reset(&mut self) {
+        for e in &mut self.effects {
+            e.reset();
+        }
+    }
+
+    /// One tick: every effect in order. A non-finite or out-of-range tool state (see
+    /// [`ToolInput::is_valid`]; a position outside [`Pipeline::workspace`]), or a tool kind
+    /// the scene does not simulate, gives zero force and the `REJECTED_INPUT` event, and
+    /// no effect sees it (the contact carried from the last tick is kept). A force larger
+    /// than the probe's `max_force` is scaled down to it (direction kept) and flagged
+    /// `FORCE_SATURATED`; a non-finite one becomes zero.
     pub fn tick(&mut self, tool: &ToolInput) -> TickState {
         let mut state = TickState::default();
-        if !tool.is_valid() {
+        if !tool.is_valid() || !self.accepts(tool.kind) || !self.workspace.contains(tool.position_m, 0.0) {
             state.events.0 |= Events::REJECTED_INPUT;
             return state;
         }
@@ -204,6 +305,15 @@ impl Pipeline {
         }
         if !state.force_n.iter().all(|v| v.is_finite()) {
             state.force_n = [0.0; 3];
+        }
+        let norm = state.force_n.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm > self.max_force_n {
+            let scale = self.max_force_n / norm;
+            state.force_n = state.force_n.map(|x| x * scale);
+            if let Some(c) = &mut state.contact {
+                c.tissue_force_n = c.tissue_force_n.map(|x| x * scale);
+            }
+            state.events.0 |= Events::FORCE_SATURATED;
         }
         state
     }

@@ -1,28 +1,49 @@
-//! Palpation with a linear PGD vademecum (seed 000 ch. 2): a spherical tip pressing on the
-//! accessible surface of each organ.
+//! Palpation with a linear PGD vademecum (seed 000 ch. 2): a spherical tip pressing on each
+//! organ's surface, tracked by a proxy that never lets go ([`crate::contact`]).
 //!
-//! Each tick: the contact of the tip with every organ's accessible surface
-//! ([`SurfaceContact`], the deepest one wins), the compliance `C(s)` at the contact point
-//! (exact local 3×3 blocks interpolated over the triangle), the force on the tissue
-//! `f = C(s)⁻¹δ` for the imposed surface displacement δ, and its reaction `−f` on the tool.
-//! No contact, a point the vademecum cannot load, or a singular compliance give zero force.
+//! Each tick, for every organ: the proxy follows the tip over the organ's whole surface (the
+//! deepest contact wins), then the force on the tissue for the imposed surface displacement
+//! `δ = −depth · n(s)` at the proxy s:
 //!
-//! With large deformations (`effects.deformation = "large"`), the force is then scaled by the
-//! organ's ANM-POD lattice ([`crate::rom::palpation`]): the ratio of the nonlinear to the linear
-//! force at this depth, blended over the four nearest lattice positions — `O(r · order)` per
-//! position, no allocation.
+//! - on the accessible surface (every node of the triangle loadable), `f = C(s)⁻¹δ` with the
+//!   vademecum's compliance `C(s)` (exact local 3×3 blocks interpolated over the triangle);
+//! - where the surface reaches nodes the vademecum cannot load (the fixed face, the parts
+//!   outside the accessible region), the organ lies on its rigid support: with λ the weight of
+//!   the loadable nodes at s and s_L the point of their edge or vertex they span,
+//!   `f = [λ C(s_L)⁻¹ + (1 − λ) k_w I] δ`, where the support stiffness `k_w` is the stiffest
+//!   the organ gets at any loadable node (`max_a 1/λ_min(C(a))`). At λ = 1 this is the
+//!   accessible law and at λ = 0 a wall, so the force is continuous everywhere on the surface.
+//!
+//! The force on the tool is the reaction `−f`. With large deformations
+//! (`effects.deformation = "large"`) the tissue's part is scaled by the organ's ANM-POD lattice
+//! ([`crate::rom::palpation`]): the ratio of the nonlinear to the linear force at this depth,
+//! blended over the four nearest lattice positions — `O(r · order)` per position, no
+//! allocation; past the lattice's paths the ratio continues along their last tangent and the
+//! tick is flagged `BEYOND_RANGE`. The linear model has no depth range: its force grows
+//! linearly with depth until the pipeline saturates it at the probe's `max_force`.
 
 use std::sync::Arc;
 
 use super::{Contact, Effect, Events, TickState, ToolInput};
+use crate::contact::{Bounds, Proxy, Surface, Touch};
 use crate::pgd::Vademecum;
-use crate::pgd::contact::SurfaceContact;
 use crate::pgd::offline::LoadedBundle;
+
+/// One organ as the probe sees it.
+#[derive(Debug, Clone)]
+struct Organ {
+    bundle: Arc<LoadedBundle>,
+    surface: Surface,
+    bounds: Bounds,
+    proxy: Proxy,
+    /// The support stiffness `k_w` (N/m).
+    wall_stiffness: f64,
+}
 
 /// The linear-deformation effect over one vademecum per organ.
 #[derive(Debug, Clone)]
 pub struct Palpation {
-    organs: Vec<(Arc<LoadedBundle>, SurfaceContact)>,
+    organs: Vec<Organ>,
     radius_m: f64,
     large: bool,
     scratch: Vec<f64>,
@@ -30,6 +51,62 @@ pub struct Palpation {
 
 /// Lattice positions blended per evaluation (seed 001 §6.1 interpolates among four).
 const NEIGHBOURS: usize = 4;
+
+/// The stiffest the organ gets at a loadable node: `max_a 1/λ_min(C(a))` (N/m), 0 if no
+/// node is loadable.
+fn support_stiffness(v: &Vademecum) -> f64 {
+    v.load_nodes()
+        .iter()
+        .filter_map(|&a| v.compliance([a, a, a], [1.0, 0.0, 0.0]))
+        .filter_map(|c| {
+            let m = nalgebra::Matrix3::from_fn(|i, j| 0.5 * (c[i][j] + c[j][i]));
+            let low = m.symmetric_eigenvalues().min();
+            (low.is_finite() && low > 0.0).then(|| 1.0 / low)
+        })
+        .fold(0.0, f64::max)
+}
+
+impl Organ {
+    fn new(bundle: Arc<LoadedBundle>) -> Self {
+        let surface = Surface::new(&bundle.nodes, bundle.surface.clone());
+        let bounds = Bounds::of(&bundle.nodes, &bundle.surface);
+        let wall_stiffness = support_stiffness(&bundle.vademecum);
+        Self {
+            bundle,
+            surface,
+            bounds,
+            proxy: Proxy::default(),
+            wall_stiffness,
+        }
+    }
+
+    /// The force on the tissue at the touch (before any large-deformation scaling) and the
+    /// loadable part of it: `(λ, s_L weights, force of the loadable part, force of the
+    /// support part)`.
+    fn forces(&self, t: &Touch) -> (f64, [f64; 3], [f64; 3], [f64; 3]) {
+        let v = &self.bundle.vademecum;
+        let delta = t.penetration();
+        let w = t.at.weights;
+        let mut lambda = 0.0;
+        let mut wl = [0.0; 3];
+        for a in 0..3 {
+            if w[a] != 0.0 && v.is_loadable(t.nodes[a]) {
+                wl[a] = w[a];
+                lambda += w[a];
+            }
+        }
+        let wall = delta.map(|d| (1.0 - lambda) * self.wall_stiffness * d);
+        if lambda <= 0.0 {
+            return (0.0, wl, [0.0; 3], wall);
+        }
+        let wl = wl.map(|x| x / lambda);
+        let tissue = match v.compliance(t.nodes, wl) {
+            Some(c) => Vademecum::contact_force(&c, delta).map(|f| lambda * f),
+            None => [0.0; 3],
+        };
+        (lambda, wl, tissue, wall)
+    }
+}
 
 impl Palpation {
     /// Prepares the contact surfaces of `bundles` for a tip of radius `radius_m` (m); with
@@ -44,19 +121,17 @@ impl Palpation {
                 .max()
                 .unwrap_or(0)
         ];
-        let organs = bundles
-            .into_iter()
-            .map(|b| {
-                let s = SurfaceContact::new(&b.nodes, &b.surface, &b.vademecum);
-                (b, s)
-            })
-            .collect();
         Self {
-            organs,
+            organs: bundles.into_iter().map(Organ::new).collect(),
             radius_m,
             large,
             scratch,
         }
+    }
+
+    /// The support stiffness `k_w` of each organ (N/m).
+    pub fn support_stiffness(&self) -> Vec<f64> {
+        self.organs.iter().map(|o| o.wall_stiffness).collect()
     }
 }
 
@@ -66,47 +141,54 @@ impl Effect for Palpation {
     }
 
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
-        let mut best: Option<(usize, crate::pgd::contact::ContactPoint)> = None;
-        for (i, (_, surface)) in self.organs.iter().enumerate() {
-            if let Some(cp) = surface.query(tool.position_m, self.radius_m)
-                && best.is_none_or(|(_, b)| cp.depth > b.depth)
+        let mut best: Option<(usize, Touch)> = None;
+        for (i, o) in self.organs.iter_mut().enumerate() {
+            if let Some(t) = o.proxy.update(&o.surface, &o.bounds, tool.position_m, self.radius_m)
+                && best.is_none_or(|(_, b)| t.depth > b.depth)
             {
-                best = Some((i, cp));
+                best = Some((i, t));
             }
         }
-        let Some((organ, cp)) = best else {
+        let Some((organ, touch)) = best else {
             return;
         };
-        let v = &self.organs[organ].0.vademecum;
-        let Some(c) = v.compliance(cp.nodes, cp.weights) else {
-            return;
-        };
-        let mut f = Vademecum::contact_force(&c, cp.penetration);
-        if f == [0.0; 3] {
-            return;
-        }
-        // the contact point on the reference surface
-        let nodes = &self.organs[organ].0.nodes;
+        let o = &self.organs[organ];
+        let (lambda, wl, mut tissue, wall) = o.forces(&touch);
+        // the loadable point s_L, where the tissue takes its part of the load
+        let nodes = &o.bundle.nodes;
         let mut point = [0.0; 3];
-        for (a, &w) in cp.nodes.iter().zip(&cp.weights) {
+        for (a, &w) in touch.nodes.iter().zip(&wl) {
             for k in 0..3 {
                 point[k] += w * nodes[*a][k];
             }
         }
         if self.large
-            && let Some(lattice) = &self.organs[organ].0.anm
+            && lambda > 0.0
+            && let Some(lattice) = &o.bundle.anm
         {
-            let s = lattice.stiffness_ratio(point, cp.depth, NEIGHBOURS, &mut self.scratch);
-            f = f.map(|x| x * s.ratio);
+            let s = lattice.stiffness_ratio(point, touch.depth, NEIGHBOURS, &mut self.scratch);
+            tissue = tissue.map(|x| x * s.ratio);
+            if s.extrapolated {
+                state.events.0 |= Events::BEYOND_RANGE;
+            }
         }
+        let f = [0, 1, 2].map(|k| tissue[k] + wall[k]);
         state.force_n = [state.force_n[0] - f[0], state.force_n[1] - f[1], state.force_n[2] - f[2]];
         state.contact = Some(Contact {
             organ,
-            nodes: cp.nodes,
-            weights: cp.weights,
-            point_m: point,
-            depth_m: cp.depth,
+            nodes: touch.nodes,
+            weights: wl,
+            point_m: if lambda > 0.0 { point } else { touch.at.point },
+            proxy_m: touch.at.point,
+            depth_m: touch.depth,
+            tissue_force_n: tissue,
         });
         state.events.0 |= Events::CONTACT;
+    }
+
+    fn reset(&mut self) {
+        for o in &mut self.organs {
+            o.proxy.release();
+        }
     }
 }

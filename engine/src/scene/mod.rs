@@ -210,14 +210,19 @@ impl Scene {
             seen.push(tool.name());
             let positive = |v: f64| v.is_finite() && v > 0.0;
             let ok = match tool {
-                ToolSpec::Probe { radius, .. } => positive(*radius),
+                ToolSpec::Probe { radius, max_force, .. } => {
+                    positive(*radius) && positive(*max_force) && *max_force <= schema::GLOBAL_FORCE_LIMIT_N
+                }
                 ToolSpec::Scalpel {
                     blade_length, cut_force, ..
                 } => positive(*blade_length) && positive(*cut_force),
                 ToolSpec::Grasper { jaw_width, max_force, .. } => positive(*jaw_width) && positive(*max_force),
             };
             if !ok {
-                return Err(self.error_at(&at, "tool dimensions and forces must be positive numbers"));
+                return Err(self.error_at(
+                    &at,
+                    "tool dimensions and forces must be positive numbers (a probe's max_force at most 100 N)",
+                ));
             }
         }
         if s.effects.cutting && !s.tools.iter().any(|t| matches!(t, ToolSpec::Scalpel { .. })) {

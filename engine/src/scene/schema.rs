@@ -203,6 +203,18 @@ pub enum LoadSpec {
     },
 }
 
+/// The largest force any tool may render (N), whatever the scene says: about ten times what
+/// a desktop haptic device can display, a bound on what a client can ever receive.
+pub const GLOBAL_FORCE_LIMIT_N: f64 = 100.0;
+
+/// The probe's force limit when the scene gives none (N): above the 40 N peak of a firm
+/// palpation of the built-in organ at 3 probe radii, below [`GLOBAL_FORCE_LIMIT_N`].
+pub const DEFAULT_PROBE_MAX_FORCE_N: f64 = 50.0;
+
+fn default_probe_max_force() -> f64 {
+    DEFAULT_PROBE_MAX_FORCE_N
+}
+
 /// `[[tools]]`, tagged by `kind`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
@@ -213,6 +225,10 @@ pub enum ToolSpec {
         name: String,
         /// Tip radius (m).
         radius: f64,
+        /// Largest force the probe renders (N): the session clamps the force's magnitude to
+        /// it and flags the tick `FORCE_SATURATED`. At most [`GLOBAL_FORCE_LIMIT_N`].
+        #[serde(default = "default_probe_max_force")]
+        max_force: f64,
     },
     /// A scalpel.
     Scalpel {

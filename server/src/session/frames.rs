@@ -166,9 +166,8 @@ impl FrameProducer {
             frame.contact = l.state.contact;
             if let Some(c) = l.state.contact {
                 let v = &self.bundles[c.organ].vademecum;
-                // the tissue carries the opposite of the force on the tool
-                let f = l.state.force_n.map(|x| -x);
-                if v.coefficients(c.nodes, c.weights, f, &mut coeffs[c.organ]) {
+                // the deformable tissue's part of the load (the rest goes into the support)
+                if v.coefficients(c.nodes, c.weights, c.tissue_force_n, &mut coeffs[c.organ]) {
                     for (a, b) in c32[c.organ].iter_mut().zip(&coeffs[c.organ]) {
                         *a = *b as f32;
                     }

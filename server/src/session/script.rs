@@ -13,6 +13,7 @@ pub fn tool_at(trajectory: &Trajectory, t: f64) -> ToolInput {
         position_m: s.position_m,
         velocity_m_s: s.velocity_m_s,
         closure: s.closure,
+        ..ToolInput::default()
     }
 }
 

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 use vademecum_bridge::peer::HapticPeer;
 use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
-use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_SCALPEL};
+use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_PROBE, TOOL_SCALPEL};
 
 use super::stats::{Histograms, TickStats};
 use super::{Answer, Command, Script};
@@ -204,10 +204,12 @@ fn tool_input(s: &HapticState) -> ToolInput {
         kind: match s.tool {
             TOOL_SCALPEL => ToolKind::Scalpel,
             TOOL_GRASPER => ToolKind::Grasper,
-            _ => ToolKind::Probe,
+            TOOL_PROBE => ToolKind::Probe,
+            _ => ToolKind::Other,
         },
         position_m: s.position_m,
         velocity_m_s: s.velocity_m_s,
         closure: s.closure,
+        ..ToolInput::default()
     }
 }

@@ -9,9 +9,9 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use serde::Serialize;
 use vademecum_engine::pgd::Vademecum;
-use vademecum_engine::pgd::contact::SurfaceContact;
 use vademecum_engine::pgd::offline;
 use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
+use vademecum_engine::pipeline::{Effect, Palpation, TickState, ToolInput};
 
 use crate::cli_main::cli::BenchPgdArgs;
 
@@ -96,7 +96,8 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         loads.push(t.elapsed().as_secs_f64() * 1e6);
         bundle = Some(b);
     }
-    let b = bundle.expect("loaded at least once");
+    let bundle = std::sync::Arc::new(bundle.expect("loaded at least once"));
+    let b = &*bundle;
     let v = &b.vademecum;
     let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
     if tris.is_empty() {
@@ -126,11 +127,15 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         contact.push(t.elapsed().as_secs_f64() * 1e6);
         acc += black_box(f)[2];
     }
-    // the whole tick: find the contact of a probe tip, then the force
-    let surface = SurfaceContact::new(&b.nodes, &b.surface, v);
+    // the whole tick of the palpation effect: move the contact proxy, then the force. First
+    // with the proxy reset before every call (a tool appearing at a random point: the search
+    // from scratch), then tracking a tool that slides while pressed (the steady state).
     let radius = 0.004;
+    let mut palpation = Palpation::new(vec![bundle.clone()], radius, false);
+    let n_surface = b.surface.len();
     let mut tick = Vec::with_capacity(a.contacts);
     let mut touched = 0usize;
+    let mut press_points = Vec::with_capacity(a.contacts);
     for _ in 0..a.contacts {
         let tri = tris[(rng.next() % tris.len() as u64) as usize];
         let (u, w) = (rng.unit(), rng.unit());
@@ -150,19 +155,40 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(f64::MIN_POSITIVE);
         let lift = radius - 0.002 * rng.unit();
         let tip = [p[0] + lift * n[0] / len, p[1] + lift * n[1] / len, p[2] + lift * n[2] / len];
-        let t = Instant::now();
-        let f = match surface.query(black_box(tip), radius) {
-            Some(cp) => match v.compliance(cp.nodes, cp.weights) {
-                Some(c) => Vademecum::contact_force(&c, cp.penetration),
-                None => [0.0; 3],
-            },
-            None => [0.0; 3],
+        press_points.push(tip);
+        let tool = ToolInput {
+            position_m: tip,
+            ..ToolInput::default()
         };
+        let mut state = TickState::default();
+        palpation.reset();
+        let t = Instant::now();
+        palpation.tick(black_box(&tool), &mut state);
         tick.push(t.elapsed().as_secs_f64() * 1e6);
-        if f != [0.0; 3] {
+        if state.force_n != [0.0; 3] {
             touched += 1;
         }
-        acc += black_box(f)[2];
+        acc += black_box(state.force_n)[2];
+    }
+    // tracking: from one press point to the next in 20 steps, pressed all the way
+    let mut tracking = Vec::with_capacity(a.contacts);
+    palpation.reset();
+    'path: for pair in press_points.windows(2) {
+        for i in 0..20 {
+            let s = i as f64 / 20.0;
+            let tool = ToolInput {
+                position_m: [0, 1, 2].map(|k| pair[0][k] + s * (pair[1][k] - pair[0][k])),
+                ..ToolInput::default()
+            };
+            let mut state = TickState::default();
+            let t = Instant::now();
+            palpation.tick(black_box(&tool), &mut state);
+            tracking.push(t.elapsed().as_secs_f64() * 1e6);
+            acc += black_box(state.force_n)[2];
+            if tracking.len() == a.contacts {
+                break 'path;
+            }
+        }
     }
     // fields
     let mut coeffs = vec![0.0; v.modes()];
@@ -275,12 +301,10 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         stat("null timing loop", null),
         stat("contact force (compliance in a triangle + C^-1 delta)", contact),
         stat(
-            &format!(
-                "probe tick: contact search over {} triangles + force ({touched} touching)",
-                surface.len()
-            ),
+            &format!("probe tick, contact from scratch over {n_surface} surface triangles + force ({touched} touching)"),
             tick,
         ),
+        stat("probe tick, proxy tracking a pressed slide + force", tracking),
         stat(
             &format!("displacement field, whole mesh ({} nodes, f64, mode-major)", v.n_nodes()),
             tf,

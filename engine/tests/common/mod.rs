@@ -1,0 +1,40 @@
+//! Helpers shared by the engine's integration tests.
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+
+use vademecum_engine::scene::Scene;
+
+/// The repository's root.
+pub fn repo_root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The shared data folder (`VADEMECUM_SHARED`, else `../shared` beside the checkout), if it
+/// holds the meshes. When it does not, a test says it is skipped — except under CI (`CI` set),
+/// where the data must be there and its absence fails the test instead of passing silently.
+pub fn shared_data() -> Option<PathBuf> {
+    let dir = std::env::var_os("VADEMECUM_SHARED")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| repo_root().join("../shared"));
+    if dir.join("data/meshes").is_dir() {
+        return Some(dir);
+    }
+    if std::env::var_os("CI").is_some() {
+        panic!(
+            "the shared data is not at {} but CI is set: CI must run with ../shared beside the checkout (or VADEMECUM_SHARED)",
+            dir.display()
+        );
+    }
+    eprintln!("skipped: shared data not found at {} (set VADEMECUM_SHARED)", dir.display());
+    None
+}
+
+/// A scene of `scenes/` whose mesh path points into the shared data, rewritten to the shared
+/// folder actually found.
+pub fn shared_scene(file: &str, shared: &std::path::Path) -> Scene {
+    let path = repo_root().join("scenes").join(file);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let text = text.replace("../../shared/", &format!("{}/", shared.display()));
+    Scene::from_toml(&text, &path).unwrap()
+}
