@@ -10,12 +10,22 @@ pub struct ServerConfig {
     /// Scene files named by `scene_path` resolve under this folder; inline scenes resolve
     /// their relative mesh paths against it.
     pub scene_root: PathBuf,
+    /// Every mesh file a client's scene names (inline or by path) must lie under this folder
+    /// (after resolving `..` and symbolic links); anything else is PERMISSION_DENIED, without
+    /// saying whether the file exists.
+    pub mesh_root: PathBuf,
     /// Bundle folders named by `bundle_dir` resolve under this folder.
     pub bundle_root: PathBuf,
     /// Whether clients may name server-side scene paths at all.
     pub allow_paths: bool,
     /// Most sessions at once (all clients together).
     pub max_sessions: usize,
+    /// Most sessions one client (one bearer token) holds at once.
+    pub client_sessions: usize,
+    /// Most streams of each kind (interaction, viewer) open at once, all clients together.
+    pub max_streams: u32,
+    /// Most streams of each kind one client holds open at once.
+    pub client_streams: u32,
     /// Highest frame rate a viewer gets (Hz); requests above it are capped.
     pub max_frame_rate_hz: f64,
     /// Largest message the server accepts (bytes): an inline scene is the largest thing a
@@ -37,9 +47,15 @@ impl Default for ServerConfig {
     fn default() -> Self {
         Self {
             scene_root: PathBuf::from("."),
+            mesh_root: PathBuf::from("."),
             bundle_root: PathBuf::from("."),
             allow_paths: true,
             max_sessions: 16,
+            // a tenant cannot take every slot: a quarter of the sessions, a sixteenth of the
+            // streams (a frontend and a few viewers per session)
+            client_sessions: 4,
+            max_streams: 256,
+            client_streams: 16,
             max_frame_rate_hz: 60.0,
             max_request_bytes: 1 << 20,
             max_response_bytes: 64 << 20,

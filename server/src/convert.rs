@@ -2,6 +2,7 @@
 //! and the validation that goes with it.
 
 use vademecum_engine::pipeline::{ToolInput, ToolKind};
+use vademecum_engine::scene::schema::ToolSpec;
 use vademecum_proto::v1 as pb;
 
 use crate::registry::{Entry, SceneSource};
@@ -83,6 +84,7 @@ pub fn geometry_frame(g: &SurfaceGeometry) -> pb::Frame {
                     positions: f32_bytes(o.positions_m.iter().copied()),
                     triangles: o.triangles.iter().flat_map(|t| t.to_le_bytes()).collect(),
                     node_count: o.nodes.len() as u32,
+                    accessible: o.accessible.clone(),
                 })
                 .collect(),
         }),
@@ -120,6 +122,37 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
         tick_rate_hz: 1.0 / s.config().period.as_secs_f64(),
         stats: Some(session_stats(e)),
         haptic_channel: s.config().haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
+        tools: s.scene().spec.tools.iter().map(tool_info).collect(),
+        organ_info: s
+            .geometry()
+            .organs
+            .iter()
+            .map(|o| pb::OrganInfo {
+                name: o.name.clone(),
+                bounds_min_m: Some(pb_vec3(o.bounds.min)),
+                bounds_max_m: Some(pb_vec3(o.bounds.max)),
+                accessible_min_m: o.accessible_bounds.map(|b| pb_vec3(b.min)),
+                accessible_max_m: o.accessible_bounds.map(|b| pb_vec3(b.max)),
+                accessible_triangles: o.accessible_triangles as u32,
+            })
+            .collect(),
+        workspace_min_m: Some(pb_vec3(s.workspace().min)),
+        workspace_max_m: Some(pb_vec3(s.workspace().max)),
+    }
+}
+
+/// What a client needs to know of a scene's tool.
+fn tool_info(t: &ToolSpec) -> pb::ToolInfo {
+    let (kind, radius_m, max_force_n) = match t {
+        ToolSpec::Probe { radius, max_force, .. } => (pb::ToolKind::Probe, *radius, *max_force),
+        ToolSpec::Scalpel { .. } => (pb::ToolKind::Scalpel, 0.0, 0.0),
+        ToolSpec::Grasper { max_force, .. } => (pb::ToolKind::Grasper, 0.0, *max_force),
+    };
+    pb::ToolInfo {
+        name: t.name().to_string(),
+        kind: kind as i32,
+        radius_m,
+        max_force_n,
     }
 }
 

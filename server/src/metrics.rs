@@ -6,7 +6,7 @@ use std::sync::atomic::Ordering;
 
 use hdrhistogram::Histogram;
 
-use crate::registry::Registry;
+use crate::registry::{Entry, Registry};
 
 /// Histogram bucket bounds (s).
 const BUCKETS_S: [f64; 12] = [5e-6, 1e-5, 2.5e-5, 5e-5, 1e-4, 2.5e-4, 5e-4, 1e-3, 2.5e-3, 5e-3, 1e-2, 1e-1];
@@ -14,11 +14,29 @@ const BUCKETS_S: [f64; 12] = [5e-6, 1e-5, 2.5e-5, 5e-5, 1e-4, 2.5e-4, 5e-4, 1e-3
 fn histogram(out: &mut String, name: &str, session: &str, h: &Histogram<u64>) {
     for le in BUCKETS_S {
         let n = h.count_between(0, (le * 1e9) as u64);
-        let _ = writeln!(out, "{name}_bucket{{session=\"{session}\",le=\"{le}\"}} {n}");
+        let _ = writeln!(out, "{name}_bucket{{{session},le=\"{le}\"}} {n}");
     }
-    let _ = writeln!(out, "{name}_bucket{{session=\"{session}\",le=\"+Inf\"}} {}", h.len());
-    let _ = writeln!(out, "{name}_sum{{session=\"{session}\"}} {}", h.mean() * h.len() as f64 * 1e-9);
-    let _ = writeln!(out, "{name}_count{{session=\"{session}\"}} {}", h.len());
+    let _ = writeln!(out, "{name}_bucket{{{session},le=\"+Inf\"}} {}", h.len());
+    let _ = writeln!(out, "{name}_sum{{{session}}} {}", h.mean() * h.len() as f64 * 1e-9);
+    let _ = writeln!(out, "{name}_count{{{session}}} {}", h.len());
+}
+
+/// The label set naming a session's series: `session="s7"` (the session's ordinal, which
+/// grants nothing: the id's unguessable part is never shown) and `label="…"` (the label its
+/// creator gave, escaped). The page is unauthenticated, so it shows nothing secret.
+fn series(e: &Entry) -> String {
+    let ordinal = e.session.id().split('-').next().unwrap_or("");
+    let label: String = e
+        .label
+        .chars()
+        .flat_map(|c| match c {
+            '\\' => vec!['\\', '\\'],
+            '"' => vec!['\\', '"'],
+            '\n' => vec!['\\', 'n'],
+            c => vec![c],
+        })
+        .collect();
+    format!("session=\"{ordinal}\",label=\"{label}\"")
 }
 
 /// The exposition text for every session.
@@ -66,7 +84,7 @@ pub fn render(registry: &Registry) -> String {
                 6 => s.dropped.load(Ordering::Relaxed),
                 _ => s.frames.load(Ordering::Relaxed),
             };
-            let _ = writeln!(out, "{name}{{session=\"{}\"}} {v}", e.session.id());
+            let _ = writeln!(out, "{name}{{{}}} {v}", series(e));
         }
     }
     bridge_metrics(&mut out, &all);
@@ -76,7 +94,7 @@ pub fn render(registry: &Registry) -> String {
     );
     let hs: Vec<_> = all
         .iter()
-        .map(|e| (e.session.id().to_string(), e.session.stats().histograms()))
+        .map(|e| (series(e), e.session.stats().histograms()))
         .collect();
     for (id, h) in &hs {
         histogram(&mut out, "vademecum_tick_work_seconds", id, &h.work);
@@ -101,11 +119,11 @@ fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry
     );
     for e in &haptic {
         let n = e.session.stats().haptic_answered.load(Ordering::Relaxed);
-        let _ = writeln!(out, "vademecum_haptic_answers_total{{session=\"{}\"}} {n}", e.session.id());
+        let _ = writeln!(out, "vademecum_haptic_answers_total{{{}}} {n}", series(e));
     }
     let reports: Vec<_> = haptic
         .iter()
-        .filter_map(|e| e.session.stats().bridge.snapshot().map(|b| (e.session.id(), b)))
+        .filter_map(|e| e.session.stats().bridge.snapshot().map(|b| (series(e), b)))
         .collect();
     let _ = writeln!(
         out,
@@ -120,11 +138,11 @@ fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry
         ] {
             let _ = writeln!(
                 out,
-                "vademecum_bridge_latency_seconds{{session=\"{id}\",quantile=\"{q}\"}} {}",
+                "vademecum_bridge_latency_seconds{{{id},quantile=\"{q}\"}} {}",
                 v * 1e-6
             );
         }
-        let _ = writeln!(out, "vademecum_bridge_latency_seconds_count{{session=\"{id}\"}} {}", b.fresh_forces);
+        let _ = writeln!(out, "vademecum_bridge_latency_seconds_count{{{id}}} {}", b.fresh_forces);
     }
     let counters: [(&str, &str, fn(&crate::session::BridgeSnapshot) -> u64); 5] = [
         ("vademecum_bridge_ticks_total", "Device bridge ticks.", |b| b.ticks),
@@ -152,7 +170,7 @@ fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry
     for (name, help, get) in counters {
         let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} counter");
         for (id, b) in &reports {
-            let _ = writeln!(out, "{name}{{session=\"{id}\"}} {}", get(b));
+            let _ = writeln!(out, "{name}{{{id}}} {}", get(b));
         }
     }
 }

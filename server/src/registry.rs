@@ -15,7 +15,7 @@ use vademecum_engine::scene::Scene;
 
 use crate::auth::Caller;
 use crate::config::ServerConfig;
-use crate::error::ServerError;
+use crate::error::{ServerError, clip};
 use crate::session::{HapticConfig, Session, SessionError};
 use vademecum_proto::shm::HapticChannel;
 
@@ -65,10 +65,58 @@ impl Drop for StreamGuard<'_> {
     }
 }
 
+/// The kinds of stream a client holds open.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StreamKind {
+    /// `Interaction.Interact`.
+    Interact,
+    /// `Viewing.Watch`.
+    Watch,
+}
+
+impl StreamKind {
+    fn name(self) -> &'static str {
+        match self {
+            StreamKind::Interact => "interaction",
+            StreamKind::Watch => "viewer",
+        }
+    }
+}
+
+/// Open streams, per client and in all, by kind.
+#[derive(Debug, Default)]
+struct StreamCounts {
+    per_client: HashMap<Caller, [u32; 2]>,
+    total: [u32; 2],
+}
+
+/// A stream slot taken by [`Registry::open_stream`], given back when dropped.
+#[derive(Debug)]
+pub struct StreamPermit {
+    shared: Arc<Shared>,
+    owner: Caller,
+    kind: StreamKind,
+}
+
+impl Drop for StreamPermit {
+    fn drop(&mut self) {
+        let mut c = self.shared.streams.lock().unwrap_or_else(|p| p.into_inner());
+        let k = self.kind as usize;
+        c.total[k] = c.total[k].saturating_sub(1);
+        if let Some(n) = c.per_client.get_mut(&self.owner) {
+            n[k] = n[k].saturating_sub(1);
+            if *n == [0, 0] {
+                c.per_client.remove(&self.owner);
+            }
+        }
+    }
+}
+
 #[derive(Debug)]
 struct Shared {
     config: ServerConfig,
     sessions: Mutex<HashMap<String, Arc<Entry>>>,
+    streams: Mutex<StreamCounts>,
     bundles: Mutex<HashMap<PathBuf, Weak<LoadedBundle>>>,
     next: AtomicU64,
 }
@@ -84,10 +132,46 @@ fn under(root: &Path, rel: &str, what: &str) -> Result<PathBuf, ServerError> {
     let p = Path::new(rel);
     if p.components().any(|c| !matches!(c, Component::Normal(_) | Component::CurDir)) {
         return Err(ServerError::Denied(format!(
-            "{what} '{rel}' must be a relative path inside the server's root, without '..'"
+            "{what} '{}' must be a relative path inside the server's root, without '..'",
+            clip(rel)
         )));
     }
     Ok(root.join(p))
+}
+
+/// `path` with `.` and `..` resolved by their names alone (no file system access), made
+/// absolute against the current folder.
+fn lexical(path: &Path) -> PathBuf {
+    let abs = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir().unwrap_or_default().join(path)
+    };
+    let mut out = PathBuf::new();
+    for c in abs.components() {
+        match c {
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::CurDir => {}
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// Whether `path` lies under `root`: by name (`..` resolved) and, where it exists, after
+/// following symbolic links too (a link inside the root pointing out of it is outside).
+fn inside(root: &Path, path: &Path) -> bool {
+    if !lexical(path).starts_with(lexical(root)) {
+        return false;
+    }
+    match (path.canonicalize(), root.canonicalize()) {
+        (Ok(p), Ok(r)) => p.starts_with(r),
+        // not there (yet): judged by name; whatever reads it later finds nothing
+        (Err(_), _) => true,
+        (Ok(_), Err(_)) => false,
+    }
 }
 
 impl Registry {
@@ -97,6 +181,7 @@ impl Registry {
             shared: Arc::new(Shared {
                 config,
                 sessions: Mutex::new(HashMap::new()),
+                streams: Mutex::new(StreamCounts::default()),
                 bundles: Mutex::new(HashMap::new()),
                 next: AtomicU64::new(1),
             }),
@@ -108,11 +193,83 @@ impl Registry {
         &self.shared.config
     }
 
+    /// Takes a slot for a stream of `kind` opened by `owner`: RESOURCE_EXHAUSTED when the
+    /// server holds its cap of such streams, or (with authentication) the client its quota.
+    pub fn open_stream(&self, owner: &Caller, kind: StreamKind) -> Result<StreamPermit, ServerError> {
+        let cfg = &self.shared.config;
+        let k = kind as usize;
+        let mut c = self.shared.streams.lock().unwrap_or_else(|p| p.into_inner());
+        if c.total[k] >= cfg.max_streams {
+            return Err(ServerError::Exhausted(format!(
+                "the server has its maximum of {} {} streams open",
+                cfg.max_streams,
+                kind.name()
+            )));
+        }
+        let mine = c.per_client.get(owner).map_or(0, |n| n[k]);
+        if cfg.tokens.is_some() && mine >= cfg.client_streams {
+            return Err(ServerError::Exhausted(format!(
+                "this client has its quota of {} {} streams open; close one first",
+                cfg.client_streams,
+                kind.name()
+            )));
+        }
+        c.total[k] += 1;
+        c.per_client.entry(owner.clone()).or_default()[k] += 1;
+        Ok(StreamPermit {
+            shared: self.shared.clone(),
+            owner: owner.clone(),
+            kind,
+        })
+    }
+
+    /// Why `owner` may not add a session to `sessions`, if it may not: the server holds its
+    /// maximum, or (with authentication) the client its quota.
+    fn session_quota(cfg: &ServerConfig, sessions: &HashMap<String, Arc<Entry>>, owner: &Caller) -> Result<(), ServerError> {
+        if sessions.len() >= cfg.max_sessions {
+            return Err(ServerError::Exhausted(format!(
+                "the server runs its maximum of {} sessions",
+                cfg.max_sessions
+            )));
+        }
+        let mine = sessions.values().filter(|e| &e.owner == owner).count();
+        if cfg.tokens.is_some() && mine >= cfg.client_sessions {
+            return Err(ServerError::Exhausted(format!(
+                "this client has its quota of {} sessions; close one first",
+                cfg.client_sessions
+            )));
+        }
+        Ok(())
+    }
+
     fn sessions(&self) -> std::sync::MutexGuard<'_, HashMap<String, Arc<Entry>>> {
         self.shared.sessions.lock().unwrap_or_else(|p| p.into_inner())
     }
 
     fn load_scene(&self, source: &SceneSource) -> Result<Scene, ServerError> {
+        let scene = self.parse_scene(source)?;
+        if !matches!(source, SceneSource::Builtin(_)) {
+            self.check_mesh_paths(&scene)?;
+        }
+        Ok(scene)
+    }
+
+    /// Refuses a scene naming a mesh file outside the mesh root (before anything reads it).
+    fn check_mesh_paths(&self, scene: &Scene) -> Result<(), ServerError> {
+        let root = &self.shared.config.mesh_root;
+        for (i, organ) in scene.spec.organs.iter().enumerate() {
+            if let Some(file) = &organ.mesh.file
+                && !inside(root, &scene.resolve_path(file))
+            {
+                return Err(ServerError::Denied(format!(
+                    "organs[{i}].mesh.file is outside the server's mesh root: a client's scene may only name mesh files under it (or use a built-in mesh)"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    fn parse_scene(&self, source: &SceneSource) -> Result<Scene, ServerError> {
         let cfg = &self.shared.config;
         match source {
             SceneSource::Inline(text) => {
@@ -126,8 +283,13 @@ impl Registry {
                     ));
                 }
                 let path = under(&cfg.scene_root, rel, "scene path")?;
+                if !inside(&cfg.scene_root, &path) {
+                    return Err(ServerError::Denied(
+                        "the scene path leaves the server's scene root (through a symbolic link)".into(),
+                    ));
+                }
                 if !path.is_file() {
-                    return Err(ServerError::NotFound(format!("no scene file '{rel}' on the server")));
+                    return Err(ServerError::NotFound(format!("no scene file '{}' on the server", clip(rel))));
                 }
                 Scene::load(&path).map_err(|e| ServerError::Invalid(e.to_string()))
             }
@@ -171,14 +333,14 @@ impl Registry {
         if label.chars().count() > 64 {
             return Err(ServerError::Invalid("label is longer than 64 characters".into()));
         }
-        if self.sessions().len() >= cfg.max_sessions {
-            return Err(ServerError::Exhausted(format!(
-                "the server runs its maximum of {} sessions",
-                cfg.max_sessions
-            )));
-        }
+        Self::session_quota(cfg, &self.sessions(), &owner)?;
         let scene = Arc::new(self.load_scene(&source)?);
         let dir = under(&cfg.bundle_root, bundle_dir, "bundle folder")?;
+        if !inside(&cfg.bundle_root, &dir) {
+            return Err(ServerError::Denied(
+                "the bundle folder leaves the server's bundle root (through a symbolic link)".into(),
+            ));
+        }
         let mut bundles = Vec::new();
         for i in 0..scene.spec.organs.len() {
             let name = &scene.spec.organs[i].name;
@@ -224,12 +386,7 @@ impl Registry {
             closed: tokio::sync::watch::channel(false).0,
         });
         let mut sessions = self.sessions();
-        if sessions.len() >= cfg.max_sessions {
-            return Err(ServerError::Exhausted(format!(
-                "the server runs its maximum of {} sessions",
-                cfg.max_sessions
-            )));
-        }
+        Self::session_quota(cfg, &sessions, &entry.owner)?;
         sessions.insert(id, entry.clone());
         Ok(entry)
     }

@@ -6,8 +6,11 @@
 //! - `scene.toml` — the scene it was built from, verbatim;
 //! - one `.npy` file per array (NumPy-readable: `numpy.load("F.npy")`).
 //!
-//! Reading verifies every checksum, shape and the format version, so a damaged, truncated or
-//! foreign bundle is refused with a message naming the file, never loaded half-way.
+//! Reading verifies every checksum (the scene's too), every `.npy` header strictly
+//! ([`npy`]), shapes and the format version, and reads only regular files whose size fits
+//! their manifest entry (no symbolic links, devices or oversized files), so a damaged,
+//! truncated, foreign or hostile bundle is refused with a message naming the file, never
+//! loaded half-way.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -22,6 +25,11 @@ pub const FORMAT: &str = "vademecum-bundle";
 pub const VERSION: u32 = 1;
 /// The manifest's file name.
 pub const MANIFEST: &str = "manifest.json";
+
+/// Largest manifest read (bytes).
+const MAX_MANIFEST_BYTES: u64 = 1 << 20;
+
+pub mod npy;
 
 /// Why a bundle could not be written or read.
 #[derive(Debug, thiserror::Error)]
@@ -239,10 +247,13 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
             why: "no such folder".into(),
         });
     }
-    let text = std::fs::read_to_string(&path).map_err(|_| BundleError::NotABundle {
-        path: dir.to_path_buf(),
-        why: format!("no readable {MANIFEST}"),
-    })?;
+    let text = read_regular(&path, MAX_MANIFEST_BYTES)
+        .ok()
+        .and_then(|b| String::from_utf8(b).ok())
+        .ok_or_else(|| BundleError::NotABundle {
+            path: dir.to_path_buf(),
+            why: format!("no readable {MANIFEST} (a regular file of at most 1 MiB)"),
+        })?;
     let raw: serde_json::Value = serde_json::from_str(&text).map_err(|e| BundleError::NotABundle {
         path: path.clone(),
         why: format!("invalid JSON: {e}"),
@@ -261,10 +272,12 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
             supported: VERSION,
         });
     }
-    serde_json::from_value(raw).map_err(|e| BundleError::Malformed {
+    let manifest: Manifest = serde_json::from_value(raw).map_err(|e| BundleError::Malformed {
         path,
         message: format!("invalid manifest: {e}"),
-    })
+    })?;
+    read_scene(dir, &manifest)?;
+    Ok(manifest)
 }
 
 /// A loaded array.
@@ -284,8 +297,27 @@ pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u6
         path: dir.join(MANIFEST),
         message: format!("the manifest lists no array '{name}'"),
     })?;
+    let bad = |path: &Path, message: String| BundleError::Malformed {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut parts = Path::new(&entry.file).components();
+    if !matches!((parts.next(), parts.next()), (Some(std::path::Component::Normal(_)), None)) {
+        return Err(bad(
+            &dir.join(MANIFEST),
+            format!("array '{name}' names the file '{}', which is not a plain file name in the bundle", entry.file),
+        ));
+    }
     let path = dir.join(&entry.file);
-    let bytes = std::fs::read(&path).map_err(io(&path))?;
+    let Some(itemsize) = npy::itemsize(&entry.dtype) else {
+        return Err(bad(&path, format!("unsupported dtype {}", entry.dtype)));
+    };
+    let data_len = entry
+        .shape
+        .iter()
+        .try_fold(itemsize as u64, |a, &d| a.checked_mul(d))
+        .ok_or_else(|| bad(&path, format!("shape {:?} is too large", entry.shape)))?;
+    let bytes = read_regular(&path, data_len + npy::MAX_HEADER as u64 + 12)?;
     let found = sha256_hex(&bytes);
     if found != entry.sha256 {
         return Err(BundleError::Checksum {
@@ -294,30 +326,71 @@ pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u6
             found,
         });
     }
-    let bad = |message: String| BundleError::Malformed {
-        path: path.clone(),
-        message,
-    };
-    let npy = npyz::NpyFile::new(&bytes[..]).map_err(|e| bad(format!("not a valid .npy file: {e}")))?;
-    let shape = npy.shape().to_vec();
-    if shape != entry.shape {
-        return Err(bad(format!("shape {shape:?}, manifest says {:?}", entry.shape)));
+    let header = npy::parse_header(&bytes).map_err(|e| bad(&path, format!("not a valid .npy file: {e}")))?;
+    if header.descr != entry.dtype {
+        return Err(bad(&path, format!("dtype {}, manifest says {}", header.descr, entry.dtype)));
+    }
+    if header.shape != entry.shape {
+        return Err(bad(&path, format!("shape {:?}, manifest says {:?}", header.shape, entry.shape)));
+    }
+    let body = &bytes[header.data_offset..];
+    if body.len() as u64 != data_len {
+        return Err(bad(
+            &path,
+            format!("{} data bytes for shape {:?} of {} (expected {data_len})", body.len(), header.shape, header.descr),
+        ));
     }
     let arr = match entry.dtype.as_str() {
-        "<f8" => Array::F64(npy.into_vec::<f64>().map_err(|e| bad(format!("cannot read f64 data: {e}")))?),
-        "<f4" => Array::F32(npy.into_vec::<f32>().map_err(|e| bad(format!("cannot read f32 data: {e}")))?),
-        "<i8" => Array::I64(npy.into_vec::<i64>().map_err(|e| bad(format!("cannot read i64 data: {e}")))?),
-        d => return Err(bad(format!("unsupported dtype {d}"))),
+        "<f8" => Array::F64(body.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect()),
+        "<f4" => Array::F32(body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect()),
+        _ => Array::I64(body.chunks_exact(8).map(|c| i64::from_le_bytes(c.try_into().expect("8 bytes"))).collect()),
     };
-    let len = match &arr {
-        Array::F64(v) => v.len(),
-        Array::F32(v) => v.len(),
-        Array::I64(v) => v.len(),
+    Ok((header.shape, arr))
+}
+
+/// Reads a bundle file that must be a regular file (not a symbolic link, a device or a
+/// folder) of at most `max` bytes, checking both before reading anything.
+fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, BundleError> {
+    let meta = std::fs::symlink_metadata(path).map_err(io(path))?;
+    let bad = |message: String| BundleError::Malformed {
+        path: path.to_path_buf(),
+        message,
     };
-    if len as u64 != shape.iter().product::<u64>() {
-        return Err(bad(format!("{len} values for shape {shape:?}")));
+    if meta.file_type().is_symlink() {
+        return Err(bad("is a symbolic link; bundle files must be regular files inside the bundle".into()));
     }
-    Ok((shape, arr))
+    if !meta.is_file() {
+        return Err(bad("is not a regular file".into()));
+    }
+    if meta.len() > max {
+        return Err(bad(format!("{} bytes, more than the {max} its manifest entry allows", meta.len())));
+    }
+    let bytes = std::fs::read(path).map_err(io(path))?;
+    if bytes.len() as u64 > max {
+        return Err(bad("grew while being read".into()));
+    }
+    Ok(bytes)
+}
+
+/// Largest scene text a bundle may carry (bytes), as the server's request limit.
+const MAX_SCENE_BYTES: u64 = 1 << 20;
+
+/// The bundle's `scene.toml`, checked against the manifest's `scene_sha256`.
+pub fn read_scene(dir: &Path, manifest: &Manifest) -> Result<String, BundleError> {
+    let path = dir.join("scene.toml");
+    let bytes = read_regular(&path, MAX_SCENE_BYTES)?;
+    let found = sha256_hex(&bytes);
+    if found != manifest.scene_sha256 {
+        return Err(BundleError::Checksum {
+            path,
+            expected: manifest.scene_sha256.clone(),
+            found,
+        });
+    }
+    String::from_utf8(bytes).map_err(|_| BundleError::Malformed {
+        path,
+        message: "is not UTF-8 text".into(),
+    })
 }
 
 /// Loads a floating-point array as f64 (f32 data is widened exactly).

@@ -76,7 +76,27 @@ struct Collected {
 }
 
 impl Collected {
-    fn push_element(&mut self, ty: i32, phys: i32, nodes: &[u64]) {
+    /// Keeps an element of Gmsh type `ty`; an element listing fewer nodes than its type
+    /// has is an error (the message names the type and both counts).
+    fn push_element(&mut self, ty: i32, phys: i32, nodes: &[u64]) -> Result<(), String> {
+        let needs = match ty {
+            2 => 3,
+            3 | 4 => 4,
+            5 => 8,
+            _ => 0,
+        };
+        if nodes.len() < needs {
+            let name = match ty {
+                2 => "triangle",
+                3 => "quadrangle",
+                4 => "tetrahedron",
+                _ => "hexahedron",
+            };
+            return Err(format!(
+                "an element of type {ty} ({name}) lists {} node(s), a {name} has {needs}",
+                nodes.len()
+            ));
+        }
         match ty {
             4 => self.tets.push(([nodes[0], nodes[1], nodes[2], nodes[3]], phys)),
             5 => {
@@ -89,6 +109,7 @@ impl Collected {
             t if is_volume_type(t) => *self.other_volume.entry(t).or_default() += 1,
             _ => {}
         }
+        Ok(())
     }
 
     fn into_mesh(self, path: &Path) -> Result<Mesh, MeshError> {
@@ -212,11 +233,31 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     let fields: Vec<&str> = header.split_whitespace().collect();
     if fields.len() < 3 {
         return Err(err(format!(
-            "malformed $MeshFormat line '{header}' (expected 'version file-type data-size')"
+            "malformed $MeshFormat line '{}' (expected 'version file-type data-size')",
+            header.chars().take(64).collect::<String>()
         )));
     }
-    let version: f64 = fields[0].parse().map_err(|_| err(format!("bad format version '{}'", fields[0])))?;
-    let binary = fields[1] == "1";
+    let version: f64 = fields[0]
+        .parse()
+        .map_err(|_| err(format!("bad format version '{}'", fields[0].chars().take(16).collect::<String>())))?;
+    let binary = match fields[1] {
+        "0" => false,
+        "1" => true,
+        f => {
+            return Err(err(format!(
+                "bad file type '{}' in $MeshFormat (0: ASCII, 1: binary)",
+                f.chars().take(16).collect::<String>()
+            )));
+        }
+    };
+    // the data size is sizeof(size_t) of the writer: 4 or 8 (checked here, before any
+    // third-party parser sees the file)
+    if !matches!(fields[2], "4" | "8") {
+        return Err(err(format!(
+            "bad data size '{}' in $MeshFormat (4 or 8)",
+            fields[2].chars().take(24).collect::<String>()
+        )));
+    }
     if (2.0..3.0).contains(&version) {
         parse_v2(body, binary, path)?.into_mesh(path)
     } else if (4.1..4.2).contains(&version) {
@@ -388,7 +429,7 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                                     .ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))?
                                     as u64;
                             }
-                            out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes);
+                            out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes).map_err(err)?;
                             read += 1;
                         }
                     }
@@ -416,7 +457,7 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                         {
                             return Err(err(format!("element {i} of type {ty} lists {} nodes, expected {nn}", nodes.len())));
                         }
-                        out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes);
+                        out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes).map_err(err)?;
                     }
                 }
                 if cur.line() != Some("$EndElements") {
@@ -491,7 +532,7 @@ fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
                     if nodes.len() != nn {
                         return Err(err(format!("element {i} lists {} nodes but declares {nn}", nodes.len())));
                     }
-                    out.push_element(ty, phys, &nodes);
+                    out.push_element(ty, phys, &nodes).map_err(err)?;
                 }
                 if cur.line() != Some("$ENDELM") {
                     return Err(err("the $ELM section does not end with $ENDELM".into()));
@@ -513,11 +554,28 @@ fn parse_v41(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
         path: path.to_path_buf(),
         message,
     };
-    let msh = mshio::parse_msh_bytes(bytes).map_err(|e| {
-        let text = e.to_string();
-        let text = text.lines().filter(|l| !l.trim().is_empty()).collect::<Vec<_>>().join(" ");
-        err(format!("invalid Gmsh 4.1 file: {text}"))
-    })?;
+    // mshio can panic on hostile input: a malformed file must be an error, never a crash
+    let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(bytes).map_err(|e| e.to_string()));
+    let sections: Vec<&str> = ["$MeshFormat", "$PhysicalNames", "$Entities", "$Nodes", "$Elements"]
+        .into_iter()
+        .filter(|s| find(bytes, s.as_bytes()).is_some())
+        .collect();
+    let msh = match parsed {
+        Ok(Ok(m)) => m,
+        Ok(Err(detail)) => {
+            let detail: String = detail.split_whitespace().collect::<Vec<_>>().join(" ").chars().take(160).collect();
+            return Err(err(format!(
+                "cannot read this Gmsh 4.1 file: a section is malformed or truncated (sections found: {}; the 4.1 reader says: {detail})",
+                sections.join(", ")
+            )));
+        }
+        Err(_) => {
+            return Err(err(format!(
+                "cannot read this Gmsh 4.1 file: its structure is inconsistent (sections found: {})",
+                sections.join(", ")
+            )));
+        }
+    };
     let mut out = Collected::default();
     // Physical names: a text section in both ASCII and binary files.
     if let Some(at) = find(bytes, b"$PhysicalNames") {
@@ -576,7 +634,7 @@ fn parse_v41(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
                     e.nodes.len()
                 )));
             }
-            out.push_element(ty, p, &e.nodes);
+            out.push_element(ty, p, &e.nodes).map_err(err)?;
         }
     }
     Ok(out)

@@ -75,7 +75,7 @@ Prints 'listening on ADDR' once ready. Stops on Ctrl-C: every session is closed 
 streams end.\n\n\
 Authentication: with --tokens-file or VADEMECUM_TOKENS (comma-separated), every call must \
 carry 'authorization: Bearer <token>', and a client reaches only the sessions created with \
-its token. With --tls-cert and --tls-key the server speaks TLS (rustls); use it with tokens \
+its token. Without either, --no-auth must be given; an empty token source is an error. With --tls-cert and --tls-key the server speaks TLS (rustls); use it with tokens \
 for remote clients. Limits: requests up to 1 MiB (an inline scene), responses up to 64 MiB (the \
 geometry of a large organ).")]
     Serve(ServeArgs),
@@ -186,12 +186,17 @@ pub struct ServeArgs {
     /// Address to listen on (port 0: any free port, printed at start).
     #[arg(long, default_value = "127.0.0.1:50051", value_name = "ADDR")]
     pub listen: String,
-    /// Also serve Prometheus metrics (GET /metrics) on this address.
+    /// Also serve Prometheus metrics (GET /metrics, unauthenticated) on this address; loopback
+    /// only unless --metrics-public.
     #[arg(long, value_name = "ADDR")]
     pub metrics: Option<String>,
     /// Folder that scene paths sent by clients resolve under (and inline scenes' mesh paths).
     #[arg(long, default_value = ".", value_name = "DIR")]
     pub scene_root: PathBuf,
+    /// Folder every mesh file named by a client's scene must lie in (after resolving '..' and
+    /// symbolic links); others are refused with PERMISSION_DENIED. Default: the scene root.
+    #[arg(long, value_name = "DIR")]
+    pub mesh_root: Option<PathBuf>,
     /// Folder that bundle folders named by clients resolve under.
     #[arg(long, default_value = ".", value_name = "DIR")]
     pub bundle_root: PathBuf,
@@ -201,12 +206,30 @@ pub struct ServeArgs {
     /// Most sessions at once.
     #[arg(long, default_value_t = 16)]
     pub max_sessions: usize,
+    /// Most sessions one client (bearer token) holds at once (with authentication).
+    #[arg(long, default_value_t = 4)]
+    pub client_sessions: usize,
+    /// Most interaction streams, and most viewer streams, open at once.
+    #[arg(long, default_value_t = 256)]
+    pub max_streams: u32,
+    /// Most interaction streams, and most viewer streams, one client holds open (with
+    /// authentication).
+    #[arg(long, default_value_t = 16)]
+    pub client_streams: u32,
     /// Highest frame rate a viewer gets (Hz).
     #[arg(long, default_value_t = 60.0, value_name = "HZ")]
     pub max_frame_rate: f64,
     /// File with one accepted bearer token per line ('#' comments); enables authentication.
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with = "no_auth")]
     pub tokens_file: Option<PathBuf>,
+    /// Serve without authentication (every client is 'anonymous' and sees every session).
+    /// Required when no token source is given: the server never runs open by accident.
+    #[arg(long)]
+    pub no_auth: bool,
+    /// Allow --metrics on an address that is not loopback (the metrics page is not
+    /// authenticated: it shows session labels, counts and latencies).
+    #[arg(long)]
+    pub metrics_public: bool,
     /// TLS certificate chain (PEM); with --tls-key, serves TLS (rustls) for remote clients.
     #[arg(long, value_name = "PEM", requires = "tls_key")]
     pub tls_cert: Option<PathBuf>,

@@ -16,7 +16,7 @@ use vademecum_proto::v1 as pb;
 
 use crate::auth::caller;
 use crate::convert;
-use crate::registry::{Entry, Registry, StreamGuard};
+use crate::registry::{Entry, Registry, StreamGuard, StreamKind};
 use crate::session::{Answer, SubmitError, ToolCommand};
 
 /// Answers still in flight when the client closes its side are awaited this long at most.
@@ -46,10 +46,51 @@ impl pb::interaction_server::Interaction for InteractionService {
             return Err(Status::invalid_argument("the first tool state must carry the session_id"));
         }
         let entry = self.registry.get(&owner, &first.session_id)?;
+        let permit = self.registry.open_stream(&owner, StreamKind::Interact)?;
         let (out, rx) = mpsc::channel(256);
-        tokio::spawn(pump(entry, inbound, first, out));
+        tokio::spawn(async move {
+            pump(entry, inbound, first, out).await;
+            drop(permit);
+        });
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
     }
+}
+
+/// Ends a stream whose session closed with `pending` tool states unanswered: ABORTED,
+/// saying how many (none: the stream just ends).
+async fn fail_pending(out: &mpsc::Sender<Result<pb::ToolResponse, Status>>, pending: u64) {
+    if pending > 0 {
+        let _ = out
+            .send(Err(Status::aborted(format!(
+                "the session was closed: the last {pending} tool state(s) sent were not answered"
+            ))))
+            .await;
+    }
+}
+
+/// Why a tool state cannot go on this stream at all (the stream ends with this status).
+fn refused_kind(entry: &Entry, m: &pb::ToolState) -> Option<Status> {
+    let kind = convert::tool_input(m).kind;
+    if entry.session.accepts(kind) {
+        return None;
+    }
+    let named = match pb::ToolKind::try_from(m.kind) {
+        Ok(k) => k.as_str_name().to_string(),
+        Err(_) => format!("{} (not a ToolKind)", m.kind),
+    };
+    let tools: Vec<String> = entry
+        .session
+        .scene()
+        .spec
+        .tools
+        .iter()
+        .map(|t| format!("'{}'", t.name()))
+        .collect();
+    Some(Status::invalid_argument(format!(
+        "tool kind {named} is not simulated by this session (effects: {}; its scene's tools: {})",
+        entry.session.effects().join(", "),
+        tools.join(", ")
+    )))
 }
 
 fn submit(entry: &Entry, m: &pb::ToolState, reply: &mpsc::Sender<Answer>) -> Result<(), SubmitError> {
@@ -78,6 +119,10 @@ async fn pump(
         SubmitError::Busy => Some(Status::resource_exhausted(e.to_string())),
         SubmitError::Closed => None,
     };
+    if let Some(s) = refused_kind(&entry, &first) {
+        let _ = out.send(Err(s)).await;
+        return;
+    }
     if let Err(e) = submit(&entry, &first, &reply) {
         if let Some(s) = refuse(e) {
             let _ = out.send(Err(s)).await;
@@ -96,6 +141,10 @@ async fn pump(
                 Ok(Some(m)) => {
                     if !m.session_id.is_empty() && m.session_id != id {
                         let _ = out.send(Err(Status::invalid_argument("a stream acts on one session; its session_id cannot change"))).await;
+                        return;
+                    }
+                    if let Some(s) = refused_kind(&entry, &m) {
+                        let _ = out.send(Err(s)).await;
                         return;
                     }
                     if let Err(e) = submit(&entry, &m, &reply) {
@@ -120,9 +169,22 @@ async fn pump(
                         return;
                     }
                 }
-                None => return,
+                None => {
+                    fail_pending(&out, sent - answered).await;
+                    return;
+                }
             },
-            _ = closed.changed() => return,
+            _ = closed.changed() => {
+                // answer what the tick thread answered, then fail the rest with a status
+                while let Ok(a) = answers.try_recv() {
+                    answered += 1;
+                    if out.send(Ok(convert::tool_response(&a))).await.is_err() {
+                        return;
+                    }
+                }
+                fail_pending(&out, sent - answered).await;
+                return;
+            }
             _ = tokio::time::sleep_until(drain_until.unwrap_or_else(tokio::time::Instant::now)), if drain_until.is_some() => return,
         }
     }

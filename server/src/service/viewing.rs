@@ -14,7 +14,7 @@ use vademecum_proto::v1 as pb;
 
 use crate::auth::caller;
 use crate::convert;
-use crate::registry::{Registry, StreamGuard};
+use crate::registry::{Registry, StreamGuard, StreamKind};
 
 /// Frame rate when the request leaves it at 0 (Hz).
 pub const DEFAULT_RATE_HZ: f64 = 30.0;
@@ -44,8 +44,10 @@ impl pb::viewing_server::Viewing for ViewingService {
         let cap = self.registry.config().max_frame_rate_hz;
         let rate = if r.rate_hz == 0.0 { DEFAULT_RATE_HZ } else { r.rate_hz.min(cap) };
         let entry = self.registry.get(&owner, &r.session_id)?;
+        let permit = self.registry.open_stream(&owner, StreamKind::Watch)?;
         let (tx, rx) = mpsc::channel(2);
         tokio::spawn(async move {
+            let _permit = permit;
             let _guard = StreamGuard::new(&entry.viewers);
             let mut frames = entry.session.subscribe_frames();
             let mut closed = entry.closed.subscribe();

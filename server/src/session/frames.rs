@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use tokio::sync::watch;
+use vademecum_engine::contact::Bounds;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pgd::vademecum::NodeMajorField;
 use vademecum_engine::pipeline::Contact;
@@ -26,6 +27,14 @@ pub struct OrganSurface {
     pub positions_m: Vec<f32>,
     /// Surface triangles as indices into `nodes`, 3 per triangle, outward.
     pub triangles: Vec<u32>,
+    /// Per node of `nodes`, 1 where the vademecum can load it, else 0.
+    pub accessible: Vec<u8>,
+    /// Box of the surface.
+    pub bounds: Bounds,
+    /// Box of the accessible triangles (`None`: there are none).
+    pub accessible_bounds: Option<Bounds>,
+    /// Number of accessible triangles (all three nodes loadable).
+    pub accessible_triangles: usize,
 }
 
 /// The reference surfaces of a session's organs.
@@ -49,10 +58,16 @@ impl SurfaceGeometry {
                 for (j, &n) in nodes.iter().enumerate() {
                     local[n] = j as u32;
                 }
+                let v = &b.vademecum;
+                let open: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
                 OrganSurface {
                     name: scene.spec.organs.get(i).map_or_else(|| format!("organ{i}"), |o| o.name.clone()),
                     positions_m: nodes.iter().flat_map(|&n| b.nodes[n].map(|x| x as f32)).collect(),
                     triangles: b.surface.iter().flatten().map(|&n| local[n]).collect(),
+                    accessible: nodes.iter().map(|&n| u8::from(v.is_loadable(n))).collect(),
+                    bounds: Bounds::of(&b.nodes, &b.surface),
+                    accessible_bounds: (!open.is_empty()).then(|| Bounds::of(&b.nodes, &open)),
+                    accessible_triangles: open.len(),
                     nodes,
                 }
             })

@@ -33,7 +33,8 @@ use tokio::sync::watch;
 use vademecum_bridge::peer::HapticPeer;
 use vademecum_bridge::timing::{RealtimeStatus, WaitStrategy};
 use vademecum_engine::pgd::offline::LoadedBundle;
-use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput};
+use vademecum_engine::contact::Bounds;
+use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
 
@@ -160,6 +161,8 @@ pub struct Session {
     scene: Arc<Scene>,
     bundles: Vec<Arc<LoadedBundle>>,
     effects: Vec<&'static str>,
+    workspace: Bounds,
+    tool_kinds: Vec<ToolKind>,
     commands: SyncSender<Command>,
     frames: watch::Sender<Arc<Frame>>,
     geometry: Arc<SurfaceGeometry>,
@@ -213,6 +216,11 @@ impl Session {
     ) -> Result<Self, SessionError> {
         let pipeline = Pipeline::for_scene(&scene, &bundles)?;
         let effects = pipeline.effect_names();
+        let workspace = pipeline.workspace();
+        let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
+            .into_iter()
+            .filter(|&k| pipeline.accepts(k))
+            .collect();
         let geometry = Arc::new(SurfaceGeometry::of(&scene, &bundles));
         let (commands, rx) = mpsc::sync_channel(config.queue.max(1));
         let (latest_in, latest_out) = triple_buffer::triple_buffer(&tick::Latest::default());
@@ -284,6 +292,8 @@ impl Session {
             scene,
             bundles,
             effects,
+            workspace,
+            tool_kinds,
             commands,
             frames,
             geometry,
@@ -309,6 +319,17 @@ impl Session {
     /// The loaded bundles, one per organ.
     pub fn bundles(&self) -> &[Arc<LoadedBundle>] {
         &self.bundles
+    }
+
+    /// Where tool positions are accepted (the organs' box grown by a margin).
+    pub fn workspace(&self) -> Bounds {
+        self.workspace
+    }
+
+    /// The tool kinds the pipeline simulates; a state of another kind is answered with zero
+    /// force and `REJECTED_INPUT` (the gRPC service refuses it first).
+    pub fn accepts(&self, kind: ToolKind) -> bool {
+        self.tool_kinds.contains(&kind)
     }
 
     /// The effects of the tick pipeline, in order.

@@ -54,15 +54,20 @@ pub struct Server {
 
 impl Server {
     /// Starts `vademecum serve --listen 127.0.0.1:0 extra…` in the shared [`bundles`] folder
-    /// with `env`, and waits (at most 120 s) for its "listening on" line.
+    /// with `env` (and `--no-auth` when neither gives tokens), and waits (at most 120 s) for its "listening on" line.
     pub fn start(extra: &[&str], env: &[(&str, &str)]) -> Self {
         let dir = bundles();
         let mut cmd = Command::new(vademecum_bin());
         cmd.args(["serve", "--listen", "127.0.0.1:0"])
             .args(extra)
             .current_dir(dir)
+            .env_remove("VADEMECUM_TOKENS")
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit());
+        // a server without tokens must be told so
+        if !env.iter().any(|(k, _)| *k == "VADEMECUM_TOKENS") && !extra.contains(&"--tokens-file") {
+            cmd.arg("--no-auth");
+        }
         for (k, v) in env {
             cmd.env(k, v);
         }

@@ -22,15 +22,27 @@ fn tokens(a: &ServeArgs) -> anyhow::Result<Option<Vec<String>>> {
             bail!("token file {} holds no token", f.display());
         }
     }
-    if let Ok(env) = std::env::var("VADEMECUM_TOKENS") {
+    if let Some(env) = std::env::var_os("VADEMECUM_TOKENS") {
+        let env = env.to_string_lossy();
+        let before = tokens.len();
         tokens.extend(env.split(',').map(str::trim).filter(|t| !t.is_empty()).map(String::from));
+        if tokens.len() == before {
+            bail!("VADEMECUM_TOKENS is set but holds no token; unset it and pass --no-auth to serve without authentication");
+        }
     }
-    Ok((!tokens.is_empty()).then_some(tokens))
+    match (tokens.is_empty(), a.no_auth) {
+        (false, true) => bail!("--no-auth with tokens given (VADEMECUM_TOKENS or --tokens-file): choose one"),
+        (false, false) => Ok(Some(tokens)),
+        (true, true) => Ok(None),
+        (true, false) => bail!(
+            "no authentication configured: give --tokens-file FILE or VADEMECUM_TOKENS, or --no-auth to let every client in"
+        ),
+    }
 }
 
 pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
-    if a.max_sessions == 0 {
-        bail!("--max-sessions must be at least 1");
+    if a.max_sessions == 0 || a.client_sessions == 0 || a.max_streams == 0 || a.client_streams == 0 {
+        bail!("--max-sessions, --client-sessions, --max-streams and --client-streams must be at least 1");
     }
     if !(a.max_frame_rate > 0.0 && a.max_frame_rate <= 240.0) {
         bail!("--max-frame-rate must lie in (0, 240] Hz, got {}", a.max_frame_rate);
@@ -46,9 +58,13 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     let config = ServerConfig {
         tls,
         scene_root: a.scene_root.clone(),
+        mesh_root: a.mesh_root.clone().unwrap_or_else(|| a.scene_root.clone()),
         bundle_root: a.bundle_root.clone(),
         allow_paths: !a.no_paths,
         max_sessions: a.max_sessions,
+        client_sessions: a.client_sessions,
+        max_streams: a.max_streams,
+        client_streams: a.client_streams,
         max_frame_rate_hz: a.max_frame_rate,
         tokens: tokens(&a)?,
         ..ServerConfig::default()
@@ -59,11 +75,15 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             .await
             .with_context(|| format!("cannot listen on {}", a.listen))?;
         let metrics = match &a.metrics {
-            Some(addr) => Some(
-                tokio::net::TcpListener::bind(addr)
+            Some(addr) => {
+                let l = tokio::net::TcpListener::bind(addr)
                     .await
-                    .with_context(|| format!("cannot listen on {addr} for metrics"))?,
-            ),
+                    .with_context(|| format!("cannot listen on {addr} for metrics"))?;
+                if !l.local_addr()?.ip().is_loopback() && !a.metrics_public {
+                    bail!("--metrics {addr} is not a loopback address: the metrics page is unauthenticated; add --metrics-public to serve it there");
+                }
+                Some(l)
+            }
             None => None,
         };
         {
