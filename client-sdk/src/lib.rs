@@ -68,6 +68,10 @@ pub enum ErrorKind {
     ResourceExhausted,
     /// A bundle is missing or stale.
     FailedPrecondition,
+    /// The caller may not do this (e.g. name a file outside the server's roots).
+    PermissionDenied,
+    /// The session closed before answering every tool state sent.
+    Aborted,
     /// Anything else.
     Other,
 }
@@ -83,6 +87,8 @@ impl SdkError {
                 tonic::Code::Unauthenticated => ErrorKind::Unauthenticated,
                 tonic::Code::ResourceExhausted => ErrorKind::ResourceExhausted,
                 tonic::Code::FailedPrecondition => ErrorKind::FailedPrecondition,
+                tonic::Code::PermissionDenied => ErrorKind::PermissionDenied,
+                tonic::Code::Aborted => ErrorKind::Aborted,
                 _ => ErrorKind::Other,
             },
             SdkError::BadToken => ErrorKind::Unauthenticated,

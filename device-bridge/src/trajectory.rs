@@ -1,7 +1,8 @@
 //! Keyframed trajectories: `(t, position, closure)` read from CSV and linearly interpolated —
 //! the scripted hand of the simulated stylus, and the tool path of the server's headless runs.
 //!
-//! CSV format (header required, SI units, times increasing):
+//! CSV format (header required, SI units, times increasing, at most [`MAX_DURATION_S`] from
+//! the first keyframe to the last):
 //!
 //! ```text
 //! t_s,x_m,y_m,z_m[,closure]
@@ -56,9 +57,17 @@ pub(crate) struct Row {
     pub closure: f64,
 }
 
+/// The longest trajectory accepted (s): a day. Scripted sessions and device replays are
+/// minutes long; a keyframe at 10⁹ s is a mistake (wrong units), not a plan.
+pub const MAX_DURATION_S: f64 = 86_400.0;
+
+/// The most keyframes a trajectory file may hold: a day of 1 kHz samples would be 86.4 M; a
+/// recorded device session of an hour at 1 kHz is 3.6 M.
+pub const MAX_KEYFRAMES: usize = 10_000_000;
+
 impl Trajectory {
-    /// From keyframes; times must be finite and strictly increasing, positions finite,
-    /// closures in [0, 1].
+    /// From keyframes; times must be finite and strictly increasing, spanning at most
+    /// [`MAX_DURATION_S`], positions finite, closures in [0, 1].
     pub fn new(keys: Vec<(f64, [f64; 3], f64)>) -> Result<Self, String> {
         if keys.is_empty() {
             return Err("a trajectory needs at least one keyframe".into());
@@ -72,6 +81,12 @@ impl Trajectory {
             }
             if i > 0 && *t <= keys[i - 1].0 {
                 return Err(format!("keyframe {}: time {t} s does not increase", i + 1));
+            }
+            if *t - keys[0].0 > MAX_DURATION_S {
+                return Err(format!(
+                    "keyframe {}: time {t} s is more than {MAX_DURATION_S} s (a day) after the first; times are in seconds",
+                    i + 1
+                ));
             }
         }
         Ok(Self {
@@ -94,6 +109,9 @@ impl Trajectory {
         let mut keys = Vec::new();
         for row in r.deserialize::<Row>() {
             let row = row.map_err(|e| bad(e.to_string()))?;
+            if keys.len() == MAX_KEYFRAMES {
+                return Err(bad(format!("more than {MAX_KEYFRAMES} keyframes")));
+            }
             keys.push((row.t_s, [row.x_m, row.y_m, row.z_m], row.closure));
         }
         Self::new(keys).map_err(bad)
@@ -180,6 +198,10 @@ mod tests {
         assert!(e.contains("finite"), "{e}");
         let e = Trajectory::new(vec![(0.0, [0.0; 3], 2.0)]).unwrap_err();
         assert!(e.contains("closure"), "{e}");
+        // a keyframe at 10⁹ s (milliseconds or nanoseconds taken for seconds)
+        let e = Trajectory::new(vec![(0.0, [0.0; 3], 0.0), (1e9, [0.0; 3], 0.0)]).unwrap_err();
+        assert!(e.contains("keyframe 2") && e.contains("a day"), "{e}");
+        assert!(Trajectory::new(vec![(5.0, [0.0; 3], 0.0), (5.0 + MAX_DURATION_S, [0.0; 3], 0.0)]).is_ok());
     }
 
     #[test]

@@ -286,3 +286,27 @@ fn bad_meshless_settings_and_cuts_name_the_key() {
     let e = Scene::from_toml(&(nan + tools), "s.toml").unwrap_err();
     assert!(e.to_string().contains("not finite"), "{e}");
 }
+
+/// Reproducers the fuzzer found: a Gmsh v1 tetrahedron listing 3 nodes and a hexahedron
+/// listing 4 (the reader indexed past them), and a v4 header whose data size overflows
+/// (mshio unwrapped the overflow).
+#[test]
+fn fuzzer_reproducers_for_gmsh_are_errors() {
+    let v1 = |elements: &str| format!("$NOD\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n$ENDNOD\n$ELM\n1\n{elements}\n$ENDELM\n");
+    assert!(parse_no_panic(v1("1 4 1 1 4 1 2 3 4").as_bytes()).is_ok());
+    let e = parse_no_panic(v1("1 4 1 1 3 1 2 3").as_bytes()).unwrap_err();
+    assert!(e.to_string().contains("tetrahedron") && e.to_string().contains("x.msh"), "{e}");
+    let e = parse_no_panic(v1("1 5 1 1 4 1 2 3 4").as_bytes()).unwrap_err();
+    assert!(e.to_string().contains("hexahedron"), "{e}");
+    let e = parse_no_panic(b"$MeshFormat\n4.1 0 18446744073709551616\n$EndMeshFormat\n").unwrap_err();
+    assert!(e.to_string().contains("data size"), "{e}");
+    let e = parse_no_panic(b"$MeshFormat\n4.1 7 8\n$EndMeshFormat\n").unwrap_err();
+    assert!(e.to_string().contains("file type"), "{e}");
+    // whatever mshio says, the message is ours and names the file
+    let e = parse_no_panic(b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2 3\n").unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("x.msh") && text.contains("Gmsh 4.1") && !text.contains("Complete"),
+        "{text}"
+    );
+}

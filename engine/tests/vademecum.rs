@@ -205,6 +205,96 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
     let _ = b;
 }
 
+/// Rewrites array `name`'s file with `bytes` and its manifest entry's checksum to match (what
+/// an attacker, or a careless tool, can do).
+fn forge(dir: &Path, name: &str, bytes: &[u8]) {
+    let file = dir.join(format!("{name}.npy"));
+    std::fs::write(&file, bytes).unwrap();
+    let m = dir.join("manifest.json");
+    let mut manifest: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+    manifest["arrays"][name]["sha256"] = vademecum_engine::bundle::sha256_hex(bytes).into();
+    std::fs::write(&m, serde_json::to_string_pretty(&manifest).unwrap()).unwrap();
+}
+
+#[test]
+fn hostile_bundles_are_refused_even_with_matching_checksums() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("b");
+    write(&dir);
+    let f = dir.join("G.npy");
+    let good = std::fs::read(&f).unwrap();
+    let manifest = std::fs::read_to_string(dir.join("manifest.json")).unwrap();
+    let restore = || {
+        std::fs::write(&f, &good).unwrap();
+        std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
+        offline::load_bundle(&dir).unwrap();
+    };
+    let refused = |why: &str| {
+        let e = offline::load_bundle(&dir).unwrap_err();
+        assert!(e.to_string().contains(why), "expected '{why}': {e}");
+        e
+    };
+    // the header-length field shifted by 16 (the data moves into the header's padding):
+    // it loaded, and changed the session's forces
+    for shift in [16i32, -16, 1] {
+        let mut b = good.clone();
+        let len = u16::from_le_bytes([b[8], b[9]]) as i32 + shift;
+        b[8..10].copy_from_slice(&(len as u16).to_le_bytes());
+        forge(&dir, "G", &b);
+        let e = refused("G.npy");
+        assert!(matches!(e, BundleError::Malformed { .. }), "{e}");
+        restore();
+    }
+    // Fortran order would be read transposed
+    let mut b = good.clone();
+    let (from, to) = (b"'fortran_order': False", b"'fortran_order': True ");
+    let at = b.windows(from.len()).position(|w| w == from).unwrap();
+    b[at..at + to.len()].copy_from_slice(to);
+    forge(&dir, "G", &b);
+    refused("Fortran");
+    restore();
+    // a header of nested braces (exponential in the old parser)
+    let mut b = good.clone();
+    let start = 10;
+    let len = u16::from_le_bytes([b[8], b[9]]) as usize;
+    let hostile = format!("{}{}", "{".repeat(13), " ".repeat(len - 14));
+    b[start..start + len - 1].copy_from_slice(hostile.as_bytes());
+    forge(&dir, "G", &b);
+    refused("quoted string");
+    restore();
+    // a symbolic link to a device is never read
+    #[cfg(unix)]
+    {
+        std::fs::remove_file(&f).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", &f).unwrap();
+        refused("symbolic link");
+        std::fs::remove_file(&f).unwrap();
+        restore();
+    }
+    // a file larger than its entry allows is refused before it is read
+    let mut big = good.clone();
+    big.extend(std::iter::repeat_n(0u8, 1 << 16));
+    forge(&dir, "G", &big);
+    refused("allows");
+    restore();
+    // a file name leaving the bundle
+    let m = dir.join("manifest.json");
+    std::fs::write(&m, manifest.replacen("\"file\": \"G.npy\"", "\"file\": \"../G.npy\"", 1)).unwrap();
+    refused("plain file name");
+    restore();
+    // the scene is covered by the manifest: deleted, emptied or replaced, it is refused
+    let scene = dir.join("scene.toml");
+    let text = std::fs::read_to_string(&scene).unwrap();
+    std::fs::remove_file(&scene).unwrap();
+    refused("scene.toml");
+    std::fs::write(&scene, "").unwrap();
+    assert!(matches!(offline::load_bundle(&dir).unwrap_err(), BundleError::Checksum { .. }));
+    std::fs::write(&scene, text.replace("young = 5e3", "young = 5e4")).unwrap();
+    refused("checksum");
+    std::fs::write(&scene, &text).unwrap();
+    restore();
+}
+
 #[test]
 fn the_probe_feels_the_tissue_on_the_accessible_surface_and_the_support_below() {
     use std::sync::Arc;

@@ -92,10 +92,7 @@ pub fn render(registry: &Registry) -> String {
         out,
         "# HELP vademecum_tick_work_seconds Work per tick.\n# TYPE vademecum_tick_work_seconds histogram"
     );
-    let hs: Vec<_> = all
-        .iter()
-        .map(|e| (series(e), e.session.stats().histograms()))
-        .collect();
+    let hs: Vec<_> = all.iter().map(|e| (series(e), e.session.stats().histograms())).collect();
     for (id, h) in &hs {
         histogram(&mut out, "vademecum_tick_work_seconds", id, &h.work);
     }
@@ -136,11 +133,7 @@ fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry
             ("0.999", b.latency_us.p999),
             ("1", b.latency_us.max),
         ] {
-            let _ = writeln!(
-                out,
-                "vademecum_bridge_latency_seconds{{{id},quantile=\"{q}\"}} {}",
-                v * 1e-6
-            );
+            let _ = writeln!(out, "vademecum_bridge_latency_seconds{{{id},quantile=\"{q}\"}} {}", v * 1e-6);
         }
         let _ = writeln!(out, "vademecum_bridge_latency_seconds_count{{{id}}} {}", b.fresh_forces);
     }

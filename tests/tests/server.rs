@@ -225,12 +225,13 @@ fn tokens_are_required_and_sessions_are_private_to_their_token() {
 fn metrics_export_tick_latency_histograms_misses_and_clients() {
     let server = util::Server::start(&["--metrics", "127.0.0.1:0"], &[]);
     let rt = util::runtime();
-    let text = rt.block_on(async {
+    let (id, text) = rt.block_on(async {
         let client = Client::connect(server.url.clone()).await.unwrap();
         let session = client
             .create_session(SceneSpec::Builtin("organ".into()), "organ", "m")
             .await
             .unwrap();
+        let id = session.id().to_string();
         let mut tools = session.interact().await.unwrap();
         for i in 0..300u64 {
             tools.send(tool_at(i, path(i as usize))).await.unwrap();
@@ -238,7 +239,7 @@ fn metrics_export_tick_latency_histograms_misses_and_clients() {
         }
         // scrape while the stream is open
         let addr = server.metrics.clone().expect("metrics address");
-        tokio::task::spawn_blocking(move || {
+        let text = tokio::task::spawn_blocking(move || {
             use std::io::{Read, Write};
             let mut s = std::net::TcpStream::connect(addr).unwrap();
             s.write_all(b"GET /metrics HTTP/1.0\r\nHost: x\r\n\r\n").unwrap();
@@ -247,10 +248,14 @@ fn metrics_export_tick_latency_histograms_misses_and_clients() {
             out
         })
         .await
-        .unwrap()
+        .unwrap();
+        (id, text)
     });
     assert!(text.starts_with("HTTP/1.0 200") || text.starts_with("HTTP/1.1 200"), "{text}");
     assert!(text.contains("vademecum_sessions 1"), "{text}");
+    // series are named by the session's ordinal and label, never by its id
+    assert!(text.contains("label=\"m\""), "{text}");
+    assert!(!text.contains(&id), "the session id is on the unauthenticated page: {text}");
     assert!(text.contains("vademecum_tick_work_seconds_bucket{session="), "{text}");
     assert!(text.contains("vademecum_deadline_misses_total{session="), "{text}");
     assert!(

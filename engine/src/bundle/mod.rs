@@ -305,7 +305,10 @@ pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u6
     if !matches!((parts.next(), parts.next()), (Some(std::path::Component::Normal(_)), None)) {
         return Err(bad(
             &dir.join(MANIFEST),
-            format!("array '{name}' names the file '{}', which is not a plain file name in the bundle", entry.file),
+            format!(
+                "array '{name}' names the file '{}', which is not a plain file name in the bundle",
+                entry.file
+            ),
         ));
     }
     let path = dir.join(&entry.file);
@@ -337,13 +340,30 @@ pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u6
     if body.len() as u64 != data_len {
         return Err(bad(
             &path,
-            format!("{} data bytes for shape {:?} of {} (expected {data_len})", body.len(), header.shape, header.descr),
+            format!(
+                "{} data bytes for shape {:?} of {} (expected {data_len})",
+                body.len(),
+                header.shape,
+                header.descr
+            ),
         ));
     }
     let arr = match entry.dtype.as_str() {
-        "<f8" => Array::F64(body.chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes"))).collect()),
-        "<f4" => Array::F32(body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect()),
-        _ => Array::I64(body.chunks_exact(8).map(|c| i64::from_le_bytes(c.try_into().expect("8 bytes"))).collect()),
+        "<f8" => Array::F64(
+            body.chunks_exact(8)
+                .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect(),
+        ),
+        "<f4" => Array::F32(
+            body.chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+                .collect(),
+        ),
+        _ => Array::I64(
+            body.chunks_exact(8)
+                .map(|c| i64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect(),
+        ),
     };
     Ok((header.shape, arr))
 }
@@ -357,7 +377,9 @@ fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, BundleError> {
         message,
     };
     if meta.file_type().is_symlink() {
-        return Err(bad("is a symbolic link; bundle files must be regular files inside the bundle".into()));
+        return Err(bad(
+            "is a symbolic link; bundle files must be regular files inside the bundle".into()
+        ));
     }
     if !meta.is_file() {
         return Err(bad("is not a regular file".into()));

@@ -59,7 +59,10 @@ pub fn parse_header(bytes: &[u8]) -> Result<Header, String> {
     }
     let end = start + len;
     if end > bytes.len() {
-        return Err(format!("header of {len} bytes runs past the end of the file ({} bytes)", bytes.len()));
+        return Err(format!(
+            "header of {len} bytes runs past the end of the file ({} bytes)",
+            bytes.len()
+        ));
     }
     let text = std::str::from_utf8(&bytes[start..end]).map_err(|_| "header is not text".to_string())?;
     if major < 3 && !text.is_ascii() {
@@ -236,7 +239,10 @@ mod tests {
     fn reads_what_numpy_writes() {
         let h = "{'descr': '<f8', 'fortran_order': False, 'shape': (2, 3), }          \n";
         let p = parse_header(&file(h, &[0; 48])).unwrap();
-        assert_eq!((p.descr.as_str(), p.shape.clone(), p.data_offset), ("<f8", vec![2, 3], 10 + h.len()));
+        assert_eq!(
+            (p.descr.as_str(), p.shape.clone(), p.data_offset),
+            ("<f8", vec![2, 3], 10 + h.len())
+        );
         assert_eq!(data_len(&p), Some(48));
         let h = "{'descr': '<i8', 'fortran_order': False, 'shape': (5,), }\n";
         assert_eq!(parse_header(&file(h, &[])).unwrap().shape, vec![5]);
@@ -251,8 +257,11 @@ mod tests {
             ("{'descr': '<f8', 'fortran_order': True, 'shape': (2,), }\n", "Fortran"),
             ("{'descr': '<f8', 'fortran_order': False, 'shape': (2,), }", "newline"),
             ("{'descr': '<f8', 'fortran_order': False, }\n", "lacks"),
-            ("{'descr': '<f8', 'descr': '<f8', 'fortran_order': False, 'shape': (2,), }\n", "twice"),
-            ("{'descr': '<f8', 'fortran_order': False, 'shape': (2,), 'x': 1}\n", "unknown"),
+            (
+                "{'descr': '<f8', 'descr': '<f8', 'fortran_order': False, 'shape': (2,), }\n",
+                "twice",
+            ),
+            ("{'descr': '<f8', 'fortran_order': False, 'shape': (2,), 'x': 'y'}\n", "unknown"),
             ("{'descr': '<f8', 'fortran_order': False, 'shape': (-2,), }\n", "dimension"),
             ("{'descr': '<f8', 'fortran_order': False, 'shape': ((2,),), }\n", "dimension"),
         ];

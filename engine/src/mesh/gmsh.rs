@@ -555,17 +555,18 @@ fn parse_v41(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
         message,
     };
     // mshio can panic on hostile input: a malformed file must be an error, never a crash
-    let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(bytes).map_err(|e| e.to_string()));
+    let parsed = std::panic::catch_unwind(|| mshio::parse_msh_bytes(bytes).map_err(|_| ()));
     let sections: Vec<&str> = ["$MeshFormat", "$PhysicalNames", "$Entities", "$Nodes", "$Elements"]
         .into_iter()
         .filter(|s| find(bytes, s.as_bytes()).is_some())
         .collect();
     let msh = match parsed {
         Ok(Ok(m)) => m,
-        Ok(Err(detail)) => {
-            let detail: String = detail.split_whitespace().collect::<Vec<_>>().join(" ").chars().take(160).collect();
+        // mshio's own messages name its parser's internals ("Parse error: Complete"), not
+        // the file's defect, so they are not passed on
+        Ok(Err(_)) => {
             return Err(err(format!(
-                "cannot read this Gmsh 4.1 file: a section is malformed or truncated (sections found: {}; the 4.1 reader says: {detail})",
+                "cannot read this Gmsh 4.1 file: a section is malformed or truncated (sections found: {}); check it with `gmsh FILE -check`",
                 sections.join(", ")
             )));
         }

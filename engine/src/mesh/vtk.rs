@@ -167,6 +167,24 @@ fn read_attribute(path: &Path, name: &str, point: bool) -> Result<Option<Vec<f64
     Ok(None)
 }
 
+/// A message a user understands for a `vtkio` error (whose text names the reader's internals,
+/// e.g. `Parse error: Complete` or `DataArraySizeMismatch { … }`), with its gist clipped.
+fn explain_vtkio(text: &str) -> String {
+    let what = if text.contains("SizeMismatch") {
+        "a data array holds another number of values than its header declares"
+    } else if text.contains("Parse") || text.contains("parse") || text.contains("Complete") || text.contains("Incomplete") {
+        "the file is malformed or truncated"
+    } else if text.contains("Unsupported") || text.contains("unsupported") {
+        "it uses a VTK feature this reader does not support"
+    } else if text.contains("IO") || text.contains("Io") {
+        "it could not be read"
+    } else {
+        "the VTK reader rejected it"
+    };
+    let gist: String = text.split_whitespace().collect::<Vec<_>>().join(" ").chars().take(120).collect();
+    format!("invalid VTK file: {what} (reader detail: {gist})")
+}
+
 fn import(path: &Path) -> Result<vtkio::Vtk, MeshError> {
     // vtkio panics on a few malformed inputs; a malformed file must be an error, never a crash.
     let p = path.to_path_buf();
@@ -175,7 +193,7 @@ fn import(path: &Path) -> Result<vtkio::Vtk, MeshError> {
         Ok(Ok(v)) => Ok(v),
         Ok(Err(e)) => Err(MeshError::Parse {
             path: path.to_path_buf(),
-            message: format!("invalid VTK file: {e}"),
+            message: explain_vtkio(&e.to_string()),
         }),
         Err(_) => Err(MeshError::Parse {
             path: path.to_path_buf(),

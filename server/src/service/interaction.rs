@@ -78,14 +78,7 @@ fn refused_kind(entry: &Entry, m: &pb::ToolState) -> Option<Status> {
         Ok(k) => k.as_str_name().to_string(),
         Err(_) => format!("{} (not a ToolKind)", m.kind),
     };
-    let tools: Vec<String> = entry
-        .session
-        .scene()
-        .spec
-        .tools
-        .iter()
-        .map(|t| format!("'{}'", t.name()))
-        .collect();
+    let tools: Vec<String> = entry.session.scene().spec.tools.iter().map(|t| format!("'{}'", t.name())).collect();
     Some(Status::invalid_argument(format!(
         "tool kind {named} is not simulated by this session (effects: {}; its scene's tools: {})",
         entry.session.effects().join(", "),

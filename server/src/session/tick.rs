@@ -19,6 +19,11 @@ const PUBLISH_EVERY: u64 = 64;
 /// instead of running the missed ticks back to back (they are counted as misses).
 const MAX_CATCH_UP: u32 = 10;
 
+/// Most queued tool states one tick answers. A client at the tick rate sends one per tick; 16
+/// absorbs a burst of 16 ms of network jitter in one tick while bounding the tick's work to 16
+/// pipeline ticks (tens of µs). A longer backlog is answered over the next ticks, in order.
+pub const MAX_COMMANDS_PER_TICK: usize = 16;
+
 /// What the tick thread leaves for the frame thread.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(super) struct Latest {
@@ -131,7 +136,7 @@ impl TickLoop {
                 last_input = Some(input);
                 self.script = Some(script);
             }
-            loop {
+            for _ in 0..MAX_COMMANDS_PER_TICK {
                 match self.commands.try_recv() {
                     Ok(Command::Tool(c)) => {
                         let a = self.answer(tick, &c.input, c.seq, c.client_time_us, c.received);

@@ -34,9 +34,9 @@ fn tokens(a: &ServeArgs) -> anyhow::Result<Option<Vec<String>>> {
         (false, true) => bail!("--no-auth with tokens given (VADEMECUM_TOKENS or --tokens-file): choose one"),
         (false, false) => Ok(Some(tokens)),
         (true, true) => Ok(None),
-        (true, false) => bail!(
-            "no authentication configured: give --tokens-file FILE or VADEMECUM_TOKENS, or --no-auth to let every client in"
-        ),
+        (true, false) => {
+            bail!("no authentication configured: give --tokens-file FILE or VADEMECUM_TOKENS, or --no-auth to let every client in")
+        }
     }
 }
 

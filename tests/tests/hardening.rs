@@ -1,0 +1,221 @@
+//! What an attacker or a careless client tries, against the real server process: files
+//! outside the server's roots, a server started open by accident, one tenant taking every
+//! slot, secrets on the metrics page, unbounded input echoed back, tool kinds the scene does
+//! not simulate, a session closed under a stream.
+
+mod util;
+
+use std::process::Command;
+
+use vademecum_client::pb;
+use vademecum_client::{Client, ErrorKind, SceneSpec, tool_at};
+
+/// The built-in organ scene with its procedural mesh replaced by a mesh file at `file`.
+fn scene_with_mesh_file(file: &str) -> String {
+    let text = vademecum_engine::scene::builtin("organ").unwrap();
+    let start = text.find("[organs.mesh]").unwrap();
+    let end = text.find("[[organs.materials]]").unwrap();
+    format!("{}[organs.mesh]\nfile = \"{file}\"\n\n{}", &text[..start], &text[end..])
+}
+
+#[test]
+fn inline_scenes_cannot_reach_files_outside_the_mesh_root_and_learn_nothing_of_them() {
+    let server = util::Server::start(&["--no-paths"], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let mut messages = Vec::new();
+        // a file that exists, one that does not, and relative escapes
+        for file in ["/etc/passwd", "/no/such/file.msh", "../../../../etc/hostname", "organ/../../x.msh"] {
+            let e = client
+                .create_session(SceneSpec::Toml(scene_with_mesh_file(file)), "organ", "x")
+                .await
+                .unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::PermissionDenied, "{file}: {e}");
+            messages.push(e.to_string());
+        }
+        // the same answer whether the file exists or not
+        assert!(messages.windows(2).all(|w| w[0] == w[1]), "{messages:?}");
+        assert!(
+            !messages[0].contains("passwd") && messages[0].contains("mesh root"),
+            "{}",
+            messages[0]
+        );
+        // a mesh under the root is only refused for what it is (here: missing)
+        let e = client
+            .create_session(SceneSpec::Toml(scene_with_mesh_file("organ/missing.msh")), "organ", "x")
+            .await
+            .unwrap_err();
+        assert_ne!(e.kind(), ErrorKind::PermissionDenied, "{e}");
+    });
+}
+
+#[test]
+fn the_server_never_starts_open_by_accident() {
+    let run = |args: &[&str], tokens: Option<&str>| {
+        let mut c = Command::new(util::vademecum_bin());
+        c.args(["serve", "--listen", "127.0.0.1:0"])
+            .args(args)
+            .env_remove("VADEMECUM_TOKENS");
+        if let Some(t) = tokens {
+            c.env("VADEMECUM_TOKENS", t);
+        }
+        c.output().unwrap()
+    };
+    for (args, tokens, why) in [
+        (&[][..], Some(""), "holds no token"),
+        (&[][..], Some(" , ,"), "holds no token"),
+        (&[][..], None, "--no-auth"),
+        (&["--no-auth"][..], Some("t"), "choose one"),
+        (&["--no-auth", "--metrics", "0.0.0.0:0"][..], None, "--metrics-public"),
+    ] {
+        let o = run(args, tokens);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?} {tokens:?}: {err}");
+        assert!(err.contains(why), "{args:?} {tokens:?}: {err}");
+    }
+}
+
+#[test]
+fn one_token_cannot_take_every_slot() {
+    let server = util::Server::start(
+        &["--client-sessions", "2", "--client-streams", "1"],
+        &[("VADEMECUM_TOKENS", "alice,bob")],
+    );
+    let rt = util::runtime();
+    rt.block_on(async {
+        let alice = Client::connect_with_token(server.url.clone(), Some("alice")).await.unwrap();
+        let bob = Client::connect_with_token(server.url.clone(), Some("bob")).await.unwrap();
+        let organ = || SceneSpec::Builtin("organ".into());
+        let a1 = alice.create_session(organ(), "organ", "a1").await.unwrap();
+        let _a2 = alice.create_session(organ(), "organ", "a2").await.unwrap();
+        let e = alice.create_session(organ(), "organ", "a3").await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ResourceExhausted, "{e}");
+        assert!(e.to_string().contains("quota"), "{e}");
+        let b1 = bob.create_session(organ(), "organ", "b1").await.unwrap();
+        // streams: one viewer each
+        let _w = a1.watch(30.0).await.unwrap();
+        let e = a1.watch(30.0).await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::ResourceExhausted, "{e}");
+        let _wb = b1.watch(30.0).await.unwrap();
+        // closing the stream gives the slot back
+        drop(_w);
+        let mut again = None;
+        for _ in 0..50 {
+            if let Ok(w) = a1.watch(30.0).await {
+                again = Some(w);
+                break;
+            }
+            tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+        }
+        assert!(again.is_some(), "the viewer slot came back");
+    });
+}
+
+#[test]
+fn unbounded_client_input_is_never_echoed_back() {
+    let server = util::Server::start(&[], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        // a million bytes (under the 1 MiB request limit)
+        let huge = "x".repeat(1_000_000);
+        let e = client.session(&huge).await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::NotFound, "{}", &e.to_string()[..200.min(e.to_string().len())]);
+        assert!(e.to_string().len() < 400, "{} bytes", e.to_string().len());
+        // a scene with a 100 KB string value
+        let text = vademecum_engine::scene::builtin("organ").unwrap().replace(
+            "name = \"organ\"",
+            &format!("name = \"organ\"\nbogus = \"{}\"", "y".repeat(100_000)),
+        );
+        let e = client.create_session(SceneSpec::Toml(text), "organ", "x").await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::InvalidArgument, "{}", &e.to_string()[..200]);
+        assert!(e.to_string().len() < 2000, "{} bytes", e.to_string().len());
+    });
+}
+
+#[test]
+fn a_tool_the_scene_does_not_simulate_ends_the_stream_naming_it() {
+    let server = util::Server::start(&[], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let s = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "k")
+            .await
+            .unwrap();
+        let info = client.list_sessions().await.unwrap().remove(0);
+        assert_eq!(info.tools.len(), 1);
+        assert_eq!((info.tools[0].kind, info.tools[0].radius_m), (pb::ToolKind::Probe as i32, 0.004));
+        assert!(info.tools[0].max_force_n > 0.0);
+        let organ = &info.organ_info[0];
+        assert!(organ.accessible_triangles > 0);
+        assert!(organ.accessible_min_m.unwrap().z > organ.bounds_min_m.unwrap().z);
+        for (kind, name) in [(pb::ToolKind::Scalpel as i32, "SCALPEL"), (99, "99")] {
+            let mut tools = s.interact().await.unwrap();
+            // a probe state is answered, then the scalpel ends the stream
+            tools.send(tool_at(0, [0.0, 0.0, 0.05])).await.unwrap();
+            assert_eq!(tools.next().await.unwrap().unwrap().seq, 0);
+            let mut bad = tool_at(1, [0.0, 0.0, 0.05]);
+            bad.kind = kind;
+            tools.send(bad).await.unwrap();
+            let e = tools.next().await.unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::InvalidArgument, "{e}");
+            assert!(e.to_string().contains(name) && e.to_string().contains("'probe'"), "{e}");
+        }
+        // a NaN orientation is rejected like a NaN position: zero force, the stream goes on
+        let mut tools = s.interact().await.unwrap();
+        let mut st = tool_at(0, [0.0, 0.0, 0.02]);
+        st.orientation = Some(pb::Quat {
+            w: f64::NAN,
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+        });
+        tools.send(st).await.unwrap();
+        let r = tools.next().await.unwrap().unwrap();
+        assert!(r.events & pb::Event::RejectedInput as u32 != 0);
+        tools.send(tool_at(1, [0.0, 0.0, 0.02])).await.unwrap();
+        let r = tools.next().await.unwrap().unwrap();
+        assert_eq!(r.events & pb::Event::RejectedInput as u32, 0);
+    });
+}
+
+#[test]
+fn closing_a_session_mid_stream_answers_or_fails_every_state() {
+    let server = util::Server::start(&[], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let s = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "c")
+            .await
+            .unwrap();
+        let id = s.id().to_string();
+        let mut tools = s.interact().await.unwrap();
+        // the stream is open once its first state is answered
+        tools.send(tool_at(0, [0.0, 0.0, 0.03])).await.unwrap();
+        assert_eq!(tools.next().await.unwrap().unwrap().seq, 0);
+        let sent = 4000u64;
+        for i in 1..sent {
+            tools.send(tool_at(i, [0.0, 0.0, 0.03])).await.unwrap();
+        }
+        client.session(&id).await.unwrap().close().await.unwrap();
+        let mut answered = 1u64;
+        let end = loop {
+            match tools.next().await {
+                Ok(Some(r)) => {
+                    assert_eq!(r.seq, answered, "in order");
+                    answered += 1;
+                }
+                Ok(None) => break None,
+                Err(e) => break Some(e),
+            }
+        };
+        if answered < sent {
+            let e = end.expect("the unanswered states are failed with a status");
+            assert_eq!(e.kind(), ErrorKind::Aborted, "{e}");
+            assert!(e.to_string().contains(&format!("last {} tool state", sent - answered)), "{e}");
+        }
+    });
+}
