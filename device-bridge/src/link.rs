@@ -4,6 +4,10 @@
 //! state at once with zero force and no IPC (the benchmark's null loop). Every port is created
 //! before the loop starts; per tick, a link only loans, writes and sends, or receives.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
 use vademecum_proto::shm::{
     self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher, ShmSubscriber,
 };
@@ -30,16 +34,18 @@ pub trait Link {
     fn send_report(&mut self, report: &BridgeReport) -> Result<(), LinkError>;
     /// Forces received but superseded by a newer one before the bridge used them.
     fn skipped(&self) -> u64;
-    /// Housekeeping off the hot path, when the server seems gone: removes the shared-memory
-    /// leftovers of crashed processes so that a restarted server can take the channel.
+    /// Asks for housekeeping off the hot path, when the server seems gone: the shared-memory
+    /// leftovers of crashed processes are removed (on another thread) so that a restarted
+    /// server can take the channel. Must cost the calling thread nothing but a flag.
     fn maintain(&mut self) {}
 }
 
 /// The iceoryx2 transport.
 #[derive(Debug)]
 pub struct ShmLink {
-    node: iceoryx2::prelude::Node<iceoryx2::prelude::ipc::Service>,
+    _node: iceoryx2::prelude::Node<iceoryx2::prelude::ipc::Service>,
     _services: HapticServices,
+    housekeeping: Housekeeping,
     states: ShmPublisher<HapticState>,
     commands: ShmSubscriber<HapticCommand>,
     reports: ShmPublisher<BridgeReport>,
@@ -64,8 +70,9 @@ impl ShmLink {
         let reports = services.report.publisher_builder().create().map_err(|e| port("report", &e))?;
         let wake = services.wake.notifier_builder().create().map_err(|e| port("wake", &e))?;
         Ok(Self {
-            node,
+            _node: node,
             _services: services,
+            housekeeping: Housekeeping::start(),
             states,
             commands,
             reports,
@@ -107,7 +114,53 @@ impl Link for ShmLink {
     }
 
     fn maintain(&mut self) {
-        self.node.try_cleanup_dead_nodes();
+        self.housekeeping.wanted.store(true, Ordering::Relaxed);
+    }
+}
+
+/// The housekeeping thread of a link: removes the shared-memory leftovers of crashed
+/// processes (iceoryx2's dead-node cleanup scans the file system and allocates) when the loop
+/// asks for it — the 1 kHz thread only sets a flag.
+#[derive(Debug)]
+struct Housekeeping {
+    wanted: Arc<AtomicBool>,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+/// How often the housekeeping thread looks at its flag: a restarted server waits at most this
+/// long for the leftovers of its predecessor to go.
+const HOUSEKEEPING_PERIOD: Duration = Duration::from_millis(100);
+
+impl Housekeeping {
+    fn start() -> Self {
+        let wanted = Arc::new(AtomicBool::new(false));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (w, s) = (wanted.clone(), stop.clone());
+        let thread = std::thread::Builder::new()
+            .name("bridge-housekeeping".into())
+            .spawn(move || {
+                let node = shm::node(&format!("vademecum-bridge-hk-{}", std::process::id())).ok();
+                while !s.load(Ordering::Relaxed) {
+                    std::thread::sleep(HOUSEKEEPING_PERIOD);
+                    if w.swap(false, Ordering::Relaxed)
+                        && let Some(n) = &node
+                    {
+                        n.try_cleanup_dead_nodes();
+                    }
+                }
+            })
+            .ok();
+        Self { wanted, stop, thread }
+    }
+}
+
+impl Drop for Housekeeping {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
     }
 }
 

@@ -59,6 +59,7 @@ pub async fn run(
         .set_serving::<pb::interaction_server::InteractionServer<InteractionService>>()
         .await;
     health.set_serving::<pb::viewing_server::ViewingServer<ViewingService>>().await;
+    health.set_serving::<pb::info_server::InfoServer<InfoService>>().await;
     let reflection = tonic_reflection::server::Builder::configure()
         .register_encoded_file_descriptor_set(vademecum_proto::FILE_DESCRIPTOR_SET)
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)

@@ -323,7 +323,13 @@ fn the_standard_health_service_and_reflection_describe_the_server() {
             .unwrap();
         // health and reflection answer without a token: orchestrators probe them
         let mut health = HealthClient::new(channel.clone());
-        for service in ["vademecum.v1.Sessions", "vademecum.v1.Interaction", "vademecum.v1.Viewing"] {
+        for service in [
+            "",
+            "vademecum.v1.Info",
+            "vademecum.v1.Sessions",
+            "vademecum.v1.Interaction",
+            "vademecum.v1.Viewing",
+        ] {
             let r = health
                 .check(HealthCheckRequest { service: service.into() })
                 .await

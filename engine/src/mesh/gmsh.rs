@@ -269,6 +269,9 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     }
 }
 
+/// Most tags a binary element may carry (Gmsh writes 2–4: physical, elementary, partitions).
+const MAX_TAGS: i32 = 64;
+
 /// A byte cursor that reads text lines and binary words.
 struct Cursor<'a> {
     b: &'a [u8],
@@ -411,7 +414,7 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                             _ => return Err(err(format!("truncated $Elements section: {read} of {n} elements read"))),
                         };
                         let nn = nodes_of_type(ty).ok_or_else(|| err(format!("unknown element type {ty} in binary $Elements")))?;
-                        if count <= 0 || ntags < 0 || read + count as usize > n {
+                        if count <= 0 || !(0..=MAX_TAGS).contains(&ntags) || read + count as usize > n {
                             return Err(err(format!(
                                 "corrupt binary element block header (type {ty}, count {count}, tags {ntags})"
                             )));
@@ -421,7 +424,10 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                             let _id = cur.i32(swap);
                             tags.clear();
                             for _ in 0..ntags {
-                                tags.push(cur.i32(swap).unwrap_or(0));
+                                tags.push(
+                                    cur.i32(swap)
+                                        .ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))?,
+                                );
                             }
                             for v in nodes.iter_mut() {
                                 *v = cur

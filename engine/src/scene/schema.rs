@@ -207,8 +207,10 @@ pub enum LoadSpec {
 /// a desktop haptic device can display, a bound on what a client can ever receive.
 pub const GLOBAL_FORCE_LIMIT_N: f64 = 100.0;
 
-/// The probe's force limit when the scene gives none (N): above the 40 N peak of a firm
-/// palpation of the built-in organ at 3 probe radii, below [`GLOBAL_FORCE_LIMIT_N`].
+/// The probe's force limit when the scene gives none (N). Desktop haptic devices render a few
+/// newtons (the bridge clamps to the device's own limit); 50 N leaves a gRPC client the
+/// tissue's response far past that — the built-in organ pressed three probe radii deep at
+/// its middle — while bounding what any client receives.
 pub const DEFAULT_PROBE_MAX_FORCE_N: f64 = 50.0;
 
 fn default_probe_max_force() -> f64 {

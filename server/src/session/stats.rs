@@ -1,8 +1,20 @@
 //! Tick statistics: counters as atomics, latency histograms (HdrHistogram) recorded on the
-//! tick thread into a local histogram and merged into the shared one with `try_lock`, so
-//! the tick thread never waits for a reader.
+//! tick thread into a local set and handed over whole, lock-free, to the readers, who merge
+//! them — the tick thread never merges, resets, allocates or waits for a reader.
+//!
+//! # The hand-over
+//! Three sets of histograms exist for a session's life: the one the tick thread records into,
+//! and two that travel through two one-slot lock-free queues (`crossbeam_queue::ArrayQueue`):
+//! `full` (tick → readers) and `empty` (readers → tick). Every few ticks the tick thread, if
+//! `full` is free and `empty` holds a set, swaps its set for the empty one and pushes its own
+//! into `full` — two queue operations and a pointer swap. A reader ([`TickStats::histograms`],
+//! and so every snapshot and the metrics page) pops `full`, merges it into the cumulative
+//! histograms under a mutex the tick thread never touches, resets it and pushes it into
+//! `empty`. When nobody reads, the tick thread simply keeps recording into its set.
 
 use std::sync::Mutex;
+
+use crossbeam_queue::ArrayQueue;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use hdrhistogram::Histogram;
@@ -63,7 +75,7 @@ impl Histograms {
 }
 
 /// Counters and histograms shared between the tick thread and readers.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct TickStats {
     /// Ticks run.
     pub ticks: AtomicU64,
@@ -87,7 +99,35 @@ pub struct TickStats {
     pub bridge: BridgeStats,
     /// CPU time of the tick thread (ns), updated every few ticks.
     pub tick_cpu_ns: AtomicU64,
+    /// Everything merged so far (readers only).
     histograms: Mutex<Histograms>,
+    /// A recorded set waiting for a reader.
+    full: ArrayQueue<Box<Histograms>>,
+    /// A cleared set waiting for the tick thread.
+    empty: ArrayQueue<Box<Histograms>>,
+}
+
+impl Default for TickStats {
+    fn default() -> Self {
+        let empty = ArrayQueue::new(1);
+        let _ = empty.push(Box::default());
+        Self {
+            ticks: AtomicU64::new(0),
+            misses: AtomicU64::new(0),
+            answered: AtomicU64::new(0),
+            rejected: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            frames: AtomicU64::new(0),
+            haptic_answered: AtomicU64::new(0),
+            haptic_skipped: AtomicU64::new(0),
+            haptic_errors: AtomicU64::new(0),
+            bridge: BridgeStats::default(),
+            tick_cpu_ns: AtomicU64::new(0),
+            histograms: Mutex::new(Histograms::default()),
+            full: ArrayQueue::new(1),
+            empty,
+        }
+    }
 }
 
 /// The latest report of a session's device bridge, field by field as atomics (a reader may
@@ -179,21 +219,46 @@ impl BridgeStats {
 }
 
 impl TickStats {
-    /// Merges `local` into the shared histograms if no reader holds them (never waits), then
-    /// clears `local` when merged. Called by the tick thread every few ticks.
-    pub fn publish(&self, local: &mut Histograms) -> bool {
-        match self.histograms.try_lock() {
-            Ok(mut h) => {
-                h.merge_from(local);
-                local.reset();
-                true
-            }
-            Err(_) => false,
+    /// Hands the tick thread's set `local` over to the readers and gives it a cleared one,
+    /// when a reader has collected the last hand-over (else `local` keeps recording).
+    /// Lock-free, allocation-free, O(1): called by the tick thread every few ticks. Returns
+    /// whether it handed over.
+    pub fn publish(&self, local: &mut Box<Histograms>) -> bool {
+        if self.full.is_full() {
+            return false;
+        }
+        let Some(spare) = self.empty.pop() else {
+            return false;
+        };
+        let recorded = std::mem::replace(local, spare);
+        // the tick thread is the only producer of `full`, and it was free
+        let _ = self.full.push(recorded);
+        true
+    }
+
+    /// Merges what the tick thread recorded since its last hand-over into the cumulative
+    /// histograms: for the end of a session, off the real-time path.
+    pub fn finish(&self, local: &Histograms) {
+        self.collect();
+        if let Ok(mut h) = self.histograms.lock() {
+            h.merge_from(local);
         }
     }
 
-    /// A copy of the shared histograms (waits for the tick thread's brief merge at most).
+    /// Merges a handed-over set, if any, and returns it cleared to the tick thread.
+    fn collect(&self) {
+        if let Some(mut set) = self.full.pop() {
+            if let Ok(mut h) = self.histograms.lock() {
+                h.merge_from(&set);
+            }
+            set.reset();
+            let _ = self.empty.push(set);
+        }
+    }
+
+    /// A copy of the cumulative histograms, with the latest hand-over merged in.
     pub fn histograms(&self) -> Histograms {
+        self.collect();
         self.histograms.lock().map(|h| h.clone()).unwrap_or_default()
     }
 

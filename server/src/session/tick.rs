@@ -12,7 +12,7 @@ use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_PROBE, TOOL_SCA
 use super::stats::{Histograms, TickStats};
 use super::{Answer, Command, Script};
 
-/// How many ticks between merges of the local histograms into the shared ones.
+/// How many ticks between hand-overs of the tick thread's histograms to the readers.
 const PUBLISH_EVERY: u64 = 64;
 
 /// After a stall longer than this many periods the loop restarts its schedule from now
@@ -86,7 +86,7 @@ impl TickLoop {
     /// Runs until stopped (or the script ends); with a haptic `peer`, the tick also answers
     /// the device bridge (see [`vademecum_bridge::peer`] for how it waits).
     pub fn run(mut self, mut peer: Option<HapticPeer>) {
-        let mut local = Histograms::default();
+        let mut local = Box::<Histograms>::default();
         let period = self.period;
         let mut next = Instant::now() + period;
         let mut tick: u64 = 0;
@@ -169,9 +169,10 @@ impl TickLoop {
                     state,
                 });
             }
-            Histograms::record(&mut local.work, start.elapsed().as_nanos() as u64);
             self.stats.ticks.fetch_add(1, Ordering::Relaxed);
             tick += 1;
+            // the periodic bookkeeping (histogram hand-over, the CPU-time syscall, the bridge's
+            // report) is part of the tick whose work it lengthens: timed with it below
             if tick.is_multiple_of(PUBLISH_EVERY) {
                 self.stats.publish(&mut local);
                 let cpu = vademecum_bridge::timing::thread_cpu_time().as_nanos() as u64;
@@ -183,6 +184,7 @@ impl TickLoop {
                     self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
                 }
             }
+            Histograms::record(&mut local.work, start.elapsed().as_nanos() as u64);
             next = match &peer {
                 Some(p) => p.next_deadline(next, start, arrived.is_some()),
                 None => next + period,
@@ -197,9 +199,7 @@ impl TickLoop {
         {
             self.stats.bridge.store(&r);
         }
-        while !self.stats.publish(&mut local) {
-            std::thread::yield_now();
-        }
+        self.stats.finish(&local);
     }
 }
 

@@ -1,0 +1,115 @@
+//! A tick of the effect pipeline allocates nothing: a counting allocator counts the
+//! allocations of the test's thread over thousands of ticks that exercise every branch of the
+//! palpation tick — approach, touch, deep press, sliding across edges and onto the support,
+//! saturation, a tool appearing inside (the widening search), release, rejected input — for the
+//! linear and the large-deformation (ANM-POD lattice) models.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::sync::Arc;
+
+use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::pipeline::{Events, Pipeline, ToolInput};
+use vademecum_engine::scene::Scene;
+
+struct Counting;
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards to the system allocator; only counts, on the calling thread.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTING.with(|c| c.get()) {
+            COUNT.with(|n| n.set(n.get() + 1));
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn pipeline(scene: &Scene) -> Pipeline {
+    let built = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir.path(), scene, &built).unwrap();
+    let b = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    Pipeline::for_scene(scene, &[b]).unwrap()
+}
+
+/// The tool path: `n` points through every case, around `centre` with a body of `size`.
+fn path(centre: [f64; 3], size: f64, top: f64, n: usize) -> Vec<ToolInput> {
+    let mut out = Vec::with_capacity(n);
+    let at = |p: [f64; 3]| ToolInput {
+        position_m: p,
+        ..ToolInput::default()
+    };
+    for i in 0..n {
+        let u = i as f64 / n as f64;
+        let p = match i % 10 {
+            // a tool jumping to points inside and outside (acquisition, widening search)
+            7 => [centre[0] + size * (u - 0.5), centre[1], centre[2]],
+            // a NaN sample
+            8 => [f64::NAN, 0.0, 0.0],
+            // down from above to far below the surface, sliding sideways
+            _ => [
+                centre[0] + 0.8 * size * (u - 0.5),
+                centre[1] + 0.3 * size * (7.0 * u).sin(),
+                top + 0.01 - 0.05 * (13.0 * u).sin().abs(),
+            ],
+        };
+        out.push(at(p));
+    }
+    out
+}
+
+fn allocations(p: &mut Pipeline, tools: &[ToolInput]) -> (u64, u32) {
+    let mut seen = 0u32;
+    COUNT.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    for t in tools {
+        seen |= p.tick(t).events.0;
+    }
+    COUNTING.with(|c| c.set(false));
+    (COUNT.with(|n| n.get()), seen)
+}
+
+#[test]
+fn a_palpation_tick_allocates_nothing() {
+    let text = vademecum_engine::scene::builtin("organ")
+        .unwrap()
+        .replace("radius = 0.004                       # m", "radius = 0.004\nmax_force = 10.0");
+    let scene = Scene::from_toml(&text, "organ.toml").unwrap();
+    let mut p = pipeline(&scene);
+    let tools = path([0.0, 0.0, 0.01], 0.16, 0.04, 6000);
+    let (n, seen) = allocations(&mut p, &tools);
+    assert_eq!(n, 0, "{n} allocations in {} ticks", tools.len());
+    // the path did go through the cases it is meant to
+    for e in [Events::CONTACT, Events::REJECTED_INPUT, Events::FORCE_SATURATED] {
+        assert!(seen & e != 0, "event {e} never happened");
+    }
+}
+
+#[test]
+fn a_large_deformation_palpation_tick_allocates_nothing() {
+    // the built-in cornea, coarser and with a 3-position lattice (the allocation-free claim
+    // does not depend on the sizes; `large_palpation.rs` uses the same reduction)
+    let text = vademecum_engine::scene::builtin("cornea")
+        .unwrap()
+        .replace("divisions = [24, 24, 3]", "divisions = [12, 12, 2]")
+        .replace("positions = 9", "positions = 3")
+        .replace("load_steps = 6", "load_steps = 4");
+    let scene = Scene::from_toml(&text, "cornea.toml").unwrap();
+    let mut p = pipeline(&scene);
+    let tools = path([0.0, 0.0, 0.001], 0.012, 0.0024, 4000);
+    let (n, seen) = allocations(&mut p, &tools);
+    assert_eq!(n, 0, "{n} allocations in {} ticks", tools.len());
+    assert!(seen & Events::CONTACT != 0);
+    assert!(seen & Events::BEYOND_RANGE != 0, "the path presses past the lattice's range");
+}
