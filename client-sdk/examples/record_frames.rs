@@ -65,6 +65,10 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         else {
             break;
         };
+        if f.heartbeat {
+            // nothing new since the last frame
+            continue;
+        }
         for (k, (mesh, d)) in geometry.organs.iter().zip(&f.organs).enumerate() {
             let file = format!("{}_{:06}.vtu", mesh.organ, f.seq);
             let tris: Vec<u32> = mesh

@@ -92,10 +92,12 @@ pub fn geometry_frame(g: &SurfaceGeometry) -> pb::Frame {
     }
 }
 
-/// A displacement frame.
-pub fn frame(f: &Frame) -> pb::Frame {
+/// A displacement frame, number `seq` of its stream.
+pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
     pb::Frame {
-        seq: f.seq,
+        seq,
+        session_frame: f.seq,
+        heartbeat: false,
         tick: f.tick,
         time_s: f.time_s,
         geometry: None,
@@ -107,6 +109,20 @@ pub fn frame(f: &Frame) -> pb::Frame {
             })
             .collect(),
         force_n: Some(pb_vec3(f.force_n)),
+    }
+}
+
+/// A heartbeat: nothing new since the stream's frame `seq` (session frame `f.seq`); the
+/// session is at `tick`.
+pub fn heartbeat(f: &Frame, seq: u64, tick: u64, time_s: f64) -> pb::Frame {
+    pb::Frame {
+        seq,
+        session_frame: f.seq,
+        heartbeat: true,
+        tick,
+        time_s,
+        force_n: Some(pb_vec3(f.force_n)),
+        ..Default::default()
     }
 }
 

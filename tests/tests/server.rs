@@ -98,17 +98,23 @@ fn viewers_at_30_and_5_hz_get_numbered_frames_while_interaction_continues() {
                 let g = first.geometry.expect("the first frame carries the geometry");
                 let nodes = g.organs[0].node_count as usize;
                 assert_eq!(f32s(&g.organs[0].positions).len(), 3 * nodes);
-                let (mut seqs, mut moved) = (Vec::new(), false);
+                let (mut seqs, mut moved, mut beats) = (Vec::new(), false, 0usize);
                 let until = Instant::now() + Duration::from_secs(3);
                 while Instant::now() < until {
                     let Ok(Ok(Some(f))) = tokio::time::timeout(Duration::from_secs(1), frames.message()).await else {
                         break;
                     };
+                    if f.heartbeat {
+                        // nothing new since frame f.seq: no displacements
+                        assert!(f.organs.is_empty() && f.seq == seqs.last().copied().unwrap_or(0));
+                        beats += 1;
+                        continue;
+                    }
                     assert_eq!(f32s(&f.organs[0].displacements).len(), 3 * nodes);
                     moved |= f32s(&f.organs[0].displacements).iter().any(|&u| u != 0.0);
                     seqs.push(f.seq);
                 }
-                (seqs, moved)
+                (seqs, moved, beats)
             })
         };
         let viewers = [watch(30.0), watch(30.0), watch(5.0)];
@@ -123,16 +129,45 @@ fn viewers_at_30_and_5_hz_get_numbered_frames_while_interaction_continues() {
         }
         let mut counts = Vec::new();
         for v in viewers {
-            let (seqs, moved) = v.await.unwrap();
+            let (seqs, moved, beats) = v.await.unwrap();
             assert!(seqs.windows(2).all(|w| w[1] > w[0]), "frame numbers increase: {seqs:?}");
+            // numbered per stream: consecutive unless this viewer itself fell behind
+            assert_eq!(seqs.first(), Some(&1), "{seqs:?}");
             assert!(moved, "frames show the organ displaced under the probe");
-            counts.push(seqs.len());
+            counts.push(seqs.len() + beats);
         }
-        // rates: behaviour, not timing — each 30 Hz viewer gets several times what the 5 Hz one gets
-        assert!(counts[0] >= 30 && counts[1] >= 30, "30 Hz viewers got {counts:?} frames in 3 s");
-        assert!((5..=20).contains(&counts[2]), "the 5 Hz viewer got {} frames in 3 s", counts[2]);
+        // rates (frames and heartbeats): behaviour, not timing — each 30 Hz viewer gets several
+        // times what the 5 Hz one gets
+        assert!(counts[0] >= 30 && counts[1] >= 30, "30 Hz viewers got {counts:?} messages in 3 s");
+        assert!((5..=20).contains(&counts[2]), "the 5 Hz viewer got {} messages in 3 s", counts[2]);
         let stats = session.stats().await.unwrap();
         assert!(stats.frames > 0 && stats.answered as usize == i);
+    });
+}
+
+#[test]
+fn an_idle_session_sends_heartbeats_at_the_viewers_rate_from_the_start() {
+    let server = util::Server::start(&[], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let session = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "idle")
+            .await
+            .unwrap();
+        let mut frames = session.watch(10.0).await.unwrap();
+        assert!(frames.message().await.unwrap().unwrap().geometry.is_some());
+        let mut ticks = Vec::new();
+        for _ in 0..5 {
+            let f = tokio::time::timeout(Duration::from_secs(2), frames.message())
+                .await
+                .expect("a message within 2 s although no tool state was sent")
+                .unwrap()
+                .unwrap();
+            assert!(f.heartbeat && f.organs.is_empty() && f.seq == 0, "{f:?}");
+            ticks.push(f.tick);
+        }
+        assert!(ticks.windows(2).all(|w| w[1] > w[0]), "the session's clock advances: {ticks:?}");
     });
 }
 

@@ -1,5 +1,6 @@
-//! `vademecum.v1.Viewing`: the reference geometry, then the latest frames at the viewer's
-//! rate. A viewer that cannot keep up skips frames (bounded channel, `try_send`); the
+//! `vademecum.v1.Viewing`: the reference geometry, then one message per period of the
+//! viewer's own rate — the latest frame when there is a new one, else a heartbeat — numbered
+//! per stream. A viewer that cannot keep up skips frames (bounded channel, `try_send`); the
 //! session never waits for it.
 
 use std::pin::Pin;
@@ -56,17 +57,24 @@ impl pb::viewing_server::Viewing for ViewingService {
             }
             let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
             every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-            let mut last = 0u64;
+            // the session frame last sent, and this stream's own count of frames
+            let (mut last, mut sent) = (0u64, 0u64);
+            let period_s = entry.session.config().period.as_secs_f64();
             loop {
                 tokio::select! {
                     _ = every.tick() => {
                         let f = frames.borrow_and_update().clone();
-                        if f.seq > last {
+                        let msg = if f.seq > last {
                             last = f.seq;
-                            match tx.try_send(Ok(convert::frame(&f))) {
-                                Ok(()) | Err(TrySendError::Full(_)) => {}
-                                Err(TrySendError::Closed(_)) => return,
-                            }
+                            sent += 1;
+                            convert::frame(&f, sent)
+                        } else {
+                            let tick = entry.session.stats().ticks.load(std::sync::atomic::Ordering::Relaxed);
+                            convert::heartbeat(&f, sent, tick, tick as f64 * period_s)
+                        };
+                        match tx.try_send(Ok(msg)) {
+                            Ok(()) | Err(TrySendError::Full(_)) => {}
+                            Err(TrySendError::Closed(_)) => return,
                         }
                     }
                     _ = closed.changed() => return,
