@@ -10,7 +10,7 @@ use std::sync::Arc;
 
 use vademecum_engine::contact::{Surface, SurfacePoint};
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
-use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput};
+use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, palpation};
 use vademecum_engine::scene::Scene;
 
 /// The scene's vademecum, built and loaded back from a bundle as a session would.
@@ -86,20 +86,6 @@ fn press_straight_down(scene: &Scene, b: &Arc<LoadedBundle>, points: usize, dept
     }
 }
 
-/// The largest stiffness of the organ at a loadable node, `max 1/λ_min(C(a))` (N/m).
-fn stiffest(b: &LoadedBundle) -> f64 {
-    let v = &b.vademecum;
-    v.load_nodes()
-        .iter()
-        .filter_map(|&a| v.compliance([a, a, a], [1.0, 0.0, 0.0]))
-        .map(|c| {
-            1.0 / nalgebra::Matrix3::from_fn(|i, j| 0.5 * (c[i][j] + c[j][i]))
-                .symmetric_eigenvalues()
-                .min()
-        })
-        .fold(0.0, f64::max)
-}
-
 /// Sweeps a pressed probe along a path given by `at(u)`, u ∈ [0, 1], in `n` steps: the
 /// largest change of the force between two steps.
 fn sweep_jump(pipe: &mut Pipeline, n: usize, at: impl Fn(f64) -> [f64; 3]) -> f64 {
@@ -156,7 +142,7 @@ fn organ_entered_from_every_side_holds_the_contact_to_the_centre() {
     let scene = Scene::builtin("organ").unwrap();
     let b = bundle(&scene);
     let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
-    let k_max = stiffest(&b);
+    let k_max = palpation::support_stiffness(&b.vademecum);
     let centre = [0.0, 0.0, 0.01];
     // +z: the accessible top; −y: the fixed posterior edge; −z: the bottom; x: the tips;
     // diagonals: edges of the body

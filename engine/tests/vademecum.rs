@@ -277,6 +277,13 @@ fn hostile_bundles_are_refused_even_with_matching_checksums() {
     forge(&dir, "G", &big);
     refused("allows");
     restore();
+    // a manifest shape whose byte length is just below u64::MAX (the size bound on top of it
+    // overflowed)
+    let mut m: serde_json::Value = serde_json::from_str(&manifest).unwrap();
+    m["arrays"]["G"]["shape"] = serde_json::json!([u64::MAX / 8]);
+    std::fs::write(dir.join("manifest.json"), serde_json::to_string(&m).unwrap()).unwrap();
+    refused("shape");
+    restore();
     // a file name leaving the bundle
     let m = dir.join("manifest.json");
     std::fs::write(&m, manifest.replacen("\"file\": \"G.npy\"", "\"file\": \"../G.npy\"", 1)).unwrap();

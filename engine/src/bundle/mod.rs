@@ -312,23 +312,12 @@ pub fn read_array(dir: &Path, manifest: &Manifest, name: &str) -> Result<(Vec<u6
         ));
     }
     let path = dir.join(&entry.file);
-    let Some(itemsize) = npy::itemsize(&entry.dtype) else {
+    if npy::itemsize(&entry.dtype).is_none() {
         return Err(bad(&path, format!("unsupported dtype {}", entry.dtype)));
-    };
-    let data_len = entry
-        .shape
-        .iter()
-        .try_fold(itemsize as u64, |a, &d| a.checked_mul(d))
-        .ok_or_else(|| bad(&path, format!("shape {:?} is too large", entry.shape)))?;
-    let bytes = read_regular(&path, data_len + npy::MAX_HEADER as u64 + 12)?;
-    let found = sha256_hex(&bytes);
-    if found != entry.sha256 {
-        return Err(BundleError::Checksum {
-            path,
-            expected: entry.sha256.clone(),
-            found,
-        });
     }
+    let data_len = npy::data_len(&entry.dtype, &entry.shape).ok_or_else(|| bad(&path, format!("shape {:?} is too large", entry.shape)))?;
+    // the header (12 bytes of preamble at most, then the dict) comes on top of the data
+    let bytes = read_verified(&path, data_len.saturating_add(npy::MAX_HEADER as u64 + 12), &entry.sha256)?;
     let header = npy::parse_header(&bytes).map_err(|e| bad(&path, format!("not a valid .npy file: {e}")))?;
     if header.descr != entry.dtype {
         return Err(bad(&path, format!("dtype {}, manifest says {}", header.descr, entry.dtype)));
@@ -394,21 +383,27 @@ fn read_regular(path: &Path, max: u64) -> Result<Vec<u8>, BundleError> {
     Ok(bytes)
 }
 
+/// [`read_regular`], then the SHA-256 of what was read checked against `sha256` (hex).
+fn read_verified(path: &Path, max: u64, sha256: &str) -> Result<Vec<u8>, BundleError> {
+    let bytes = read_regular(path, max)?;
+    let found = sha256_hex(&bytes);
+    if found != sha256 {
+        return Err(BundleError::Checksum {
+            path: path.to_path_buf(),
+            expected: sha256.to_string(),
+            found,
+        });
+    }
+    Ok(bytes)
+}
+
 /// Largest scene text a bundle may carry (bytes), as the server's request limit.
 const MAX_SCENE_BYTES: u64 = 1 << 20;
 
 /// The bundle's `scene.toml`, checked against the manifest's `scene_sha256`.
 pub fn read_scene(dir: &Path, manifest: &Manifest) -> Result<String, BundleError> {
     let path = dir.join("scene.toml");
-    let bytes = read_regular(&path, MAX_SCENE_BYTES)?;
-    let found = sha256_hex(&bytes);
-    if found != manifest.scene_sha256 {
-        return Err(BundleError::Checksum {
-            path,
-            expected: manifest.scene_sha256.clone(),
-            found,
-        });
-    }
+    let bytes = read_verified(&path, MAX_SCENE_BYTES, &manifest.scene_sha256)?;
     String::from_utf8(bytes).map_err(|_| BundleError::Malformed {
         path,
         message: "is not UTF-8 text".into(),

@@ -217,10 +217,10 @@ impl Cursor<'_> {
     }
 }
 
-/// The data length a header implies (bytes), if it fits in memory terms.
-pub fn data_len(h: &Header) -> Option<u64> {
-    let n = h.shape.iter().try_fold(1u64, |a, &d| a.checked_mul(d))?;
-    n.checked_mul(itemsize(&h.descr)? as u64)
+/// The data length (bytes) of an array of dtype `descr` and `shape`; `None` for an
+/// unsupported dtype or a length beyond `u64`.
+pub fn data_len(descr: &str, shape: &[u64]) -> Option<u64> {
+    shape.iter().try_fold(itemsize(descr)? as u64, |a, &d| a.checked_mul(d))
 }
 
 #[cfg(test)]
@@ -243,7 +243,7 @@ mod tests {
             (p.descr.as_str(), p.shape.clone(), p.data_offset),
             ("<f8", vec![2, 3], 10 + h.len())
         );
-        assert_eq!(data_len(&p), Some(48));
+        assert_eq!(data_len(&p.descr, &p.shape), Some(48));
         let h = "{'descr': '<i8', 'fortran_order': False, 'shape': (5,), }\n";
         assert_eq!(parse_header(&file(h, &[])).unwrap().shape, vec![5]);
         let h = "{'descr': '<f4', 'fortran_order': False, 'shape': (), }\n";

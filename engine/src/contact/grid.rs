@@ -125,11 +125,6 @@ impl Grid {
         }
     }
 
-    /// Width of a cell (m).
-    pub fn cell_size(&self) -> f64 {
-        self.cell
-    }
-
     /// The cell holding `p`, if it lies in the grid.
     fn cell_of(&self, p: [f64; 3]) -> Option<[usize; 3]> {
         if self.dims[0] == 0 {

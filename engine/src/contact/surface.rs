@@ -25,9 +25,6 @@ pub struct Surface {
     /// Per triangle, the triangle across the edge opposite each vertex ([`NO_NEIGHBOUR`] on
     /// an open edge).
     across: Vec<[u32; 3]>,
-    /// Per triangle, the triangles that share a vertex with it (CSR, itself excluded).
-    ring_ptr: Vec<u32>,
-    ring: Vec<u32>,
     grid: Grid,
 }
 
@@ -95,7 +92,7 @@ impl Surface {
         for n in &mut vn {
             *n = unit(*n).unwrap_or([0.0; 3]);
         }
-        // triangles around each node, then around each triangle
+        // triangles around each node, then the neighbour across each edge
         let mut around: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
         for (i, t) in tris.iter().enumerate() {
             for &n in t {
@@ -111,19 +108,6 @@ impl Surface {
                 }
             }
         }
-        let mut ring_ptr = vec![0u32];
-        let mut ring = Vec::new();
-        for (i, t) in tris.iter().enumerate() {
-            let mut r: Vec<u32> = t
-                .iter()
-                .flat_map(|&n| around[n].iter().copied())
-                .filter(|&j| j as usize != i)
-                .collect();
-            r.sort_unstable();
-            r.dedup();
-            ring.extend(r);
-            ring_ptr.push(ring.len() as u32);
-        }
         let boxes: Vec<([f64; 3], [f64; 3])> = tris
             .iter()
             .map(|t| {
@@ -138,8 +122,6 @@ impl Surface {
             geom,
             vertex_normals: vn,
             across,
-            ring_ptr,
-            ring,
             grid,
         }
     }
@@ -192,11 +174,6 @@ impl Surface {
     /// outside).
     pub fn signed_distance(&self, s: &SurfacePoint, p: [f64; 3]) -> f64 {
         dot(sub(p, s.point), self.normal_at(s))
-    }
-
-    /// The triangles sharing a vertex with `t`.
-    pub fn ring(&self, t: usize) -> &[u32] {
-        &self.ring[self.ring_ptr[t] as usize..self.ring_ptr[t + 1] as usize]
     }
 
     /// The surface point nearest to `p` among the triangles within `reach` (a box search in
@@ -349,11 +326,6 @@ impl Surface {
             s -= dot(cu, cross(cv, f)) / det;
         }
         None
-    }
-
-    /// The side of a grid cell (m): the scale of the surface's triangles.
-    pub fn cell_size(&self) -> f64 {
-        self.grid.cell_size()
     }
 }
 

@@ -52,9 +52,9 @@ pub struct Palpation {
 /// Lattice positions blended per evaluation (seed 001 §6.1 interpolates among four).
 const NEIGHBOURS: usize = 4;
 
-/// The stiffest the organ gets at a loadable node: `max_a 1/λ_min(C(a))` (N/m), 0 if no
-/// node is loadable.
-fn support_stiffness(v: &Vademecum) -> f64 {
+/// The stiffest the organ gets at a loadable node, `max_a 1/λ_min(C(a))` (N/m), 0 if no
+/// node is loadable: the support stiffness `k_w`.
+pub fn support_stiffness(v: &Vademecum) -> f64 {
     v.load_nodes()
         .iter()
         .filter_map(|&a| v.compliance([a, a, a], [1.0, 0.0, 0.0]))
@@ -127,11 +127,6 @@ impl Palpation {
             large,
             scratch,
         }
-    }
-
-    /// The support stiffness `k_w` of each organ (N/m).
-    pub fn support_stiffness(&self) -> Vec<f64> {
-        self.organs.iter().map(|o| o.wall_stiffness).collect()
     }
 }
 

@@ -68,32 +68,41 @@ async fn fail_pending(out: &mpsc::Sender<Result<pb::ToolResponse, Status>>, pend
     }
 }
 
-/// Why a tool state cannot go on this stream at all (the stream ends with this status).
-fn refused_kind(entry: &Entry, m: &pb::ToolState) -> Option<Status> {
-    let kind = convert::tool_input(m).kind;
-    if entry.session.accepts(kind) {
-        return None;
-    }
+/// Why a tool kind cannot go on this stream at all (the stream ends with this status).
+fn refused_kind(entry: &Entry, m: &pb::ToolState) -> Status {
     let named = match pb::ToolKind::try_from(m.kind) {
         Ok(k) => k.as_str_name().to_string(),
         Err(_) => format!("{} (not a ToolKind)", m.kind),
     };
     let tools: Vec<String> = entry.session.scene().spec.tools.iter().map(|t| format!("'{}'", t.name())).collect();
-    Some(Status::invalid_argument(format!(
+    Status::invalid_argument(format!(
         "tool kind {named} is not simulated by this session (effects: {}; its scene's tools: {})",
         entry.session.effects().join(", "),
         tools.join(", ")
-    )))
+    ))
 }
 
-fn submit(entry: &Entry, m: &pb::ToolState, reply: &mpsc::Sender<Answer>) -> Result<(), SubmitError> {
-    entry.session.submit(ToolCommand {
-        input: convert::tool_input(m),
-        seq: m.seq,
-        client_time_us: m.client_time_us,
-        received: Instant::now(),
-        reply: reply.clone(),
-    })
+/// Submits a tool state to the session's tick thread. `Err(Some(status))` ends the stream
+/// with that status (a tool kind the scene does not simulate, a full queue); `Err(None)`
+/// ends it quietly (the session has stopped).
+fn submit(entry: &Entry, m: &pb::ToolState, reply: &mpsc::Sender<Answer>) -> Result<(), Option<Status>> {
+    let input = convert::tool_input(m);
+    if !entry.session.accepts(input.kind) {
+        return Err(Some(refused_kind(entry, m)));
+    }
+    entry
+        .session
+        .submit(ToolCommand {
+            input,
+            seq: m.seq,
+            client_time_us: m.client_time_us,
+            received: Instant::now(),
+            reply: reply.clone(),
+        })
+        .map_err(|e| match e {
+            SubmitError::Busy => Some(Status::resource_exhausted(e.to_string())),
+            SubmitError::Closed => None,
+        })
 }
 
 /// Reads tool states, submits them, forwards answers; ends when the client is done and
@@ -108,16 +117,8 @@ async fn pump(
     let (reply, mut answers) = mpsc::channel::<Answer>(4096);
     let mut closed = entry.closed.subscribe();
     let id = first.session_id.clone();
-    let refuse = |e: SubmitError| match e {
-        SubmitError::Busy => Some(Status::resource_exhausted(e.to_string())),
-        SubmitError::Closed => None,
-    };
-    if let Some(s) = refused_kind(&entry, &first) {
-        let _ = out.send(Err(s)).await;
-        return;
-    }
-    if let Err(e) = submit(&entry, &first, &reply) {
-        if let Some(s) = refuse(e) {
+    if let Err(status) = submit(&entry, &first, &reply) {
+        if let Some(s) = status {
             let _ = out.send(Err(s)).await;
         }
         return;
@@ -136,12 +137,8 @@ async fn pump(
                         let _ = out.send(Err(Status::invalid_argument("a stream acts on one session; its session_id cannot change"))).await;
                         return;
                     }
-                    if let Some(s) = refused_kind(&entry, &m) {
-                        let _ = out.send(Err(s)).await;
-                        return;
-                    }
-                    if let Err(e) = submit(&entry, &m, &reply) {
-                        if let Some(s) = refuse(e) {
+                    if let Err(status) = submit(&entry, &m, &reply) {
+                        if let Some(s) = status {
                             let _ = out.send(Err(s)).await;
                         }
                         return;
