@@ -18,7 +18,8 @@
 //! # Layout
 //! - [`Client`]: a connection (optionally with a bearer token); creates and finds sessions.
 //! - [`Session`]: one session: [`Session::interact`] (a bidirectional stream of tool states
-//!   and responses), [`Session::watch`] (frames), statistics, close.
+//!   and responses), [`Session::watch`] (frames), [`Session::watch_acked`] (frames with
+//!   acknowledgements, for viewers that can be slower than their rate), statistics, close.
 //! - [`SdkError`]: every failure, with a [`SdkError::kind`] to branch on.
 #![warn(missing_docs)]
 
@@ -288,9 +289,29 @@ impl Session {
         Ok(c.watch(pb::WatchRequest {
             session_id: self.id().into(),
             rate_hz,
+            window: 0,
         })
         .await?
         .into_inner())
+    }
+
+    /// Watches frames at `rate_hz` with acknowledgements ([`Viewer`]): the server keeps at
+    /// most `window` messages unacknowledged (0: its default, 2), so a viewer slower than
+    /// its rate gets the latest frame when it is ready, never a backlog. Call
+    /// [`Viewer::next`], which acknowledges the previous message.
+    pub async fn watch_acked(&self, rate_hz: f64, window: u32) -> Result<Viewer, SdkError> {
+        let mut c = pb::viewing_client::ViewingClient::new(self.client.svc()).max_decoding_message_size(256 << 20);
+        let (tx, rx) = mpsc::channel(4);
+        let start = pb::ViewerControl {
+            control: Some(pb::viewer_control::Control::Start(pb::WatchRequest {
+                session_id: self.id().into(),
+                rate_hz,
+                window,
+            })),
+        };
+        tx.send(start).await.map_err(|_| SdkError::Closed)?;
+        let frames = c.watch_acked(ReceiverStream::new(rx)).await?.into_inner();
+        Ok(Viewer { tx, frames, last: None })
     }
 
     /// Closes the session; returns its final statistics.
@@ -369,6 +390,31 @@ impl Interaction {
     /// The next response (`None` when the server ended the stream).
     pub async fn next(&mut self) -> Result<Option<pb::ToolResponse>, SdkError> {
         Ok(self.stream().await?.message().await?)
+    }
+}
+
+/// A credit-based viewer stream ([`Session::watch_acked`]).
+#[derive(Debug)]
+pub struct Viewer {
+    tx: mpsc::Sender<pb::ViewerControl>,
+    frames: Streaming<pb::Frame>,
+    /// The message returned last, acknowledged by the next call to [`Viewer::next`].
+    last: Option<u64>,
+}
+
+impl Viewer {
+    /// Acknowledges the message returned last (the caller is done with it) and waits for
+    /// the next one; `None` when the session has closed.
+    pub async fn next(&mut self) -> Result<Option<pb::Frame>, SdkError> {
+        if let Some(m) = self.last.take() {
+            let ack = pb::ViewerControl {
+                control: Some(pb::viewer_control::Control::Ack(m)),
+            };
+            self.tx.send(ack).await.map_err(|_| SdkError::Closed)?;
+        }
+        let f = self.frames.message().await?;
+        self.last = f.as_ref().map(|f| f.message);
+        Ok(f)
     }
 }
 

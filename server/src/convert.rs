@@ -109,6 +109,7 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
             })
             .collect(),
         force_n: Some(pb_vec3(f.force_n)),
+        message: 0,
     }
 }
 

@@ -1,16 +1,50 @@
 //! A session in-process: every tool state is answered once, in order, with the force the
 //! engine's pipeline computes for it; bad tool states get zero force and are counted; viewers
 //! get monotonically numbered frames while interaction continues; a scene asking for an
-//! effect this version does not simulate is refused.
+//! effect this version does not simulate is refused; the session's tick loop allocates
+//! nothing per tick (a counting allocator watches its thread).
 
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput};
 use vademecum_engine::scene::Scene;
-use vademecum_server::session::{Answer, Session, SessionConfig, SessionError, ToolCommand};
+use vademecum_server::session::{Answer, Script, Session, SessionConfig, SessionError, ToolCommand, Trajectory};
+
+/// Counts the allocations of threads that asked to be counted (the tick thread, through
+/// [`SessionConfig::on_tick_thread`]); every other thread allocates uncounted.
+struct Counting;
+
+thread_local! {
+    static COUNTED: Cell<bool> = const { Cell::new(false) };
+}
+
+static TICK_ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+// SAFETY: forwards to the system allocator; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        if COUNTED.with(|c| c.get()) {
+            TICK_ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        }
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn count_this_thread() {
+    COUNTED.with(|c| c.set(true));
+}
 
 const SCENE: &str = r#"[scene]
 name = "slab"
@@ -89,7 +123,7 @@ fn every_tool_state_is_answered_in_order_with_the_pipelines_force() {
     let session = Session::start("s1".into(), scene.clone(), bundles.clone(), SessionConfig::default()).unwrap();
     assert_eq!(session.effects(), ["palpation"]);
     let mut direct = Pipeline::for_scene(&scene, &bundles).unwrap();
-    let (tx, mut rx) = tokio::sync::mpsc::channel(256);
+    let mut rx = session.open_answers(256).unwrap();
     let n = 2000;
     let mut touching = 0;
     for i in 0..n {
@@ -99,7 +133,7 @@ fn every_tool_state_is_answered_in_order_with_the_pipelines_force() {
             seq: i as u64,
             client_time_us: 7 * i as u64,
             received: Instant::now(),
-            reply: tx.clone(),
+            reply: rx.id(),
         };
         session.submit(cmd).expect("queue has room");
         if i >= 100 {
@@ -140,7 +174,7 @@ fn check(a: &Answer, i: usize, direct: &mut Pipeline, touching: &mut usize) {
 fn bad_tool_states_get_zero_force_and_are_counted() {
     let (scene, bundles, _dir) = slab();
     let session = Session::start("s2".into(), scene, bundles, SessionConfig::default()).unwrap();
-    let (tx, mut rx) = tokio::sync::mpsc::channel(16);
+    let mut rx = session.open_answers(16).unwrap();
     let bad = [
         ToolInput {
             position_m: [f64::NAN, 0.02, 0.02],
@@ -163,7 +197,7 @@ fn bad_tool_states_get_zero_force_and_are_counted() {
                 seq: i as u64,
                 client_time_us: 0,
                 received: Instant::now(),
-                reply: tx.clone(),
+                reply: rx.id(),
             })
             .unwrap();
         let a = recv(&mut rx);
@@ -177,7 +211,7 @@ fn bad_tool_states_get_zero_force_and_are_counted() {
             seq: 9,
             client_time_us: 0,
             received: Instant::now(),
-            reply: tx,
+            reply: rx.id(),
         })
         .unwrap();
     assert_eq!(recv(&mut rx).seq, 9);
@@ -196,7 +230,7 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
     let g = session.geometry().clone();
     assert_eq!(g.organs.len(), 1);
     assert_eq!(g.organs[0].positions_m.len(), 3 * g.organs[0].nodes.len());
-    let (tx, mut rx) = tokio::sync::mpsc::channel(64);
+    let mut rx = session.open_answers(64).unwrap();
     let (mut last_seq, mut seen, mut moved) = (0u64, 0usize, false);
     let start = Instant::now();
     let mut i = 0;
@@ -206,7 +240,7 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
             seq: i as u64,
             client_time_us: 0,
             received: Instant::now(),
-            reply: tx.clone(),
+            reply: rx.id(),
         });
         i += 1;
         while rx.try_recv().is_ok() {}
@@ -236,4 +270,88 @@ fn a_scene_asking_for_an_effect_not_simulated_yet_is_refused() {
     let e = Session::start("s4".into(), scene, bundles, SessionConfig::default()).unwrap_err();
     assert!(matches!(e, SessionError::Pipeline(PipelineError::Unsupported(_))), "{e}");
     assert!(e.to_string().contains("cutting"), "{e}");
+}
+
+/// Allocations made by the tick thread of a scripted session that runs `ticks` ticks while a
+/// client stream submits tool states (good and bad), a viewer takes frames and a reader takes
+/// the statistics — every kind of work the tick thread does, the periodic hand-over of its
+/// histograms and the CPU-time read included.
+fn tick_thread_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], ticks: usize) -> u64 {
+    TICK_ALLOCATIONS.store(0, Ordering::Relaxed);
+    let keys: Vec<(f64, [f64; 3], f64)> = (0..=10)
+        .map(|k| {
+            let t = k as f64 * ticks as f64 * 1e-4;
+            (t, tool(k * 50).position_m, 0.0)
+        })
+        .collect();
+    let (tx, mut script_answers) = tokio::sync::mpsc::channel(2 * ticks);
+    let config = SessionConfig {
+        on_tick_thread: Some(count_this_thread),
+        frame_rate_hz: 60.0,
+        ..SessionConfig::default()
+    };
+    let session = Session::start_scripted(
+        format!("alloc{ticks}"),
+        scene.clone(),
+        bundles.to_vec(),
+        config,
+        Script {
+            trajectory: Trajectory::new(keys).unwrap(),
+            answers: tx,
+        },
+    )
+    .unwrap();
+    let mut frames = session.subscribe_frames();
+    let mut answers = session.open_answers(64).unwrap();
+    let (mut i, mut answered, mut seen) = (0usize, 0usize, 0usize);
+    while !session.finished() {
+        let input = if i % 7 == 3 {
+            ToolInput {
+                position_m: [f64::NAN, 0.0, 0.0],
+                ..ToolInput::default()
+            }
+        } else {
+            tool(i)
+        };
+        let _ = session.submit(ToolCommand {
+            input,
+            seq: i as u64,
+            client_time_us: 0,
+            received: Instant::now(),
+            reply: answers.id(),
+        });
+        i += 1;
+        while answers.try_recv().is_ok() {
+            answered += 1;
+        }
+        while script_answers.try_recv().is_ok() {}
+        if frames.has_changed().unwrap_or(false) {
+            frames.borrow_and_update();
+            seen += 1;
+        }
+        let _ = session.stats().histograms();
+        std::thread::sleep(Duration::from_micros(700));
+    }
+    let stats = session.wait();
+    assert!(
+        answered > 0 && seen > 0,
+        "the stream was answered ({answered}) and frames were made ({seen})"
+    );
+    assert!(stats.ticks as usize >= ticks, "{} ticks", stats.ticks);
+    TICK_ALLOCATIONS.load(Ordering::Relaxed)
+}
+
+#[test]
+fn the_session_tick_loop_allocates_nothing_per_tick() {
+    let (scene, bundles, _dir) = slab();
+    // the loop's set-up (its histograms) and wind-down allocate a fixed amount: the count
+    // must not grow with the number of ticks (2,500 ticks hand the histograms over ~40
+    // times, read the CPU time as often, answer ~2,000 client states)
+    let short = tick_thread_allocations(&scene, &bundles, 300);
+    let long = tick_thread_allocations(&scene, &bundles, 2500);
+    assert!(short > 0, "the counting allocator watches the tick thread");
+    assert_eq!(
+        long, short,
+        "the tick thread allocated {long} times over 2,500 ticks and {short} times over 300"
+    );
 }

@@ -2,7 +2,8 @@
 //! with grpcio (in this test's own virtual environment) creates a session on a server
 //! process and receives one force per tool state, in order; a malformed message gets a clear
 //! status and the session goes on being served; a client process killed mid-stream is
-//! noticed and released while other sessions keep being served.
+//! noticed and released while other sessions keep being served; a viewer slower than its
+//! frame rate sees fresh frames on the acknowledged stream (WatchAcked).
 //!
 //! Needs `python3` with `venv` and access to PyPI (grpcio, grpcio-tools), which `.ci/run`
 //! checks for.
@@ -69,6 +70,84 @@ def tools():
 for r in interaction_pb2_grpc.InteractionStub(channel).Interact(tools()):
     if r.seq == 20:
         print("streaming", info.session_id, flush=True)
+"#;
+
+/// Two slow viewers (each takes 250 ms over every message) of a session a probe is pressing,
+/// one on WatchAcked and one on Watch, for argv[3] seconds: prints, per viewer, how many ticks
+/// old each message was when the viewer got it (the session's latest tick is known from the
+/// interaction stream's answers, about every 5 ms).
+const SLOW_VIEWERS: &str = r#"
+import json, queue, sys, threading, time
+import grpc
+sys.path.insert(0, sys.argv[2])
+from vademecum.v1 import session_pb2, session_pb2_grpc, interaction_pb2, interaction_pb2_grpc, viewing_pb2, viewing_pb2_grpc
+
+channel = grpc.insecure_channel(sys.argv[1])
+sessions = session_pb2_grpc.SessionsStub(channel)
+sid = sessions.CreateSession(session_pb2.CreateSessionRequest(builtin="organ", bundle_dir="organ", label="slow viewers")).session_id
+seconds, process = float(sys.argv[3]), 0.25
+latest = {"tick": 0}
+stop = threading.Event()
+
+def tools():
+    i = 0
+    while not stop.is_set():
+        z = 0.030 - 0.004 * ((i % 200) / 200.0)
+        yield interaction_pb2.ToolState(session_id=sid if i == 0 else "", seq=i, kind=interaction_pb2.TOOL_KIND_PROBE,
+                                        position_m=interaction_pb2.Vec3(x=0.0, y=0.0, z=z))
+        i += 1
+        time.sleep(0.005)
+
+def interact():
+    for r in interaction_pb2_grpc.InteractionStub(channel).Interact(tools()):
+        latest["tick"] = r.tick
+
+viewing = viewing_pb2_grpc.ViewingStub(channel)
+ages = {"acked": [], "plain": []}
+messages = {"acked": [], "plain": []}
+
+def take(name, f):
+    if f.message > 0 and latest["tick"] > 0:
+        ages[name].append(latest["tick"] - f.tick)
+        messages[name].append(f.message)
+    time.sleep(process)
+
+def acked():
+    acks = queue.Queue()
+    def controls():
+        yield viewing_pb2.ViewerControl(start=viewing_pb2.WatchRequest(session_id=sid, rate_hz=30))
+        while True:
+            m = acks.get()
+            if m is None:
+                return
+            yield viewing_pb2.ViewerControl(ack=m)
+    call = viewing.WatchAcked(controls())
+    for f in call:
+        take("acked", f)
+        acks.put(f.message)
+        if stop.is_set():
+            break
+    acks.put(None)
+    call.cancel()
+
+def plain():
+    call = viewing.Watch(viewing_pb2.WatchRequest(session_id=sid, rate_hz=30))
+    for f in call:
+        take("plain", f)
+        if stop.is_set():
+            break
+    call.cancel()
+
+threading.Thread(target=interact, daemon=True).start()
+viewers = [threading.Thread(target=acked), threading.Thread(target=plain)]
+for v in viewers:
+    v.start()
+time.sleep(seconds)
+stop.set()
+for v in viewers:
+    v.join()
+sessions.CloseSession(session_pb2.CloseSessionRequest(session_id=sid))
+print(json.dumps({"ages": ages, "messages": messages}))
 "#;
 
 fn run(cmd: &mut Command, what: &str) -> String {
@@ -189,4 +268,42 @@ fn a_python_grpcio_client_creates_a_session_and_receives_forces() {
         }
         assert_eq!(interacting, 0, "the killed client's stream was released");
     });
+
+    // a viewer slower than its rate: on WatchAcked every frame is fresh when it arrives
+    std::fs::write(v.join("slow_viewers.py"), SLOW_VIEWERS).unwrap();
+    let seconds = 8.0;
+    let out = run(
+        Command::new(&py)
+            .arg(v.join("slow_viewers.py"))
+            .arg(&addr)
+            .arg(&gen_dir)
+            .arg(seconds.to_string()),
+        "the slow Python viewers",
+    );
+    let r: serde_json::Value = serde_json::from_str(out.trim()).expect("the viewers print JSON");
+    let ints = |k: &str, w: &str| -> Vec<i64> { r[k][w].as_array().unwrap().iter().map(|x| x.as_i64().unwrap()).collect() };
+    let (acked, plain) = (ints("ages", "acked"), ints("ages", "plain"));
+    eprintln!(
+        "slow viewers (250 ms per message, 30 Hz asked): WatchAcked {} messages, oldest {} ms; Watch {} messages, oldest {} ms",
+        acked.len(),
+        acked.iter().max().unwrap_or(&0),
+        plain.len(),
+        plain.iter().max().unwrap_or(&0)
+    );
+    // the viewer reads about 4 messages a second
+    assert!(acked.len() as f64 >= 0.5 * seconds / 0.25, "{} messages", acked.len());
+    // with the default window of 2, a message waits at most for the viewer to finish the
+    // one before it (250 ms), plus one period (33 ms) and the loopback; 250 ms of slack for
+    // a busy machine — far below the seconds a backlog builds up over 8 s
+    let oldest = acked.iter().copied().max().unwrap();
+    assert!(
+        oldest <= 250 + 33 + 250,
+        "a WatchAcked frame was {oldest} ms old when the viewer got it: {acked:?}"
+    );
+    // messages are numbered without gaps: none queued and lost on the way
+    let numbers = ints("messages", "acked");
+    assert!(
+        numbers.windows(2).all(|w| w[1] == w[0] + 1),
+        "WatchAcked numbers its messages 1, 2, 3, …: {numbers:?}"
+    );
 }

@@ -397,3 +397,114 @@ fn the_standard_health_service_and_reflection_describe_the_server() {
         }
     });
 }
+
+/// A raw WatchAcked stream: the sender of controls and the frames.
+async fn watch_acked(
+    url: &str,
+    first: vademecum_client::pb::ViewerControl,
+) -> (
+    tokio::sync::mpsc::Sender<vademecum_client::pb::ViewerControl>,
+    Result<tonic::Streaming<vademecum_client::pb::Frame>, tonic::Status>,
+) {
+    use vademecum_client::pb;
+    let channel = tonic::transport::Channel::from_shared(url.to_string())
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    let mut c = pb::viewing_client::ViewingClient::new(channel).max_decoding_message_size(256 << 20);
+    let (tx, rx) = tokio::sync::mpsc::channel(8);
+    tx.send(first).await.unwrap();
+    let frames = c
+        .watch_acked(tokio_stream::wrappers::ReceiverStream::new(rx))
+        .await
+        .map(|r| r.into_inner());
+    (tx, frames)
+}
+
+fn start(session_id: &str, rate_hz: f64, window: u32) -> vademecum_client::pb::ViewerControl {
+    use vademecum_client::pb;
+    pb::ViewerControl {
+        control: Some(pb::viewer_control::Control::Start(pb::WatchRequest {
+            session_id: session_id.into(),
+            rate_hz,
+            window,
+        })),
+    }
+}
+
+fn ack(m: u64) -> vademecum_client::pb::ViewerControl {
+    use vademecum_client::pb;
+    pb::ViewerControl {
+        control: Some(pb::viewer_control::Control::Ack(m)),
+    }
+}
+
+#[test]
+fn an_acknowledged_viewer_never_has_more_than_its_window_in_flight() {
+    let server = util::Server::start(&[], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let session = client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "acked")
+            .await
+            .unwrap();
+        let quiet = Duration::from_millis(400);
+        for window in [1u32, 3] {
+            // 60 Hz: a message every 17 ms if the window allowed it
+            let (tx, frames) = watch_acked(&server.url, start(session.id(), 60.0, window)).await;
+            let mut frames = frames.unwrap();
+            let g = frames.message().await.unwrap().unwrap();
+            assert!(g.geometry.is_some() && g.message == 0);
+            for m in 1..u64::from(window) {
+                let f = frames.message().await.unwrap().unwrap();
+                assert_eq!(f.message, m, "messages are numbered without gaps");
+            }
+            // the window is full: nothing more until an acknowledgement
+            assert!(
+                tokio::time::timeout(quiet, frames.message()).await.is_err(),
+                "window {window}: a message beyond the window arrived"
+            );
+            tx.send(ack(0)).await.unwrap();
+            let f = tokio::time::timeout(Duration::from_secs(2), frames.message())
+                .await
+                .expect("an acknowledgement makes room at once")
+                .unwrap()
+                .unwrap();
+            assert_eq!(f.message, u64::from(window));
+            assert!(tokio::time::timeout(quiet, frames.message()).await.is_err());
+        }
+
+        // the SDK's viewer acknowledges each message as it asks for the next
+        let mut viewer = session.watch_acked(60.0, 1).await.unwrap();
+        for m in 0..6 {
+            let f = viewer.next().await.unwrap().unwrap();
+            assert_eq!(f.message, m);
+            assert_eq!(f.geometry.is_some(), m == 0);
+        }
+
+        // bad controls: clear statuses
+        let (_tx, frames) = watch_acked(&server.url, ack(0)).await;
+        assert_eq!(frames.unwrap_err().code(), tonic::Code::InvalidArgument);
+        let (_tx, frames) = watch_acked(&server.url, start(session.id(), 30.0, 17)).await;
+        let e = frames.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("16"), "{}", e.message());
+        let (_tx, frames) = watch_acked(&server.url, start("no-such-session", 30.0, 0)).await;
+        assert_eq!(frames.unwrap_err().code(), tonic::Code::NotFound);
+        let (tx, frames) = watch_acked(&server.url, start(session.id(), 30.0, 0)).await;
+        let mut frames = frames.unwrap();
+        frames.message().await.unwrap().unwrap();
+        tx.send(ack(1000)).await.unwrap();
+        let e = loop {
+            match frames.message().await {
+                Ok(Some(_)) => continue, // the window's second message may come first
+                Ok(None) => panic!("the stream ended without a status"),
+                Err(e) => break e,
+            }
+        };
+        assert_eq!(e.code(), tonic::Code::InvalidArgument);
+        assert!(e.message().contains("ack 1000"), "{}", e.message());
+    });
+}

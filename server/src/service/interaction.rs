@@ -2,7 +2,8 @@
 //!
 //! Each stream gets a task that reads tool states, submits them to the session's tick
 //! thread (bounded queue, refused at once when full) and forwards the tick's answers. The
-//! answers come back through a channel of this stream alone, in submission order.
+//! answers come back through a stream of answers of this stream alone (the session's answer
+//! ring and dispatcher: see [`crate::session::answers`]), in submission order.
 
 use std::pin::Pin;
 use std::sync::Arc;
@@ -17,10 +18,14 @@ use vademecum_proto::v1 as pb;
 use crate::auth::caller;
 use crate::convert;
 use crate::registry::{Entry, Registry, StreamGuard, StreamKind};
-use crate::session::{Answer, SubmitError, ToolCommand};
+use crate::session::{AnswerStream, StreamId, SubmitError, ToolCommand};
 
-/// Answers still in flight when the client closes its side are awaited this long at most.
+/// Answers still in flight when the client closes its side, or when the session closes, are
+/// awaited this long at most.
 const DRAIN: Duration = Duration::from_secs(2);
+
+/// Answers a stream holds before its consumer reads them (beyond: dropped, counted).
+const ANSWER_CAPACITY: usize = 4096;
 
 /// The Interaction service.
 #[derive(Debug, Clone)]
@@ -85,7 +90,7 @@ fn refused_kind(entry: &Entry, m: &pb::ToolState) -> Status {
 /// Submits a tool state to the session's tick thread. `Err(Some(status))` ends the stream
 /// with that status (a tool kind the scene does not simulate, a full queue); `Err(None)`
 /// ends it quietly (the session has stopped).
-fn submit(entry: &Entry, m: &pb::ToolState, reply: &mpsc::Sender<Answer>) -> Result<(), Option<Status>> {
+fn submit(entry: &Entry, m: &pb::ToolState, reply: StreamId) -> Result<(), Option<Status>> {
     let input = convert::tool_input(m);
     if !entry.session.accepts(input.kind) {
         return Err(Some(refused_kind(entry, m)));
@@ -97,7 +102,7 @@ fn submit(entry: &Entry, m: &pb::ToolState, reply: &mpsc::Sender<Answer>) -> Res
             seq: m.seq,
             client_time_us: m.client_time_us,
             received: Instant::now(),
-            reply: reply.clone(),
+            reply,
         })
         .map_err(|e| match e {
             SubmitError::Busy => Some(Status::resource_exhausted(e.to_string())),
@@ -114,10 +119,13 @@ async fn pump(
     out: mpsc::Sender<Result<pb::ToolResponse, Status>>,
 ) {
     let _guard = StreamGuard::new(&entry.interacting);
-    let (reply, mut answers) = mpsc::channel::<Answer>(4096);
+    let Ok(mut answers): Result<AnswerStream, _> = entry.session.open_answers(ANSWER_CAPACITY) else {
+        return; // the session has stopped
+    };
+    let reply = answers.id();
     let mut closed = entry.closed.subscribe();
     let id = first.session_id.clone();
-    if let Err(status) = submit(&entry, &first, &reply) {
+    if let Err(status) = submit(&entry, &first, reply) {
         if let Some(s) = status {
             let _ = out.send(Err(s)).await;
         }
@@ -137,7 +145,7 @@ async fn pump(
                         let _ = out.send(Err(Status::invalid_argument("a stream acts on one session; its session_id cannot change"))).await;
                         return;
                     }
-                    if let Err(status) = submit(&entry, &m, &reply) {
+                    if let Err(status) = submit(&entry, &m, reply) {
                         if let Some(s) = status {
                             let _ = out.send(Err(s)).await;
                         }
@@ -165,8 +173,11 @@ async fn pump(
                 }
             },
             _ = closed.changed() => {
-                // answer what the tick thread answered, then fail the rest with a status
-                while let Ok(a) = answers.try_recv() {
+                // the tick thread stops within a tick and the dispatcher then delivers every
+                // answer it computed and ends the stream of answers: forward them all, then
+                // fail the rest with a status
+                let until = tokio::time::Instant::now() + DRAIN;
+                while let Ok(Some(a)) = tokio::time::timeout_at(until, answers.recv()).await {
                     answered += 1;
                     if out.send(Ok(convert::tool_response(&a))).await.is_err() {
                         return;

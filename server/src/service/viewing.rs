@@ -1,24 +1,40 @@
 //! `vademecum.v1.Viewing`: the reference geometry, then one message per period of the
 //! viewer's own rate — the latest frame when there is a new one, else a heartbeat — numbered
-//! per stream. A viewer that cannot keep up skips frames (bounded channel, `try_send`); the
-//! session never waits for it.
+//! per stream. The session never waits for a viewer.
+//!
+//! Two ways to keep a slow viewer from seeing old frames:
+//! - `Watch` skips a period when the stream's two-message channel to the transport is full
+//!   (the transport stops taking messages when HTTP/2 flow control closes). What the
+//!   client's own stack has already accepted is beyond the server's reach.
+//! - `WatchAcked` is credit-based: the viewer acknowledges what it has consumed and the
+//!   server has at most `window` messages unacknowledged, so a slow viewer gets the latest
+//!   frame when it is ready for one, never a backlog.
 
 use std::pin::Pin;
+use std::sync::Arc;
 use std::time::Duration;
 
-use tokio::sync::mpsc;
-use tokio::sync::mpsc::error::TrySendError;
+use tokio::sync::{mpsc, watch};
 use tokio_stream::Stream;
 use tokio_stream::wrappers::ReceiverStream;
-use tonic::{Request, Response, Status};
+use tonic::{Request, Response, Status, Streaming};
 use vademecum_proto::v1 as pb;
 
-use crate::auth::caller;
+use crate::auth::{Caller, caller};
 use crate::convert;
-use crate::registry::{Registry, StreamGuard, StreamKind};
+use crate::registry::{Entry, Registry, StreamGuard, StreamKind, StreamPermit};
+use crate::session::Frame;
 
 /// Frame rate when the request leaves it at 0 (Hz).
 pub const DEFAULT_RATE_HZ: f64 = 30.0;
+
+/// `WatchAcked`'s window when the request leaves it at 0: one message being read, one on
+/// its way — full rate on a network whose round trip is under a frame period, and a frame
+/// at most one period plus one message's processing old.
+pub const DEFAULT_WINDOW: u32 = 2;
+
+/// The largest window a viewer may ask for (each message in flight may be a whole frame).
+pub const MAX_WINDOW: u32 = 16;
 
 /// The Viewing service.
 #[derive(Debug, Clone)]
@@ -29,13 +45,59 @@ pub struct ViewingService {
 
 type FrameStream = Pin<Box<dyn Stream<Item = Result<pb::Frame, Status>> + Send>>;
 
-#[tonic::async_trait]
-impl pb::viewing_server::Viewing for ViewingService {
-    type WatchStream = FrameStream;
+/// What one viewer stream sends: the session's latest frame when it is new, else a
+/// heartbeat, numbered per stream.
+struct Pacer {
+    entry: Arc<Entry>,
+    frames: watch::Receiver<Arc<Frame>>,
+    /// The session frame last sent.
+    last: u64,
+    /// Frames (with displacements) sent.
+    sent: u64,
+    /// The next message's number (0: the geometry).
+    message: u64,
+}
 
-    async fn watch(&self, req: Request<pb::WatchRequest>) -> Result<Response<Self::WatchStream>, Status> {
-        let owner = caller(&req)?;
-        let r = req.into_inner();
+impl Pacer {
+    fn new(entry: Arc<Entry>) -> Self {
+        let frames = entry.session.subscribe_frames();
+        Self {
+            entry,
+            frames,
+            last: 0,
+            sent: 0,
+            message: 0,
+        }
+    }
+
+    /// The first message: the reference geometry.
+    fn geometry(&mut self) -> pb::Frame {
+        self.message = 1;
+        convert::geometry_frame(self.entry.session.geometry())
+    }
+
+    /// The next message: a frame if the session has a new one, else a heartbeat.
+    fn next(&mut self) -> pb::Frame {
+        let f = self.frames.borrow_and_update().clone();
+        let mut msg = if f.seq > self.last {
+            self.last = f.seq;
+            self.sent += 1;
+            convert::frame(&f, self.sent)
+        } else {
+            let s = &self.entry.session;
+            let tick = s.stats().ticks.load(std::sync::atomic::Ordering::Relaxed);
+            convert::heartbeat(&f, self.sent, tick, tick as f64 * s.config().period.as_secs_f64())
+        };
+        msg.message = self.message;
+        self.message += 1;
+        msg
+    }
+}
+
+impl ViewingService {
+    /// Checks a watch request and opens a viewer stream on its session: the session, the
+    /// rate (Hz) and the stream's permit.
+    fn open(&self, owner: &Caller, r: &pb::WatchRequest) -> Result<(Arc<Entry>, f64, StreamPermit), Status> {
         if !r.rate_hz.is_finite() || r.rate_hz < 0.0 {
             return Err(Status::invalid_argument(format!(
                 "rate_hz must be a non-negative number, got {}",
@@ -44,39 +106,119 @@ impl pb::viewing_server::Viewing for ViewingService {
         }
         let cap = self.registry.config().max_frame_rate_hz;
         let rate = if r.rate_hz == 0.0 { DEFAULT_RATE_HZ } else { r.rate_hz.min(cap) };
-        let entry = self.registry.get(&owner, &r.session_id)?;
-        let permit = self.registry.open_stream(&owner, StreamKind::Watch)?;
+        let entry = self.registry.get(owner, &r.session_id)?;
+        let permit = self.registry.open_stream(owner, StreamKind::Watch)?;
+        Ok((entry, rate, permit))
+    }
+}
+
+/// A timer at the viewer's rate that skips the periods it missed.
+fn pace(rate_hz: f64) -> tokio::time::Interval {
+    let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
+    every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    every
+}
+
+#[tonic::async_trait]
+impl pb::viewing_server::Viewing for ViewingService {
+    type WatchStream = FrameStream;
+    type WatchAckedStream = FrameStream;
+
+    async fn watch(&self, req: Request<pb::WatchRequest>) -> Result<Response<Self::WatchStream>, Status> {
+        let owner = caller(&req)?;
+        let (entry, rate, permit) = self.open(&owner, req.get_ref())?;
         let (tx, rx) = mpsc::channel(2);
         tokio::spawn(async move {
             let _permit = permit;
             let _guard = StreamGuard::new(&entry.viewers);
-            let mut frames = entry.session.subscribe_frames();
             let mut closed = entry.closed.subscribe();
-            if tx.send(Ok(convert::geometry_frame(entry.session.geometry()))).await.is_err() {
+            let mut pacer = Pacer::new(entry.clone());
+            if tx.send(Ok(pacer.geometry())).await.is_err() {
                 return;
             }
-            let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
-            every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-            // the session frame last sent, and this stream's own count of frames
-            let (mut last, mut sent) = (0u64, 0u64);
-            let period_s = entry.session.config().period.as_secs_f64();
+            let mut every = pace(rate);
+            loop {
+                tokio::select! {
+                    _ = every.tick() => match tx.try_reserve() {
+                        Ok(slot) => slot.send(Ok(pacer.next())),
+                        Err(mpsc::error::TrySendError::Full(())) => {} // skipped: the transport is behind
+                        Err(mpsc::error::TrySendError::Closed(())) => return,
+                    },
+                    _ = closed.changed() => return,
+                    _ = tx.closed() => return,
+                }
+            }
+        });
+        Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
+    }
+
+    async fn watch_acked(&self, req: Request<Streaming<pb::ViewerControl>>) -> Result<Response<Self::WatchAckedStream>, Status> {
+        use pb::viewer_control::Control;
+        let owner = caller(&req)?;
+        let mut inbound = req.into_inner();
+        let first = inbound
+            .message()
+            .await?
+            .ok_or_else(|| Status::invalid_argument("the stream ended before its start message"))?;
+        let Some(Control::Start(r)) = first.control else {
+            return Err(Status::invalid_argument(
+                "the first message of WatchAcked must be `start` (a WatchRequest)",
+            ));
+        };
+        let window = match r.window {
+            0 => DEFAULT_WINDOW,
+            w if w <= MAX_WINDOW => w,
+            w => {
+                return Err(Status::invalid_argument(format!(
+                    "window must be at most {MAX_WINDOW} messages, got {w}"
+                )));
+            }
+        };
+        let (entry, rate, permit) = self.open(&owner, &r)?;
+        let (tx, rx) = mpsc::channel(2);
+        tokio::spawn(async move {
+            let _permit = permit;
+            let _guard = StreamGuard::new(&entry.viewers);
+            let mut closed = entry.closed.subscribe();
+            let mut pacer = Pacer::new(entry.clone());
+            if tx.send(Ok(pacer.geometry())).await.is_err() {
+                return;
+            }
+            // messages acknowledged: every number below `acked`
+            let mut acked = 0u64;
+            let mut every = pace(rate);
             loop {
                 tokio::select! {
                     _ = every.tick() => {
-                        let f = frames.borrow_and_update().clone();
-                        let msg = if f.seq > last {
-                            last = f.seq;
-                            sent += 1;
-                            convert::frame(&f, sent)
-                        } else {
-                            let tick = entry.session.stats().ticks.load(std::sync::atomic::Ordering::Relaxed);
-                            convert::heartbeat(&f, sent, tick, tick as f64 * period_s)
-                        };
-                        match tx.try_send(Ok(msg)) {
-                            Ok(()) | Err(TrySendError::Full(_)) => {}
-                            Err(TrySendError::Closed(_)) => return,
+                        if pacer.message - acked >= u64::from(window) {
+                            continue; // no credit: this period's frame is dropped here
+                        }
+                        match tx.try_reserve() {
+                            Ok(slot) => slot.send(Ok(pacer.next())),
+                            Err(mpsc::error::TrySendError::Full(())) => {}
+                            Err(mpsc::error::TrySendError::Closed(())) => return,
                         }
                     }
+                    m = inbound.message() => match m {
+                        Ok(Some(pb::ViewerControl { control: Some(Control::Ack(n)) })) => {
+                            if n >= pacer.message {
+                                let _ = tx.send(Err(Status::invalid_argument(format!(
+                                    "ack {n} names a message not sent yet (the last sent is {})",
+                                    pacer.message - 1
+                                )))).await;
+                                return;
+                            }
+                            acked = acked.max(n + 1);
+                        }
+                        Ok(Some(_)) => {
+                            let _ = tx
+                                .send(Err(Status::invalid_argument("after `start`, a viewer sends only acks")))
+                                .await;
+                            return;
+                        }
+                        // the viewer is done, or has gone
+                        Ok(None) | Err(_) => return,
+                    },
                     _ = closed.changed() => return,
                     _ = tx.closed() => return,
                 }

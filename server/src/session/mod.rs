@@ -2,13 +2,16 @@
 //! pipeline built from the scene's `[effects]`, and two threads.
 //!
 //! - The **tick thread** owns the pipeline. Every period (1 ms by default) it sleeps to its
-//!   deadline, drains the bounded command queue with `try_recv` and answers each tool state
-//!   in arrival order (through the sender each command carries; `try_send`, so a consumer
-//!   that stops reading loses answers — counted — and never blocks the tick), re-evaluates
-//!   the last tool state when none arrived (the force stays fresh for a device), and writes
-//!   the tick's state into a triple buffer (a wait-free latest-value slot). It never awaits,
-//!   never allocates in the loop, and shares no lock a request handler can hold: statistics
-//!   are merged into the shared histograms with `try_lock`.
+//!   deadline, drains the bounded command queue with `try_recv` (at most
+//!   [`MAX_COMMANDS_PER_TICK`] per tick) and answers each tool state in arrival order into the
+//!   session's preallocated answer ring (see [`answers`]), re-evaluates the last tool state
+//!   when none arrived (the force stays fresh for a device), and writes the tick's state into
+//!   a triple buffer (a wait-free latest-value slot). It never awaits, never allocates in the
+//!   loop (a counting-allocator test holds it to that), and shares no lock with another
+//!   thread: histograms are handed over through lock-free queues ([`stats`]).
+//! - The **answer dispatcher** thread routes the ring's answers to each stream's tokio
+//!   channel, so the wake-up of async tasks costs the tick nothing; a consumer that stops
+//!   reading loses answers (counted) and never blocks the tick.
 //! - The **frame thread** reads the latest tick state at the frame rate, turns it into the
 //!   displacement of every organ's surface (f32, node-major modes) and publishes it on a
 //!   `tokio::sync::watch` channel, where the latest frame wins: a slow viewer skips frames
@@ -18,6 +21,7 @@
 //! [`Session::submit`] refuses the tool state at once ([`SubmitError::Busy`]) instead of
 //! queueing latency.
 
+pub mod answers;
 pub mod frames;
 pub mod script;
 pub mod stats;
@@ -38,9 +42,11 @@ use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput, 
 use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
 
+pub use answers::{AnswerStream, StreamId};
 pub use frames::{Frame, SurfaceGeometry};
 pub use script::{builtin_palpation, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
+pub use tick::MAX_COMMANDS_PER_TICK;
 pub use vademecum_bridge::trajectory::Trajectory;
 
 /// A tool state sent to a session, with where to send its answer.
@@ -54,8 +60,8 @@ pub struct ToolCommand {
     pub client_time_us: u64,
     /// When the server received it.
     pub received: Instant,
-    /// Where the answer goes.
-    pub reply: tokio::sync::mpsc::Sender<Answer>,
+    /// The stream the answer goes to ([`Session::open_answers`]).
+    pub reply: StreamId,
 }
 
 /// The answer to one tool state.
@@ -130,6 +136,9 @@ pub struct SessionConfig {
     pub queue: usize,
     /// The haptic channel, if a device bridge drives this session.
     pub haptic: Option<HapticConfig>,
+    /// Called on the tick thread before anything else (CPU pinning, instrumentation such as
+    /// the counting-allocator test of the tick loop).
+    pub on_tick_thread: Option<fn()>,
 }
 
 impl Default for SessionConfig {
@@ -139,6 +148,7 @@ impl Default for SessionConfig {
             frame_rate_hz: 60.0,
             queue: 4096,
             haptic: None,
+            on_tick_thread: None,
         }
     }
 }
@@ -164,6 +174,7 @@ pub struct Session {
     workspace: Bounds,
     tool_kinds: Vec<ToolKind>,
     commands: SyncSender<Command>,
+    router: Arc<answers::Router>,
     frames: watch::Sender<Arc<Frame>>,
     geometry: Arc<SurfaceGeometry>,
     stats: Arc<TickStats>,
@@ -223,14 +234,29 @@ impl Session {
             .collect();
         let geometry = Arc::new(SurfaceGeometry::of(&scene, &bundles));
         let (commands, rx) = mpsc::sync_channel(config.queue.max(1));
+        let stats = Arc::new(TickStats::default());
+        // every answer of a tick and of the queue behind it fits in the ring
+        let ring = Arc::new(answers::AnswerRing::new(
+            config.queue.max(1) + MAX_COMMANDS_PER_TICK + 1,
+            stats.clone(),
+        ));
+        let router = Arc::new(answers::Router::new());
+        let dispatcher = answers::spawn_dispatcher(format!("answers-{id}"), ring.clone(), router.clone());
+        let script = match script {
+            None => None,
+            Some(s) => Some(tick::ScriptRun {
+                to: router.register(s.answers).expect("a new router takes streams"),
+                trajectory: s.trajectory,
+            }),
+        };
         let (latest_in, latest_out) = triple_buffer::triple_buffer(&tick::Latest::default());
         let (frames, _) = watch::channel(Arc::new(Frame::rest(&geometry)));
-        let stats = Arc::new(TickStats::default());
         let stop = Arc::new(AtomicBool::new(false));
         let epoch = Instant::now();
         let tick_loop = tick::TickLoop {
             pipeline,
             commands: rx,
+            answers: ring.clone(),
             stats: stats.clone(),
             latest: latest_in,
             stop: stop.clone(),
@@ -241,10 +267,14 @@ impl Session {
         // the haptic peer's ports belong to the thread that uses them: the tick thread opens
         // them before its loop and says whether it could
         let haptic = config.haptic.clone();
+        let on_tick_thread = config.on_tick_thread;
         let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<Option<RealtimeStatus>, OpenError>>(1);
         let tick_thread = std::thread::Builder::new()
             .name(format!("tick-{id}"))
             .spawn(move || {
+                if let Some(init) = on_tick_thread {
+                    init();
+                }
                 let (peer, rt) = match haptic {
                     None => (None, None),
                     Some(h) => match HapticPeer::open(&h.channel, h.wait, h.spin_window, tick_loop.period) {
@@ -253,6 +283,7 @@ impl Session {
                             (Some(p), Some(vademecum_bridge::timing::request_realtime(fifo, None)))
                         }
                         Err(e) => {
+                            tick_loop.answers.finish();
                             let _ = opened_tx.send(Err(e));
                             return;
                         }
@@ -266,6 +297,7 @@ impl Session {
             Ok(Ok(rt)) => rt,
             Ok(Err(source)) => {
                 let _ = tick_thread.join();
+                let _ = dispatcher.join();
                 return Err(SessionError::Haptic {
                     channel: config.haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
                     source,
@@ -295,11 +327,12 @@ impl Session {
             workspace,
             tool_kinds,
             commands,
+            router,
             frames,
             geometry,
             stats,
             stop,
-            threads: vec![tick_thread, frame_thread],
+            threads: vec![tick_thread, dispatcher, frame_thread],
             epoch,
             config,
             realtime,
@@ -355,6 +388,13 @@ impl Session {
     /// The reference surface of every organ (what viewers receive first).
     pub fn geometry(&self) -> &Arc<SurfaceGeometry> {
         &self.geometry
+    }
+
+    /// Opens a stream of answers holding up to `capacity` undelivered answers (beyond that a
+    /// stream that does not read loses answers, counted): put its [`AnswerStream::id`] in
+    /// every [`ToolCommand`] whose answer it should receive.
+    pub fn open_answers(&self, capacity: usize) -> Result<AnswerStream, SubmitError> {
+        AnswerStream::open(&self.router, capacity)
     }
 
     /// Queues a tool state for the next tick; refuses at once when the queue is full.

@@ -9,8 +9,9 @@ use vademecum_bridge::peer::HapticPeer;
 use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_PROBE, TOOL_SCALPEL};
 
+use super::answers::{AnswerRing, StreamId};
 use super::stats::{Histograms, TickStats};
-use super::{Answer, Command, Script};
+use super::{Answer, Command, Trajectory};
 
 /// How many ticks between hand-overs of the tick thread's histograms to the readers.
 const PUBLISH_EVERY: u64 = 64;
@@ -35,15 +36,22 @@ pub(super) struct Latest {
     pub state: TickState,
 }
 
+/// A trajectory the tick thread plays, and the stream its answers go to.
+pub(super) struct ScriptRun {
+    pub trajectory: Trajectory,
+    pub to: StreamId,
+}
+
 pub(super) struct TickLoop {
     pub pipeline: Pipeline,
     pub commands: Receiver<Command>,
+    pub answers: Arc<AnswerRing>,
     pub stats: Arc<TickStats>,
     pub latest: triple_buffer::Input<Latest>,
     pub stop: Arc<AtomicBool>,
     pub period: Duration,
     pub epoch: Instant,
-    pub script: Option<Script>,
+    pub script: Option<ScriptRun>,
 }
 
 impl TickLoop {
@@ -112,6 +120,7 @@ impl TickLoop {
                 }
             }
             let mut state: Option<TickState> = None;
+            let mut answered = false;
             if let (Some(p), Some(s)) = (peer.as_mut(), arrived.as_ref()) {
                 let (input, st) = self.answer_haptic(p, s, &mut local);
                 state = Some(st);
@@ -129,9 +138,8 @@ impl TickLoop {
                 Histograms::record(&mut local.response, (a.answered_us - a.received_us) * 1000);
                 // counted before it leaves, so a reader that has the answer sees it counted
                 self.stats.answered.fetch_add(1, Ordering::Relaxed);
-                if script.answers.try_send(a).is_err() {
-                    self.stats.dropped.fetch_add(1, Ordering::Relaxed);
-                }
+                self.answers.push(script.to, a);
+                answered = true;
                 state = Some(a.state);
                 last_input = Some(input);
                 self.script = Some(script);
@@ -145,9 +153,8 @@ impl TickLoop {
                             Instant::now().saturating_duration_since(c.received).as_nanos() as u64,
                         );
                         self.stats.answered.fetch_add(1, Ordering::Relaxed);
-                        if c.reply.try_send(a).is_err() {
-                            self.stats.dropped.fetch_add(1, Ordering::Relaxed);
-                        }
+                        self.answers.push(c.reply, a);
+                        answered = true;
                         state = Some(a.state);
                         if c.input.is_valid() {
                             last_input = Some(c.input);
@@ -156,6 +163,10 @@ impl TickLoop {
                     Err(TryRecvError::Empty) => break,
                     Err(TryRecvError::Disconnected) => break 'ticks,
                 }
+            }
+            if answered {
+                // one wake-up of the dispatcher per tick, however many answers it carries
+                self.answers.wake();
             }
             if state.is_none()
                 && let Some(input) = last_input
@@ -200,6 +211,7 @@ impl TickLoop {
             self.stats.bridge.store(&r);
         }
         self.stats.finish(&local);
+        self.answers.finish();
     }
 }
 

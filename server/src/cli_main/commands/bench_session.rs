@@ -106,7 +106,7 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
                 n
             }));
         }
-        let (tx, mut answers) = tokio::sync::mpsc::channel(1024);
+        let mut answers = s.open_answers(1024)?;
         let end = Instant::now() + Duration::from_secs_f64(a.seconds);
         let mut i = 0u64;
         while Instant::now() < end {
@@ -116,7 +116,7 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
                 seq: i,
                 client_time_us: 0,
                 received: Instant::now(),
-                reply: tx.clone(),
+                reply: answers.id(),
             });
             while answers.try_recv().is_ok() {}
             i += 1;
