@@ -1,6 +1,10 @@
 //! A frame recorder: watch a session's displacement frames and write them as a ParaView
 //! time series (`<organ>.pvd` + one `.vtu` surface per frame).
 //!
+//! Writing a frame takes longer than a frame period on a slow disk, so the recorder uses the
+//! acknowledged stream (`watch_acked`): it is sent the latest frame each time it is ready for
+//! one, never a backlog of old ones.
+//!
 //! `cargo run -p vademecum-client --example record_frames -- SESSION_ID [http://127.0.0.1:50051] [OUT_DIR] [SECONDS] [RATE_HZ]`
 
 use std::fmt::Write as _;
@@ -51,15 +55,15 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
     let token = std::env::var("VADEMECUM_TOKEN").ok();
     let client = Client::connect_with_token(addr, token.as_deref()).await?;
     let session = client.session(&id).await?;
-    let mut frames = session.watch(rate).await?;
-    let first = frames.message().await?.ok_or("the server ended the stream")?;
+    let mut frames = session.watch_acked(rate, 0).await?;
+    let first = frames.next().await?.ok_or("the server ended the stream")?;
     let geometry = first.geometry.ok_or("the first frame has no geometry")?;
     std::fs::create_dir_all(&out)?;
     let mut steps: Vec<String> = vec![String::new(); geometry.organs.len()];
     let until = Instant::now() + Duration::from_secs_f64(seconds);
     let mut count = 0;
     while Instant::now() < until {
-        let Ok(Some(f)) = tokio::time::timeout(until - Instant::now(), frames.message())
+        let Ok(Some(f)) = tokio::time::timeout(until - Instant::now(), frames.next())
             .await
             .unwrap_or(Ok(None))
         else {

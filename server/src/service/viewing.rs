@@ -119,6 +119,74 @@ fn pace(rate_hz: f64) -> tokio::time::Interval {
     every
 }
 
+/// The next control of an acknowledged stream; never, for a plain one.
+async fn next_control(controls: &mut Option<Streaming<pb::ViewerControl>>) -> Result<Option<pb::ViewerControl>, Status> {
+    match controls {
+        Some(c) => c.message().await,
+        None => std::future::pending().await,
+    }
+}
+
+/// Serves one viewer stream until it or its session ends: the geometry, then a message per
+/// period of `rate` Hz. With `controls` (WatchAcked), at most `window` messages are
+/// unacknowledged; without (Watch), a period is skipped when the transport is behind.
+async fn serve(
+    entry: Arc<Entry>,
+    rate: f64,
+    permit: StreamPermit,
+    tx: mpsc::Sender<Result<pb::Frame, Status>>,
+    mut controls: Option<Streaming<pb::ViewerControl>>,
+    window: u64,
+) {
+    use pb::viewer_control::Control;
+    let _permit = permit;
+    let _guard = StreamGuard::new(&entry.viewers);
+    let mut closed = entry.closed.subscribe();
+    let mut pacer = Pacer::new(entry.clone());
+    if tx.send(Ok(pacer.geometry())).await.is_err() {
+        return;
+    }
+    // messages acknowledged: every number below `acked`
+    let mut acked = 0u64;
+    let mut every = pace(rate);
+    loop {
+        tokio::select! {
+            _ = every.tick() => {
+                if controls.is_some() && pacer.message - acked >= window {
+                    continue; // no credit: this period's frame is dropped here
+                }
+                match tx.try_reserve() {
+                    Ok(slot) => slot.send(Ok(pacer.next())),
+                    Err(mpsc::error::TrySendError::Full(())) => {} // skipped: the transport is behind
+                    Err(mpsc::error::TrySendError::Closed(())) => return,
+                }
+            }
+            m = next_control(&mut controls) => match m {
+                Ok(Some(pb::ViewerControl { control: Some(Control::Ack(n)) })) => {
+                    if n >= pacer.message {
+                        let _ = tx.send(Err(Status::invalid_argument(format!(
+                            "ack {n} names a message not sent yet (the last sent is {})",
+                            pacer.message - 1
+                        )))).await;
+                        return;
+                    }
+                    acked = acked.max(n + 1);
+                }
+                Ok(Some(_)) => {
+                    let _ = tx
+                        .send(Err(Status::invalid_argument("after `start`, a viewer sends only acks")))
+                        .await;
+                    return;
+                }
+                // the viewer is done, or has gone
+                Ok(None) | Err(_) => return,
+            },
+            _ = closed.changed() => return,
+            _ = tx.closed() => return,
+        }
+    }
+}
+
 #[tonic::async_trait]
 impl pb::viewing_server::Viewing for ViewingService {
     type WatchStream = FrameStream;
@@ -128,27 +196,7 @@ impl pb::viewing_server::Viewing for ViewingService {
         let owner = caller(&req)?;
         let (entry, rate, permit) = self.open(&owner, req.get_ref())?;
         let (tx, rx) = mpsc::channel(2);
-        tokio::spawn(async move {
-            let _permit = permit;
-            let _guard = StreamGuard::new(&entry.viewers);
-            let mut closed = entry.closed.subscribe();
-            let mut pacer = Pacer::new(entry.clone());
-            if tx.send(Ok(pacer.geometry())).await.is_err() {
-                return;
-            }
-            let mut every = pace(rate);
-            loop {
-                tokio::select! {
-                    _ = every.tick() => match tx.try_reserve() {
-                        Ok(slot) => slot.send(Ok(pacer.next())),
-                        Err(mpsc::error::TrySendError::Full(())) => {} // skipped: the transport is behind
-                        Err(mpsc::error::TrySendError::Closed(())) => return,
-                    },
-                    _ = closed.changed() => return,
-                    _ = tx.closed() => return,
-                }
-            }
-        });
+        tokio::spawn(serve(entry, rate, permit, tx, None, 0));
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
     }
 
@@ -176,54 +224,7 @@ impl pb::viewing_server::Viewing for ViewingService {
         };
         let (entry, rate, permit) = self.open(&owner, &r)?;
         let (tx, rx) = mpsc::channel(2);
-        tokio::spawn(async move {
-            let _permit = permit;
-            let _guard = StreamGuard::new(&entry.viewers);
-            let mut closed = entry.closed.subscribe();
-            let mut pacer = Pacer::new(entry.clone());
-            if tx.send(Ok(pacer.geometry())).await.is_err() {
-                return;
-            }
-            // messages acknowledged: every number below `acked`
-            let mut acked = 0u64;
-            let mut every = pace(rate);
-            loop {
-                tokio::select! {
-                    _ = every.tick() => {
-                        if pacer.message - acked >= u64::from(window) {
-                            continue; // no credit: this period's frame is dropped here
-                        }
-                        match tx.try_reserve() {
-                            Ok(slot) => slot.send(Ok(pacer.next())),
-                            Err(mpsc::error::TrySendError::Full(())) => {}
-                            Err(mpsc::error::TrySendError::Closed(())) => return,
-                        }
-                    }
-                    m = inbound.message() => match m {
-                        Ok(Some(pb::ViewerControl { control: Some(Control::Ack(n)) })) => {
-                            if n >= pacer.message {
-                                let _ = tx.send(Err(Status::invalid_argument(format!(
-                                    "ack {n} names a message not sent yet (the last sent is {})",
-                                    pacer.message - 1
-                                )))).await;
-                                return;
-                            }
-                            acked = acked.max(n + 1);
-                        }
-                        Ok(Some(_)) => {
-                            let _ = tx
-                                .send(Err(Status::invalid_argument("after `start`, a viewer sends only acks")))
-                                .await;
-                            return;
-                        }
-                        // the viewer is done, or has gone
-                        Ok(None) | Err(_) => return,
-                    },
-                    _ = closed.changed() => return,
-                    _ = tx.closed() => return,
-                }
-            }
-        });
+        tokio::spawn(serve(entry, rate, permit, tx, Some(inbound), u64::from(window)));
         Ok(Response::new(Box::pin(ReceiverStream::new(rx))))
     }
 }

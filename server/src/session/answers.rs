@@ -17,6 +17,14 @@
 //! [`TickStats::dropped`]) and never slows another stream or the tick. Streams register and
 //! unregister through a mutex that only async tasks and the dispatcher take.
 //!
+//! Why one ring per session rather than one per stream: a per-stream ring would travel with
+//! each command as a shared handle, and when its stream had gone, the tick thread could drop
+//! the last reference and free the ring (a deallocation and a socket or futex close on the
+//! tick). With one ring allocated for the session's life and streams named by id, the tick
+//! thread never frees anything; an answer for a stream that has gone is discarded by the
+//! dispatcher. The queue is multi-producer capable but used by one producer (the tick thread)
+//! and one consumer (the dispatcher).
+//!
 //! Order: answers are pushed in the order the tick computes them and the dispatcher pops in
 //! that order, so each stream receives its answers in submission order.
 //!
