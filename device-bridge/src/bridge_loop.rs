@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use hdrhistogram::Histogram;
-use vademecum_proto::shm::{self, BridgeReport, HapticState, STATE_ADJUSTED, TOOL_PROBE};
+use vademecum_proto::shm::{self, BridgeReport, HapticCommand, HapticState, STATE_ADJUSTED, TOOL_PROBE};
 
 use crate::device::{Device, DeviceError};
 use crate::guard::{ForceGuard, InputGuard, watchdog_scale};
@@ -70,6 +70,9 @@ pub struct BridgeParams {
     pub frame: FrameMap,
     /// Tool kind sent ([`TOOL_PROBE`] …).
     pub tool: u32,
+    /// Before the loop starts (its buffers allocated): touch the stack and lock the
+    /// process's memory in RAM ([`timing::lock_memory`]), so no tick takes a page fault.
+    pub lock_memory: bool,
 }
 
 impl Default for BridgeParams {
@@ -86,6 +89,7 @@ impl Default for BridgeParams {
             profile: DeviceProfile::SIM,
             frame: FrameMap::default(),
             tool: TOOL_PROBE,
+            lock_memory: true,
         }
     }
 }
@@ -97,8 +101,22 @@ pub struct TraceRow {
     pub tick: u64,
     /// Device read (`CLOCK_MONOTONIC`, ns).
     pub t_read_ns: u64,
+    /// How late the bridge woke for this tick, after its deadline (ns).
+    pub lateness_ns: u64,
+    /// State published (ns).
+    pub t_sent_ns: u64,
     /// Force written (ns).
     pub t_write_ns: u64,
+    /// The server's side of this tick's own answer (ns; all 0 when the force written does
+    /// not answer this tick's state): when it meant to start polling, started polling,
+    /// received the state, and answered ([`HapticCommand`](vademecum_proto::shm::HapticCommand)).
+    pub t_peer_planned_ns: u64,
+    /// Started polling (ns).
+    pub t_peer_polling_ns: u64,
+    /// Received the state (ns).
+    pub t_peer_received_ns: u64,
+    /// Answered (ns).
+    pub t_answer_ns: u64,
     /// Position sent (organ frame, m).
     pub position_m: [f64; 3],
     /// Whether a fresh force arrived this tick.
@@ -144,12 +162,18 @@ pub struct BridgeOutcome {
     pub completion_ns: Histogram<u64>,
     /// The first [`BridgeParams::trace_limit`] ticks.
     pub trace: Vec<TraceRow>,
+    /// While tracing: the answers that arrived after their own tick (answering an earlier
+    /// state), whether used or superseded — where a trace finds the server's side of a tick
+    /// whose answer came too late.
+    pub late_answers: Vec<HapticCommand>,
     /// Ticks not traced.
     pub trace_dropped: u64,
     /// Forces superseded by a newer one before use.
     pub skipped_forces: u64,
     /// States, forces or reports that could not be sent.
     pub link_errors: u64,
+    /// Whether the memory was locked before the loop, or why not.
+    pub memory_locked: Result<(), String>,
     /// Wall time of the loop.
     pub wall: Duration,
     /// CPU time of the loop's thread.
@@ -203,9 +227,16 @@ fn run_inner<D: Device + ?Sized, L: Link>(
     let mut lateness = histogram();
     let mut completion = histogram();
     let mut trace = Vec::with_capacity(p.trace_limit);
+    let mut late_answers: Vec<HapticCommand> = Vec::with_capacity(p.trace_limit);
     let mut trace_dropped = 0u64;
     let mut link_errors = 0u64;
     let mut r = BridgeReport::default();
+    let memory_locked = if p.lock_memory {
+        timing::prefault_stack();
+        timing::lock_memory()
+    } else {
+        Err("not asked".into())
+    };
     let cpu0 = timing::thread_cpu_time();
     let start = Instant::now();
     let t0_ns = shm::monotonic_ns();
@@ -222,7 +253,8 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         }
         timing::wait_until(next, p.strategy, p.window, || false);
         let woke = Instant::now();
-        let _ = lateness.record(woke.saturating_duration_since(next).as_nanos().max(1) as u64);
+        let late_ns = woke.saturating_duration_since(next).as_nanos() as u64;
+        let _ = lateness.record(late_ns.max(1));
         let t_s = tick as f64 * dt;
         if p.duration.is_some_and(|d| t_s >= d.as_secs_f64()) {
             break EndReason::Duration;
@@ -260,13 +292,24 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         if link.send_state(&state).is_err() {
             link_errors += 1;
         }
+        let t_sent_ns = shm::monotonic_ns();
         // 4. take the newest force, polling a little for this tick's own answer
         let mut newest = link.poll_command();
+        // (traced: an answer to an earlier state, kept for the trace whether used or not)
+        let mut keep_late = |c: &HapticCommand| {
+            if c.state_seq < tick && late_answers.len() < p.trace_limit && late_answers.last().is_none_or(|l| l.seq != c.seq) {
+                late_answers.push(*c);
+            }
+        };
+        if let Some(c) = &newest {
+            keep_late(c);
+        }
         let wait = !p.answer_wait.is_zero() && (missed_in_tick < GIVE_UP_WAITING || tick.is_multiple_of(16));
         if wait && newest.is_none_or(|c| c.state_seq != tick || c.t_read_ns != t_read_ns) {
             let until = Instant::now() + p.answer_wait;
             timing::wait_between(Instant::now(), until, || {
                 if let Some(c) = link.poll_command() {
+                    keep_late(&c);
                     newest = Some(c);
                 }
                 newest.is_some_and(|c| c.state_seq == tick && c.t_read_ns == t_read_ns)
@@ -306,10 +349,17 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         }
         r.ticks += 1;
         if trace.len() < p.trace_limit {
+            let own = fresh.filter(|c| c.t_read_ns == t_read_ns).unwrap_or_default();
             trace.push(TraceRow {
                 tick,
                 t_read_ns,
+                lateness_ns: late_ns,
+                t_sent_ns,
                 t_write_ns,
+                t_peer_planned_ns: own.t_peer_planned_ns,
+                t_peer_polling_ns: own.t_peer_polling_ns,
+                t_peer_received_ns: own.t_peer_received_ns,
+                t_answer_ns: own.t_answer_ns,
                 position_m: state.position_m,
                 fresh: fresh.is_some(),
                 answers,
@@ -357,9 +407,11 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         lateness_ns: lateness,
         completion_ns: completion,
         trace,
+        late_answers,
         trace_dropped,
         skipped_forces: link.skipped(),
         link_errors,
+        memory_locked,
         wall: start.elapsed(),
         cpu: timing::thread_cpu_time().saturating_sub(cpu0),
     })
@@ -375,9 +427,10 @@ fn fill_percentiles(r: &mut BridgeReport, h: &Histogram<u64>) {
     r.latency_max_ns = h.max();
 }
 
-/// Writes a trace as CSV: `tick,t_read_ns,t_write_ns,x_m,y_m,z_m,fresh,answers,fx_n,fy_n,fz_n,out_x_n,out_y_n,out_z_n,age,input_adjusted`
+/// Writes a trace as CSV: `tick,t_read_ns,t_write_ns,x_m,y_m,z_m,fresh,answers,fx_n,fy_n,fz_n,out_x_n,out_y_n,out_z_n,age,input_adjusted,lateness_ns,t_sent_ns,t_peer_planned_ns,t_peer_polling_ns,t_peer_received_ns,t_answer_ns`
 /// (received force in the organ frame, output in the device frame; `answers` empty before the
-/// first force). Floats are written in full precision (round-trip exact).
+/// first force; the server's times 0 when the force written does not answer the tick's own
+/// state). Floats are written in full precision (round-trip exact).
 pub fn write_trace(path: &std::path::Path, trace: &[TraceRow]) -> std::io::Result<()> {
     let mut w = csv::Writer::from_path(path)?;
     w.write_record([
@@ -397,6 +450,12 @@ pub fn write_trace(path: &std::path::Path, trace: &[TraceRow]) -> std::io::Resul
         "out_z_n",
         "age",
         "input_adjusted",
+        "lateness_ns",
+        "t_sent_ns",
+        "t_peer_planned_ns",
+        "t_peer_polling_ns",
+        "t_peer_received_ns",
+        "t_answer_ns",
     ])?;
     for t in trace {
         let f = |x: f64| format!("{x:?}");
@@ -423,6 +482,12 @@ pub fn write_trace(path: &std::path::Path, trace: &[TraceRow]) -> std::io::Resul
             f(t.output_n[2]),
             age,
             u8::from(t.input_adjusted).to_string(),
+            t.lateness_ns.to_string(),
+            t.t_sent_ns.to_string(),
+            t.t_peer_planned_ns.to_string(),
+            t.t_peer_polling_ns.to_string(),
+            t.t_peer_received_ns.to_string(),
+            t.t_answer_ns.to_string(),
         ])?;
     }
     w.flush()

@@ -312,7 +312,10 @@ fn summarize(a: &Args, channel: &HapticChannel, device: &str, profile: &DevicePr
         device: device.to_string(),
         profile: profile.name.to_string(),
         wait: a.wait.to_string(),
-        scheduling: rt.to_string(),
+        scheduling: match &out.memory_locked {
+            Ok(()) => format!("{rt}, memory locked"),
+            Err(why) => format!("{rt}, memory not locked ({why})"),
+        },
         end: match out.end {
             EndReason::Duration => "duration",
             EndReason::DeviceFinished => "end of script",

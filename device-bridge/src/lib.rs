@@ -23,6 +23,7 @@ pub mod guard;
 pub mod link;
 pub mod peer;
 pub mod profile;
+pub mod tail;
 pub mod timing;
 pub mod trajectory;
 

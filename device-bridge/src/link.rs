@@ -6,7 +6,6 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
 
 use vademecum_proto::shm::{
     self, BridgeReport, HapticChannel, HapticCommand, HapticServices, HapticState, OpenError, ShmPublisher, ShmSubscriber,
@@ -36,7 +35,8 @@ pub trait Link {
     fn skipped(&self) -> u64;
     /// Asks for housekeeping off the hot path, when the server seems gone: the shared-memory
     /// leftovers of crashed processes are removed (on another thread) so that a restarted
-    /// server can take the channel. Must cost the calling thread nothing but a flag.
+    /// server can take the channel. Must cost the calling thread no more than a flag and a
+    /// wake-up (it is called only while the server is silent, and then every 500 ticks).
     fn maintain(&mut self) {}
 }
 
@@ -115,22 +115,24 @@ impl Link for ShmLink {
 
     fn maintain(&mut self) {
         self.housekeeping.wanted.store(true, Ordering::Relaxed);
+        if let Some(t) = &self.housekeeping.thread {
+            t.thread().unpark();
+        }
     }
 }
 
 /// The housekeeping thread of a link: removes the shared-memory leftovers of crashed
 /// processes (iceoryx2's dead-node cleanup scans the file system and allocates) when the loop
-/// asks for it — the 1 kHz thread only sets a flag.
+/// asks for it — the 1 kHz thread only sets a flag and wakes it.
+///
+/// It sleeps until woken (by [`Link::maintain`] or its drop) and never wakes on a period of
+/// its own: on a small VM every stray wake-up competes with the real-time threads.
 #[derive(Debug)]
 struct Housekeeping {
     wanted: Arc<AtomicBool>,
     stop: Arc<AtomicBool>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
-
-/// How often the housekeeping thread looks at its flag: a restarted server waits at most this
-/// long for the leftovers of its predecessor to go.
-const HOUSEKEEPING_PERIOD: Duration = Duration::from_millis(100);
 
 impl Housekeeping {
     fn start() -> Self {
@@ -142,7 +144,7 @@ impl Housekeeping {
             .spawn(move || {
                 let node = shm::node(&format!("vademecum-bridge-hk-{}", std::process::id())).ok();
                 while !s.load(Ordering::Relaxed) {
-                    std::thread::sleep(HOUSEKEEPING_PERIOD);
+                    std::thread::park();
                     if w.swap(false, Ordering::Relaxed)
                         && let Some(n) = &node
                     {
@@ -159,6 +161,7 @@ impl Drop for Housekeeping {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(t) = self.thread.take() {
+            t.thread().unpark();
             let _ = t.join();
         }
     }

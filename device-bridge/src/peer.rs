@@ -13,9 +13,12 @@
 //!   and reaches the bridge one tick late.
 //! - `Spin`: poll continuously until the state arrives: answered within microseconds; a
 //!   whole core per session.
-//! - `Hybrid` (default): sleep until `window` before the state is expected (the last arrival
-//!   plus one period), then poll: answered within microseconds when the OS wakes the thread
-//!   on time, at about `window / period` of a core.
+//! - `Hybrid` (default): sleep until `window` before the state is expected, then poll:
+//!   answered within microseconds when the OS wakes the thread on time, at about
+//!   `window / period` of a core. "Expected" comes from the bridge's own tick grid, tracked
+//!   from the read times its states carry ([`BridgePhase`]) — not from when this side
+//!   happened to see the last state, which would carry one late wake-up into the next
+//!   window.
 //! - `Event`: block on the `wake` event the bridge raises after each state: no spinning;
 //!   each answer pays a kernel wake-up.
 //!
@@ -34,6 +37,58 @@ use crate::timing::{self, WaitStrategy};
 /// With no state for this long, the peer stops spinning for the bridge.
 pub const IDLE_AFTER: Duration = Duration::from_millis(100);
 
+/// The bridge's tick grid, tracked from the sequence numbers and read times
+/// (`CLOCK_MONOTONIC`, shared by both processes) its states carry.
+///
+/// The bridge reads state `k` at the deadline `origin + k · period` of its own schedule, plus
+/// its wake-up lateness (never negative). So `origin` is the *earliest* of the observed
+/// `t_read − k · period`: an earlier one moves the estimate there at once; a later one moves it
+/// a sixteenth of the way (a late bridge wake-up is jitter, not a new schedule); one more than
+/// [`RESCHEDULED_AFTER`] periods later (the bridge restarted its schedule after a stall, or a
+/// new bridge started) is taken at once.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BridgePhase {
+    /// The schedule's origin (ns; `None` before the first state).
+    origin_ns: Option<i128>,
+}
+
+/// A read this many periods behind the tracked schedule means a new schedule.
+pub const RESCHEDULED_AFTER: u64 = 2;
+
+impl BridgePhase {
+    /// Takes state `seq`, read at `t_read_ns`, into the estimate.
+    pub fn observe(&mut self, seq: u64, t_read_ns: u64, period_ns: u64) {
+        let o = t_read_ns as i128 - seq as i128 * period_ns as i128;
+        self.origin_ns = Some(match self.origin_ns {
+            Some(g) if o >= g && o - g <= (RESCHEDULED_AFTER * period_ns) as i128 => g + (o - g) / 16,
+            _ => o,
+        });
+    }
+
+    /// When the bridge reads state `seq`, by its tracked schedule (`None` before the first
+    /// state).
+    pub fn read_time(&self, seq: u64, period_ns: u64) -> Option<u64> {
+        self.origin_ns
+            .map(|g| (g + seq as i128 * period_ns as i128).clamp(0, u64::MAX as i128) as u64)
+    }
+}
+
+/// How the last wait went, in `CLOCK_MONOTONIC` ns (0: that step did not happen): what a
+/// trace of the haptic path records on the server's side.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WaitTrace {
+    /// When the wait began.
+    pub began_ns: u64,
+    /// The bridge read time the peer expected (0: it had no estimate, or did not predict).
+    pub expected_read_ns: u64,
+    /// When the peer meant to start polling (the end of its sleep).
+    pub planned_ns: u64,
+    /// When it started polling (its first poll after the sleep).
+    pub polling_ns: u64,
+    /// When it received the state (0: none arrived).
+    pub received_ns: u64,
+}
+
 /// The server's side of a haptic channel (see the [module docs](self)).
 #[derive(Debug)]
 pub struct HapticPeer {
@@ -47,6 +102,9 @@ pub struct HapticPeer {
     window: Duration,
     period: Duration,
     last_arrival: Option<Instant>,
+    phase: BridgePhase,
+    last_seq: u64,
+    trace: WaitTrace,
     answered: u64,
     skipped: u64,
 }
@@ -87,6 +145,9 @@ impl HapticPeer {
             window,
             period,
             last_arrival: None,
+            phase: BridgePhase::default(),
+            last_seq: 0,
+            trace: WaitTrace::default(),
             answered: 0,
             skipped: 0,
         })
@@ -123,29 +184,58 @@ impl HapticPeer {
     /// Waits for the bridge's next state until `deadline` (see the [module docs](self)).
     ///
     /// The hybrid wait spins only inside a window around the state's predicted arrival
-    /// (phase-locked to the last arrival), never up to the deadline: a late bridge costs a
+    /// (on the bridge's tracked tick grid), never up to the deadline: a late bridge costs a
     /// sleep, not a spinning thread that could starve it — the tick thread may run under
     /// `SCHED_FIFO`, the bridge may not.
     pub fn wait_for_state(&mut self, deadline: Instant) -> Option<HapticState> {
         let now = Instant::now();
+        let now_ns = shm::monotonic_ns();
+        self.trace = WaitTrace {
+            began_ns: now_ns,
+            ..WaitTrace::default()
+        };
         let (spin_from, spin_until) = match self.effective_strategy() {
             WaitStrategy::Event => return self.wait_for_event(deadline),
             WaitStrategy::Sleep => (deadline, deadline),
             WaitStrategy::Spin => (now, deadline),
             WaitStrategy::Hybrid => {
-                let mut expected = self.last_arrival.map_or(deadline, |t| t + self.period);
-                while expected + self.window < now {
-                    expected += self.period;
+                let (period, window) = (self.period.as_nanos() as u64, self.window.as_nanos() as u64);
+                // the state after the last one seen, on the bridge's schedule; states whose
+                // window has passed are given up (the bridge skipped them, or we were late)
+                let expected = self.phase.read_time(self.last_seq.wrapping_add(1), period).map(|t| {
+                    let behind = now_ns.saturating_sub(window).saturating_sub(t);
+                    t + behind.div_ceil(period.max(1)) * period
+                });
+                match expected {
+                    Some(expected_ns) => {
+                        self.trace.expected_read_ns = expected_ns;
+                        let at = |ns: u64| {
+                            if ns >= now_ns {
+                                now + Duration::from_nanos(ns - now_ns)
+                            } else {
+                                now.checked_sub(Duration::from_nanos(now_ns - ns)).unwrap_or(now)
+                            }
+                        };
+                        (
+                            at(expected_ns.saturating_sub(window)).min(deadline),
+                            at(expected_ns + window).min(deadline),
+                        )
+                    }
+                    None => (deadline.checked_sub(self.window).unwrap_or(deadline), deadline),
                 }
-                let from = expected.checked_sub(self.window).unwrap_or(expected);
-                (from.min(deadline), (expected + self.window).min(deadline))
             }
         };
+        self.trace.planned_ns = now_ns + spin_from.saturating_duration_since(now).as_nanos() as u64;
         let mut got = None;
+        let mut polling_ns = 0;
         timing::wait_between(spin_from, spin_until, || {
+            if polling_ns == 0 {
+                polling_ns = shm::monotonic_ns();
+            }
             got = self.poll();
             got.is_some()
         });
+        self.trace.polling_ns = polling_ns;
         if got.is_none() && spin_until < deadline {
             let left = deadline.saturating_duration_since(Instant::now());
             if !left.is_zero() {
@@ -153,10 +243,23 @@ impl HapticPeer {
             }
             got = self.poll();
         }
-        if got.is_some() {
-            self.last_arrival = Some(Instant::now());
+        if let Some(s) = &got {
+            self.arrived(s);
         }
         got
+    }
+
+    /// Notes a state's arrival: when, and the bridge's phase it shows.
+    fn arrived(&mut self, s: &HapticState) {
+        self.trace.received_ns = shm::monotonic_ns();
+        self.last_arrival = Some(Instant::now());
+        self.last_seq = s.seq;
+        self.phase.observe(s.seq, s.t_read_ns, self.period.as_nanos() as u64);
+    }
+
+    /// How the last [`Self::wait_for_state`] went.
+    pub fn last_wait(&self) -> WaitTrace {
+        self.trace
     }
 
     /// The deadline after `previous` for a loop that waited with [`Self::wait_for_state`] and
@@ -175,7 +278,7 @@ impl HapticPeer {
     fn wait_for_event(&mut self, deadline: Instant) -> Option<HapticState> {
         loop {
             if let Some(s) = self.poll() {
-                self.last_arrival = Some(Instant::now());
+                self.arrived(&s);
                 return Some(s);
             }
             let left = deadline.saturating_duration_since(Instant::now());
@@ -196,6 +299,7 @@ impl HapticPeer {
     /// Sends the force answering `state`.
     pub fn answer(&mut self, state: &HapticState, force_n: [f64; 3], depth_m: f64, events: u32) -> Result<(), LinkError> {
         self.answered += 1;
+        let w = self.trace;
         let cmd = HapticCommand {
             seq: self.answered,
             state_seq: state.seq,
@@ -205,6 +309,9 @@ impl HapticPeer {
             depth_m,
             events,
             reserved: 0,
+            t_peer_planned_ns: w.planned_ns,
+            t_peer_polling_ns: w.polling_ns,
+            t_peer_received_ns: w.received_ns,
         };
         let sample = self.commands.loan_uninit().map_err(|_| LinkError::Loan)?;
         sample.write_payload(cmd).send().map(|_| ()).map_err(|_| LinkError::Send)
@@ -227,5 +334,38 @@ impl HapticPeer {
     /// States superseded by a newer one before they were answered.
     pub fn skipped(&self) -> u64 {
         self.skipped
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::BridgePhase;
+
+    const P: u64 = 1_000_000;
+
+    #[test]
+    fn the_schedule_follows_the_earliest_reads_and_ignores_late_ones() {
+        let mut ph = BridgePhase::default();
+        assert_eq!(ph.read_time(3, P), None);
+        // state k read 7 µs after its deadline at k ms (+ 1 s), state 10 woken 675 µs late
+        for k in 0..20u64 {
+            let late = if k == 10 { 675_000 } else { 0 };
+            ph.observe(k, 1_000 * P + k * P + 7_000 + late, P);
+            // right after the late one, the next state is still expected within 50 µs
+            if k == 10 {
+                let t = ph.read_time(11, P).unwrap();
+                assert!(t - (1_000 * P + 11 * P + 7_000) < 50_000, "{t}");
+            }
+        }
+        assert_eq!(ph.read_time(20, P), Some(1_000 * P + 20 * P + 7_000));
+        // an earlier read moves the schedule at once
+        ph.observe(21, 1_000 * P + 21 * P + 2_000, P);
+        assert_eq!(ph.read_time(22, P), Some(1_000 * P + 22 * P + 2_000));
+        // the bridge restarted its schedule after a stall: taken at once
+        ph.observe(22, 1_000 * P + 40 * P + 500_000, P);
+        assert_eq!(ph.read_time(23, P), Some(1_000 * P + 41 * P + 500_000));
+        // a new bridge, counting from 0 again
+        ph.observe(0, 2_000 * P + 300, P);
+        assert_eq!(ph.read_time(1, P), Some(2_000 * P + P + 300));
     }
 }

@@ -86,6 +86,31 @@ pub fn wait_between(spin_from: Instant, deadline: Instant, mut ready: impl FnMut
     }
 }
 
+/// Stack a real-time loop touches before it starts ([`prefault_stack`]): far more than a tick
+/// uses, so no tick takes a page fault on a stack page seen for the first time.
+pub const PREFAULT_STACK: usize = 128 * 1024;
+
+/// Touches [`PREFAULT_STACK`] bytes of the calling thread's stack, so its pages are mapped
+/// (and locked, by a later [`lock_memory`]) before the loop needs them.
+#[inline(never)]
+pub fn prefault_stack() {
+    let mut page = [0u8; PREFAULT_STACK];
+    std::hint::black_box(&mut page);
+}
+
+/// Locks every page the process has mapped now in RAM (`mlockall(MCL_CURRENT)`), so the
+/// loop's code, stack and buffers are never paged out and never fault back in (memory the
+/// loop allocated before it started included; later allocations are not locked, so a low
+/// `RLIMIT_MEMLOCK` cannot make them fail). Refused gracefully: the reason is returned.
+pub fn lock_memory() -> Result<(), String> {
+    // SAFETY: plain syscall with a valid flag.
+    if unsafe { libc::mlockall(libc::MCL_CURRENT) } == 0 {
+        Ok(())
+    } else {
+        Err(format!("mlockall refused: {}", std::io::Error::last_os_error()))
+    }
+}
+
 /// CPU time consumed by the calling thread so far.
 pub fn thread_cpu_time() -> Duration {
     let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };

@@ -74,6 +74,14 @@ pub struct HapticCommand {
     pub events: u32,
     /// Reserved, 0.
     pub reserved: u32,
+    /// How the server waited for the state (`CLOCK_MONOTONIC` ns; 0: not known), so a trace
+    /// of the bridge alone can tell where a late answer lost its time: when the server meant
+    /// to start polling for the state (the end of its sleep) …
+    pub t_peer_planned_ns: u64,
+    /// … when it started polling …
+    pub t_peer_polling_ns: u64,
+    /// … and when it received the state.
+    pub t_peer_received_ns: u64,
 }
 
 /// The bridge's counters and latency percentiles (bridge → server, a few per second).
@@ -317,7 +325,8 @@ mod tests {
     #[test]
     fn samples_are_plain_fixed_size_data() {
         assert_eq!(std::mem::size_of::<HapticState>(), 2 * 8 + 7 * 8 + 2 * 4);
-        assert_eq!(std::mem::size_of::<HapticCommand>(), 4 * 8 + 4 * 8 + 2 * 4);
+        // counters and times, force and depth, events and reserved, the server's wait times
+        assert_eq!(std::mem::size_of::<HapticCommand>(), 4 * 8 + 4 * 8 + 2 * 4 + 3 * 8);
         assert_eq!(std::mem::size_of::<BridgeReport>(), 15 * 8);
     }
 

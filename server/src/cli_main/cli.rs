@@ -497,6 +497,22 @@ pub struct BenchHapticArgs {
     /// Folder of the organ's bundle (built there when missing). Default: out/organ.
     #[arg(long, value_name = "DIR")]
     pub bundles: Option<PathBuf>,
+    /// Pin the bridge thread to the last CPU and the peer (echo or tick thread) to the one
+    /// before it, so the two real-time threads never share a core.
+    #[arg(long)]
+    pub pin: bool,
+    /// Runs of the three phases; with more than one, the summary gives the median and the
+    /// spread over the runs and how many runs meet the haptic goal.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub repeat: usize,
+    /// Run real co-tenant processes beside the loop for the whole benchmark: this
+    /// executable's `solve` and `build` of the built-in organ, restarted as they finish.
+    #[arg(long)]
+    pub cotenant: bool,
+    /// Write every traced tick of the round-trip and full-tick phases as CSV into DIR
+    /// (`run<k>_<phase>.csv`: the bridge's trace with the server's wait times).
+    #[arg(long, value_name = "DIR")]
+    pub trace: Option<PathBuf>,
     /// Print the results as JSON.
     #[arg(long)]
     pub json: bool,

@@ -94,6 +94,8 @@ pub struct HapticConfig {
     /// `SCHED_FIFO` priority asked for the tick thread (not with the spin wait, which would
     /// trip the kernel's real-time throttle); refused gracefully when not permitted.
     pub fifo_priority: Option<i32>,
+    /// Pin the tick thread to this CPU (refused gracefully when the OS says no).
+    pub cpu: Option<usize>,
 }
 
 impl HapticConfig {
@@ -104,6 +106,7 @@ impl HapticConfig {
             wait: WaitStrategy::Hybrid,
             spin_window: vademecum_bridge::timing::DEFAULT_SPIN_WINDOW,
             fifo_priority: Some(70),
+            cpu: None,
         }
     }
 }
@@ -280,7 +283,7 @@ impl Session {
                     Some(h) => match HapticPeer::open(&h.channel, h.wait, h.spin_window, tick_loop.period) {
                         Ok(p) => {
                             let fifo = h.fifo_priority.filter(|_| h.wait != WaitStrategy::Spin);
-                            (Some(p), Some(vademecum_bridge::timing::request_realtime(fifo, None)))
+                            (Some(p), Some(vademecum_bridge::timing::request_realtime(fifo, h.cpu)))
                         }
                         Err(e) => {
                             tick_loop.answers.finish();

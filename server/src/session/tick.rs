@@ -95,6 +95,10 @@ impl TickLoop {
     /// the device bridge (see [`vademecum_bridge::peer`] for how it waits).
     pub fn run(mut self, mut peer: Option<HapticPeer>) {
         let mut local = Box::<Histograms>::default();
+        if peer.is_some() {
+            // no tick of the haptic path takes a fault on a stack page seen for the first time
+            vademecum_bridge::timing::prefault_stack();
+        }
         let period = self.period;
         let mut next = Instant::now() + period;
         let mut tick: u64 = 0;

@@ -16,7 +16,15 @@
 //! For each: device read → force written (our IPC and work), deadline → force written (the
 //! OS floor plus ours: the figure compared with the null loop), deadline misses, and the CPU
 //! spent by the bridge's and the peer's threads. `--hog N` runs N threads of floating-point
-//! busy work for the whole run (null phase included).
+//! busy work for the whole run (null phase included); `--cotenant` runs real processes beside
+//! it (this executable's `solve` and `build`, restarted as they finish).
+//!
+//! The round-trip and full-tick phases are traced tick by tick (the bridge's timestamps and
+//! the server's wait times the answers carry) and their late ticks sorted by cause
+//! ([`vademecum_bridge::tail`]); `--trace DIR` writes the traces. `--repeat N` runs the three
+//! phases N times and summarises the median and spread over the runs and how many runs meet
+//! the haptic goal (full tick deadline→write p99 within 50 µs of the null loop's, read→write
+//! p99 ≤ 100 µs, misses within the null loop's + 0.1 %).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -32,6 +40,7 @@ use vademecum_bridge::device::NullDevice;
 use vademecum_bridge::device::sim::{HandModel, SimStylus};
 use vademecum_bridge::link::{Link, NullLink, ShmLink};
 use vademecum_bridge::peer::HapticPeer;
+use vademecum_bridge::tail::{self, TailCauses};
 use vademecum_bridge::timing::{self, WaitStrategy};
 use vademecum_bridge::trajectory::Trajectory;
 use vademecum_engine::scene::Scene;
@@ -45,6 +54,8 @@ use crate::session::{HapticConfig, Session, SessionConfig, builtin_palpation};
 #[derive(Debug, Serialize)]
 struct Phase {
     phase: &'static str,
+    /// Late ticks by cause (traced phases only).
+    tail: Option<TailCauses>,
     ticks: u64,
     read_to_write_us: Percentiles,
     deadline_to_write_us: Percentiles,
@@ -60,16 +71,25 @@ struct Report {
     wait: String,
     peer_wait: String,
     hog_threads: usize,
+    cotenants: bool,
     seconds: f64,
     bridge_scheduling: String,
     phases: Vec<Phase>,
 }
 
-fn phase(name: &'static str, o: &BridgeOutcome, peer_cpu: Duration) -> Phase {
+fn phase(name: &'static str, o: &BridgeOutcome, peer_cpu: Duration, p: &BridgeParams) -> Phase {
     let wall = o.wall.as_secs_f64().max(1e-9);
     let r = &o.report;
     Phase {
         phase: name,
+        tail: (!o.trace.is_empty()).then(|| {
+            tail::classify(
+                &o.trace,
+                &o.late_answers,
+                p.answer_wait.as_nanos() as u64,
+                p.window.as_nanos() as u64,
+            )
+        }),
         ticks: r.ticks,
         read_to_write_us: Percentiles::of(&o.latency_ns),
         deadline_to_write_us: Percentiles::of(&o.completion_ns),
@@ -86,6 +106,7 @@ fn phase(name: &'static str, o: &BridgeOutcome, peer_cpu: Duration) -> Phase {
 fn bridge_thread<D, L>(
     params: BridgeParams,
     fifo: Option<i32>,
+    cpu: Option<usize>,
     make: impl FnOnce() -> anyhow::Result<(D, L)> + Send + 'static,
 ) -> anyhow::Result<(BridgeOutcome, String)>
 where
@@ -95,10 +116,15 @@ where
     std::thread::Builder::new()
         .name("bench-bridge".into())
         .spawn(move || -> anyhow::Result<(BridgeOutcome, String)> {
-            let rt = timing::request_realtime(fifo, None).to_string();
+            let rt = timing::request_realtime(fifo, cpu).to_string();
             let (mut device, mut link) = make()?;
             let stop = Arc::new(AtomicBool::new(false));
-            Ok((bridge_loop::run(&mut device, &mut link, &params, &stop)?, rt))
+            let out = bridge_loop::run(&mut device, &mut link, &params, &stop)?;
+            let rt = match &out.memory_locked {
+                Ok(()) => format!("{rt}, memory locked"),
+                Err(why) => format!("{rt}, memory not locked ({why})"),
+            };
+            Ok((out, rt))
         })
         .context("cannot start the bridge thread")?
         .join()
@@ -116,9 +142,83 @@ fn hog(stop: Arc<AtomicBool>) {
     }
 }
 
+/// Real processes beside the benchmark: this executable's `solve` and `build` of the built-in
+/// organ, each restarted when it finishes, until dropped.
+struct Cotenants {
+    stop: Arc<AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+    _dir: tempfile::TempDir,
+}
+
+impl Cotenants {
+    fn start() -> anyhow::Result<Self> {
+        let exe = std::env::current_exe().context("cannot find this executable to run co-tenants")?;
+        let dir = tempfile::tempdir()?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let jobs: [(&str, Vec<String>); 2] = [
+            (
+                "solve",
+                vec!["solve".into(), "--out".into(), dir.path().join("solve").display().to_string()],
+            ),
+            (
+                "build",
+                vec!["build".into(), "--out".into(), dir.path().join("build").display().to_string()],
+            ),
+        ];
+        let threads = jobs
+            .into_iter()
+            .map(|(_, args)| {
+                let (exe, stop) = (exe.clone(), stop.clone());
+                std::thread::spawn(move || {
+                    while !stop.load(Ordering::Relaxed) {
+                        let child = std::process::Command::new(&exe)
+                            .args(&args)
+                            .stdout(std::process::Stdio::null())
+                            .stderr(std::process::Stdio::null())
+                            .spawn();
+                        let Ok(mut child) = child else { return };
+                        // poll so that a stop does not wait for a long build
+                        loop {
+                            if stop.load(Ordering::Relaxed) {
+                                let _ = child.kill();
+                                let _ = child.wait();
+                                return;
+                            }
+                            if let Ok(Some(_)) = child.try_wait() {
+                                break;
+                            }
+                            std::thread::sleep(Duration::from_millis(50));
+                        }
+                    }
+                })
+            })
+            .collect();
+        Ok(Self { stop, threads, _dir: dir })
+    }
+}
+
+impl Drop for Cotenants {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// What one run of the three phases needs.
+struct Setup {
+    scene: Arc<Scene>,
+    bundles: Vec<Arc<vademecum_engine::pgd::offline::LoadedBundle>>,
+    hand: Trajectory,
+}
+
 pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
     if !(a.seconds > 0.0 && a.seconds <= 600.0) {
         bail!("--seconds must lie in (0, 600], got {}", a.seconds);
+    }
+    if !(1..=100).contains(&a.repeat) {
+        bail!("--repeat must lie in 1..=100, got {}", a.repeat);
     }
     shm::quiet_iceoryx2_logging();
     let scene = Arc::new(Scene::builtin("organ")?);
@@ -136,8 +236,63 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
             keys.push((t + 5.0 * r as f64, s.position_m, s.closure));
         }
     }
-    let hand = Trajectory::new(keys).map_err(anyhow::Error::msg)?;
+    let setup = Setup {
+        scene,
+        bundles,
+        hand: Trajectory::new(keys).map_err(anyhow::Error::msg)?,
+    };
+    if let Some(d) = &a.trace {
+        std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+    }
+    let hog_stop = Arc::new(AtomicBool::new(false));
+    let hogs: Vec<_> = (0..a.hog)
+        .map(|_| {
+            let s = hog_stop.clone();
+            std::thread::spawn(move || hog(s))
+        })
+        .collect();
+    let cotenants = if a.cotenant { Some(Cotenants::start()?) } else { None };
+    if cotenants.is_some() {
+        // let the co-tenants get going (a build starts with a mesh and an assembly)
+        std::thread::sleep(Duration::from_secs(2));
+    }
+    let mut runs = Vec::with_capacity(a.repeat);
+    let mut failure = None;
+    for k in 0..a.repeat {
+        match run_once(&a, k, &setup) {
+            Ok(r) => runs.push(r),
+            Err(e) => {
+                failure = Some(e);
+                break;
+            }
+        }
+    }
+    drop(cotenants);
+    hog_stop.store(true, Ordering::Relaxed);
+    for h in hogs {
+        let _ = h.join();
+    }
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    let summary = (runs.len() > 1).then(|| Summary::of(&runs));
+    let mut out = std::io::stdout().lock();
+    if a.json {
+        let all = serde_json::json!({ "runs": runs, "summary": summary });
+        writeln!(out, "{}", serde_json::to_string_pretty(&all)?)?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    for (k, report) in runs.iter().enumerate() {
+        print_report(&mut out, k, a.repeat, a.cotenant, report)?;
+    }
+    if let Some(s) = summary {
+        print_summary(&mut out, &s)?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
 
+/// One run of the three phases.
+fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Report> {
     let period = Duration::from_millis(1);
     let params = BridgeParams {
         strategy: a.wait,
@@ -146,28 +301,47 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
         trace_limit: 0,
         ..BridgeParams::default()
     };
+    // the IPC phases are traced whole (sized before the loop starts)
+    let traced = BridgeParams {
+        trace_limit: (a.seconds * 1000.0).ceil() as usize + 16,
+        ..params.clone()
+    };
     let fifo = (a.realtime && a.wait != WaitStrategy::Spin).then_some(80);
-    let hog_stop = Arc::new(AtomicBool::new(false));
-    let hogs: Vec<_> = (0..a.hog)
-        .map(|_| {
-            let s = hog_stop.clone();
-            std::thread::spawn(move || hog(s))
-        })
-        .collect();
+    // the bridge on the last CPU, the peer on the one before (when pinning and there are two)
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (bridge_cpu, peer_cpu) = if a.pin && cpus >= 2 {
+        (Some(cpus - 1), Some(cpus - 2))
+    } else {
+        (None, None)
+    };
     let bar = |what: &str| {
         eprintln!(
-            "vademecum: bench haptic: {what} ({} s, {} wait, {} hog threads)",
-            a.seconds, a.wait, a.hog
+            "vademecum: bench haptic: run {}/{}: {what} ({} s, {} wait, {} hog threads{})",
+            k + 1,
+            a.repeat,
+            a.seconds,
+            a.wait,
+            a.hog,
+            if a.cotenant { ", co-tenants" } else { "" }
         )
+    };
+    let write_trace = |phase: &str, o: &BridgeOutcome| -> anyhow::Result<()> {
+        if let Some(d) = &a.trace {
+            let path = d.join(format!("run{}_{phase}.csv", k + 1));
+            vademecum_bridge::bridge_loop::write_trace(&path, &o.trace).with_context(|| format!("cannot write {}", path.display()))?;
+        }
+        Ok(())
     };
     let mut phases = Vec::new();
 
     bar("null loop");
-    let (null, rt) = bridge_thread(params.clone(), fifo, || Ok((NullDevice::default(), NullLink::default())))?;
-    phases.push(phase("null loop", &null, Duration::ZERO));
+    let (null, rt) = bridge_thread(params.clone(), fifo, bridge_cpu, || {
+        Ok((NullDevice::default(), NullLink::default()))
+    })?;
+    phases.push(phase("null loop", &null, Duration::ZERO, &params));
 
     bar("iceoryx2 round trip (echo peer)");
-    let channel = HapticChannel::new(&format!("bench-echo-{}", std::process::id()))?;
+    let channel = HapticChannel::new(&format!("bench-echo-{}-{k}", std::process::id()))?;
     let echo_stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let echo = {
@@ -176,7 +350,7 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
             .name("bench-echo".into())
             .spawn(move || -> anyhow::Result<Duration> {
                 let mut peer = HapticPeer::open(&channel, peer_wait, window, period)?;
-                timing::request_realtime(fifo.map(|p| p - 10).filter(|_| peer_wait != WaitStrategy::Spin), None);
+                timing::request_realtime(fifo.map(|p| p - 10).filter(|_| peer_wait != WaitStrategy::Spin), peer_cpu);
                 let _ = ready_tx.send(());
                 let cpu0 = timing::thread_cpu_time();
                 let mut next = Instant::now() + period;
@@ -196,57 +370,62 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
         .recv()
         .map_err(|_| anyhow::anyhow!("the echo peer could not open its channel"))?;
     let echo_channel = channel.clone();
-    let (rtt, _) = bridge_thread(params.clone(), fifo, move || {
+    let (rtt, _) = bridge_thread(traced.clone(), fifo, bridge_cpu, move || {
         Ok((NullDevice::default(), ShmLink::open(&echo_channel)?))
     })?;
     echo_stop.store(true, Ordering::Relaxed);
     let echo_cpu = echo.join().map_err(|_| anyhow::anyhow!("the echo peer panicked"))??;
-    phases.push(phase("iceoryx2 round trip", &rtt, echo_cpu));
+    write_trace("round_trip", &rtt)?;
+    phases.push(phase("iceoryx2 round trip", &rtt, echo_cpu, &params));
 
     bar("full tick (session on the built-in organ)");
-    let channel = HapticChannel::new(&format!("bench-full-{}", std::process::id()))?;
+    let channel = HapticChannel::new(&format!("bench-full-{}-{k}", std::process::id()))?;
     let mut haptic = HapticConfig::new(channel.clone());
     haptic.wait = a.peer_wait;
     haptic.spin_window = params.window;
     haptic.fifo_priority = fifo.map(|p| p - 10);
+    haptic.cpu = peer_cpu;
     let session = Session::start(
         "bench".into(),
-        scene.clone(),
-        bundles.clone(),
+        setup.scene.clone(),
+        setup.bundles.clone(),
         SessionConfig {
             haptic: Some(haptic),
             ..SessionConfig::default()
         },
     )?;
     let cpu0 = session.stats().tick_cpu_ns.load(Ordering::Relaxed);
-    let (full, _) = bridge_thread(params.clone(), fifo, move || {
+    let hand = setup.hand.clone();
+    let (full, _) = bridge_thread(traced, fifo, bridge_cpu, move || {
         Ok((SimStylus::new(hand, HandModel::default()), ShmLink::open(&channel)?))
     })?;
     let tick_cpu = Duration::from_nanos(session.stats().tick_cpu_ns.load(Ordering::Relaxed).saturating_sub(cpu0));
     let _ = session.close();
-    phases.push(phase("full tick", &full, tick_cpu));
+    write_trace("full_tick", &full)?;
+    phases.push(phase("full tick", &full, tick_cpu, &params));
 
-    hog_stop.store(true, Ordering::Relaxed);
-    for h in hogs {
-        let _ = h.join();
-    }
-    let report = Report {
+    Ok(Report {
         wait: a.wait.to_string(),
         peer_wait: a.peer_wait.to_string(),
         hog_threads: a.hog,
+        cotenants: a.cotenant,
         seconds: a.seconds,
         bridge_scheduling: rt,
         phases,
-    };
-    let mut out = std::io::stdout().lock();
-    if a.json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
-        return Ok(ExitCode::SUCCESS);
-    }
+    })
+}
+
+fn print_report(out: &mut impl Write, k: usize, of: usize, cotenant: bool, report: &Report) -> anyhow::Result<()> {
     writeln!(
         out,
-        "haptic path, {} s per phase at 1 kHz, bridge {} wait, peer {} wait, {} hog threads; bridge: {}",
-        report.seconds, report.wait, report.peer_wait, report.hog_threads, report.bridge_scheduling
+        "{}haptic path, {} s per phase at 1 kHz, bridge {} wait, peer {} wait, {} hog threads{}; bridge: {}",
+        if of > 1 { format!("run {}/{of}: ", k + 1) } else { String::new() },
+        report.seconds,
+        report.wait,
+        report.peer_wait,
+        report.hog_threads,
+        if cotenant { ", co-tenant solve + build" } else { "" },
+        report.bridge_scheduling
     )?;
     writeln!(
         out,
@@ -268,5 +447,131 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
             format!("{:.0} / {:.0}", p.bridge_cpu_percent, p.peer_cpu_percent),
         )?;
     }
-    Ok(ExitCode::SUCCESS)
+    for p in &report.phases {
+        if let Some(t) = &p.tail {
+            let causes: Vec<String> = t.named().iter().map(|(c, n)| format!("{c} {n}")).collect();
+            writeln!(
+                out,
+                "  {}: {} late ticks of {} (read→write > {} µs or a tick late){}{}",
+                p.phase,
+                t.late,
+                t.ticks,
+                tail::LATE_NS / 1000,
+                if causes.is_empty() { "" } else { ": " },
+                causes.join(", ")
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// The median and spread over runs, and how many runs meet the haptic goal.
+#[derive(Debug, Serialize)]
+struct Summary {
+    runs: usize,
+    /// Full tick deadline→write p99 minus the null loop's, per run (µs).
+    full_minus_null_p99_us: Vec<f64>,
+    /// Full tick read→write p99, per run (µs).
+    full_read_to_write_p99_us: Vec<f64>,
+    /// Full tick misses minus the null loop's, per run (percentage points).
+    full_minus_null_misses_pct: Vec<f64>,
+    /// CPU of the bridge and the tick thread in the full tick phase, per run (% of a core).
+    full_cpu_bridge_pct: Vec<f64>,
+    full_cpu_peer_pct: Vec<f64>,
+    /// Runs meeting each goal.
+    within_50us_of_null: usize,
+    read_to_write_p99_at_most_100us: usize,
+    misses_within_null_plus_0_1pct: usize,
+    cpu_at_most_20pct_per_side: usize,
+}
+
+impl Summary {
+    fn of(runs: &[Report]) -> Self {
+        fn pick<'a>(r: &'a Report, name: &str) -> &'a Phase {
+            r.phases.iter().find(|p| p.phase == name).expect("every run has its phases")
+        }
+        let diff: Vec<f64> = runs
+            .iter()
+            .map(|r| pick(r, "full tick").deadline_to_write_us.p99 - pick(r, "null loop").deadline_to_write_us.p99)
+            .collect();
+        let rw: Vec<f64> = runs.iter().map(|r| pick(r, "full tick").read_to_write_us.p99).collect();
+        let miss: Vec<f64> = runs
+            .iter()
+            .map(|r| pick(r, "full tick").miss_percent - pick(r, "null loop").miss_percent)
+            .collect();
+        let cpu_b: Vec<f64> = runs.iter().map(|r| pick(r, "full tick").bridge_cpu_percent).collect();
+        let cpu_p: Vec<f64> = runs.iter().map(|r| pick(r, "full tick").peer_cpu_percent).collect();
+        Self {
+            runs: runs.len(),
+            within_50us_of_null: diff.iter().filter(|&&d| d <= 50.0).count(),
+            read_to_write_p99_at_most_100us: rw.iter().filter(|&&x| x <= 100.0).count(),
+            misses_within_null_plus_0_1pct: miss.iter().filter(|&&x| x <= 0.1).count(),
+            cpu_at_most_20pct_per_side: cpu_b.iter().zip(&cpu_p).filter(|(b, p)| **b <= 20.5 && **p <= 20.5).count(),
+            full_minus_null_p99_us: diff,
+            full_read_to_write_p99_us: rw,
+            full_minus_null_misses_pct: miss,
+            full_cpu_bridge_pct: cpu_b,
+            full_cpu_peer_pct: cpu_p,
+        }
+    }
+}
+
+/// Median, minimum and maximum.
+fn spread(v: &[f64]) -> (f64, f64, f64) {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let mid = if s.len() % 2 == 1 {
+        s[s.len() / 2]
+    } else {
+        0.5 * (s[s.len() / 2 - 1] + s[s.len() / 2])
+    };
+    (mid, s[0], s[s.len() - 1])
+}
+
+fn print_summary(out: &mut impl Write, s: &Summary) -> anyhow::Result<()> {
+    writeln!(out, "over {} runs (median, min – max), full tick phase:", s.runs)?;
+    let line = |out: &mut dyn Write, what: &str, v: &[f64], goal: &str, met: usize| -> std::io::Result<()> {
+        let (m, lo, hi) = spread(v);
+        writeln!(
+            out,
+            "  {what:<44} {m:>8.1}  ({lo:.1} – {hi:.1})   goal {goal}: {met} of {} runs",
+            s.runs
+        )
+    };
+    line(
+        out,
+        "deadline→write p99 − null loop's (µs)",
+        &s.full_minus_null_p99_us,
+        "≤ 50",
+        s.within_50us_of_null,
+    )?;
+    line(
+        out,
+        "read→write p99 (µs)",
+        &s.full_read_to_write_p99_us,
+        "≤ 100",
+        s.read_to_write_p99_at_most_100us,
+    )?;
+    line(
+        out,
+        "misses − null loop's (% of ticks)",
+        &s.full_minus_null_misses_pct,
+        "≤ 0.1",
+        s.misses_within_null_plus_0_1pct,
+    )?;
+    line(
+        out,
+        "CPU, bridge (% of a core)",
+        &s.full_cpu_bridge_pct,
+        "≤ 20 per side",
+        s.cpu_at_most_20pct_per_side,
+    )?;
+    line(
+        out,
+        "CPU, tick thread (% of a core)",
+        &s.full_cpu_peer_pct,
+        "≤ 20 per side",
+        s.cpu_at_most_20pct_per_side,
+    )?;
+    Ok(())
 }
