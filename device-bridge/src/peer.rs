@@ -73,6 +73,39 @@ impl BridgePhase {
     }
 }
 
+/// Where the hybrid wait takes the next state's expected arrival from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PhaseSource {
+    /// The bridge's own schedule, tracked from its states' sequence numbers and read times
+    /// ([`BridgePhase`]).
+    #[default]
+    Schedule,
+    /// One period after this side last saw a state: the method before 2026-12-02, kept so
+    /// that `vademecum bench haptic --peer-phase last-seen` can measure against it. A state
+    /// seen late (this thread woke late) moves the next window late by as much.
+    LastSeen,
+}
+
+impl std::str::FromStr for PhaseSource {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "schedule" => Ok(Self::Schedule),
+            "last-seen" => Ok(Self::LastSeen),
+            _ => Err(format!("unknown phase source {s:?}: use schedule or last-seen")),
+        }
+    }
+}
+
+impl std::fmt::Display for PhaseSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Schedule => "schedule",
+            Self::LastSeen => "last-seen",
+        })
+    }
+}
+
 /// How the last wait went, in `CLOCK_MONOTONIC` ns (0: that step did not happen): what a
 /// trace of the haptic path records on the server's side.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -103,7 +136,9 @@ pub struct HapticPeer {
     period: Duration,
     last_arrival: Option<Instant>,
     phase: BridgePhase,
+    phase_source: PhaseSource,
     last_seq: u64,
+    last_seen_ns: u64,
     trace: WaitTrace,
     answered: u64,
     skipped: u64,
@@ -146,7 +181,9 @@ impl HapticPeer {
             period,
             last_arrival: None,
             phase: BridgePhase::default(),
+            phase_source: PhaseSource::default(),
             last_seq: 0,
+            last_seen_ns: 0,
             trace: WaitTrace::default(),
             answered: 0,
             skipped: 0,
@@ -202,7 +239,11 @@ impl HapticPeer {
                 let (period, window) = (self.period.as_nanos() as u64, self.window.as_nanos() as u64);
                 // the state after the last one seen, on the bridge's schedule; states whose
                 // window has passed are given up (the bridge skipped them, or we were late)
-                let expected = self.phase.read_time(self.last_seq.wrapping_add(1), period).map(|t| {
+                let predicted = match self.phase_source {
+                    PhaseSource::Schedule => self.phase.read_time(self.last_seq.wrapping_add(1), period),
+                    PhaseSource::LastSeen => (self.last_seen_ns != 0).then(|| self.last_seen_ns + period),
+                };
+                let expected = predicted.map(|t| {
                     let behind = now_ns.saturating_sub(window).saturating_sub(t);
                     t + behind.div_ceil(period.max(1)) * period
                 });
@@ -252,9 +293,17 @@ impl HapticPeer {
     /// Notes a state's arrival: when, and the bridge's phase it shows.
     fn arrived(&mut self, s: &HapticState) {
         self.trace.received_ns = shm::monotonic_ns();
+        self.last_seen_ns = self.trace.received_ns;
         self.last_arrival = Some(Instant::now());
         self.last_seq = s.seq;
         self.phase.observe(s.seq, s.t_read_ns, self.period.as_nanos() as u64);
+    }
+
+    /// Takes the hybrid wait's expected arrivals from `source` (default: the bridge's
+    /// schedule).
+    pub fn with_phase_source(mut self, source: PhaseSource) -> Self {
+        self.phase_source = source;
+        self
     }
 
     /// How the last [`Self::wait_for_state`] went.

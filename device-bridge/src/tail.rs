@@ -10,7 +10,7 @@
 //! |---|---|
 //! | `bridge publish` | the bridge took more than [`SLOW_NS`] from its read to the state published |
 //! | `bridge woke late` | the bridge woke for the tick later than the server's spin window is wide, so its state came after the server had stopped polling for it |
-//! | `no answer seen` | no answer to this state reached the bridge within the next ticks, so the server's times are unknown |
+//! | `no answer seen` | no answer to this state reached the bridge within the next ticks (the server answered a newer state first), so the server's times are unknown |
 //! | `peer woke late` | the server polled more than [`SLOW_NS`] after it meant to (the OS woke it late) and after the state was sent |
 //! | `peer window late` | the server meant to start polling only after the state was sent (its predicted phase was late) |
 //! | `peer saw it late` | the server was polling when the state was sent but received it more than [`SLOW_NS`] later (preempted while polling, or delivery) |

@@ -497,6 +497,11 @@ pub struct BenchHapticArgs {
     /// Folder of the organ's bundle (built there when missing). Default: out/organ.
     #[arg(long, value_name = "DIR")]
     pub bundles: Option<PathBuf>,
+    /// Where the peer's hybrid wait expects the next state: `schedule` (the bridge's tracked
+    /// schedule, the default) or `last-seen` (a period after the last state seen: the method
+    /// before 2026-12-02, to measure against).
+    #[arg(long, default_value = "schedule", value_name = "SOURCE")]
+    pub peer_phase: vademecum_bridge::peer::PhaseSource,
     /// Pin the bridge thread to the last CPU and the peer (echo or tick thread) to the one
     /// before it, so the two real-time threads never share a core.
     #[arg(long)]
@@ -509,8 +514,8 @@ pub struct BenchHapticArgs {
     /// executable's `solve` and `build` of the built-in organ, restarted as they finish.
     #[arg(long)]
     pub cotenant: bool,
-    /// Write every traced tick of the round-trip and full-tick phases as CSV into DIR
-    /// (`run<k>_<phase>.csv`: the bridge's trace with the server's wait times).
+    /// Write every tick of every phase as CSV into DIR (`run<k>_<phase>.csv`: the bridge's
+    /// trace with the server's wait times).
     #[arg(long, value_name = "DIR")]
     pub trace: Option<PathBuf>,
     /// Print the results as JSON.

@@ -96,6 +96,8 @@ pub struct HapticConfig {
     pub fifo_priority: Option<i32>,
     /// Pin the tick thread to this CPU (refused gracefully when the OS says no).
     pub cpu: Option<usize>,
+    /// Where the hybrid wait expects the bridge's next state from.
+    pub phase: vademecum_bridge::peer::PhaseSource,
 }
 
 impl HapticConfig {
@@ -107,6 +109,7 @@ impl HapticConfig {
             spin_window: vademecum_bridge::timing::DEFAULT_SPIN_WINDOW,
             fifo_priority: Some(70),
             cpu: None,
+            phase: vademecum_bridge::peer::PhaseSource::Schedule,
         }
     }
 }
@@ -282,6 +285,7 @@ impl Session {
                     None => (None, None),
                     Some(h) => match HapticPeer::open(&h.channel, h.wait, h.spin_window, tick_loop.period) {
                         Ok(p) => {
+                            let p = p.with_phase_source(h.phase);
                             let fifo = h.fifo_priority.filter(|_| h.wait != WaitStrategy::Spin);
                             (Some(p), Some(vademecum_bridge::timing::request_realtime(fifo, h.cpu)))
                         }

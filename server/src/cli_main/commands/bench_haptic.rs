@@ -21,7 +21,7 @@
 //!
 //! The round-trip and full-tick phases are traced tick by tick (the bridge's timestamps and
 //! the server's wait times the answers carry) and their late ticks sorted by cause
-//! ([`vademecum_bridge::tail`]); `--trace DIR` writes the traces. `--repeat N` runs the three
+//! ([`vademecum_bridge::tail`]); `--trace DIR` writes the traces (the null loop's too). `--repeat N` runs the three
 //! phases N times and summarises the median and spread over the runs and how many runs meet
 //! the haptic goal (full tick deadline→write p99 within 50 µs of the null loop's, read→write
 //! p99 ≤ 100 µs, misses within the null loop's + 0.1 %).
@@ -54,8 +54,10 @@ use crate::session::{HapticConfig, Session, SessionConfig, builtin_palpation};
 #[derive(Debug, Serialize)]
 struct Phase {
     phase: &'static str,
-    /// Late ticks by cause (traced phases only).
+    /// Late ticks by cause (phases with IPC).
     tail: Option<TailCauses>,
+    /// Ticks on which the bridge woke later than the spin window after its deadline.
+    late_wakeups: u64,
     ticks: u64,
     read_to_write_us: Percentiles,
     deadline_to_write_us: Percentiles,
@@ -70,6 +72,7 @@ struct Phase {
 struct Report {
     wait: String,
     peer_wait: String,
+    peer_phase: String,
     hog_threads: usize,
     cotenants: bool,
     seconds: f64,
@@ -82,7 +85,7 @@ fn phase(name: &'static str, o: &BridgeOutcome, peer_cpu: Duration, p: &BridgePa
     let r = &o.report;
     Phase {
         phase: name,
-        tail: (!o.trace.is_empty()).then(|| {
+        tail: (name != "null loop" && !o.trace.is_empty()).then(|| {
             tail::classify(
                 &o.trace,
                 &o.late_answers,
@@ -90,6 +93,7 @@ fn phase(name: &'static str, o: &BridgeOutcome, peer_cpu: Duration, p: &BridgePa
                 p.window.as_nanos() as u64,
             )
         }),
+        late_wakeups: o.trace.iter().filter(|t| t.lateness_ns > p.window.as_nanos() as u64).count() as u64,
         ticks: r.ticks,
         read_to_write_us: Percentiles::of(&o.latency_ns),
         deadline_to_write_us: Percentiles::of(&o.completion_ns),
@@ -301,7 +305,7 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
         trace_limit: 0,
         ..BridgeParams::default()
     };
-    // the IPC phases are traced whole (sized before the loop starts)
+    // every phase is traced whole (sized before the loop starts)
     let traced = BridgeParams {
         trace_limit: (a.seconds * 1000.0).ceil() as usize + 16,
         ..params.clone()
@@ -345,11 +349,11 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
     let echo_stop = Arc::new(AtomicBool::new(false));
     let (ready_tx, ready_rx) = std::sync::mpsc::channel();
     let echo = {
-        let (channel, stop, peer_wait, window) = (channel.clone(), echo_stop.clone(), a.peer_wait, params.window);
+        let (channel, stop, peer_wait, window, phase) = (channel.clone(), echo_stop.clone(), a.peer_wait, params.window, a.peer_phase);
         std::thread::Builder::new()
             .name("bench-echo".into())
             .spawn(move || -> anyhow::Result<Duration> {
-                let mut peer = HapticPeer::open(&channel, peer_wait, window, period)?;
+                let mut peer = HapticPeer::open(&channel, peer_wait, window, period)?.with_phase_source(phase);
                 timing::request_realtime(fifo.map(|p| p - 10).filter(|_| peer_wait != WaitStrategy::Spin), peer_cpu);
                 let _ = ready_tx.send(());
                 let cpu0 = timing::thread_cpu_time();
@@ -385,6 +389,7 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
     haptic.spin_window = params.window;
     haptic.fifo_priority = fifo.map(|p| p - 10);
     haptic.cpu = peer_cpu;
+    haptic.phase = a.peer_phase;
     let session = Session::start(
         "bench".into(),
         setup.scene.clone(),
@@ -407,6 +412,7 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
     Ok(Report {
         wait: a.wait.to_string(),
         peer_wait: a.peer_wait.to_string(),
+        peer_phase: a.peer_phase.to_string(),
         hog_threads: a.hog,
         cotenants: a.cotenant,
         seconds: a.seconds,
@@ -418,11 +424,12 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
 fn print_report(out: &mut impl Write, k: usize, of: usize, cotenant: bool, report: &Report) -> anyhow::Result<()> {
     writeln!(
         out,
-        "{}haptic path, {} s per phase at 1 kHz, bridge {} wait, peer {} wait, {} hog threads{}; bridge: {}",
+        "{}haptic path, {} s per phase at 1 kHz, bridge {} wait, peer {} wait ({} phase), {} hog threads{}; bridge: {}",
         if of > 1 { format!("run {}/{of}: ", k + 1) } else { String::new() },
         report.seconds,
         report.wait,
         report.peer_wait,
+        report.peer_phase,
         report.hog_threads,
         if cotenant { ", co-tenant solve + build" } else { "" },
         report.bridge_scheduling
@@ -447,6 +454,16 @@ fn print_report(out: &mut impl Write, k: usize, of: usize, cotenant: bool, repor
             format!("{:.0} / {:.0}", p.bridge_cpu_percent, p.peer_cpu_percent),
         )?;
     }
+    writeln!(
+        out,
+        "  bridge wake-ups later than the spin window: {}",
+        report
+            .phases
+            .iter()
+            .map(|p| format!("{} {}", p.phase, p.late_wakeups))
+            .collect::<Vec<_>>()
+            .join(", ")
+    )?;
     for p in &report.phases {
         if let Some(t) = &p.tail {
             let causes: Vec<String> = t.named().iter().map(|(c, n)| format!("{c} {n}")).collect();
