@@ -109,7 +109,7 @@ pub struct TraceRow {
     pub t_write_ns: u64,
     /// The server's side of this tick's own answer (ns; all 0 when the force written does
     /// not answer this tick's state): when it meant to start polling, started polling,
-    /// received the state, and answered ([`HapticCommand`](vademecum_proto::shm::HapticCommand)).
+    /// received the state, and answered ([`HapticCommand`]).
     pub t_peer_planned_ns: u64,
     /// Started polling (ns).
     pub t_peer_polling_ns: u64,

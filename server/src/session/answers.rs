@@ -5,7 +5,7 @@
 //! waking an async task (tokio's wake-up of a task from outside the runtime goes through the
 //! runtime's inject queue, a mutex, and a futex). So it only does this:
 //!
-//! 1. `push` the answer, tagged with its [`StreamId`], into the session's [`AnswerRing`] (a
+//! 1. `push` the answer, tagged with its [`StreamId`], into the session's `AnswerRing` (a
 //!    bounded `crossbeam_queue::ArrayQueue`, allocated once when the session starts: a push is
 //!    a few atomic operations and never allocates);
 //! 2. once per tick that answered anything, `unpark` the dispatcher thread (one atomic swap;
@@ -28,7 +28,7 @@
 //! Order: answers are pushed in the order the tick computes them and the dispatcher pops in
 //! that order, so each stream receives its answers in submission order.
 //!
-//! Shutdown: when the tick loop ends it raises [`AnswerRing::finish`]; the dispatcher drains
+//! Shutdown: when the tick loop ends it raises `AnswerRing::finish`; the dispatcher drains
 //! what is left, then drops every stream's sender, so a stream's receiver ends (`None`) only
 //! after every answer the tick computed has been delivered.
 
