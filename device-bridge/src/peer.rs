@@ -106,20 +106,16 @@ impl std::fmt::Display for PhaseSource {
     }
 }
 
-/// How the last wait went, in `CLOCK_MONOTONIC` ns (0: that step did not happen): what a
-/// trace of the haptic path records on the server's side.
+/// How the last wait went, in `CLOCK_MONOTONIC` ns (0: that step did not happen): what
+/// each answer reports of the server's side ([`HapticCommand`]'s `t_peer_*`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct WaitTrace {
-    /// When the wait began.
-    pub began_ns: u64,
-    /// The bridge read time the peer expected (0: it had no estimate, or did not predict).
-    pub expected_read_ns: u64,
+struct WaitTrace {
     /// When the peer meant to start polling (the end of its sleep).
-    pub planned_ns: u64,
+    planned_ns: u64,
     /// When it started polling (its first poll after the sleep).
-    pub polling_ns: u64,
+    polling_ns: u64,
     /// When it received the state (0: none arrived).
-    pub received_ns: u64,
+    received_ns: u64,
 }
 
 /// The server's side of a haptic channel (see the [module docs](self)).
@@ -134,7 +130,6 @@ pub struct HapticPeer {
     strategy: WaitStrategy,
     window: Duration,
     period: Duration,
-    last_arrival: Option<Instant>,
     phase: BridgePhase,
     phase_source: PhaseSource,
     last_seq: u64,
@@ -179,7 +174,6 @@ impl HapticPeer {
             strategy,
             window,
             period,
-            last_arrival: None,
             phase: BridgePhase::default(),
             phase_source: PhaseSource::default(),
             last_seq: 0,
@@ -204,7 +198,7 @@ impl HapticPeer {
 
     /// Whether a bridge sent a state within [`IDLE_AFTER`].
     pub fn bridge_active(&self) -> bool {
-        self.last_arrival.is_some_and(|t| t.elapsed() < IDLE_AFTER)
+        self.last_seen_ns != 0 && shm::monotonic_ns().saturating_sub(self.last_seen_ns) < IDLE_AFTER.as_nanos() as u64
     }
 
     /// The strategy the next wait uses: the configured one while a bridge is active, sleep
@@ -227,10 +221,7 @@ impl HapticPeer {
     pub fn wait_for_state(&mut self, deadline: Instant) -> Option<HapticState> {
         let now = Instant::now();
         let now_ns = shm::monotonic_ns();
-        self.trace = WaitTrace {
-            began_ns: now_ns,
-            ..WaitTrace::default()
-        };
+        self.trace = WaitTrace::default();
         let (spin_from, spin_until) = match self.effective_strategy() {
             WaitStrategy::Event => return self.wait_for_event(deadline),
             WaitStrategy::Sleep => (deadline, deadline),
@@ -249,7 +240,6 @@ impl HapticPeer {
                 });
                 match expected {
                     Some(expected_ns) => {
-                        self.trace.expected_read_ns = expected_ns;
                         let at = |ns: u64| {
                             if ns >= now_ns {
                                 now + Duration::from_nanos(ns - now_ns)
@@ -294,7 +284,6 @@ impl HapticPeer {
     fn arrived(&mut self, s: &HapticState) {
         self.trace.received_ns = shm::monotonic_ns();
         self.last_seen_ns = self.trace.received_ns;
-        self.last_arrival = Some(Instant::now());
         self.last_seq = s.seq;
         self.phase.observe(s.seq, s.t_read_ns, self.period.as_nanos() as u64);
     }
@@ -304,11 +293,6 @@ impl HapticPeer {
     pub fn with_phase_source(mut self, source: PhaseSource) -> Self {
         self.phase_source = source;
         self
-    }
-
-    /// How the last [`Self::wait_for_state`] went.
-    pub fn last_wait(&self) -> WaitTrace {
-        self.trace
     }
 
     /// The deadline after `previous` for a loop that waited with [`Self::wait_for_state`] and

@@ -18,7 +18,7 @@ use vademecum_proto::v1 as pb;
 use crate::auth::caller;
 use crate::convert;
 use crate::registry::{Entry, Registry, StreamGuard, StreamKind};
-use crate::session::{AnswerStream, StreamId, SubmitError, ToolCommand};
+use crate::session::{StreamId, SubmitError, ToolCommand};
 
 /// Answers still in flight when the client closes its side, or when the session closes, are
 /// awaited this long at most.
@@ -119,7 +119,7 @@ async fn pump(
     out: mpsc::Sender<Result<pb::ToolResponse, Status>>,
 ) {
     let _guard = StreamGuard::new(&entry.interacting);
-    let Ok(mut answers): Result<AnswerStream, _> = entry.session.open_answers(ANSWER_CAPACITY) else {
+    let Ok(mut answers) = entry.session.open_answers(ANSWER_CAPACITY) else {
         return; // the session has stopped
     };
     let reply = answers.id();

@@ -1,5 +1,5 @@
 //! Sessions: a scene, its loaded bundles (shared read-only with other sessions), the effect
-//! pipeline built from the scene's `[effects]`, and two threads.
+//! pipeline built from the scene's `[effects]`, and three threads.
 //!
 //! - The **tick thread** owns the pipeline. Every period (1 ms by default) it sleeps to its
 //!   deadline, drains the bounded command queue with `try_recv` (at most

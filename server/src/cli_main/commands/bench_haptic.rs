@@ -159,19 +159,11 @@ impl Cotenants {
         let exe = std::env::current_exe().context("cannot find this executable to run co-tenants")?;
         let dir = tempfile::tempdir()?;
         let stop = Arc::new(AtomicBool::new(false));
-        let jobs: [(&str, Vec<String>); 2] = [
-            (
-                "solve",
-                vec!["solve".into(), "--out".into(), dir.path().join("solve").display().to_string()],
-            ),
-            (
-                "build",
-                vec!["build".into(), "--out".into(), dir.path().join("build").display().to_string()],
-            ),
-        ];
+        // `solve` and `build` of the built-in organ, each writing into the temporary folder
+        let jobs = ["solve", "build"].map(|cmd| [cmd.to_string(), "--out".into(), dir.path().join(cmd).display().to_string()]);
         let threads = jobs
             .into_iter()
-            .map(|(_, args)| {
+            .map(|args| {
                 let (exe, stop) = (exe.clone(), stop.clone());
                 std::thread::spawn(move || {
                     while !stop.load(Ordering::Relaxed) {
