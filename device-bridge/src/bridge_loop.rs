@@ -73,6 +73,9 @@ pub struct BridgeParams {
     /// Before the loop starts (its buffers allocated): touch the stack and lock the
     /// process's memory in RAM ([`timing::lock_memory`]), so no tick takes a page fault.
     pub lock_memory: bool,
+    /// While the loop runs, hold a PM QoS request for CPU wake-ups within 0 µs
+    /// ([`timing::request_wake_latency`]): idle CPUs poll instead of halting.
+    pub hold_wake_latency: bool,
 }
 
 impl Default for BridgeParams {
@@ -90,6 +93,7 @@ impl Default for BridgeParams {
             frame: FrameMap::default(),
             tool: TOOL_PROBE,
             lock_memory: true,
+            hold_wake_latency: true,
         }
     }
 }
@@ -174,10 +178,38 @@ pub struct BridgeOutcome {
     pub link_errors: u64,
     /// Whether the memory was locked before the loop, or why not.
     pub memory_locked: Result<(), String>,
+    /// Whether the CPU wake-up latency request was held during the loop, or why not.
+    pub wake_latency_held: Result<(), String>,
+    /// vCPU steal time during the loop, summed over the machine's CPUs
+    /// ([`timing::vcpu_steal`]; `None` where not reported).
+    pub steal: Option<Duration>,
     /// Wall time of the loop.
     pub wall: Duration,
     /// CPU time of the loop's thread.
     pub cpu: Duration,
+}
+
+impl BridgeOutcome {
+    /// What the loop secured before it started, in words: `memory locked, wake latency held
+    /// at 0 µs`, or why not.
+    pub fn safeguards(&self) -> String {
+        let memory = match &self.memory_locked {
+            Ok(()) => "memory locked".to_string(),
+            Err(why) => format!("memory not locked ({why})"),
+        };
+        let wake = match &self.wake_latency_held {
+            Ok(()) => "CPU wake-up latency held at 0 µs".to_string(),
+            Err(why) => format!("CPU wake-up latency not held ({why})"),
+        };
+        format!("{memory}, {wake}")
+    }
+
+    /// vCPU steal during the loop as a percentage of the machine's CPU time
+    /// (`cpus` × wall time), when the kernel reports it.
+    pub fn steal_percent(&self, cpus: usize) -> Option<f64> {
+        let wall = self.wall.as_secs_f64() * cpus.max(1) as f64;
+        self.steal.map(|s| 100.0 * s.as_secs_f64() / wall.max(1e-9))
+    }
 }
 
 /// Why the loop could not run.
@@ -237,6 +269,8 @@ fn run_inner<D: Device + ?Sized, L: Link>(
     } else {
         Err("not asked".into())
     };
+    let wake_latency = p.hold_wake_latency.then(|| timing::request_wake_latency(0));
+    let steal0 = timing::vcpu_steal();
     let cpu0 = timing::thread_cpu_time();
     let start = Instant::now();
     let t0_ns = shm::monotonic_ns();
@@ -412,6 +446,12 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         skipped_forces: link.skipped(),
         link_errors,
         memory_locked,
+        wake_latency_held: match wake_latency {
+            Some(Ok(_held)) => Ok(()),
+            Some(Err(why)) => Err(why),
+            None => Err("not asked".into()),
+        },
+        steal: timing::vcpu_steal().zip(steal0).map(|(b, a)| b.saturating_sub(a)),
         wall: start.elapsed(),
         cpu: timing::thread_cpu_time().saturating_sub(cpu0),
     })

@@ -109,6 +109,12 @@ struct Args {
     /// hybrid waits; refused gracefully when not permitted).
     #[arg(long)]
     no_realtime: bool,
+    /// Do not hold the CPU wake-up latency request. By default, while the loop runs, the
+    /// bridge asks the kernel (PM QoS, `/dev/cpu_dma_latency`, as cyclictest does) for CPU
+    /// wake-ups within 0 µs: idle CPUs poll instead of halting, so a sleeping loop is not
+    /// also waiting for a halted vCPU. Refused gracefully without root.
+    #[arg(long)]
+    no_wake_latency: bool,
     /// SCHED_FIFO priority (1–99).
     #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(1..=99))]
     priority: i32,
@@ -155,6 +161,9 @@ struct Summary {
     clamped_forces: u64,
     rate_limited_forces: u64,
     cpu_percent: f64,
+    /// vCPU steal during the run, % of the machine's CPU time (deadline misses on a VM
+    /// follow it: a stolen vCPU runs nothing).
+    steal_percent: Option<f64>,
     trace: Option<PathBuf>,
     trace_dropped: u64,
 }
@@ -271,6 +280,7 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
             scale: a.scale,
             force_scale: a.force_scale,
         },
+        hold_wake_latency: !a.no_wake_latency,
         ..BridgeParams::default()
     };
     eprintln!(
@@ -312,10 +322,8 @@ fn summarize(a: &Args, channel: &HapticChannel, device: &str, profile: &DevicePr
         device: device.to_string(),
         profile: profile.name.to_string(),
         wait: a.wait.to_string(),
-        scheduling: match &out.memory_locked {
-            Ok(()) => format!("{rt}, memory locked"),
-            Err(why) => format!("{rt}, memory not locked ({why})"),
-        },
+        scheduling: format!("{rt}, {}", out.safeguards()),
+        steal_percent: out.steal_percent(std::thread::available_parallelism().map_or(1, |n| n.get())),
         end: match out.end {
             EndReason::Duration => "duration",
             EndReason::DeviceFinished => "end of script",
@@ -367,6 +375,9 @@ fn print_summary(s: &Summary) {
         s.rejected_non_finite, s.clamped_jumps, s.clamped_workspace, s.rejected_forces, s.clamped_forces, s.rate_limited_forces
     );
     eprintln!("  CPU {:.1} % of a core; {}", s.cpu_percent, s.scheduling);
+    if let Some(steal) = s.steal_percent {
+        eprintln!("  vCPU steal during the run: {steal:.2} % of the machine's CPU time");
+    }
     if let Some(t) = &s.trace {
         eprintln!("  trace: {} ({} ticks not kept)", t.display(), s.trace_dropped);
     }

@@ -111,6 +111,53 @@ pub fn lock_memory() -> Result<(), String> {
     }
 }
 
+/// A held request to the kernel's PM QoS for a CPU wake-up latency bound
+/// (`/dev/cpu_dma_latency`), as `cyclictest` holds one: while held, idle CPUs stay in idle
+/// states whose exit latency is within the bound — with a bound of 0 they poll rather than
+/// halt, so a sleeping real-time thread is not also waiting for a halted (v)CPU to come back.
+/// The cost is the idle CPUs' own polling (outside every thread's CPU time, on every core),
+/// which is why the bridge holds it only while its loop runs. Released when dropped.
+#[derive(Debug)]
+pub struct WakeLatencyRequest {
+    _file: std::fs::File,
+}
+
+/// Asks for CPU wake-ups within `us` microseconds (see [`WakeLatencyRequest`]); refused
+/// gracefully (the device needs root, or is missing outside Linux): the reason is returned.
+pub fn request_wake_latency(us: u32) -> Result<WakeLatencyRequest, String> {
+    use std::io::Write;
+    let path = "/dev/cpu_dma_latency";
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .map_err(|e| format!("cannot open {path}: {e}"))?;
+    // the device takes a native-endian 32-bit value; the request lasts while the file is open
+    let bound = i32::try_from(us).unwrap_or(i32::MAX);
+    file.write_all(&bound.to_ne_bytes())
+        .map_err(|e| format!("cannot write {path}: {e}"))?;
+    Ok(WakeLatencyRequest { _file: file })
+}
+
+/// Time the hypervisor ran something else while this machine's vCPUs wanted to run (the
+/// `steal` column of `/proc/stat`, summed over the CPUs): a thread on a stolen vCPU cannot
+/// meet any deadline. `None` where the kernel does not report it.
+pub fn vcpu_steal() -> Option<Duration> {
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    steal_of(&stat)
+}
+
+/// The `steal` column of the aggregate `cpu` line of a `/proc/stat` text, in USER_HZ ticks
+/// converted to time.
+fn steal_of(stat: &str) -> Option<Duration> {
+    let line = stat.lines().find(|l| l.starts_with("cpu "))?;
+    // user nice system idle iowait irq softirq steal …
+    let ticks: u64 = line.split_whitespace().nth(8)?.parse().ok()?;
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) };
+    let hz = u64::try_from(hz).ok().filter(|&h| h > 0)?;
+    Some(Duration::from_nanos(ticks.saturating_mul(1_000_000_000 / hz)))
+}
+
 /// CPU time consumed by the calling thread so far.
 pub fn thread_cpu_time() -> Duration {
     let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
@@ -192,6 +239,17 @@ mod tests {
             assert!(!wait_until(deadline, s, DEFAULT_SPIN_WINDOW, || false));
             assert!(Instant::now() >= deadline, "{s}");
         }
+    }
+
+    #[test]
+    fn steal_is_the_eighth_column_of_the_cpu_line() {
+        let stat = "cpu  1336869 0 129151 684744 7565 0 1975 21815 0 0\ncpu0 663768 0 62517 352897 1994 0 186 10922 0 0\n";
+        // SAFETY: sysconf has no preconditions.
+        let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as u64;
+        assert_eq!(steal_of(stat), Some(Duration::from_nanos(21815 * (1_000_000_000 / hz))));
+        assert_eq!(steal_of("cpu0 1 2 3\n"), None);
+        assert_eq!(steal_of("cpu  1 2 3\n"), None);
+        assert_eq!(steal_of("cpu  1 2 3 4 5 6 7 x\n"), None);
     }
 
     #[test]

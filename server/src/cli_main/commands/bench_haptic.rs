@@ -58,6 +58,8 @@ struct Phase {
     tail: Option<TailCauses>,
     /// Ticks on which the bridge woke later than the spin window after its deadline.
     late_wakeups: u64,
+    /// vCPU steal during the phase (% of the machine's CPU time), where reported.
+    steal_percent: Option<f64>,
     ticks: u64,
     read_to_write_us: Percentiles,
     deadline_to_write_us: Percentiles,
@@ -94,6 +96,7 @@ fn phase(name: &'static str, o: &BridgeOutcome, peer_cpu: Duration, p: &BridgePa
             )
         }),
         late_wakeups: o.trace.iter().filter(|t| t.lateness_ns > p.window.as_nanos() as u64).count() as u64,
+        steal_percent: o.steal_percent(std::thread::available_parallelism().map_or(1, |n| n.get())),
         ticks: r.ticks,
         read_to_write_us: Percentiles::of(&o.latency_ns),
         deadline_to_write_us: Percentiles::of(&o.completion_ns),
@@ -124,10 +127,7 @@ where
             let (mut device, mut link) = make()?;
             let stop = Arc::new(AtomicBool::new(false));
             let out = bridge_loop::run(&mut device, &mut link, &params, &stop)?;
-            let rt = match &out.memory_locked {
-                Ok(()) => format!("{rt}, memory locked"),
-                Err(why) => format!("{rt}, memory not locked ({why})"),
-            };
+            let rt = format!("{rt}, {}", out.safeguards());
             Ok((out, rt))
         })
         .context("cannot start the bridge thread")?
@@ -295,6 +295,7 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
         window: Duration::from_micros(a.spin_window_us),
         duration: Some(Duration::from_secs_f64(a.seconds)),
         trace_limit: 0,
+        hold_wake_latency: a.wake_latency,
         ..BridgeParams::default()
     };
     // every phase is traced whole (sized before the loop starts)
@@ -428,13 +429,13 @@ fn print_report(out: &mut impl Write, k: usize, of: usize, cotenant: bool, repor
     )?;
     writeln!(
         out,
-        "{:<22} {:>26} {:>34} {:>14} {:>8} {:>13}",
-        "phase", "read→write p50/p99 µs", "deadline→write p50/p99/p99.9/max µs", "misses", "fresh %", "CPU br/peer %"
+        "{:<22} {:>26} {:>34} {:>14} {:>8} {:>13} {:>8}",
+        "phase", "read→write p50/p99 µs", "deadline→write p50/p99/p99.9/max µs", "misses", "fresh %", "CPU br/peer %", "steal %"
     )?;
     for p in &report.phases {
         writeln!(
             out,
-            "{:<22} {:>26} {:>34} {:>14} {:>8.1} {:>13}",
+            "{:<22} {:>26} {:>34} {:>14} {:>8.1} {:>13} {:>8}",
             p.phase,
             format!("{:.1} / {:.1}", p.read_to_write_us.p50, p.read_to_write_us.p99),
             format!(
@@ -444,6 +445,7 @@ fn print_report(out: &mut impl Write, k: usize, of: usize, cotenant: bool, repor
             format!("{} ({:.3} %)", p.deadline_misses, p.miss_percent),
             p.fresh_percent,
             format!("{:.0} / {:.0}", p.bridge_cpu_percent, p.peer_cpu_percent),
+            p.steal_percent.map_or("–".into(), |x| format!("{x:.2}")),
         )?;
     }
     writeln!(
@@ -487,6 +489,8 @@ struct Summary {
     /// CPU of the bridge and the tick thread in the full tick phase, per run (% of a core).
     full_cpu_bridge_pct: Vec<f64>,
     full_cpu_peer_pct: Vec<f64>,
+    /// (vCPU steal %, misses %) of every phase of every run, where steal is reported.
+    steal_and_misses_pct: Vec<(f64, f64)>,
     /// Runs meeting each goal.
     within_50us_of_null: usize,
     read_to_write_p99_at_most_100us: usize,
@@ -510,8 +514,14 @@ impl Summary {
             .collect();
         let cpu_b: Vec<f64> = runs.iter().map(|r| pick(r, "full tick").bridge_cpu_percent).collect();
         let cpu_p: Vec<f64> = runs.iter().map(|r| pick(r, "full tick").peer_cpu_percent).collect();
+        let steal_and_misses_pct = runs
+            .iter()
+            .flat_map(|r| &r.phases)
+            .filter_map(|p| p.steal_percent.map(|st| (st, p.miss_percent)))
+            .collect();
         Self {
             runs: runs.len(),
+            steal_and_misses_pct,
             within_50us_of_null: diff.iter().filter(|&&d| d <= 50.0).count(),
             read_to_write_p99_at_most_100us: rw.iter().filter(|&&x| x <= 100.0).count(),
             misses_within_null_plus_0_1pct: miss.iter().filter(|&&x| x <= 0.1).count(),
@@ -582,5 +592,47 @@ fn print_summary(out: &mut impl Write, s: &Summary) -> anyhow::Result<()> {
         "≤ 20 per side",
         s.cpu_at_most_20pct_per_side,
     )?;
+    if s.steal_and_misses_pct.len() >= 3 {
+        let (steal, misses): (Vec<f64>, Vec<f64>) = s.steal_and_misses_pct.iter().copied().unzip();
+        let (m, lo, hi) = spread(&steal);
+        writeln!(
+            out,
+            "  vCPU steal over all phases: median {m:.2} % ({lo:.2} – {hi:.2}) of CPU time; correlation of misses with steal across the {} phases: r = {:.2}",
+            steal.len(),
+            pearson(&steal, &misses)
+        )?;
+    }
     Ok(())
+}
+
+/// Pearson's correlation coefficient (0 when either series is constant).
+fn pearson(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len()) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx) * (a - mx);
+        syy += (b - my) * (b - my);
+    }
+    if sxx > 0.0 && syy > 0.0 { sxy / (sxx * syy).sqrt() } else { 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pearson_of_a_line_and_of_a_constant() {
+        let x = [0.1, 0.5, 1.0, 2.0];
+        assert!((pearson(&x, &x.map(|v| 3.0 * v + 1.0)) - 1.0).abs() < 1e-12);
+        assert!((pearson(&x, &x.map(|v| -v)) + 1.0).abs() < 1e-12);
+        assert_eq!(pearson(&x, &[2.0; 4]), 0.0);
+    }
+
+    #[test]
+    fn spread_is_median_min_max() {
+        assert_eq!(spread(&[3.0, 1.0, 2.0]), (2.0, 1.0, 3.0));
+        assert_eq!(spread(&[4.0, 1.0, 2.0, 3.0]), (2.5, 1.0, 4.0));
+    }
 }
