@@ -10,6 +10,7 @@ use std::sync::Arc;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMat};
 
 use super::element::{self, ElementError, ElementScratch, Locking};
+use super::nodal::{self, NodalPatches, PatchError};
 use crate::material::LinearElastic;
 use crate::mesh::Mesh;
 
@@ -130,18 +131,40 @@ impl SymmetricPattern {
     pub fn build(mesh: &Mesh, dofs: &DofMap) -> Self {
         let nn = mesh.n_nodes();
         // node adjacency (including the node itself), sorted
-        let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nn];
+        let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nn];
         for cell in mesh.cells_iter() {
             for &a in cell {
-                for &b in cell {
-                    adj[a].push(b as u32);
-                }
+                adj[a].extend_from_slice(cell);
             }
         }
         for l in adj.iter_mut() {
             l.sort_unstable();
             l.dedup();
         }
+        Self::from_adjacency(&adj, dofs)
+    }
+
+    /// The pattern of a stiffness assembled with `locking`: [`build`](Self::build), widened
+    /// to a node's neighbours' neighbours for the averaged nodal pressure of tetrahedra
+    /// ([`NodalPatches::couplings`]). Degenerate cells fall back to the narrow pattern (the
+    /// assembly then reports them).
+    pub fn for_locking(mesh: &Mesh, dofs: &DofMap, locking: Locking) -> Self {
+        let patches = (locking == Locking::Nodal).then(|| NodalPatches::new(mesh).ok()).flatten();
+        Self::with_patches(mesh, dofs, patches.as_ref())
+    }
+
+    /// [`build`](Self::build), or with `patches` the pattern the averaged nodal pressure
+    /// needs (a node's neighbours' neighbours).
+    pub fn with_patches(mesh: &Mesh, dofs: &DofMap, patches: Option<&NodalPatches>) -> Self {
+        match patches {
+            Some(p) => Self::from_adjacency(&p.couplings(), dofs),
+            None => Self::build(mesh, dofs),
+        }
+    }
+
+    /// The pattern coupling every node with the nodes of its sorted list `adj[node]`.
+    fn from_adjacency(adj: &[Vec<usize>], dofs: &DofMap) -> Self {
+        let nn = adj.len();
         let n = dofs.n_free();
         let mut col_ptr = Vec::with_capacity(n + 1);
         col_ptr.push(0usize);
@@ -151,7 +174,7 @@ impl SymmetricPattern {
                 let Some(col) = dofs.eq(3 * a + i) else { continue };
                 for &b in &adj[a] {
                     for j in 0..3 {
-                        if let Some(row) = dofs.eq(3 * b as usize + j)
+                        if let Some(row) = dofs.eq(3 * b + j)
                             && row >= col
                         {
                             row_idx.push(row);
@@ -271,7 +294,53 @@ pub fn assemble_stiffness(
         }
         scatter_cell(&mut k, &ke, cell, &eqs, Some(prescribed), rhs);
     }
+    if let Some(patches) = nodal_patches(mesh, locking)? {
+        // K_vol = Σ_a (κ_a / V_a) G_a G_aᵀ (module docs of `nodal`)
+        let grads = nodal::reference_volume_gradients(mesh, &patches);
+        let kappa = nodal::nodal_average(&patches, |c| materials.of(c).bulk());
+        let (mut g, mut dense, mut eqs) = (Vec::new(), Vec::new(), Vec::new());
+        for a in 0..mesh.n_nodes() {
+            patches.gather(mesh, a, &grads, &mut g);
+            let w = kappa[a] / patches.volume(a);
+            patches.scatter_rank_one(a, w, &g, dofs, &mut k, Some(prescribed), rhs, &mut dense, &mut eqs);
+        }
+    }
     Ok(k)
+}
+
+/// The nodal patches when `locking` averages the pressure over nodes of a tetrahedral mesh.
+fn nodal_patches(mesh: &Mesh, locking: Locking) -> Result<Option<NodalPatches>, AssemblyError> {
+    if locking != Locking::Nodal || mesh.kind != crate::mesh::CellKind::Tet4 {
+        return Ok(None);
+    }
+    NodalPatches::new(mesh).map(Some).map_err(|e| match e {
+        PatchError::Degenerate { cell, volume } => AssemblyError {
+            cell,
+            source: ElementError::NonPositiveJacobian { det: 6.0 * volume },
+        },
+        PatchError::NotTetrahedra => unreachable!("checked above"),
+    })
+}
+
+/// The averaged nodal pressures `p_a = κ_a (θ_a − 1)` and every cell's mean of its nodes'
+/// ones, `p̄_e` (small strains; [`nodal`]).
+struct NodalPressure {
+    grads: Vec<[[f64; 3]; 4]>,
+    cell: Vec<f64>,
+}
+
+impl NodalPressure {
+    fn new(mesh: &Mesh, materials: &MaterialMap, patches: &NodalPatches, u: &[f64]) -> Self {
+        let grads = nodal::reference_volume_gradients(mesh, patches);
+        let kappa = nodal::nodal_average(patches, |c| materials.of(c).bulk());
+        let p: Vec<f64> = nodal::nodal_dilatations(mesh, patches, &grads, u)
+            .iter()
+            .zip(&kappa)
+            .map(|(d, k)| k * d)
+            .collect();
+        let cell = mesh.cells_iter().map(|c| 0.25 * c.iter().map(|&a| p[a]).sum::<f64>()).collect();
+        Self { grads, cell }
+    }
 }
 
 /// Adds a cell matrix `ke` (`nd × nd`, row-major, `nd = eqs.len()`) of the cell with nodes
@@ -332,6 +401,17 @@ pub fn internal_forces(mesh: &Mesh, materials: &MaterialMap, locking: Locking, u
             f[3 * cell[p / 3] + p % 3] += fp;
         }
     }
+    if let Some(patches) = nodal_patches(mesh, locking)? {
+        // f_vol = Σ_e p̄_e g_e
+        let np = NodalPressure::new(mesh, materials, &patches, u);
+        for (c, cell) in mesh.cells_iter().enumerate() {
+            for (k, &b) in cell.iter().enumerate() {
+                for i in 0..3 {
+                    f[3 * b + i] += np.cell[c] * np.grads[c][k][i];
+                }
+            }
+        }
+    }
     Ok(f)
 }
 
@@ -341,13 +421,15 @@ pub fn cell_stresses(mesh: &Mesh, materials: &MaterialMap, locking: Locking, u: 
     let mut x = vec![[0.0; 3]; n];
     let mut ue = vec![0.0; 3 * n];
     let mut s = ElementScratch::default();
+    let pressure = nodal_patches(mesh, locking)?.map(|p| NodalPressure::new(mesh, materials, &p, u).cell);
     (0..mesh.n_cells())
         .map(|c| {
             mesh.cell_coords(c, &mut x);
             for (a, &node) in mesh.cell(c).iter().enumerate() {
                 ue[3 * a..3 * a + 3].copy_from_slice(&u[3 * node..3 * node + 3]);
             }
-            element::stress(mesh.kind, &x, &ue, materials.of(c), locking, &mut s).map_err(|source| AssemblyError { cell: c, source })
+            let p = pressure.as_ref().map(|p| p[c]);
+            element::stress(mesh.kind, &x, &ue, materials.of(c), locking, p, &mut s).map_err(|source| AssemblyError { cell: c, source })
         })
         .collect()
 }

@@ -23,8 +23,15 @@ use crate::mesh::CellKind;
 /// differ, and only `Bbar` passes the patch test: one-point integration uses
 /// `8 det J(0) ∇N(0)` where consistency needs `∫ ∇N dV` (Flanagan & Belytschko 1981), hence
 /// `Bbar` is the default and `Sri` is kept for comparison. On linear tetrahedra the strain is already
-/// constant per cell, so all three options give the same matrix (and tet4 locks: use hex8
-/// for near-incompressible tissue). Measured in `BENCHMARKS.md`.
+/// constant per cell, so those three options give the same matrix, and tet4 locks as ν → ½.
+///
+/// - `Nodal`: the averaged-nodal-pressure tetrahedron (Bonet & Burton 1998, [`super::nodal`]):
+///   the dilatation is averaged over the cells around each node, one volumetric constraint per
+///   node instead of per cell. The cell matrix holds the deviatoric term only; the assembly
+///   adds the nodal volumetric terms, which couple a node's neighbours' neighbours. On
+///   hexahedra it is the same as `Bbar` (the scene refuses the combination).
+///
+/// Measured in `BENCHMARKS.md`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Locking {
@@ -35,6 +42,8 @@ pub enum Locking {
     /// Mean-dilatation B̄.
     #[default]
     Bbar,
+    /// Averaged nodal pressure (linear tetrahedra).
+    Nodal,
 }
 
 /// A cell operator could not be computed.
@@ -130,7 +139,8 @@ pub fn stiffness(
                 return Err(ElementError::NonPositiveJacobian { det });
             }
             let vol = det / 6.0;
-            add_terms(ke, 4, &s.grad[..4], vol, kappa, mu, true, true);
+            // with the nodal pressure, the volumetric term is assembled over nodal patches
+            add_terms(ke, 4, &s.grad[..4], vol, kappa, mu, locking != Locking::Nodal, true);
             Ok(vol)
         }
         CellKind::Hex8 => {
@@ -145,7 +155,7 @@ pub fn stiffness(
                 }
                 vol += det;
                 add_terms(ke, 8, &s.grad, det, kappa, mu, locking == Locking::None, true);
-                if locking == Locking::Bbar {
+                if matches!(locking, Locking::Bbar | Locking::Nodal) {
                     for a in 0..8 {
                         for i in 0..3 {
                             s.gbar[a][i] += det * s.grad[a][i];
@@ -162,7 +172,7 @@ pub fn stiffness(
                     }
                     add_terms(ke, 8, &s.grad, 8.0 * det, kappa, mu, true, false);
                 }
-                Locking::Bbar => {
+                Locking::Bbar | Locking::Nodal => {
                     for g in s.gbar.iter_mut() {
                         for c in g.iter_mut() {
                             *c /= vol;
@@ -179,13 +189,16 @@ pub fn stiffness(
 
 /// Stress at the cell centre in Voigt order `[σxx, σyy, σzz, σxy, σyz, σzx]` (Pa), from the
 /// cell's nodal displacements `u` (flat, `3n`). The volumetric part follows the same locking
-/// option as the stiffness: `σ = κ θ I + 2μ dev ε`, with θ the (averaged) dilatation.
+/// option as the stiffness: `σ = κ θ I + 2μ dev ε`, with θ the (averaged) dilatation; with
+/// [`Locking::Nodal`] on tetrahedra the pressure `κ θ` is `pressure`, the average of the
+/// cell's nodal pressures (which the caller assembles), and is otherwise ignored.
 pub fn stress(
     kind: CellKind,
     x: &[[f64; 3]],
     u: &[f64],
     mat: &LinearElastic,
     locking: Locking,
+    pressure: Option<f64>,
     s: &mut ElementScratch,
 ) -> Result<[f64; 6], ElementError> {
     let n = kind.nodes_per_cell();
@@ -207,7 +220,7 @@ pub fn stress(
         }
     }
     let mut theta = e[0][0] + e[1][1] + e[2][2];
-    if kind == CellKind::Hex8 && locking == Locking::Bbar {
+    if kind == CellKind::Hex8 && matches!(locking, Locking::Bbar | Locking::Nodal) {
         // mean dilatation: θ̄ = (1/V) Σ_q det_q Σ_a ∇N_a(q)·u_a
         let (mut num, mut vol) = (0.0, 0.0);
         for q in 0..8 {
@@ -221,7 +234,10 @@ pub fn stress(
     }
     let (kappa, mu) = (mat.bulk(), mat.shear());
     let tr = e[0][0] + e[1][1] + e[2][2];
-    let p = kappa * theta;
+    let p = match (kind, locking, pressure) {
+        (CellKind::Tet4, Locking::Nodal, Some(p)) => p,
+        _ => kappa * theta,
+    };
     Ok([
         p + 2.0 * mu * (e[0][0] - tr / 3.0),
         p + 2.0 * mu * (e[1][1] - tr / 3.0),

@@ -42,6 +42,37 @@ pub enum Volumetric {
     /// Once per cell, on the cell's volume ratio (see the [module docs](self)).
     #[default]
     MeanDilatation,
+    /// Once per node, on the nodal volume ratio: the averaged-nodal-pressure tetrahedron
+    /// ([`super::nodal`]). [`cell`] then evaluates the isochoric part only and the assembly
+    /// adds the nodal volumetric terms; on hexahedra it is [`Volumetric::MeanDilatation`].
+    Nodal,
+}
+
+impl Volumetric {
+    /// The large-deformation counterpart of a scene's locking treatment: full integration for
+    /// `none`, the mean dilatation for `sri` and `bbar`, the nodal pressure for `nodal`.
+    pub fn for_locking(locking: super::Locking) -> Self {
+        match locking {
+            super::Locking::None => Self::PointWise,
+            super::Locking::Sri | super::Locking::Bbar => Self::MeanDilatation,
+            super::Locking::Nodal => Self::Nodal,
+        }
+    }
+
+    /// Whether cells of `kind` with `law` evaluate `U` once per cell on the cell's volume ratio.
+    fn per_cell(self, kind: CellKind, law: &Hyperelastic) -> bool {
+        law.splits()
+            && match self {
+                Self::PointWise => false,
+                Self::MeanDilatation => true,
+                Self::Nodal => kind == CellKind::Hex8,
+            }
+    }
+
+    /// Whether cells of `kind` with `law` leave `U` to the nodal assembly.
+    pub fn per_node(self, kind: CellKind, law: &Hyperelastic) -> bool {
+        law.splits() && self == Self::Nodal && kind == CellKind::Tet4
+    }
 }
 
 /// The hyperelastic law of every cell (later scene entries override earlier ones).
@@ -172,8 +203,12 @@ pub fn cell(
         debug_assert_eq!(k.len(), nd * nd);
         k.fill(0.0);
     }
-    let mean = volumetric == Volumetric::MeanDilatation && law.splits();
-    let part = if mean { Part::Isochoric } else { Part::Full };
+    let mean = volumetric.per_cell(kind, law);
+    let part = if mean || volumetric.per_node(kind, law) {
+        Part::Isochoric
+    } else {
+        Part::Full
+    };
     let tet_weight = if kind == CellKind::Tet4 { 1.0 / 6.0 } else { 1.0 };
     let (mut energy, mut volume, mut v_current) = (0.0, 0.0, 0.0);
     let mut gsum = [[0.0; 3]; 8];
@@ -289,17 +324,20 @@ pub fn cell(
 
 /// Cauchy stress at the cell centre in Voigt order `[σxx, σyy, σzz, σyz, σxz, σxy]` (Pa):
 /// `σ = J⁻¹ F S Fᵀ`, with the volumetric part on the cell's volume ratio under
-/// [`Volumetric::MeanDilatation`] (`σ_vol = U'(θ) I`).
+/// [`Volumetric::MeanDilatation`] (`σ_vol = U'(θ) I`), and the cell's mean nodal pressure
+/// `pressure` (`p̄_e`, from the assembly) under [`Volumetric::Nodal`] on tetrahedra.
 pub fn cauchy_at_centre(
     kind: CellKind,
     x: &[[f64; 3]],
     u: &[f64],
     law: &Hyperelastic,
     volumetric: Volumetric,
+    pressure: Option<f64>,
     s: &mut CellScratch,
 ) -> Result<[f64; 6], CellError> {
     let n = kind.nodes_per_cell();
-    let mean = volumetric == Volumetric::MeanDilatation && law.splits();
+    let mean = volumetric.per_cell(kind, law);
+    let nodal = volumetric.per_node(kind, law);
     let centre = match kind {
         CellKind::Tet4 => s.points[0].1,
         CellKind::Hex8 => shape::hex_dn([0.0; 3]),
@@ -313,9 +351,12 @@ pub fn cauchy_at_centre(
     if det_f.is_nan() || det_f <= 0.0 {
         return Err(CellError::Inverted { det_f });
     }
-    let part = if mean { Part::Isochoric } else { Part::Full };
+    let part = if mean || nodal { Part::Isochoric } else { Part::Full };
     let r = law.response(&(f.transpose() * f), part).ok_or(CellError::Inverted { det_f })?;
     let mut sigma = f * r.stress_tensor() * f.transpose() / det_f;
+    if nodal {
+        sigma += pressure.unwrap_or(0.0) * Matrix3::identity();
+    }
     if mean {
         // θ over the cell, from the same quadrature as the energy
         let (mut v, mut vol) = (0.0, 0.0);

@@ -207,7 +207,7 @@ pub fn solve(
     on_stage(Stage::Pattern);
     let clock = Instant::now();
     let dofs = DofMap::new(&problem.constrained);
-    let pattern = Arc::new(SymmetricPattern::build(mesh, &dofs));
+    let pattern = Arc::new(SymmetricPattern::for_locking(mesh, &dofs, locking));
     t.pattern_s = clock.elapsed().as_secs_f64();
 
     on_stage(Stage::Assembly);

@@ -16,6 +16,7 @@
 //! - [`element`]: cell stiffness, mass, stress.
 //! - [`assembly`]: degree-of-freedom numbering, sparsity pattern, global assembly.
 //! - [`loads`]: nodal forces from point, surface and body loads.
+//! - [`nodal`]: the averaged-nodal-pressure tetrahedron (locking-free tet4).
 //! - [`linear_static`]: the static solve driver (loads → displacements, reactions, energy).
 
 pub mod assembly;
@@ -23,6 +24,7 @@ pub mod element;
 pub mod hyperelastic;
 pub mod linear_static;
 pub mod loads;
+pub mod nodal;
 pub mod nonlinear_static;
 pub mod shape;
 

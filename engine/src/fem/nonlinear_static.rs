@@ -24,6 +24,7 @@ use std::sync::Arc;
 use super::assembly::{DofMap, SymmetricMatrix, SymmetricPattern, scatter_cell};
 use super::hyperelastic::{self, CellError, CellScratch, LawMap, Volumetric};
 use super::linear_static::StaticProblem;
+use super::nodal::{NodalPatches, NodalVolumes, PatchError};
 use crate::mesh::Mesh;
 use crate::solve::{Cholesky, SolveError};
 
@@ -132,6 +133,8 @@ struct Model<'a> {
     volumetric: Volumetric,
     dofs: DofMap,
     pattern: Arc<SymmetricPattern>,
+    /// The nodal patches under [`Volumetric::Nodal`] on tetrahedra.
+    patches: Option<NodalPatches>,
 }
 
 enum AssembleError {
@@ -150,7 +153,11 @@ impl Model<'_> {
         let mut f_int = vec![0.0; u.len()];
         let mut k = tangent.then(|| SymmetricMatrix::zeros(self.pattern.clone()));
         let mut predictor = vec![0.0; self.dofs.n_free()];
-        let mut energy = 0.0;
+        let nodal = match &self.patches {
+            Some(p) => Some(NodalVolumes::at(mesh, p, self.laws, u).map_err(|(c, e)| AssembleError::Cell(c, e))?),
+            None => None,
+        };
+        let mut energy = nodal.as_ref().map_or(0.0, |nv| nv.energy);
         let mut eqs = vec![None; nd];
         for c in 0..mesh.n_cells() {
             mesh.cell_coords(c, &mut x);
@@ -172,6 +179,9 @@ impl Model<'_> {
                 k.as_ref().map(|_| &mut ke[..]),
             )
             .map_err(|e| AssembleError::Cell(c, e))?;
+            if let Some(nv) = &nodal {
+                nv.add_cell_terms(c, &mut fe, k.as_ref().map(|_| &mut ke[..]));
+            }
             energy += st.energy;
             for p in 0..nd {
                 f_int[3 * cell[p / 3] + p % 3] += fe[p];
@@ -180,6 +190,9 @@ impl Model<'_> {
                 scatter_cell(k, &ke, cell, &eqs, delta_prescribed, &mut predictor);
             }
         }
+        if let (Some(nv), Some(patches), Some(k)) = (&nodal, &self.patches, k.as_mut()) {
+            nv.scatter_node_terms(mesh, patches, &self.dofs, k, delta_prescribed, &mut predictor);
+        }
         Ok(Assembled {
             energy,
             f_int,
@@ -187,6 +200,20 @@ impl Model<'_> {
             predictor,
         })
     }
+}
+
+/// The nodal patches when `volumetric` averages over nodes of a tetrahedral mesh.
+fn nodal_patches(mesh: &Mesh, volumetric: Volumetric) -> Result<Option<NodalPatches>, NonlinearError> {
+    if volumetric != Volumetric::Nodal || mesh.kind != crate::mesh::CellKind::Tet4 {
+        return Ok(None);
+    }
+    NodalPatches::new(mesh).map(Some).map_err(|e| match e {
+        PatchError::Degenerate { cell, volume } => NonlinearError::Mesh {
+            cell,
+            source: CellError::Reference { det: 6.0 * volume },
+        },
+        PatchError::NotTetrahedra => NonlinearError::Invalid(e.to_string()),
+    })
 }
 
 /// Why a tangent could not be factorized, in the terms of a large-deformation solve.
@@ -230,7 +257,8 @@ pub fn solve(
         return Err(NonlinearError::Invalid("steps, tolerance and minimum step must be positive".into()));
     }
     let dofs = DofMap::new(&problem.constrained);
-    let pattern = Arc::new(SymmetricPattern::build(mesh, &dofs));
+    let patches = nodal_patches(mesh, volumetric)?;
+    let pattern = Arc::new(SymmetricPattern::with_patches(mesh, &dofs, patches.as_ref()));
     if laws.of_cell.len() != mesh.n_cells() || laws.of_cell.iter().any(|&i| i as usize >= laws.laws.len()) {
         return Err(NonlinearError::Invalid(format!(
             "the law map must name a law for each of the {} cells",
@@ -243,6 +271,7 @@ pub fn solve(
         volumetric,
         dofs,
         pattern,
+        patches,
     };
     let nf = model.dofs.n_free();
     let f_ext_f = {
@@ -395,6 +424,11 @@ pub fn solve_static(
     let mut s = CellScratch::new(mesh.kind);
     let (mut x, mut ue) = (vec![[0.0; 3]; n], vec![0.0; 3 * n]);
     let mut stresses = Vec::with_capacity(mesh.n_cells());
+    let patches = nodal_patches(mesh, volumetric)?;
+    let nodal = match &patches {
+        Some(p) => Some(NodalVolumes::at(mesh, p, laws, &sol.u).map_err(|(cell, source)| NonlinearError::Mesh { cell, source })?),
+        None => None,
+    };
     for c in 0..mesh.n_cells() {
         mesh.cell_coords(c, &mut x);
         let cell = mesh.cell(c);
@@ -403,7 +437,8 @@ pub fn solve_static(
                 ue[3 * a + i] = sol.u[3 * cell[a] + i];
             }
         }
-        let v = hyperelastic::cauchy_at_centre(mesh.kind, &x, &ue, laws.of(c), volumetric, &mut s)
+        let pressure = nodal.as_ref().map(|nv| nv.pressure(c));
+        let v = hyperelastic::cauchy_at_centre(mesh.kind, &x, &ue, laws.of(c), volumetric, pressure, &mut s)
             .map_err(|source| NonlinearError::Mesh { cell: c, source })?;
         // the linear solution's order: xx, yy, zz, xy, yz, zx
         stresses.push([v[0], v[1], v[2], v[5], v[3], v[4]]);
@@ -427,7 +462,7 @@ pub fn solve_static(
     }
     let dofs = DofMap::new(&problem.constrained);
     let n_free = dofs.n_free();
-    let nnz = SymmetricPattern::build(mesh, &dofs).nnz();
+    let nnz = SymmetricPattern::with_patches(mesh, &dofs, patches.as_ref()).nnz();
     let timings = super::linear_static::Timings {
         solve_s: newton_s,
         post_s: t.elapsed().as_secs_f64(),
@@ -449,4 +484,70 @@ pub fn solve_static(
         },
         sol.info,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::material::LinearElastic;
+    use crate::material::hyperelastic::Hyperelastic;
+    use crate::mesh::procedural::block_tet;
+
+    /// Under the nodal pressure the assembled forces are the gradient of the assembled
+    /// energy and the tangent their Jacobian (central differences), with laws that split and
+    /// one that does not side by side.
+    #[test]
+    fn nodal_pressure_forces_and_tangent_are_derivatives_of_the_energy() {
+        let mesh = block_tet([0.0; 3], [0.02, 0.01, 0.01], [2, 1, 1]);
+        let m = LinearElastic::new(3000.0, 0.49).unwrap();
+        let laws = LawMap {
+            laws: vec![
+                Hyperelastic::neo_hookean(&m),
+                Hyperelastic::mooney_rivlin(&m, 0.3).unwrap(),
+                Hyperelastic::svk(&m),
+            ],
+            of_cell: (0..mesh.n_cells()).map(|c| [0, 0, 1, 0, 2, 1][c % 6]).collect(),
+        };
+        let dofs = DofMap::new(&vec![false; mesh.n_dofs()]);
+        let patches = nodal_patches(&mesh, Volumetric::Nodal).unwrap();
+        let model = Model {
+            mesh: &mesh,
+            laws: &laws,
+            volumetric: Volumetric::Nodal,
+            pattern: Arc::new(SymmetricPattern::with_patches(&mesh, &dofs, patches.as_ref())),
+            dofs,
+            patches,
+        };
+        let n = mesh.n_dofs();
+        let u: Vec<f64> = (0..n).map(|i| 4e-4 * ((i as f64 * 1.3).sin() + 0.2 * (i % 3) as f64)).collect();
+        let a = model.assemble(&u, true, None).ok().unwrap();
+        let k = a.k.unwrap();
+        let fmax = a.f_int.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let h = 1e-8;
+        let mut kmax = 0.0f64;
+        let mut cols = Vec::new();
+        for d in 0..n {
+            let mut e = vec![0.0; n];
+            e[d] = 1.0;
+            let mut col = vec![0.0; n];
+            k.mul_vec(&e, &mut col);
+            kmax = col.iter().fold(kmax, |m, v| m.max(v.abs()));
+            cols.push(col);
+        }
+        for d in 0..n {
+            let (mut up, mut um) = (u.clone(), u.clone());
+            up[d] += h;
+            um[d] -= h;
+            let (p, m) = (
+                model.assemble(&up, false, None).ok().unwrap(),
+                model.assemble(&um, false, None).ok().unwrap(),
+            );
+            let fd = (p.energy - m.energy) / (2.0 * h);
+            assert!((fd - a.f_int[d]).abs() < 1e-5 * fmax, "f[{d}]: {fd} vs {}", a.f_int[d]);
+            for r in 0..n {
+                let kd = (p.f_int[r] - m.f_int[r]) / (2.0 * h);
+                assert!((kd - cols[d][r]).abs() < 1e-5 * kmax, "K[{r}][{d}]: {kd} vs {}", cols[d][r]);
+            }
+        }
+    }
 }

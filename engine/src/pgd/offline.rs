@@ -314,7 +314,7 @@ pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(
     on(BuildStage::Assembly);
     let clock = Instant::now();
     let dofs = DofMap::new(&model.problem.constrained);
-    let pattern = Arc::new(SymmetricPattern::build(&model.mesh, &dofs));
+    let pattern = Arc::new(SymmetricPattern::for_locking(&model.mesh, &dofs, model.locking));
     let mut rhs = vec![0.0; dofs.n_free()];
     let k = assembly::assemble_stiffness(
         &model.mesh,

@@ -642,6 +642,10 @@ impl Scene {
             of_cell,
         };
 
+        let (locking, warnings) = resolve_locking(self.spec.fidelity.locking, mesh.kind, &materials, laws.as_ref())
+            .map_err(|m| self.error_at(&[Seg::Key("fidelity"), Seg::Key("locking")], format!("organ '{}': {m}", o.name)))?;
+        let warnings = warnings.into_iter().map(|w| format!("organ '{}': {w}", o.name)).collect();
+
         let boundary = Boundary::of(&mesh);
         let fixed_nodes = o
             .fixed
@@ -720,12 +724,72 @@ impl Scene {
             mesh,
             materials,
             laws,
-            locking: self.spec.fidelity.locking,
+            locking,
+            warnings,
             problem,
             named_regions,
             accessible_nodes,
             boundary,
         })
+    }
+}
+
+/// Poisson's ratio above which a plain linear tetrahedron (or a fully integrated hexahedron)
+/// is noticeably too stiff: at ν = 0.45 the Lamé cylinder of tetrahedra is 2.4 % stiff at its
+/// worst node, at 0.4999 61 % (BENCHMARKS.md, "Locking-free tetrahedra").
+pub const LOCKING_POISSON: f64 = 0.45;
+
+/// The locking treatment of an organ: the scene's `asked` one, or the default for its mesh
+/// `kind` and materials (`bbar` on hexahedra; on tetrahedra `nodal` when a material's ν
+/// exceeds [`LOCKING_POISSON`]), with warnings for the choices that will lock. Refuses
+/// `nodal` on hexahedra.
+pub fn resolve_locking(
+    asked: Option<Locking>,
+    kind: CellKind,
+    materials: &MaterialMap,
+    laws: Option<&LawMap>,
+) -> Result<(Locking, Vec<String>), String> {
+    let nu = materials.table.iter().map(|m| m.poisson).fold(f64::NEG_INFINITY, f64::max);
+    let near_incompressible = nu > LOCKING_POISSON;
+    let locking = match (asked, kind) {
+        (Some(Locking::Nodal), CellKind::Hex8) => {
+            return Err("locking = \"nodal\" applies to tetrahedra; this organ's mesh is hexahedral (use \"bbar\", the default)".into());
+        }
+        (Some(l), _) => l,
+        (None, CellKind::Hex8) => Locking::Bbar,
+        (None, CellKind::Tet4) if near_incompressible => Locking::Nodal,
+        (None, CellKind::Tet4) => Locking::None,
+    };
+    let mut warnings = Vec::new();
+    let svk = laws.is_some_and(|l| l.laws.iter().any(|law| !law.splits()));
+    if near_incompressible {
+        if svk {
+            warnings.push(format!(
+                "St Venant-Kirchhoff does not split into isochoric and volumetric parts, so no locking treatment acts on its large deformations: at ν = {nu} its {} lock (too stiff); use neo_hookean or mooney_rivlin{}",
+                if kind == CellKind::Tet4 { "tetrahedra" } else { "hexahedra" },
+                if kind == CellKind::Tet4 { " with locking = \"nodal\"" } else { "" }
+            ));
+        }
+        match (kind, locking) {
+            (CellKind::Tet4, l) if l != Locking::Nodal => warnings.push(format!(
+                "linear tetrahedra at ν = {nu} lock (too stiff; the Lamé cylinder at ν = 0.4999 by 20–70 %) with locking = \"{}\": use \"nodal\" (the default for tetrahedra above ν = {LOCKING_POISSON})",
+                locking_name(l)
+            )),
+            (CellKind::Hex8, Locking::None) => warnings.push(format!(
+                "fully integrated hexahedra at ν = {nu} lock (too stiff) with locking = \"none\": use \"bbar\" (the default)"
+            )),
+            _ => {}
+        }
+    }
+    Ok((locking, warnings))
+}
+
+fn locking_name(l: Locking) -> &'static str {
+    match l {
+        Locking::None => "none",
+        Locking::Sri => "sri",
+        Locking::Bbar => "bbar",
+        Locking::Nodal => "nodal",
     }
 }
 
@@ -742,8 +806,10 @@ pub struct OrganModel {
     /// Hyperelastic laws per cell, when the organ's materials are hyperelastic (`None`:
     /// linear elasticity).
     pub laws: Option<LawMap>,
-    /// Locking treatment.
+    /// Locking treatment (the scene's, or the default for the mesh and materials).
     pub locking: Locking,
+    /// What the user should know before trusting the results (an element that will lock).
+    pub warnings: Vec<String>,
     /// Constraints and loads.
     pub problem: StaticProblem,
     /// Regions whose reactions are reported: `fixed`, then each displacement load's name.

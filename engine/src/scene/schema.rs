@@ -291,9 +291,12 @@ pub struct Effects {
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Fidelity {
-    /// Volumetric-locking treatment of hexahedra (`none`, `sri`, `bbar`). Default `bbar`.
+    /// Volumetric-locking treatment: `none`, `sri`, `bbar` (hexahedra; on tetrahedra these
+    /// three are the plain element) or `nodal` (the averaged-nodal-pressure tetrahedron).
+    /// Default: `bbar` on hexahedra; on tetrahedra `nodal` when a material's ν exceeds 0.45,
+    /// `none` otherwise ([`crate::scene::resolve_locking`]).
     #[serde(default)]
-    pub locking: Locking,
+    pub locking: Option<Locking>,
     /// Settings of the PGD vademecum builder.
     #[serde(default)]
     pub pgd: PgdFidelity,

@@ -506,6 +506,11 @@ pub struct BenchHapticArgs {
     /// before it, so the two real-time threads never share a core.
     #[arg(long)]
     pub pin: bool,
+    /// Hold the bridge's CPU wake-up latency request (PM QoS 0 µs: idle CPUs poll instead of
+    /// halting) during every phase, as `vademecum-bridge` does by default; `false` to measure
+    /// without it.
+    #[arg(long, default_value_t = true, action = clap::ArgAction::Set, value_name = "BOOL")]
+    pub wake_latency: bool,
     /// Runs of the three phases; with more than one, the summary gives the median and the
     /// spread over the runs and how many runs meet the haptic goal.
     #[arg(long, default_value_t = 1, value_name = "N")]

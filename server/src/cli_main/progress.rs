@@ -26,6 +26,16 @@ impl Stages {
         self.bar.set_message(label.to_string());
     }
 
+    /// Prints a warning line above the spinner (`vademecum: warning: …` on stderr).
+    pub fn warn(&self, message: &str) {
+        let line = format!("vademecum: warning: {message}");
+        if self.bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            self.bar.println(line);
+        }
+    }
+
     /// Removes the spinner.
     pub fn finish(self) {
         self.bar.finish_and_clear();

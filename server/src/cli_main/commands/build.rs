@@ -18,6 +18,12 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
     let name = scene.spec.organs[i].name.clone();
     let eps = opts.params.global_tolerance;
     let bar = Stages::start(&format!("building '{name}'"));
+    // warned before the build, which can take minutes
+    if let Ok(model) = scene.organ_model(i) {
+        for w in &model.warnings {
+            bar.warn(w);
+        }
+    }
     let built = offline::build_organ(scene, i, opts, &mut |s| match s {
         BuildStage::Assembly => bar.stage("assembling K"),
         BuildStage::Factorization => bar.stage("factoring K"),

@@ -29,6 +29,9 @@ pub fn run(c: SceneCommand) -> anyhow::Result<ExitCode> {
                     m.named_regions[0].1.len(),
                     m.accessible_nodes.len()
                 )?;
+                for w in &m.warnings {
+                    writeln!(out, "warning: {w}")?;
+                }
             }
             writeln!(out, "{}: ok", file.display())?;
         }

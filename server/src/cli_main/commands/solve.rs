@@ -7,7 +7,6 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use serde::Serialize;
-use vademecum_engine::fem::Locking;
 use vademecum_engine::fem::hyperelastic::Volumetric;
 use vademecum_engine::fem::linear_static::{self, Timings};
 use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
@@ -105,6 +104,9 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         let progress = Stages::start(&name);
         progress.stage("building mesh and loads");
         let model = scene.organ_model(i)?;
+        for w in &model.warnings {
+            progress.warn(w);
+        }
         if scene.spec.fidelity.solver == SolverKind::Meshless {
             organs.push(solve_meshless(&scene, i, &model, &out, &progress)?);
             progress.finish();
@@ -119,12 +121,7 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
                 None,
             ),
             Some(laws) => {
-                // large deformations: full integration only when the scene asks for no
-                // locking treatment; otherwise the mean-dilatation element
-                let volumetric = match model.locking {
-                    Locking::None => Volumetric::PointWise,
-                    Locking::Sri | Locking::Bbar => Volumetric::MeanDilatation,
-                };
+                let volumetric = Volumetric::for_locking(model.locking);
                 progress.stage("Newton-Raphson, large deformations");
                 let (sol, info) =
                     nonlinear_static::solve_static(&model.mesh, laws, volumetric, &model.problem, &NewtonParams::default(), |l| {
