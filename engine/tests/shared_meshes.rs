@@ -100,3 +100,46 @@ half_space = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
         assert!((size - want).abs() < 0.01, "axis {k}: {size} m, expected about {want} m");
     }
 }
+
+/// SOFA's gallbladder mesh lists 367 nodes and uses 366: the stray vertex is dropped on
+/// reading, with a warning that says so, and the organ solves (it used to fail as singular).
+#[test]
+fn a_stray_vertex_is_dropped_with_a_warning_and_the_organ_solves() {
+    let Some(dir) = shared() else { return };
+    let file = dir.join("sofa_env/grasp_lift_touch/gallbladder_volumetric.vtk");
+    let text = format!(
+        r#"[scene]
+name = "gallbladder"
+[[organs]]
+name = "gallbladder"
+density = 1060.0
+[organs.mesh]
+file = "{}"
+scale = 0.001
+[[organs.materials]]
+model = "linear"
+young = 1500.0
+poisson = 0.3
+[organs.fixed]
+half_space = {{ point = [0.0, 0.0, -0.01], normal = [0.0, 0.0, -1.0] }}
+[organs.accessible]
+half_space = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, 1.0] }}
+[[organs.loads]]
+kind = "gravity"
+acceleration = [0.0, 0.0, -9.81]
+"#,
+        file.display()
+    );
+    let scene = Scene::from_toml(&text, "gallbladder.toml").unwrap();
+    let m = scene.organ_model(0).unwrap();
+    assert_eq!(m.mesh.n_nodes(), 366);
+    assert!(
+        m.warnings
+            .iter()
+            .any(|w| w.contains("1 node(s)") && w.contains("belong to no cell")),
+        "{:?}",
+        m.warnings
+    );
+    let sol = vademecum_engine::fem::linear_static::solve(&m.mesh, &m.materials, m.locking, &m.problem, &mut |_| {}).unwrap();
+    assert!(sol.u.iter().all(|v| v.is_finite()) && sol.max_displacement > 0.0);
+}

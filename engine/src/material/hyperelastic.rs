@@ -6,9 +6,14 @@
 //!   `S = λ tr(E) I + 2μ E` and `ℂ = λ I⊗I + 2μ 𝕀`. Not polyconvex: it softens and loses
 //!   stability in strong compression.
 //! - Compressible neo-Hookean in the Abaqus form (seed 004):
-//!   `W = μ/2 (J^(−2/3) I₁ − 3) + K/2 (J − 1)²`, with `μ = E/2(1+ν)`, `K = E/3(1−2ν)`.
+//!   `W = μ/2 (J^(−2/3) I₁ − 3) + U(J)`, with `μ = E/2(1+ν)`, `K = E/3(1−2ν)`.
 //! - Compressible Mooney–Rivlin in the Abaqus form:
-//!   `W = C₁₀ (Ī₁ − 3) + C₀₁ (Ī₂ − 3) + K/2 (J − 1)²`, `Ī₁ = J^(−2/3) I₁`, `Ī₂ = J^(−4/3) I₂`.
+//!   `W = C₁₀ (Ī₁ − 3) + C₀₁ (Ī₂ − 3) + U(J)`, `Ī₁ = J^(−2/3) I₁`, `Ī₂ = J^(−4/3) I₂`.
+//!
+//! The volumetric energy `U(J)` of the last two is chosen by [`VolumetricLaw`]: Abaqus's
+//! `K/2 (J − 1)²` by default, SOFA's `K/2 (ln J)²`, or Simo & Taylor's
+//! `K/4 (J² − 1 − 2 ln J)`; all have `U(1) = U'(1) = 0` and `U''(1) = K`, so they agree at
+//! small strains and differ under large volume changes.
 //!
 //! The last two split into an isochoric part `W̄(C)` and a volumetric part `U(J)`; the
 //! mean-dilatation element evaluates `U` once per cell on the cell's volume ratio (what keeps
@@ -27,6 +32,47 @@ use super::{LinearElastic, MaterialError};
 /// Voigt order of symmetric tensors: `11, 22, 33, 23, 13, 12`.
 pub const VOIGT: [(usize, usize); 6] = [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)];
 
+/// The volumetric energy `U(J)` of a law that splits (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VolumetricLaw {
+    /// `U = K/2 (J − 1)²` (Abaqus; finite at J → 0, so it does not by itself forbid collapse).
+    #[default]
+    JMinus1,
+    /// `U = K/2 (ln J)²` (SOFA's Mooney–Rivlin and neo-Hookean; grows without bound as J → 0,
+    /// but is not convex for `J > e`).
+    LnJ,
+    /// `U = K/4 (J² − 1 − 2 ln J)` (Simo & Taylor 1991; convex, unbounded as J → 0 and J → ∞).
+    SimoTaylor,
+}
+
+impl VolumetricLaw {
+    /// `U(J)`, `U'(J)`, `U''(J)` for the bulk modulus `kappa`.
+    pub fn eval(self, kappa: f64, j: f64) -> (f64, f64, f64) {
+        match self {
+            Self::JMinus1 => (0.5 * kappa * (j - 1.0).powi(2), kappa * (j - 1.0), kappa),
+            Self::LnJ => {
+                let l = j.ln();
+                (0.5 * kappa * l * l, kappa * l / j, kappa * (1.0 - l) / (j * j))
+            }
+            Self::SimoTaylor => (
+                0.25 * kappa * (j * j - 1.0 - 2.0 * j.ln()),
+                0.5 * kappa * (j - 1.0 / j),
+                0.5 * kappa * (1.0 + 1.0 / (j * j)),
+            ),
+        }
+    }
+
+    /// The formula, for reports.
+    pub fn formula(self) -> &'static str {
+        match self {
+            Self::JMinus1 => "K/2 (J − 1)²",
+            Self::LnJ => "K/2 (ln J)²",
+            Self::SimoTaylor => "K/4 (J² − 1 − 2 ln J)",
+        }
+    }
+}
+
 /// Which law.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "law", rename_all = "snake_case")]
@@ -44,6 +90,9 @@ pub enum Hyperelastic {
         mu: f64,
         /// K (Pa).
         kappa: f64,
+        /// `U(J)`.
+        #[serde(default)]
+        volumetric: VolumetricLaw,
     },
     /// Compressible Mooney–Rivlin (Abaqus form): C₁₀, C₀₁ and the bulk modulus K (Pa);
     /// the initial shear modulus is `2 (C₁₀ + C₀₁)`.
@@ -54,6 +103,9 @@ pub enum Hyperelastic {
         c01: f64,
         /// K (Pa).
         kappa: f64,
+        /// `U(J)`.
+        #[serde(default)]
+        volumetric: VolumetricLaw,
     },
 }
 
@@ -126,6 +178,7 @@ impl Hyperelastic {
         Self::NeoHookean {
             mu: m.shear(),
             kappa: m.bulk(),
+            volumetric: VolumetricLaw::default(),
         }
     }
 
@@ -141,6 +194,7 @@ impl Hyperelastic {
             c10: (1.0 - c01_share) * mu / 2.0,
             c01: c01_share * mu / 2.0,
             kappa: m.bulk(),
+            volumetric: VolumetricLaw::default(),
         })
     }
 
@@ -149,14 +203,30 @@ impl Hyperelastic {
         !matches!(self, Self::StVenantKirchhoff { .. })
     }
 
-    /// The volumetric part `U(J) = K/2 (J−1)²` and its first two derivatives (zero for a law
-    /// that does not split).
+    /// The same law with the volumetric energy `law` (no change for a law that does not split).
+    pub fn with_volumetric(self, law: VolumetricLaw) -> Self {
+        match self {
+            Self::NeoHookean { mu, kappa, .. } => Self::NeoHookean {
+                mu,
+                kappa,
+                volumetric: law,
+            },
+            Self::MooneyRivlin { c10, c01, kappa, .. } => Self::MooneyRivlin {
+                c10,
+                c01,
+                kappa,
+                volumetric: law,
+            },
+            svk @ Self::StVenantKirchhoff { .. } => svk,
+        }
+    }
+
+    /// The volumetric part `U(J)` ([`VolumetricLaw`]) and its first two derivatives (zero for
+    /// a law that does not split).
     pub fn volumetric(&self, j: f64) -> (f64, f64, f64) {
         match *self {
             Self::StVenantKirchhoff { .. } => (0.0, 0.0, 0.0),
-            Self::NeoHookean { kappa, .. } | Self::MooneyRivlin { kappa, .. } => {
-                (0.5 * kappa * (j - 1.0).powi(2), kappa * (j - 1.0), kappa)
-            }
+            Self::NeoHookean { kappa, volumetric, .. } | Self::MooneyRivlin { kappa, volumetric, .. } => volumetric.eval(kappa, j),
         }
     }
 
@@ -261,7 +331,31 @@ mod tests {
             Hyperelastic::svk(&m),
             Hyperelastic::neo_hookean(&m),
             Hyperelastic::mooney_rivlin(&m, 0.3).unwrap(),
+            Hyperelastic::neo_hookean(&m).with_volumetric(VolumetricLaw::LnJ),
+            Hyperelastic::mooney_rivlin(&m, 0.3)
+                .unwrap()
+                .with_volumetric(VolumetricLaw::SimoTaylor),
         ]
+    }
+
+    #[test]
+    fn volumetric_laws_agree_at_small_strains_and_their_derivatives_are_consistent() {
+        let kappa = 1e5;
+        for law in [VolumetricLaw::JMinus1, VolumetricLaw::LnJ, VolumetricLaw::SimoTaylor] {
+            let (u, du, ddu) = law.eval(kappa, 1.0);
+            assert!(u.abs() < 1e-12 && du.abs() < 1e-9 && (ddu - kappa).abs() < 1e-9, "{law:?}");
+            for j in [0.5, 0.9, 1.3] {
+                let h = 1e-6;
+                let (_, d, dd) = law.eval(kappa, j);
+                let fd1 = (law.eval(kappa, j + h).0 - law.eval(kappa, j - h).0) / (2.0 * h);
+                let fd2 = (law.eval(kappa, j + h).1 - law.eval(kappa, j - h).1) / (2.0 * h);
+                assert!((fd1 - d).abs() < 1e-6 * kappa, "{law:?} U' at {j}: {fd1} vs {d}");
+                assert!((fd2 - dd).abs() < 1e-6 * kappa, "{law:?} U'' at {j}: {fd2} vs {dd}");
+            }
+        }
+        // they differ under a large volume change
+        let at = |l: VolumetricLaw| l.eval(kappa, 0.5).0;
+        assert!(at(VolumetricLaw::LnJ) > at(VolumetricLaw::SimoTaylor) && at(VolumetricLaw::SimoTaylor) > at(VolumetricLaw::JMinus1));
     }
 
     fn some_c() -> Matrix3<f64> {

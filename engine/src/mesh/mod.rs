@@ -180,6 +180,43 @@ impl Mesh {
         Ok(mesh)
     }
 
+    /// Removes the nodes no cell uses (a stray vertex would leave three unknowns with no
+    /// stiffness: a singular system), renumbering the rest in order; tagged faces that touch a
+    /// removed node are dropped with it. Returns how many nodes were removed.
+    pub fn drop_unused_nodes(&mut self) -> usize {
+        let mut used = vec![false; self.nodes.len()];
+        for &n in &self.cells {
+            used[n] = true;
+        }
+        let unused = used.iter().filter(|u| !**u).count();
+        if unused == 0 {
+            return 0;
+        }
+        let mut new_index = vec![usize::MAX; self.nodes.len()];
+        let mut nodes = Vec::with_capacity(self.nodes.len() - unused);
+        for (n, x) in self.nodes.iter().enumerate() {
+            if used[n] {
+                new_index[n] = nodes.len();
+                nodes.push(*x);
+            }
+        }
+        self.nodes = nodes;
+        for n in self.cells.iter_mut() {
+            *n = new_index[*n];
+        }
+        for faces in self.tagged_faces.values_mut() {
+            faces.triangles.retain(|t| t.iter().all(|&n| used[n]));
+            faces.quads.retain(|q| q.iter().all(|&n| used[n]));
+            for t in faces.triangles.iter_mut() {
+                *t = t.map(|n| new_index[n]);
+            }
+            for q in faces.quads.iter_mut() {
+                *q = q.map(|n| new_index[n]);
+            }
+        }
+        unused
+    }
+
     /// Number of nodes.
     pub fn n_nodes(&self) -> usize {
         self.nodes.len()

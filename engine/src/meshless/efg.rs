@@ -369,7 +369,7 @@ fn run(
     };
     // masses: Gershgorin bound of the stiffness row sums, so that ω²_max ≤ 4 with Δt = 1
     let modulus = match problem.law {
-        Hyperelastic::NeoHookean { mu, kappa } | Hyperelastic::MooneyRivlin { c10: mu, kappa, .. } => kappa + 4.0 / 3.0 * mu,
+        Hyperelastic::NeoHookean { mu, kappa, .. } | Hyperelastic::MooneyRivlin { c10: mu, kappa, .. } => kappa + 4.0 / 3.0 * mu,
         Hyperelastic::StVenantKirchhoff { lambda, mu } => lambda + 2.0 * mu,
     };
     let mut mass = vec![0.0; n];

@@ -416,6 +416,12 @@ impl Scene {
             v.push(Seg::Key(k));
             v
         };
+        if m.volumetric.is_some() && !matches!(m.model, MaterialModel::NeoHookean | MaterialModel::MooneyRivlin) {
+            return Err(self.error_at(
+                &key("volumetric"),
+                "`volumetric` chooses U(J) of neo_hookean and mooney_rivlin; linear and stvk materials have none",
+            ));
+        }
         match m.model {
             MaterialModel::Linear | MaterialModel::Stvk | MaterialModel::NeoHookean => {
                 let young = m.young.ok_or_else(|| self.error_at(at, "this model needs `young` (Pa)"))?;
@@ -456,6 +462,7 @@ impl Scene {
         let linear = |young: Option<f64>, poisson: Option<f64>| {
             LinearElastic::new(young.unwrap_or(0.0), poisson.unwrap_or(0.0)).map_err(|e| self.error_at(at, e.to_string()))
         };
+        let vol = spec.volumetric.unwrap_or_default();
         Ok(match spec.model {
             MaterialModel::Linear => (linear(spec.young, spec.poisson)?, None),
             MaterialModel::Stvk => {
@@ -464,7 +471,7 @@ impl Scene {
             }
             MaterialModel::NeoHookean => {
                 let m = linear(spec.young, spec.poisson)?;
-                (m, Some(Hyperelastic::neo_hookean(&m)))
+                (m, Some(Hyperelastic::neo_hookean(&m).with_volumetric(vol)))
             }
             MaterialModel::MooneyRivlin => {
                 let (c10, c01, kappa) = (spec.c10.unwrap_or(0.0), spec.c01.unwrap_or(0.0), spec.bulk.unwrap_or(0.0));
@@ -473,7 +480,12 @@ impl Scene {
                 let nu = (3.0 * kappa - 2.0 * mu) / (2.0 * (3.0 * kappa + mu));
                 (
                     linear(Some(2.0 * mu * (1.0 + nu)), Some(nu))?,
-                    Some(Hyperelastic::MooneyRivlin { c10, c01, kappa }),
+                    Some(Hyperelastic::MooneyRivlin {
+                        c10,
+                        c01,
+                        kappa,
+                        volumetric: vol,
+                    }),
                 )
             }
         })
@@ -491,8 +503,15 @@ impl Scene {
         }
     }
 
-    /// Builds organ `index`'s mesh (read or generated, scaled, checked).
+    /// Builds organ `index`'s mesh (read or generated, scaled, checked; nodes no cell uses
+    /// dropped).
     pub fn organ_mesh(&self, index: usize) -> Result<Mesh, SceneError> {
+        self.organ_mesh_noted(index).map(|(mesh, _)| mesh)
+    }
+
+    /// [`Scene::organ_mesh`], with what was done to the mesh file that the user should know.
+    fn organ_mesh_noted(&self, index: usize) -> Result<(Mesh, Vec<String>), SceneError> {
+        let mut notes = Vec::new();
         let o = &self.spec.organs[index];
         let at = [Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh")];
         let m = &o.mesh;
@@ -506,6 +525,13 @@ impl Scene {
                     )
                 })?;
                 mesh.scale(m.scale.unwrap_or(1.0));
+                let unused = mesh.drop_unused_nodes();
+                if unused > 0 {
+                    notes.push(format!(
+                        "{unused} node(s) of {f} belong to no cell and were dropped (the remaining {} are renumbered in order)",
+                        mesh.n_nodes()
+                    ));
+                }
                 mesh
             }
             (None, Some(BuiltinMesh::Lobe)) => {
@@ -546,13 +572,18 @@ impl Scene {
         if let Some(t) = m.translate {
             mesh.translate(t);
         }
-        Ok(mesh)
+        Ok((mesh, notes))
     }
 
     /// Builds everything organ `index` needs for a static solve.
     pub fn organ_model(&self, index: usize) -> Result<OrganModel, SceneError> {
-        let mesh = self.organ_mesh(index)?;
-        self.organ_model_with_mesh(index, mesh)
+        let (mesh, notes) = self.organ_mesh_noted(index)?;
+        let mut model = self.organ_model_with_mesh(index, mesh)?;
+        let name = &self.spec.organs[index].name;
+        model
+            .warnings
+            .splice(0..0, notes.into_iter().map(|n| format!("organ '{name}': {n}")));
+        Ok(model)
     }
 
     /// Organ `index`'s pre-planned cuts (validated when the scene was read).

@@ -151,6 +151,10 @@ pub struct MaterialSpec {
     pub c01: Option<f64>,
     /// Mooney–Rivlin bulk modulus (Pa).
     pub bulk: Option<f64>,
+    /// The volumetric energy `U(J)` of `neo_hookean` and `mooney_rivlin`: `j_minus_1`
+    /// (`K/2 (J − 1)²`, the default), `ln_j` (`K/2 (ln J)²`, SOFA's) or `simo_taylor`
+    /// (`K/4 (J² − 1 − 2 ln J)`).
+    pub volumetric: Option<crate::material::hyperelastic::VolumetricLaw>,
 }
 
 fn all_region() -> GroupRef {
