@@ -205,6 +205,50 @@ fn inconsistent_scene_settings_name_the_key_and_line() {
     assert!(e.to_string().contains("not both"), "{e}");
 }
 
+/// Size limits count the cells a built-in mesh produces (six tetrahedra per cube), and a mesh
+/// whose direct solve would not fit is refused before anything is assembled, with the figures.
+#[test]
+fn oversized_meshes_are_refused_with_their_size_before_any_allocation() {
+    let tets = GOOD_SCENE.replace("divisions = [2, 2, 2]", "divisions = [256, 256, 256]\ncell = \"tet4\"");
+    let e = Scene::from_toml(&tets, "s.toml").unwrap_err();
+    assert!(e.to_string().contains("100663296 cells (6 per division cube)"), "{e}");
+    assert_eq!(e.key.as_deref(), Some("organs[0].mesh.divisions"));
+    let hexes = GOOD_SCENE.replace("divisions = [2, 2, 2]", "divisions = [60, 60, 60]");
+    let scene = Scene::from_toml(&hexes, "s.toml").unwrap();
+    let e = scene.organ_model_within(0, Some(1_000_000_000)).unwrap_err();
+    assert!(
+        e.to_string().contains("needs about") && e.to_string().contains("more than the 1.0 GB allowed"),
+        "{e}"
+    );
+    assert!(scene.organ_model_within(0, Some(u64::MAX)).is_ok());
+}
+
+/// `volumetric` only applies to laws with a volumetric part, and the locking-free tetrahedron
+/// only to tetrahedra.
+#[test]
+fn volumetric_and_locking_options_are_refused_where_they_do_not_apply() {
+    let bad = GOOD_SCENE.replace("poisson = 0.3", "poisson = 0.3\nvolumetric = \"ln_j\"");
+    let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+    assert_eq!(e.key.as_deref(), Some("organs[0].materials[0].volumetric"), "{e}");
+    let bad = GOOD_SCENE.to_string() + "\n[fidelity]\nlocking = \"nodal\"\n";
+    let scene = Scene::from_toml(&bad, "s.toml").unwrap();
+    let e = scene.organ_model(0).unwrap_err();
+    assert!(e.to_string().contains("applies to tetrahedra"), "{e}");
+    // the default on tetrahedra follows ν, with a warning for a plain element that will lock
+    let tets = GOOD_SCENE.replace("divisions = [2, 2, 2]", "divisions = [2, 2, 2]\ncell = \"tet4\"");
+    let m = Scene::from_toml(&tets.replace("poisson = 0.3", "poisson = 0.49"), "s.toml")
+        .unwrap()
+        .organ_model(0)
+        .unwrap();
+    assert_eq!(m.locking, vademecum_engine::fem::Locking::Nodal);
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+    let plain = tets.replace("poisson = 0.3", "poisson = 0.49") + "\n[fidelity]\nlocking = \"none\"\n";
+    let m = Scene::from_toml(&plain, "s.toml").unwrap().organ_model(0).unwrap();
+    assert!(m.warnings.iter().any(|w| w.contains("lock")), "{:?}", m.warnings);
+    let m = Scene::from_toml(&tets, "s.toml").unwrap().organ_model(0).unwrap();
+    assert_eq!(m.locking, vademecum_engine::fem::Locking::None);
+}
+
 #[test]
 fn missing_scene_and_mesh_files_are_clear_errors() {
     let e = Scene::load("/nonexistent/scene.toml").unwrap_err();

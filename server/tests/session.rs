@@ -86,6 +86,7 @@ fn slab() -> (Arc<Scene>, Vec<Arc<LoadedBundle>>, tempfile::TempDir) {
         recompress: true,
         load_radius: offline::probe_radius(&scene),
         large: None,
+        max_memory: None,
     };
     let built = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();

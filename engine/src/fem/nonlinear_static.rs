@@ -25,6 +25,7 @@ use super::assembly::{DofMap, SymmetricMatrix, SymmetricPattern, scatter_cell};
 use super::hyperelastic::{self, CellError, CellScratch, LawMap, Volumetric};
 use super::linear_static::StaticProblem;
 use super::nodal::{NodalPatches, NodalVolumes, PatchError};
+use crate::material::hyperelastic::Hyperelastic;
 use crate::mesh::Mesh;
 use crate::solve::{Cholesky, SolveError};
 
@@ -100,19 +101,30 @@ pub enum NonlinearError {
         /// Why.
         source: CellError,
     },
-    /// The load step fell below the minimum without reaching equilibrium.
+    /// The continuation stopped without reaching equilibrium: the step fell below the minimum,
+    /// or the load factor stagnated over many step cuts (a limit point).
     #[error(
-        "no equilibrium beyond load factor {load_factor:.4} (step cut to {step:.2e}; last relative residual {residual:.2e}: {reason}); try more load steps, or the load is beyond what the material can carry"
+        "no equilibrium beyond load factor {load_factor:.4} of the {laws} organ ({why}; the last attempt: {reason}{}{}); {hint}",
+        residual.map(|r| format!(", relative residual {r:.2e}")).unwrap_or_default(),
+        j_min.map(|(j, c)| format!(", smallest det F {j:.3} in cell {c}")).unwrap_or_default()
     )]
     NoConvergence {
         /// Last converged load factor.
         load_factor: f64,
         /// The step that failed.
         step: f64,
-        /// Relative residual reached.
-        residual: f64,
+        /// Relative residual of the last attempt, when it got as far as one.
+        residual: Option<f64>,
         /// Why the last attempt failed.
-        reason: String,
+        reason: Box<str>,
+        /// Why the continuation gave up (step below the minimum, or stagnation).
+        why: Box<str>,
+        /// The laws of the organ, by name.
+        laws: Box<str>,
+        /// The smallest `det F` over the cells at the last equilibrium, and its cell.
+        j_min: Option<(f64, usize)>,
+        /// What to try.
+        hint: &'static str,
     },
     /// The problem is malformed.
     #[error("{0}")]
@@ -216,15 +228,78 @@ fn nodal_patches(mesh: &Mesh, volumetric: Volumetric) -> Result<Option<NodalPatc
     })
 }
 
-/// Why a tangent could not be factorized, in the terms of a large-deformation solve.
-fn tangent_failure(e: SolveError) -> String {
+/// Why a tangent could not be factorized, in the terms of a large-deformation solve of `laws`.
+fn tangent_failure(e: SolveError, laws: &LawMap) -> String {
+    let svk = laws.laws.iter().any(|l| !l.splits());
     match e {
         SolveError::NotPositiveDefinite { pivot, n } => format!(
-            "the tangent stiffness is not positive definite at this deformation (pivot {pivot} of {n}): a material or structural instability — St Venant-Kirchhoff softens in compression, a slender part buckles — or an unconstrained rigid motion"
+            "the tangent stiffness is not positive definite at this deformation (pivot {pivot} of {n}): {}",
+            if svk {
+                "St Venant-Kirchhoff softens and loses stability in strong compression, or a slender part buckles"
+            } else {
+                "a structural instability (a slender part buckles or snaps through) or an unconstrained rigid motion"
+            }
         ),
         SolveError::Internal(m) => format!("the factorization failed: {m}"),
     }
 }
+
+/// The names of the laws in `laws`, for messages (`neo-Hookean`, `Mooney-Rivlin and St
+/// Venant-Kirchhoff`).
+fn law_names(laws: &LawMap) -> String {
+    let mut names: Vec<&str> = laws
+        .laws
+        .iter()
+        .map(|l| match l {
+            Hyperelastic::StVenantKirchhoff { .. } => "St Venant-Kirchhoff",
+            Hyperelastic::NeoHookean { .. } => "neo-Hookean",
+            Hyperelastic::MooneyRivlin { .. } => "Mooney-Rivlin",
+        })
+        .collect();
+    names.dedup();
+    names.join(" and ")
+}
+
+/// The smallest `det F` over the cells' integration points at `u`, and its cell.
+fn smallest_det_f(mesh: &Mesh, u: &[f64]) -> Option<(f64, usize)> {
+    let n = mesh.kind.nodes_per_cell();
+    let mut s = CellScratch::new(mesh.kind);
+    let (mut x, mut ue) = (vec![[0.0; 3]; n], vec![0.0; 3 * n]);
+    let mut best: Option<(f64, usize)> = None;
+    for c in 0..mesh.n_cells() {
+        mesh.cell_coords(c, &mut x);
+        for (a, &node) in mesh.cell(c).iter().enumerate() {
+            ue[3 * a..3 * a + 3].copy_from_slice(&u[3 * node..3 * node + 3]);
+        }
+        let _ = hyperelastic::for_each_point(mesh.kind, &x, &mut s, |_, g| {
+            let mut f = nalgebra::Matrix3::<f64>::identity();
+            for (a, ga) in g.iter().enumerate() {
+                for i in 0..3 {
+                    for j in 0..3 {
+                        f[(i, j)] += ue[3 * a + i] * ga[j];
+                    }
+                }
+            }
+            let d = f.determinant();
+            if best.is_none_or(|(b, _)| d < b) {
+                best = Some((d, c));
+            }
+        });
+    }
+    best
+}
+
+/// Step cuts without the load factor advancing by [`STAGNATION_ADVANCE`] after which the
+/// continuation stops: it is creeping towards a limit point (no equilibrium beyond), and
+/// halving on would only take longer to say so.
+const STAGNATION_CUTS: usize = 8;
+
+/// The advance of the load factor that counts as progress for [`STAGNATION_CUTS`].
+const STAGNATION_ADVANCE: f64 = 0.01;
+
+/// Newton iterations in a row without the residual decreasing after which an attempt is
+/// abandoned as diverging (the step is then cut at once instead of after every iteration).
+const DIVERGING_ITERATIONS: usize = 4;
 
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
@@ -291,13 +366,15 @@ pub fn solve(
     let mut info = NewtonInfo::default();
     let mut u = vec![0.0; nd];
     let (mut lambda, mut step) = (0.0f64, 1.0 / params.steps as f64);
+    // the continuation's progress: the load factor at the last real advance, and the cuts since
+    let (mut progress_mark, mut cuts_since_progress) = (0.0f64, 0usize);
     let mut last = model
         .assemble(&u, false, None)
         .map_err(|AssembleError::Cell(cell, source)| NonlinearError::Mesh { cell, source })?;
     while lambda < 1.0 {
         let target = (lambda + step).min(1.0);
-        let attempt = (|| -> Result<(Vec<f64>, Assembled, f64, usize), (String, f64)> {
-            let cell_err = |AssembleError::Cell(c, e)| (format!("cell {c}: {e}"), f64::NAN);
+        let attempt = (|| -> Result<(Vec<f64>, Assembled, f64, usize), (String, Option<f64>)> {
+            let cell_err = |AssembleError::Cell(c, e)| (format!("cell {c}: {e}"), None);
             // 1. predictor
             let delta: Vec<f64> = (0..nd)
                 .map(|d| {
@@ -315,7 +392,7 @@ pub fn solve(
             for e in 0..nf {
                 rhs[e] += target * f_ext_f[e] - r0[e];
             }
-            let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e), f64::NAN))?;
+            let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e, laws), None))?;
             chol.solve_in_place(&mut rhs);
             let mut ut = u.clone();
             for d in 0..nd {
@@ -327,6 +404,7 @@ pub fn solve(
             }
             // 2. Newton with line search
             let mut iterations = 0;
+            let (mut best, mut since_best) = (f64::INFINITY, 0);
             loop {
                 let a = model.assemble(&ut, true, None).map_err(cell_err)?;
                 let mut r = vec![0.0; nf];
@@ -341,14 +419,28 @@ pub fn solve(
                     .sqrt();
                 let scale = (target * norm(&f_ext_f)).max(reaction).max(f64::MIN_POSITIVE);
                 let residual = norm(&r) / scale;
+                if !residual.is_finite() {
+                    return Err(("the residual is not finite (a law evaluated outside its domain)".into(), None));
+                }
                 if residual <= params.tolerance {
                     return Ok((ut, a, residual, iterations));
                 }
                 if iterations >= params.max_iterations {
-                    return Err((format!("{iterations} iterations"), residual));
+                    return Err((format!("no convergence in {iterations} Newton iterations"), Some(residual)));
+                }
+                if residual < best {
+                    (best, since_best) = (residual, 0);
+                } else {
+                    since_best += 1;
+                    if since_best >= DIVERGING_ITERATIONS {
+                        return Err((
+                            format!("Newton diverges (the residual has not decreased in {since_best} iterations)"),
+                            Some(residual),
+                        ));
+                    }
                 }
                 iterations += 1;
-                let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e), residual))?;
+                let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e, laws), Some(residual)))?;
                 let mut du = r.clone();
                 chol.solve_in_place(&mut du);
                 let p0 = potential(a.energy, target, &ut);
@@ -382,16 +474,38 @@ pub fn solve(
                 info.path.push((lambda, last.energy));
                 progress(lambda, &u);
                 step = (step * 1.5).min(1.0 / params.steps as f64);
+                if lambda - progress_mark >= STAGNATION_ADVANCE {
+                    (progress_mark, cuts_since_progress) = (lambda, 0);
+                }
             }
             Err((reason, residual)) => {
                 info.cuts += 1;
+                cuts_since_progress += 1;
                 step /= 2.0;
-                if step < params.min_step {
+                let why = if step < params.min_step {
+                    Some(format!("the load step was cut below {:.0e}", params.min_step))
+                } else if cuts_since_progress >= STAGNATION_CUTS {
+                    Some(format!(
+                        "the load factor advanced less than {STAGNATION_ADVANCE} over {cuts_since_progress} step cuts: a limit point"
+                    ))
+                } else {
+                    None
+                };
+                if let Some(why) = why {
+                    let svk = laws.laws.iter().any(|l| !l.splits());
                     return Err(NonlinearError::NoConvergence {
                         load_factor: lambda,
                         step,
                         residual,
-                        reason,
+                        reason: reason.into(),
+                        why: why.into(),
+                        laws: law_names(laws).into(),
+                        j_min: smallest_det_f(mesh, &u),
+                        hint: if svk {
+                            "the load may be beyond what St Venant-Kirchhoff can carry (it softens in compression): lower it, or use neo_hookean"
+                        } else {
+                            "the load may be beyond what the organ can carry (or a part is unstable): lower it, or support the organ where it gives way"
+                        },
                     });
                 }
             }
@@ -489,9 +603,38 @@ pub fn solve_static(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fem::linear_static::StaticProblem;
     use crate::material::LinearElastic;
     use crate::material::hyperelastic::Hyperelastic;
     use crate::mesh::procedural::block_tet;
+
+    /// A St Venant-Kirchhoff block pressed beyond its limit load (it softens in compression:
+    /// its uniaxial nominal stress bottoms out near 0.38 E) stops with a diagnostic naming the
+    /// law, why the continuation gave up and the smallest det F, and no "NaN".
+    #[test]
+    fn a_load_beyond_the_limit_point_is_reported_with_the_law_and_det_f() {
+        use crate::mesh::procedural::block_hex;
+        let mesh = block_hex([0.0; 3], [0.01; 3], [2, 2, 2]);
+        let m = LinearElastic::new(1000.0, 0.3).unwrap();
+        let mut p = StaticProblem::new(mesh.n_nodes());
+        let on = |z: f64| -> Vec<usize> { (0..mesh.n_nodes()).filter(|&i| (mesh.nodes[i][2] - z).abs() < 1e-12).collect() };
+        let (bottom, top) = (on(0.0), on(0.01));
+        p.clamp(&bottom);
+        for &n in &top {
+            p.forces[3 * n + 2] = -0.6 * 1000.0 * 1e-4 / top.len() as f64;
+        }
+        let laws = LawMap::uniform(Hyperelastic::svk(&m), mesh.n_cells());
+        let e = solve(&mesh, &laws, Volumetric::MeanDilatation, &p, &NewtonParams::default(), |_, _| {}).unwrap_err();
+        let NonlinearError::NoConvergence { load_factor, j_min, .. } = &e else {
+            panic!("{e:?}")
+        };
+        assert!(*load_factor < 1.0 && j_min.is_some_and(|(j, _)| j > 0.0 && j < 1.0), "{e:?}");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("St Venant-Kirchhoff organ") && msg.contains("smallest det F") && !msg.contains("NaN"),
+            "{msg}"
+        );
+    }
 
     /// Under the nodal pressure the assembled forces are the gradient of the assembled
     /// energy and the tangent their Jacobian (central differences), with laws that split and

@@ -42,6 +42,9 @@ pub struct BuildOptions {
     pub load_radius: f64,
     /// Also build the large-deformation lattice (scenes with `effects.deformation = "large"`).
     pub large: Option<AnmLatticeParams>,
+    /// Refuse an organ whose direct solve is estimated to need more than this many bytes
+    /// ([`crate::solve::memory`]); `None`: no limit.
+    pub max_memory: Option<u64>,
 }
 
 impl BuildOptions {
@@ -69,6 +72,7 @@ impl BuildOptions {
                     modes: l.modes,
                 }
             }),
+            max_memory: crate::solve::memory::available_bytes(),
         }
     }
 }
@@ -334,7 +338,7 @@ pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(
 
 /// Builds organ `index` of `scene`.
 pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dyn FnMut(BuildStage)) -> Result<Built, BuildError> {
-    let model = scene.organ_model(index)?;
+    let model = scene.organ_model_within(index, opts.max_memory)?;
     let mesh = &model.mesh;
     let free = solve::free_rigid_motions(&mesh.nodes, &model.problem.constrained);
     if !free.is_empty() {

@@ -397,8 +397,21 @@ impl Scene {
             if d.iter().any(|&n| n == 0 || n > 2000) {
                 return Err(self.error_at(&key("divisions"), "divisions must lie in 1..=2000 along each axis"));
             }
-            if d.iter().product::<usize>() > 20_000_000 {
-                return Err(self.error_at(&key("divisions"), "more than 20 million cells; use fewer divisions"));
+            // the cells actually produced: six tetrahedra per cube for tetrahedral built-ins
+            let per_cube = match m.builtin {
+                Some(BuiltinMesh::Lobe) => 6,
+                Some(BuiltinMesh::Block) if m.cell == Some(CellKind::Tet4) => 6,
+                _ => 1,
+            };
+            let cells = d.iter().product::<usize>().saturating_mul(per_cube);
+            if cells > MAX_BUILTIN_CELLS {
+                return Err(self.error_at(
+                    &key("divisions"),
+                    format!(
+                        "{cells} cells ({} per division cube) is more than {MAX_BUILTIN_CELLS}; use fewer divisions",
+                        per_cube
+                    ),
+                ));
             }
         }
         if m.scale.is_some_and(|s| !(s.is_finite() && s > 0.0)) {
@@ -577,7 +590,19 @@ impl Scene {
 
     /// Builds everything organ `index` needs for a static solve.
     pub fn organ_model(&self, index: usize) -> Result<OrganModel, SceneError> {
+        self.organ_model_within(index, None)
+    }
+
+    /// [`Scene::organ_model`], refusing — before anything is assembled — a mesh whose direct
+    /// solve would need more than `max_memory` bytes ([`crate::solve::memory`]).
+    pub fn organ_model_within(&self, index: usize, max_memory: Option<u64>) -> Result<OrganModel, SceneError> {
         let (mesh, notes) = self.organ_mesh_noted(index)?;
+        if let Some(limit) = max_memory {
+            // the wide stencil unless the scene names another treatment (conservative)
+            let wide = mesh.kind == CellKind::Tet4 && matches!(self.spec.fidelity.locking, None | Some(Locking::Nodal));
+            crate::solve::memory::check(&mesh, wide, limit)
+                .map_err(|m| self.error_at(&[Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh")], m))?;
+        }
         let mut model = self.organ_model_with_mesh(index, mesh)?;
         let name = &self.spec.organs[index].name;
         model
@@ -765,6 +790,9 @@ impl Scene {
     }
 }
 
+/// Most cells a built-in mesh may produce (its memory alone would be gigabytes).
+pub const MAX_BUILTIN_CELLS: usize = 20_000_000;
+
 /// Poisson's ratio above which a plain linear tetrahedron (or a fully integrated hexahedron)
 /// is noticeably too stiff: at ν = 0.45 the Lamé cylinder of tetrahedra is 2.4 % stiff at its
 /// worst node, at 0.4999 61 % (BENCHMARKS.md, "Locking-free tetrahedra").
@@ -803,7 +831,7 @@ pub fn resolve_locking(
         }
         match (kind, locking) {
             (CellKind::Tet4, l) if l != Locking::Nodal => warnings.push(format!(
-                "linear tetrahedra at ν = {nu} lock (too stiff; the Lamé cylinder at ν = 0.4999 by 20–70 %) with locking = \"{}\": use \"nodal\" (the default for tetrahedra above ν = {LOCKING_POISSON})",
+                "linear tetrahedra at ν = {nu} lock (too stiff: at ν = 0.4999 a Lamé cylinder of them misses a quarter of its displacement) with locking = \"{}\": use \"nodal\" (the default for tetrahedra above ν = {LOCKING_POISSON})",
                 locking_name(l)
             )),
             (CellKind::Hex8, Locking::None) => warnings.push(format!(

@@ -2,6 +2,8 @@
 //! and reused for every numeric factorization of the same pattern, plus the check that a set
 //! of constraints removes every rigid-body motion (the usual cause of a singular stiffness).
 
+pub mod memory;
+
 use faer::MatMut;
 use faer::Side;
 use faer::linalg::solvers::Solve;

@@ -114,6 +114,10 @@ pub struct SolveArgs {
     /// Print a machine-readable JSON summary on stdout instead of the text report.
     #[arg(long)]
     pub json: bool,
+    /// Refuse, before assembling, an organ whose direct solve is estimated to need more than
+    /// this many GB. Default: the memory the system has available.
+    #[arg(long, value_name = "GB")]
+    pub max_memory: Option<f64>,
 }
 
 /// Arguments of `vademecum build`.
@@ -128,6 +132,10 @@ pub struct BuildArgs {
     /// Keep the greedy modes as they are instead of recompressing them (QR + SVD).
     #[arg(long)]
     pub no_recompress: bool,
+    /// Refuse, before assembling, an organ whose direct solve is estimated to need more than
+    /// this many GB. Default: the memory the system has available.
+    #[arg(long, value_name = "GB")]
+    pub max_memory: Option<f64>,
     /// Print the build report as JSON on stdout.
     #[arg(long)]
     pub json: bool,

@@ -18,11 +18,17 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
     let name = scene.spec.organs[i].name.clone();
     let eps = opts.params.global_tolerance;
     let bar = Stages::start(&format!("building '{name}'"));
-    // warned before the build, which can take minutes
-    if let Ok(model) = scene.organ_model(i) {
-        for w in &model.warnings {
-            bar.warn(w);
+    // refused or warned before the build, which can take minutes
+    let model = scene.organ_model_within(i, opts.max_memory);
+    let model = match model {
+        Ok(m) => m,
+        Err(e) => {
+            bar.finish();
+            return Err(anyhow::Error::new(e).context(format!("cannot build organ '{name}'")));
         }
+    };
+    for w in &model.warnings {
+        bar.warn(w);
     }
     let built = offline::build_organ(scene, i, opts, &mut |s| match s {
         BuildStage::Assembly => bar.stage("assembling K"),
@@ -75,7 +81,10 @@ pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Ar
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
-    let opts = BuildOptions::for_scene(&scene, !a.no_recompress);
+    let mut opts = BuildOptions::for_scene(&scene, !a.no_recompress);
+    if let Some(gb) = a.max_memory {
+        opts.max_memory = Some(gigabytes_to_bytes(gb)?);
+    }
     let mut reports = Vec::new();
     let mut stdout = std::io::stdout().lock();
     for i in 0..scene.spec.organs.len() {
@@ -151,4 +160,12 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         writeln!(stdout, "{}", serde_json::to_string_pretty(&reports)?)?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--max-memory` in bytes (GB = 10⁹ bytes), refused unless positive.
+pub(crate) fn gigabytes_to_bytes(gb: f64) -> anyhow::Result<u64> {
+    if !(gb.is_finite() && gb > 0.0) {
+        anyhow::bail!("--max-memory must be a positive number of GB, got {gb}");
+    }
+    Ok((gb * 1e9) as u64)
 }
