@@ -81,3 +81,71 @@ fn gravity_integrates_to_weight() {
     let fz: f64 = (0..m.n_nodes()).map(|n| f[3 * n + 2]).sum();
     assert!((fz + 9.81 * mass).abs() < 1e-10 * mass);
 }
+
+/// `kind = "pressure"` in a scene: an eighth of a cube held by rollers on its symmetry planes
+/// (`displacement` loads holding one component each) under a pressure on its three outer
+/// faces is in uniform hydrostatic compression, `ε = −p / 3K` along every axis.
+#[test]
+fn a_scene_pressure_compresses_a_cube_hydrostatically() {
+    let text = r#"[scene]
+name = "pressed"
+[[organs]]
+name = "cube"
+density = 1000.0
+[organs.mesh]
+builtin = "block"
+size = [0.1, 0.1, 0.1]
+divisions = [3, 3, 3]
+cell = "tet4"
+[[organs.materials]]
+model = "linear"
+young = 3000.0
+poisson = 0.3
+[organs.fixed]
+nodes = [0]
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }
+[[organs.loads]]
+kind = "displacement"
+name = "x0"
+region = { half_space = { point = [0.0, 0.0, 0.0], normal = [-1.0, 0.0, 0.0] } }
+x = 0.0
+[[organs.loads]]
+kind = "displacement"
+name = "y0"
+region = { half_space = { point = [0.0, 0.0, 0.0], normal = [0.0, -1.0, 0.0] } }
+y = 0.0
+[[organs.loads]]
+kind = "displacement"
+name = "z0"
+region = { half_space = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, -1.0] } }
+z = 0.0
+[[organs.loads]]
+kind = "pressure"
+region = { half_space = { point = [0.1, 0.0, 0.0], normal = [1.0, 0.0, 0.0] } }
+pressure = 50.0
+[[organs.loads]]
+kind = "pressure"
+region = { half_space = { point = [0.0, 0.1, 0.0], normal = [0.0, 1.0, 0.0] } }
+pressure = 50.0
+[[organs.loads]]
+kind = "pressure"
+region = { half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] } }
+pressure = 50.0
+"#;
+    let scene = vademecum_engine::scene::Scene::from_toml(text, "pressed.toml").unwrap();
+    let m = scene.organ_model(0).unwrap();
+    let sol = vademecum_engine::fem::linear_static::solve(&m.mesh, &m.materials, m.locking, &m.problem, &mut |_| {}).unwrap();
+    let mat = LinearElastic::new(3000.0, 0.3).unwrap();
+    let eps = -50.0 / (3.0 * mat.bulk());
+    for (n, x) in m.mesh.nodes.iter().enumerate() {
+        for i in 0..3 {
+            assert!(
+                (sol.u[3 * n + i] - eps * x[i]).abs() < 1e-9,
+                "node {n} component {i}: {} vs {}",
+                sol.u[3 * n + i],
+                eps * x[i]
+            );
+        }
+    }
+}

@@ -27,8 +27,11 @@ pub struct StaticProblem {
     pub constrained: Vec<bool>,
     /// Prescribed displacement (m) of each constrained degree of freedom (others ignored).
     pub prescribed: Vec<f64>,
-    /// External nodal forces (N).
+    /// External nodal forces (N), pressures included as dead loads on the reference surface.
     pub forces: Vec<f64>,
+    /// The pressure loads (already in `forces` on the reference surface): a large-deformation
+    /// solve makes them follow the deformed surface ([`super::loads::PressureLoad`]).
+    pub pressures: Vec<super::loads::PressureLoad>,
 }
 
 impl StaticProblem {
@@ -38,7 +41,15 @@ impl StaticProblem {
             constrained: vec![false; 3 * n_nodes],
             prescribed: vec![0.0; 3 * n_nodes],
             forces: vec![0.0; 3 * n_nodes],
+            pressures: Vec::new(),
         }
+    }
+
+    /// Adds a pressure load: its reference-surface forces to `forces`, and the load itself for
+    /// a large-deformation solve to follow.
+    pub fn add_pressure(&mut self, mesh: &crate::mesh::Mesh, load: super::loads::PressureLoad) {
+        load.add_forces(mesh, None, 1.0, &mut self.forces);
+        self.pressures.push(load);
     }
 
     /// Fixes all three components of `nodes` at zero.

@@ -147,6 +147,8 @@ struct Model<'a> {
     pattern: Arc<SymmetricPattern>,
     /// The nodal patches under [`Volumetric::Nodal`] on tetrahedra.
     patches: Option<NodalPatches>,
+    /// Follower pressures (their reference-surface forces are in the problem's forces).
+    pressures: &'a [super::loads::PressureLoad],
 }
 
 enum AssembleError {
@@ -154,8 +156,10 @@ enum AssembleError {
 }
 
 impl Model<'_> {
-    /// Energy and internal forces at `u`; with `tangent`, also `K_ff` and `−K_fc Δū_c`.
-    fn assemble(&self, u: &[f64], tangent: bool, delta_prescribed: Option<&[f64]>) -> Result<Assembled, AssembleError> {
+    /// Energy and internal forces at `u`; with `tangent`, also `K_ff` and `−K_fc Δū_c`. Follower
+    /// pressures at load factor `lambda` enter as their change from the reference surface,
+    /// `f_int − λ (f_p(u) − f_p(0))`, and their load stiffness `− λ ∂f_p/∂u` (symmetric part).
+    fn assemble(&self, u: &[f64], lambda: f64, tangent: bool, delta_prescribed: Option<&[f64]>) -> Result<Assembled, AssembleError> {
         let mesh = self.mesh;
         let n = mesh.kind.nodes_per_cell();
         let nd = 3 * n;
@@ -204,6 +208,20 @@ impl Model<'_> {
         }
         if let (Some(nv), Some(patches), Some(k)) = (&nodal, &self.patches, k.as_mut()) {
             nv.scatter_node_terms(mesh, patches, &self.dofs, k, delta_prescribed, &mut predictor);
+        }
+        if lambda != 0.0 {
+            for p in self.pressures {
+                p.add_forces(mesh, Some(u), -lambda, &mut f_int);
+                p.add_forces(mesh, None, lambda, &mut f_int);
+                if let Some(k) = k.as_mut() {
+                    let mut face_eqs = Vec::new();
+                    p.for_each_stiffness(mesh, u, -lambda, |nodes, block| {
+                        face_eqs.clear();
+                        face_eqs.extend(nodes.iter().flat_map(|&n| (0..3).map(move |i| 3 * n + i)).map(|d| self.dofs.eq(d)));
+                        scatter_cell(k, block, nodes, &face_eqs, delta_prescribed, &mut predictor);
+                    });
+                }
+            }
         }
         Ok(Assembled {
             energy,
@@ -347,6 +365,7 @@ pub fn solve(
         dofs,
         pattern,
         patches,
+        pressures: &problem.pressures,
     };
     let nf = model.dofs.n_free();
     let f_ext_f = {
@@ -369,7 +388,7 @@ pub fn solve(
     // the continuation's progress: the load factor at the last real advance, and the cuts since
     let (mut progress_mark, mut cuts_since_progress) = (0.0f64, 0usize);
     let mut last = model
-        .assemble(&u, false, None)
+        .assemble(&u, 0.0, false, None)
         .map_err(|AssembleError::Cell(cell, source)| NonlinearError::Mesh { cell, source })?;
     while lambda < 1.0 {
         let target = (lambda + step).min(1.0);
@@ -385,7 +404,7 @@ pub fn solve(
                     }
                 })
                 .collect();
-            let a = model.assemble(&u, true, Some(&delta)).map_err(cell_err)?;
+            let a = model.assemble(&u, target, true, Some(&delta)).map_err(cell_err)?;
             let mut rhs = a.predictor.clone();
             let mut r0 = vec![0.0; nf];
             model.dofs.restrict(&a.f_int, &mut r0);
@@ -406,7 +425,7 @@ pub fn solve(
             let mut iterations = 0;
             let (mut best, mut since_best) = (f64::INFINITY, 0);
             loop {
-                let a = model.assemble(&ut, true, None).map_err(cell_err)?;
+                let a = model.assemble(&ut, target, true, None).map_err(cell_err)?;
                 let mut r = vec![0.0; nf];
                 model.dofs.restrict(&a.f_int, &mut r);
                 for e in 0..nf {
@@ -453,8 +472,24 @@ pub fn solve(
                             trial[d] += alpha * du[e];
                         }
                     }
-                    match model.assemble(&trial, false, None) {
-                        Ok(t) if potential(t.energy, target, &trial) <= p0 + 1e-4 * alpha * slope || alpha < 1.0 / 64.0 => break trial,
+                    // follower pressures have no potential here: their merit is the residual
+                    let accept = |t: &Assembled| {
+                        if model.pressures.is_empty() {
+                            potential(t.energy, target, &trial) <= p0 + 1e-4 * alpha * slope
+                        } else {
+                            let mut rt = vec![0.0; nf];
+                            model.dofs.restrict(&t.f_int, &mut rt);
+                            let rt: f64 = rt
+                                .iter()
+                                .zip(&f_ext_f)
+                                .map(|(fi, fe)| (target * fe - fi).powi(2))
+                                .sum::<f64>()
+                                .sqrt();
+                            rt <= (1.0 - 1e-4 * alpha) * norm(&r)
+                        }
+                    };
+                    match model.assemble(&trial, target, false, None) {
+                        Ok(t) if accept(&t) || alpha < 1.0 / 64.0 => break trial,
                         Ok(_) | Err(AssembleError::Cell(..)) if alpha >= 1.0 / 1024.0 => alpha /= 2.0,
                         Ok(_) => break trial,
                         Err(e) => return Err(cell_err(e)),
@@ -636,6 +671,51 @@ mod tests {
         );
     }
 
+    /// An eighth of a cube under a uniform follower pressure on its three outer faces (rollers on
+    /// the symmetry planes) compresses uniformly to the exact `J = 1 − p/K` of a decoupled law
+    /// (Cauchy stress `−p I = U'(J) I`); as a dead load on the reference faces it would reach
+    /// `J ≈ 0.761` instead of 0.8 at `p = 0.2 K`.
+    #[test]
+    fn a_follower_pressure_compresses_a_cube_to_the_exact_volume() {
+        use crate::fem::loads::PressureLoad;
+        use crate::mesh::boundary::Boundary;
+        use crate::mesh::procedural::block_hex;
+        let l = 0.01;
+        let m = LinearElastic::new(3000.0, 0.3).unwrap();
+        let law = Hyperelastic::neo_hookean(&m);
+        let kappa = m.bulk();
+        let pressure = 0.2 * kappa;
+        for (mesh, vol) in [
+            (block_hex([0.0; 3], [l; 3], [2, 2, 2]), Volumetric::MeanDilatation),
+            (block_tet([0.0; 3], [l; 3], [2, 2, 2]), Volumetric::Nodal),
+        ] {
+            let mut p = StaticProblem::new(mesh.n_nodes());
+            for (n, x) in mesh.nodes.iter().enumerate() {
+                for i in 0..3 {
+                    if x[i].abs() < 1e-12 {
+                        p.constrained[3 * n + i] = true;
+                    }
+                }
+            }
+            let b = Boundary::of(&mesh);
+            let outer: Vec<usize> = (0..b.faces.len())
+                .filter(|&f| (0..3).any(|i| b.faces[f].node_slice().iter().all(|&n| (mesh.nodes[n][i] - l).abs() < 1e-12)))
+                .collect();
+            p.add_pressure(&mesh, PressureLoad::on(&b, &outer, pressure));
+            let laws = LawMap::uniform(law, mesh.n_cells());
+            let sol = solve(&mesh, &laws, vol, &p, &NewtonParams::default(), |_, _| {}).unwrap();
+            let corner = mesh.nodes.iter().position(|x| x.iter().all(|c| (c - l).abs() < 1e-12)).unwrap();
+            let stretch = 1.0 + sol.u[3 * corner] / l;
+            let j = stretch.powi(3);
+            assert!(
+                (j - (1.0 - pressure / kappa)).abs() < 1e-6,
+                "{:?}: J = {j}, exact {}",
+                mesh.kind,
+                1.0 - pressure / kappa
+            );
+        }
+    }
+
     /// Under the nodal pressure the assembled forces are the gradient of the assembled
     /// energy and the tangent their Jacobian (central differences), with laws that split and
     /// one that does not side by side.
@@ -660,10 +740,11 @@ mod tests {
             pattern: Arc::new(SymmetricPattern::with_patches(&mesh, &dofs, patches.as_ref())),
             dofs,
             patches,
+            pressures: &[],
         };
         let n = mesh.n_dofs();
         let u: Vec<f64> = (0..n).map(|i| 4e-4 * ((i as f64 * 1.3).sin() + 0.2 * (i % 3) as f64)).collect();
-        let a = model.assemble(&u, true, None).ok().unwrap();
+        let a = model.assemble(&u, 1.0, true, None).ok().unwrap();
         let k = a.k.unwrap();
         let fmax = a.f_int.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         let h = 1e-8;
@@ -682,8 +763,8 @@ mod tests {
             up[d] += h;
             um[d] -= h;
             let (p, m) = (
-                model.assemble(&up, false, None).ok().unwrap(),
-                model.assemble(&um, false, None).ok().unwrap(),
+                model.assemble(&up, 1.0, false, None).ok().unwrap(),
+                model.assemble(&um, 1.0, false, None).ok().unwrap(),
             );
             let fd = (p.energy - m.energy) / (2.0 * h);
             assert!((fd - a.f_int[d]).abs() < 1e-5 * fmax, "f[{d}]: {fd} vs {}", a.f_int[d]);

@@ -183,6 +183,11 @@ impl Scene {
                         .err()
                         .map(|_| "invalid region")
                         .or((!finite(traction)).then_some("`traction` must be finite")),
+                    LoadSpec::Pressure { region, pressure } => region
+                        .validate()
+                        .err()
+                        .map(|_| "invalid region")
+                        .or((!pressure.is_finite()).then_some("`pressure` must be finite (Pa)")),
                     LoadSpec::Gravity { acceleration } => (!finite(acceleration)).then_some("`acceleration` must be finite"),
                     LoadSpec::Displacement { region, x, y, z, .. } => {
                         if region.validate().is_err() {
@@ -756,6 +761,13 @@ impl Scene {
                         return Err(empty("traction (no boundary face has all its nodes inside)"));
                     }
                     loads::add_traction(&mut problem.forces, &mesh, &boundary, &faces, *traction);
+                }
+                LoadSpec::Pressure { region, pressure } => {
+                    let faces = region.faces(&mesh, &boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
+                    if faces.is_empty() {
+                        return Err(empty("pressure (no boundary face has all its nodes inside)"));
+                    }
+                    problem.add_pressure(&mesh, loads::PressureLoad::on(&boundary, &faces, *pressure));
                 }
                 LoadSpec::Gravity { acceleration } => {
                     loads::add_body_force(&mut problem.forces, &mesh, &materials, *acceleration)

@@ -186,6 +186,14 @@ pub enum LoadSpec {
         /// Traction vector (Pa).
         traction: [f64; 3],
     },
+    /// A uniform pressure (Pa, positive pushing into the body) on the boundary faces inside a
+    /// region, normal to each face; it follows the deformed surface at large deformations.
+    Pressure {
+        /// The region.
+        region: Region,
+        /// Pressure (Pa).
+        pressure: f64,
+    },
     /// A body acceleration (m/s²), e.g. gravity `[0, 0, -9.81]`.
     Gravity {
         /// Acceleration (m/s²).
