@@ -223,6 +223,22 @@ fn oversized_meshes_are_refused_with_their_size_before_any_allocation() {
     assert!(scene.organ_model_within(0, Some(u64::MAX)).is_ok());
 }
 
+/// A misspelt support key is named, not lost in "no variant matched"; an elastic support
+/// needs a positive stiffness.
+#[test]
+fn bad_supports_name_the_problem() {
+    let supports = GOOD_SCENE.replace(
+        "[organs.fixed]\nbox = { min = [0.0, 0.0, 0.0], max = [0.0, 0.1, 0.1] }",
+        "[[organs.fixed]]\nregion = { box = { min = [0.0, 0.0, 0.0], max = [0.0, 0.1, 0.1] } }\ncomponent = [\"x\"]",
+    );
+    let e = Scene::from_toml(&supports, "s.toml").unwrap_err();
+    assert!(e.to_string().contains("unknown field `component`"), "{e}");
+    let e = Scene::from_toml(&supports.replace("component = [\"x\"]", "stiffness = -1.0"), "s.toml").unwrap_err();
+    assert!(e.to_string().contains("`stiffness` must be positive"), "{e}");
+    assert_eq!(e.key.as_deref(), Some("organs[0].fixed[0]"));
+    Scene::from_toml(&supports.replace("component = [\"x\"]", "components = [\"x\", \"z\"]"), "s.toml").unwrap();
+}
+
 /// `volumetric` only applies to laws with a volumetric part, and the locking-free tetrahedron
 /// only to tetrahedra.
 #[test]

@@ -149,3 +149,64 @@ pressure = 50.0
         }
     }
 }
+
+/// `[[organs.fixed]]` with chosen components and an elastic foundation: a block confined
+/// laterally by rollers on its four sides, resting on a foundation of stiffness k (Pa/m) and
+/// pressed by p on top, is in uniaxial strain: `u_z(z) = −p/k − p z / (λ + 2μ)` — exactly, for
+/// linear elements. The foundation's reaction balances the load, reported under its name.
+#[test]
+fn rollers_and_an_elastic_foundation_give_the_exact_confined_compression() {
+    let text = r#"[scene]
+name = "confined"
+[[organs]]
+name = "block"
+density = 1000.0
+[organs.mesh]
+builtin = "block"
+size = [0.1, 0.1, 0.1]
+divisions = [2, 2, 3]
+[[organs.materials]]
+model = "linear"
+young = 3000.0
+poisson = 0.3
+[[organs.fixed]]
+name = "sides x"
+region = { box = { min = [0.0, -1.0, -1.0], max = [0.0, 1.0, 1.0] } }
+components = ["x"]
+[[organs.fixed]]
+region = { box = { min = [0.1, -1.0, -1.0], max = [0.1, 1.0, 1.0] } }
+components = ["x"]
+[[organs.fixed]]
+region = { box = { min = [-1.0, 0.0, -1.0], max = [1.0, 0.0, 1.0] } }
+components = ["y"]
+[[organs.fixed]]
+region = { box = { min = [-1.0, 0.1, -1.0], max = [1.0, 0.1, 1.0] } }
+components = ["y"]
+[[organs.fixed]]
+name = "bed"
+region = { half_space = { point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, -1.0] } }
+components = ["z"]
+stiffness = 2e4
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }
+[[organs.loads]]
+kind = "pressure"
+region = { half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] } }
+pressure = 30.0
+"#;
+    let scene = vademecum_engine::scene::Scene::from_toml(text, "confined.toml").unwrap();
+    let m = scene.organ_model(0).unwrap();
+    let names: Vec<&str> = m.named_regions.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["sides x", "fixed2", "fixed3", "fixed4", "bed"]);
+    let sol = vademecum_engine::fem::linear_static::solve(&m.mesh, &m.materials, m.locking, &m.problem, &mut |_| {}).unwrap();
+    let mat = LinearElastic::new(3000.0, 0.3).unwrap();
+    let (p, k) = (30.0, 2e4);
+    for (n, x) in m.mesh.nodes.iter().enumerate() {
+        let exact = -p / k - p * x[2] / (mat.lambda() + 2.0 * mat.shear());
+        assert!((sol.u[3 * n + 2] - exact).abs() < 1e-9, "node {n}: {} vs {exact}", sol.u[3 * n + 2]);
+        assert!(sol.u[3 * n].abs() < 1e-12 && sol.u[3 * n + 1].abs() < 1e-12);
+    }
+    let bed = &m.named_regions[4].1;
+    let reaction: f64 = bed.iter().map(|&n| sol.reactions[3 * n + 2]).sum();
+    assert!((reaction - p * 0.01).abs() < 1e-9, "the bed carries {reaction} N of {} N", p * 0.01);
+}

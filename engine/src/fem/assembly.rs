@@ -308,6 +308,17 @@ pub fn assemble_stiffness(
     Ok(k)
 }
 
+/// Adds the nodal springs `springs` (N/m per degree of freedom, full length: an elastic
+/// foundation) to the diagonal of `K_ff`.
+pub fn add_springs(k: &mut SymmetricMatrix, dofs: &DofMap, springs: &[f64]) {
+    for (d, &s) in springs.iter().enumerate() {
+        if let (true, Some(e)) = (s != 0.0, dofs.eq(d)) {
+            let pos = k.pattern.position(e, e).expect("pattern has the diagonal");
+            k.values[pos] += s;
+        }
+    }
+}
+
 /// The nodal patches when `locking` averages the pressure over nodes of a tetrahedral mesh.
 fn nodal_patches(mesh: &Mesh, locking: Locking) -> Result<Option<NodalPatches>, AssemblyError> {
     if locking != Locking::Nodal || mesh.kind != crate::mesh::CellKind::Tet4 {

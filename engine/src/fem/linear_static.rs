@@ -32,6 +32,9 @@ pub struct StaticProblem {
     /// The pressure loads (already in `forces` on the reference surface): a large-deformation
     /// solve makes them follow the deformed surface ([`super::loads::PressureLoad`]).
     pub pressures: Vec<super::loads::PressureLoad>,
+    /// Springs to the ground (N/m per degree of freedom; an elastic foundation), zero where
+    /// there is none.
+    pub springs: Vec<f64>,
 }
 
 impl StaticProblem {
@@ -42,7 +45,14 @@ impl StaticProblem {
             prescribed: vec![0.0; 3 * n_nodes],
             forces: vec![0.0; 3 * n_nodes],
             pressures: Vec::new(),
+            springs: vec![0.0; 3 * n_nodes],
         }
+    }
+
+    /// Whether each degree of freedom is held, rigidly or by a spring (what removes rigid
+    /// motions).
+    pub fn supported(&self) -> Vec<bool> {
+        self.constrained.iter().zip(&self.springs).map(|(&c, &s)| c || s > 0.0).collect()
     }
 
     /// Adds a pressure load: its reference-surface forces to `forces`, and the load itself for
@@ -206,10 +216,11 @@ pub fn solve(
     let n_dofs = mesh.n_dofs();
     assert_eq!(problem.constrained.len(), n_dofs, "problem vectors must have 3 entries per node");
     on_stage(Stage::Check);
-    if !problem.constrained.iter().any(|c| *c) {
+    let supported = problem.supported();
+    if !supported.iter().any(|c| *c) {
         return Err(StaticError::NoConstraints);
     }
-    let free = solve::free_rigid_motions(&mesh.nodes, &problem.constrained);
+    let free = solve::free_rigid_motions(&mesh.nodes, &supported);
     if !free.is_empty() {
         return Err(StaticError::RigidMotion { free });
     }
@@ -225,7 +236,8 @@ pub fn solve(
     let clock = Instant::now();
     let mut rhs = vec![0.0; dofs.n_free()];
     dofs.restrict(&problem.forces, &mut rhs);
-    let k = assembly::assemble_stiffness(mesh, materials, locking, &dofs, pattern.clone(), &problem.prescribed, &mut rhs)?;
+    let mut k = assembly::assemble_stiffness(mesh, materials, locking, &dofs, pattern.clone(), &problem.prescribed, &mut rhs)?;
+    assembly::add_springs(&mut k, &dofs, &problem.springs);
     t.assembly_s = clock.elapsed().as_secs_f64();
 
     on_stage(Stage::Analysis);
@@ -250,18 +262,25 @@ pub fn solve(
     let clock = Instant::now();
     let mut u = vec![0.0; n_dofs];
     dofs.expand(&rhs, &problem.prescribed, &mut u);
-    let f_int = assembly::internal_forces(mesh, materials, locking, &u)?;
+    let mut f_int = assembly::internal_forces(mesh, materials, locking, &u)?;
     let mut reactions = vec![0.0; n_dofs];
     let (mut res2, mut fext2, mut r2) = (0.0, 0.0, 0.0);
     for d in 0..n_dofs {
-        let r = f_int[d] - problem.forces[d];
+        // a spring to the ground carries −k u: the foundation's reaction
+        let spring = problem.springs[d] * u[d];
+        let r = f_int[d] + spring - problem.forces[d];
         if problem.constrained[d] {
             reactions[d] = r;
             r2 += r * r;
         } else {
             res2 += r * r;
             fext2 += problem.forces[d] * problem.forces[d];
+            if spring != 0.0 {
+                reactions[d] = -spring;
+                r2 += spring * spring;
+            }
         }
+        f_int[d] += spring;
     }
     let strain_energy = 0.5 * u.iter().zip(&f_int).map(|(a, b)| a * b).sum::<f64>();
     let stresses = assembly::cell_stresses(mesh, materials, locking, &u)?;

@@ -210,6 +210,27 @@ fn tangents(x: &[[f64; 3]], dxi: &[f64; 4], deta: &[f64; 4]) -> ([f64; 3], [f64;
     (a, b)
 }
 
+/// Adds an elastic foundation of `stiffness` (Pa/m: springs per unit area) on the boundary
+/// faces `faces` to the nodal spring constants `springs` (N/m per degree of freedom) on the
+/// `components`: each node carries the stiffness of its share `∫ N_a dA` of the faces (the
+/// row sum of the consistent face matrix `k ∫ N_a N_b dA`, lumped).
+pub fn add_foundation(springs: &mut [f64], mesh: &Mesh, boundary: &Boundary, faces: &[usize], stiffness: f64, components: &[usize]) {
+    for &fi in faces {
+        let face = boundary.faces[fi].node_slice();
+        let x = face_coords(mesh, face, None);
+        for (n, dxi, deta, w) in face_points(face.len() as u8) {
+            let (a, b) = tangents(&x, &dxi, &deta);
+            let c = cross(a, b);
+            let da = w * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
+            for (k, &node) in face.iter().enumerate() {
+                for &i in components {
+                    springs[3 * node + i] += stiffness * n[k] * da;
+                }
+            }
+        }
+    }
+}
+
 /// Adds the body force of an acceleration field/// Adds the body force of an acceleration field `g` (m/s², e.g. gravity) on every cell.
 /// Returns the total mass (kg).
 pub fn add_body_force(f: &mut [f64], mesh: &Mesh, materials: &MaterialMap, g: [f64; 3]) -> Result<f64, AssemblyError> {

@@ -149,6 +149,8 @@ struct Model<'a> {
     patches: Option<NodalPatches>,
     /// Follower pressures (their reference-surface forces are in the problem's forces).
     pressures: &'a [super::loads::PressureLoad],
+    /// Springs to the ground (N/m per degree of freedom).
+    springs: &'a [f64],
 }
 
 enum AssembleError {
@@ -208,6 +210,16 @@ impl Model<'_> {
         }
         if let (Some(nv), Some(patches), Some(k)) = (&nodal, &self.patches, k.as_mut()) {
             nv.scatter_node_terms(mesh, patches, &self.dofs, k, delta_prescribed, &mut predictor);
+        }
+        // springs to the ground (an elastic foundation): energy ½ k u², force k u, stiffness k
+        for (d, &ks) in self.springs.iter().enumerate() {
+            if ks != 0.0 {
+                energy += 0.5 * ks * u[d] * u[d];
+                f_int[d] += ks * u[d];
+            }
+        }
+        if let Some(k) = k.as_mut() {
+            super::assembly::add_springs(k, &self.dofs, self.springs);
         }
         if lambda != 0.0 {
             for p in self.pressures {
@@ -366,6 +378,7 @@ pub fn solve(
         pattern,
         patches,
         pressures: &problem.pressures,
+        springs: &problem.springs,
     };
     let nf = model.dofs.n_free();
     let f_ext_f = {
@@ -598,7 +611,8 @@ pub fn solve_static(
             if problem.constrained[d] {
                 sol.f_int[d] - problem.forces[d]
             } else {
-                0.0
+                // a spring to the ground carries −k u
+                -problem.springs[d] * sol.u[d]
             }
         })
         .collect();
@@ -718,7 +732,7 @@ mod tests {
 
     /// Under the nodal pressure the assembled forces are the gradient of the assembled
     /// energy and the tangent their Jacobian (central differences), with laws that split and
-    /// one that does not side by side.
+    /// one that does not side by side, and springs to the ground on some degrees of freedom.
     #[test]
     fn nodal_pressure_forces_and_tangent_are_derivatives_of_the_energy() {
         let mesh = block_tet([0.0; 3], [0.02, 0.01, 0.01], [2, 1, 1]);
@@ -733,6 +747,8 @@ mod tests {
         };
         let dofs = DofMap::new(&vec![false; mesh.n_dofs()]);
         let patches = nodal_patches(&mesh, Volumetric::Nodal).unwrap();
+        // an elastic foundation under some nodes: energy ½ k u², its force and stiffness too
+        let springs: Vec<f64> = (0..mesh.n_dofs()).map(|d| if d % 7 == 0 { 50.0 } else { 0.0 }).collect();
         let model = Model {
             mesh: &mesh,
             laws: &laws,
@@ -741,6 +757,7 @@ mod tests {
             dofs,
             patches,
             pressures: &[],
+            springs: &springs,
         };
         let n = mesh.n_dofs();
         let u: Vec<f64> = (0..n).map(|i| 4e-4 * ((i as f64 * 1.3).sin() + 0.2 * (i % 3) as f64)).collect();

@@ -320,7 +320,7 @@ pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(
     let dofs = DofMap::new(&model.problem.constrained);
     let pattern = Arc::new(SymmetricPattern::for_locking(&model.mesh, &dofs, model.locking));
     let mut rhs = vec![0.0; dofs.n_free()];
-    let k = assembly::assemble_stiffness(
+    let mut k = assembly::assemble_stiffness(
         &model.mesh,
         &model.materials,
         model.locking,
@@ -329,6 +329,7 @@ pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(
         &model.problem.prescribed,
         &mut rhs,
     )?;
+    assembly::add_springs(&mut k, &dofs, &model.problem.springs);
     let assembly_s = clock.elapsed().as_secs_f64();
     on(BuildStage::Factorization);
     let clock = Instant::now();
@@ -340,7 +341,7 @@ pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(
 pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dyn FnMut(BuildStage)) -> Result<Built, BuildError> {
     let model = scene.organ_model_within(index, opts.max_memory)?;
     let mesh = &model.mesh;
-    let free = solve::free_rigid_motions(&mesh.nodes, &model.problem.constrained);
+    let free = solve::free_rigid_motions(&mesh.nodes, &model.problem.supported());
     if !free.is_empty() {
         return Err(BuildError::RigidMotion(free));
     }

@@ -357,6 +357,11 @@ pub fn interpolation_study(
         }
     }
     let direction = unit(force).ok_or_else(|| StudyError::Unsupported("the load case has no force".into()))?;
+    if base.springs.iter().any(|&k| k != 0.0) || !base.pressures.is_empty() {
+        return Err(StudyError::Unsupported(
+            "the large-deformation lattice does not take elastic foundations or pressures yet; use rigid supports and point loads".into(),
+        ));
+    }
     progress("tangent stiffness at the origin");
     let dofs = DofMap::new(&base.constrained);
     let pattern = std::sync::Arc::new(SymmetricPattern::build(mesh, &dofs));

@@ -163,9 +163,26 @@ impl Scene {
             for (m, spec) in o.materials.iter().enumerate() {
                 self.validate_material(spec, &at(&[Seg::Key("materials"), Seg::Index(m)]))?;
             }
-            for (key, r) in [("fixed", &o.fixed), ("accessible", &o.accessible)] {
-                if let Err(e) = r.validate() {
-                    return Err(self.error_at(&at(&[Seg::Key(key)]), e.to_string()));
+            if let Err(e) = o.accessible.validate() {
+                return Err(self.error_at(&at(&[Seg::Key("accessible")]), e.to_string()));
+            }
+            let supports = o.fixed.supports();
+            if supports.is_empty() {
+                return Err(self.error_at(&at(&[Seg::Key("fixed")]), "an organ needs at least one support"));
+            }
+            for (k, sup) in supports.iter().enumerate() {
+                let key = match o.fixed {
+                    FixedSpec::Region(_) => at(&[Seg::Key("fixed")]),
+                    FixedSpec::Supports(_) => at(&[Seg::Key("fixed"), Seg::Index(k)]),
+                };
+                if let Err(e) = sup.region.validate() {
+                    return Err(self.error_at(&key, e.to_string()));
+                }
+                if sup.components.as_ref().is_some_and(|c| c.is_empty()) {
+                    return Err(self.error_at(&key, "`components` must name at least one of \"x\", \"y\", \"z\""));
+                }
+                if sup.stiffness.is_some_and(|k| !(k.is_finite() && k > 0.0)) {
+                    return Err(self.error_at(&key, "`stiffness` must be positive (Pa/m: springs per unit area)"));
                 }
             }
             for (l, load) in o.loads.iter().enumerate() {
@@ -708,15 +725,43 @@ impl Scene {
         let warnings = warnings.into_iter().map(|w| format!("organ '{}': {w}", o.name)).collect();
 
         let boundary = Boundary::of(&mesh);
-        let fixed_nodes = o
-            .fixed
-            .nodes(&mesh)
-            .map_err(|e| self.error_at(&base(&[Seg::Key("fixed")]), e.to_string()))?;
-        if fixed_nodes.is_empty() {
-            return Err(self.error_at(
-                &base(&[Seg::Key("fixed")]),
-                format!("the fixed region selects no node of the mesh (bounding box {:?} – {:?}), so the system would be singular; move or enlarge the region", mesh.bounding_box().0, mesh.bounding_box().1),
-            ));
+        let mut problem = StaticProblem::new(mesh.n_nodes());
+        let mut named_regions = Vec::new();
+        for (k, sup) in o.fixed.supports().iter().enumerate() {
+            let key = match o.fixed {
+                FixedSpec::Region(_) => base(&[Seg::Key("fixed")]),
+                FixedSpec::Supports(_) => base(&[Seg::Key("fixed"), Seg::Index(k)]),
+            };
+            let nodes = sup.region.nodes(&mesh).map_err(|e| self.error_at(&key, e.to_string()))?;
+            if nodes.is_empty() {
+                return Err(self.error_at(
+                    &key,
+                    format!("the fixed region selects no node of the mesh (bounding box {:?} – {:?}), so the system would be singular; move or enlarge the region", mesh.bounding_box().0, mesh.bounding_box().1),
+                ));
+            }
+            let components: Vec<usize> = sup
+                .components
+                .as_ref()
+                .map_or(vec![0, 1, 2], |c| c.iter().map(|a| a.index()).collect());
+            match sup.stiffness {
+                None => {
+                    for &i in &components {
+                        problem.prescribe(&nodes, i, 0.0);
+                    }
+                }
+                Some(k) => {
+                    let faces = sup.region.faces(&mesh, &boundary).map_err(|e| self.error_at(&key, e.to_string()))?;
+                    if faces.is_empty() {
+                        return Err(self.error_at(&key, "an elastic foundation needs boundary faces inside its region"));
+                    }
+                    loads::add_foundation(&mut problem.springs, &mesh, &boundary, &faces, k, &components);
+                }
+            }
+            let name = sup
+                .name
+                .clone()
+                .unwrap_or_else(|| if k == 0 { "fixed".into() } else { format!("fixed{}", k + 1) });
+            named_regions.push((name, nodes));
         }
         let accessible_nodes = o
             .accessible
@@ -728,9 +773,6 @@ impl Scene {
                 "the accessible region contains no surface node; tools could touch nothing",
             ));
         }
-        let mut problem = StaticProblem::new(mesh.n_nodes());
-        problem.clamp(&fixed_nodes);
-        let mut named_regions = vec![("fixed".to_string(), fixed_nodes.clone())];
         for (l, load) in o.loads.iter().enumerate() {
             let at = base(&[Seg::Key("loads"), Seg::Index(l)]);
             let region_nodes = |r: &Region| {

@@ -51,8 +51,9 @@ pub struct OrganSpec {
     pub mesh: MeshSpec,
     /// Materials by region (at least one).
     pub materials: Vec<MaterialSpec>,
-    /// Nodes fixed in place (all three components).
-    pub fixed: Region,
+    /// The supports: `[organs.fixed]`, one region held in all three components, or
+    /// `[[organs.fixed]]`, a list of supports that may hold chosen components or be elastic.
+    pub fixed: FixedSpec,
     /// Surface region where tools may touch.
     pub accessible: Region,
     /// Static loads applied by `vademecum solve`.
@@ -62,6 +63,85 @@ pub struct OrganSpec {
     /// `fidelity.solver = "meshless"` and `effects.cutting = true`).
     #[serde(default)]
     pub cuts: Vec<CutSpec>,
+}
+
+/// `fixed`: one region (all components held), or several supports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum FixedSpec {
+    /// `[organs.fixed]`: a region, every component held at zero.
+    Region(Region),
+    /// `[[organs.fixed]]`: several supports.
+    Supports(Vec<SupportSpec>),
+}
+
+impl<'de> Deserialize<'de> for FixedSpec {
+    /// A table is a region, an array of tables a list of supports; the error of the form
+    /// given is reported (not serde's "no variant matched").
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        match toml::Value::deserialize(d)? {
+            v @ toml::Value::Array(_) => Vec::<SupportSpec>::deserialize(v)
+                .map(Self::Supports)
+                .map_err(|e| D::Error::custom(format!("[[organs.fixed]]: {}", e.message()))),
+            v => Region::deserialize(v)
+                .map(Self::Region)
+                .map_err(|e| D::Error::custom(format!("[organs.fixed] must be one region (box, half_space, sphere, group or nodes), or [[organs.fixed]] a list of supports: {}", e.message()))),
+        }
+    }
+}
+
+/// One `[[organs.fixed]]` entry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SupportSpec {
+    /// Name its reaction is reported under (default `fixed`, `fixed2`, …).
+    #[serde(default)]
+    pub name: Option<String>,
+    /// The region.
+    pub region: Region,
+    /// The components it acts on (default all three): `["x"]` is a roller or a symmetry
+    /// plane normal to x.
+    #[serde(default)]
+    pub components: Option<Vec<Axis>>,
+    /// An elastic foundation instead of a rigid support: springs per unit area (Pa/m) on the
+    /// boundary faces of the region, on the chosen components (an organ resting on another).
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+}
+
+/// A coordinate axis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axis {
+    /// x
+    X,
+    /// y
+    Y,
+    /// z
+    Z,
+}
+
+impl Axis {
+    /// 0, 1 or 2.
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl FixedSpec {
+    /// The supports, a single region read as one support of all three components.
+    pub fn supports(&self) -> Vec<SupportSpec> {
+        match self {
+            Self::Region(r) => vec![SupportSpec {
+                name: None,
+                region: r.clone(),
+                components: None,
+                stiffness: None,
+            }],
+            Self::Supports(s) => s.clone(),
+        }
+    }
 }
 
 /// `[[organs.cuts]]`: a cut swept by a straight blade, in the mesh's (reference) coordinates.

@@ -277,6 +277,11 @@ fn solve_meshless(
     progress: &Stages,
 ) -> anyhow::Result<OrganSummary> {
     let name = &model.name;
+    if model.problem.springs.iter().any(|&k| k != 0.0) || !model.problem.pressures.is_empty() {
+        anyhow::bail!(
+            "organ '{name}': the meshless solver takes rigid supports and forces; elastic foundations and pressures need the finite-element solver"
+        );
+    }
     let law = match &model.laws {
         Some(laws) if laws.laws.len() == 1 => laws.laws[0],
         Some(_) => anyhow::bail!("organ '{name}': the meshless solver takes one material per organ"),
