@@ -210,3 +210,75 @@ pressure = 30.0
     let reaction: f64 = bed.iter().map(|&n| sol.reactions[3 * n + 2]).sum();
     assert!((reaction - p * 0.01).abs() < 1e-9, "the bed carries {reaction} N of {} N", p * 0.01);
 }
+
+/// A `force` load's `distribution`: `equal` gives every node of the region the same share;
+/// `surface` and `volume` integrate a uniform traction / density with the shape functions
+/// (on a 2 × 2 face grid, a corner node carries 1/16 of the total, an edge node 2/16, the
+/// centre 4/16). All three carry the whole force.
+#[test]
+fn force_distributions_share_the_total_as_documented() {
+    let scene_with = |distribution: &str| {
+        format!(
+            r#"[scene]
+name = "shared"
+[[organs]]
+name = "block"
+density = 1000.0
+[organs.mesh]
+builtin = "block"
+size = [0.1, 0.1, 0.1]
+divisions = [2, 2, 2]
+[[organs.materials]]
+model = "linear"
+young = 3000.0
+poisson = 0.3
+[organs.fixed]
+half_space = {{ point = [0.0, 0.0, 0.0], normal = [0.0, 0.0, -1.0] }}
+[organs.accessible]
+half_space = {{ point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }}
+[[organs.loads]]
+kind = "force"
+region = {{ half_space = {{ point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }} }}
+force = [0.0, 0.0, -1.6]
+{distribution}
+"#
+        )
+    };
+    let share = |distribution: &str, at: [f64; 3]| -> (f64, f64) {
+        let m = vademecum_engine::scene::Scene::from_toml(&scene_with(distribution), "s.toml")
+            .unwrap()
+            .organ_model(0)
+            .unwrap();
+        let f = &m.problem.forces;
+        let node = m
+            .mesh
+            .nodes
+            .iter()
+            .position(|x| (0..3).all(|i| (x[i] - at[i]).abs() < 1e-12))
+            .unwrap();
+        (f[3 * node + 2], (0..m.mesh.n_nodes()).map(|n| f[3 * n + 2]).sum())
+    };
+    for d in ["", "distribution = \"equal\""] {
+        let (c, total) = share(d, [0.05, 0.05, 0.1]);
+        assert!((c + 1.6 / 9.0).abs() < 1e-12 && (total + 1.6).abs() < 1e-12, "{d}: {c} {total}");
+    }
+    let (centre, total) = share("distribution = \"surface\"", [0.05, 0.05, 0.1]);
+    let (corner, _) = share("distribution = \"surface\"", [0.0, 0.0, 0.1]);
+    assert!((centre + 0.4).abs() < 1e-12 && (corner + 0.1).abs() < 1e-12 && (total + 1.6).abs() < 1e-12);
+    // the region holds only the top layer of nodes: no cell lies in it
+    let e = vademecum_engine::scene::Scene::from_toml(&scene_with("distribution = \"volume\""), "s.toml")
+        .unwrap()
+        .organ_model(0)
+        .unwrap_err();
+    assert!(e.to_string().contains("no cell has all its nodes inside"), "{e}");
+    let whole = scene_with("distribution = \"volume\"").replace(
+        "region = { half_space = { point = [0.0, 0.0, 0.1]",
+        "region = { half_space = { point = [0.0, 0.0, 0.0]",
+    );
+    let m = vademecum_engine::scene::Scene::from_toml(&whole, "s.toml")
+        .unwrap()
+        .organ_model(0)
+        .unwrap();
+    let total: f64 = (0..m.mesh.n_nodes()).map(|n| m.problem.forces[3 * n + 2]).sum();
+    assert!((total + 1.6).abs() < 1e-12, "{total}");
+}

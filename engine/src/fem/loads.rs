@@ -231,6 +231,32 @@ pub fn add_foundation(springs: &mut [f64], mesh: &Mesh, boundary: &Boundary, fac
     }
 }
 
+/// Spreads a total `force` (N) over the cells `cells` as a uniform force density `F / V`,
+/// consistently: node `a` gets `F ∫ N_a dV / V` (for linear cells, the lumped share of each
+/// cell's volume). Returns the loaded volume (m³).
+pub fn add_volume_force(f: &mut [f64], mesh: &Mesh, cells: &[usize], force: [f64; 3]) -> Result<f64, AssemblyError> {
+    let n = mesh.kind.nodes_per_cell();
+    let (mut x, mut share) = (vec![[0.0; 3]; n], vec![0.0; n]);
+    let s = super::element::ElementScratch::default();
+    let mut volume = 0.0;
+    let mut shares = vec![0.0; mesh.n_nodes()];
+    for &c in cells {
+        mesh.cell_coords(c, &mut x);
+        // the lumped mass of unit density is ∫ N_a dV
+        super::element::lumped_mass(mesh.kind, &x, 1.0, &s, &mut share).map_err(|source| AssemblyError { cell: c, source })?;
+        for (a, &node) in mesh.cell(c).iter().enumerate() {
+            shares[node] += share[a];
+            volume += share[a];
+        }
+    }
+    for (node, &w) in shares.iter().enumerate() {
+        if w != 0.0 {
+            add_point_force(f, node, force.map(|c| c * w / volume));
+        }
+    }
+    Ok(volume)
+}
+
 /// Adds the body force of an acceleration field/// Adds the body force of an acceleration field `g` (m/s², e.g. gravity) on every cell.
 /// Returns the total mass (kg).
 pub fn add_body_force(f: &mut [f64], mesh: &Mesh, materials: &MaterialMap, g: [f64; 3]) -> Result<f64, AssemblyError> {

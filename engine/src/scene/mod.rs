@@ -190,7 +190,7 @@ impl Scene {
                 let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
                 let bad = match load {
                     LoadSpec::Point { at, force } => (!finite(at) || !finite(force)).then_some("point loads need finite `at` and `force`"),
-                    LoadSpec::Force { region, force } => region
+                    LoadSpec::Force { region, force, .. } => region
                         .validate()
                         .err()
                         .map(|_| "invalid region")
@@ -790,13 +790,41 @@ impl Scene {
                     let n = nearest_node(&mesh, *p).ok_or_else(|| self.error_at(&at, "the mesh has no nodes"))?;
                     loads::add_point_force(&mut problem.forces, n, *force);
                 }
-                LoadSpec::Force { region, force } => {
-                    let nodes = region_nodes(region)?;
-                    if nodes.is_empty() {
-                        return Err(empty("force"));
+                LoadSpec::Force {
+                    region,
+                    force,
+                    distribution,
+                } => match distribution {
+                    ForceDistribution::Equal => {
+                        let nodes = region_nodes(region)?;
+                        if nodes.is_empty() {
+                            return Err(empty("force"));
+                        }
+                        loads::add_distributed_force(&mut problem.forces, &nodes, *force);
                     }
-                    loads::add_distributed_force(&mut problem.forces, &nodes, *force);
-                }
+                    ForceDistribution::Surface => {
+                        let faces = region.faces(&mesh, &boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
+                        if faces.is_empty() {
+                            return Err(empty("force (no boundary face has all its nodes inside)"));
+                        }
+                        // unit traction first: its integral is the area
+                        let mut unit = vec![0.0; problem.forces.len()];
+                        let area = loads::add_traction(&mut unit, &mesh, &boundary, &faces, [1.0, 0.0, 0.0]);
+                        loads::add_traction(&mut problem.forces, &mesh, &boundary, &faces, force.map(|f| f / area));
+                    }
+                    ForceDistribution::Volume => {
+                        let nodes = region_nodes(region)?;
+                        let inside: std::collections::HashSet<usize> = nodes.into_iter().collect();
+                        let cells: Vec<usize> = (0..mesh.n_cells())
+                            .filter(|&c| mesh.cell(c).iter().all(|n| inside.contains(n)))
+                            .collect();
+                        if cells.is_empty() {
+                            return Err(empty("force (no cell has all its nodes inside)"));
+                        }
+                        loads::add_volume_force(&mut problem.forces, &mesh, &cells, *force)
+                            .map_err(|e| self.error_at(&at, e.to_string()))?;
+                    }
+                },
                 LoadSpec::Traction { region, traction } => {
                     let faces = region.faces(&mesh, &boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
                     if faces.is_empty() {

@@ -144,6 +144,22 @@ impl FixedSpec {
     }
 }
 
+/// How a `force` load shares its total over its region.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ForceDistribution {
+    /// An equal share per node (simple; not consistent with the shape functions on an uneven
+    /// mesh: a node with little area around it gets as much as one with much).
+    #[default]
+    Equal,
+    /// A uniform traction `F / A` on the boundary faces of the region, integrated with the
+    /// shape functions.
+    Surface,
+    /// A uniform force density `F / V` in the cells of the region, integrated with the shape
+    /// functions (`∫ N_a dV`, exact for linear cells).
+    Volume,
+}
+
 /// `[[organs.cuts]]`: a cut swept by a straight blade, in the mesh's (reference) coordinates.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -252,12 +268,17 @@ pub enum LoadSpec {
         /// Force (N).
         force: [f64; 3],
     },
-    /// A total force (N) spread equally over the nodes of a region.
+    /// A total force (N) over a region, distributed as `distribution` says.
     Force {
         /// The region.
         region: Region,
         /// Total force (N).
         force: [f64; 3],
+        /// How it is shared: `equal` (per node; the default), `surface` (a uniform traction
+        /// on the region's boundary faces, consistent) or `volume` (a uniform force density
+        /// in the cells whose nodes all lie in the region, consistent).
+        #[serde(default)]
+        distribution: ForceDistribution,
     },
     /// A uniform traction (Pa) on the boundary faces inside a region.
     Traction {
