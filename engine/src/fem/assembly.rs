@@ -149,7 +149,7 @@ impl SymmetricPattern {
     /// ([`NodalPatches::couplings`]). Degenerate cells fall back to the narrow pattern (the
     /// assembly then reports them).
     pub fn for_locking(mesh: &Mesh, dofs: &DofMap, locking: Locking) -> Self {
-        let patches = (locking == Locking::Nodal).then(|| NodalPatches::new(mesh).ok()).flatten();
+        let patches = NodalPatches::when(mesh, locking == Locking::Nodal).ok().flatten();
         Self::with_patches(mesh, dofs, patches.as_ref())
     }
 
@@ -321,15 +321,12 @@ pub fn add_springs(k: &mut SymmetricMatrix, dofs: &DofMap, springs: &[f64]) {
 
 /// The nodal patches when `locking` averages the pressure over nodes of a tetrahedral mesh.
 fn nodal_patches(mesh: &Mesh, locking: Locking) -> Result<Option<NodalPatches>, AssemblyError> {
-    if locking != Locking::Nodal || mesh.kind != crate::mesh::CellKind::Tet4 {
-        return Ok(None);
-    }
-    NodalPatches::new(mesh).map(Some).map_err(|e| match e {
+    NodalPatches::when(mesh, locking == Locking::Nodal).map_err(|e| match e {
         PatchError::Degenerate { cell, volume } => AssemblyError {
             cell,
             source: ElementError::NonPositiveJacobian { det: 6.0 * volume },
         },
-        PatchError::NotTetrahedra => unreachable!("checked above"),
+        PatchError::NotTetrahedra => unreachable!("`when` builds patches of tetrahedra only"),
     })
 }
 

@@ -373,7 +373,7 @@ pub fn cauchy_at_centre(
 }
 
 /// `F = I + Σ_a u_a ⊗ G_a` from nodal displacements `u` (flat) and reference gradients `g`.
-fn deformation_gradient(u: &[f64], g: &[[f64; 3]]) -> Matrix3<f64> {
+pub(crate) fn deformation_gradient(u: &[f64], g: &[[f64; 3]]) -> Matrix3<f64> {
     let mut f = Matrix3::<f64>::identity();
     for (a, ga) in g.iter().enumerate() {
         for i in 0..3 {

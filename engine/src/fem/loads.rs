@@ -14,6 +14,7 @@
 use super::assembly::{self, AssemblyError, MaterialMap};
 use crate::mesh::Mesh;
 use crate::mesh::boundary::{Boundary, triangle_area_normal};
+use nalgebra::Vector3;
 
 /// Adds `force` (N) to node `node` of the full force vector `f`.
 pub fn add_point_force(f: &mut [f64], node: usize, force: [f64; 3]) {
@@ -108,10 +109,6 @@ fn face_points(len: u8) -> Vec<([f64; 4], [f64; 4], [f64; 4], f64)> {
         .to_vec()
 }
 
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
 /// A uniform pressure on boundary faces (their nodes, outward order): a dead load on the
 /// reference surface at small strains, a follower load on the deformed surface at large ones.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -138,7 +135,7 @@ impl PressureLoad {
             let x = face_coords(mesh, face, u);
             for (n, dxi, deta, w) in face_points(face.len() as u8) {
                 let (a, b) = tangents(&x, &dxi, &deta);
-                let c = cross(a, b);
+                let c = Vector3::from(a).cross(&Vector3::from(b));
                 for (k, &node) in face.iter().enumerate() {
                     for i in 0..3 {
                         f[3 * node + i] -= scale * self.pressure * w * n[k] * c[i];
@@ -167,10 +164,7 @@ impl PressureLoad {
                 for k in 0..m {
                     for l in 0..m {
                         let s = -scale * self.pressure * w * n[k];
-                        let mat = |v: [f64; 3], c: f64| -> [[f64; 3]; 3] {
-                            [[0.0, -c * v[2], c * v[1]], [c * v[2], 0.0, -c * v[0]], [-c * v[1], c * v[0], 0.0]]
-                        };
-                        let (mb, ma) = (mat(b, -dxi[l]), mat(a, deta[l]));
+                        let (mb, ma) = (skew(b, -dxi[l]), skew(a, deta[l]));
                         for i in 0..3 {
                             for j in 0..3 {
                                 let v = s * (mb[i][j] + ma[i][j]);
@@ -185,6 +179,11 @@ impl PressureLoad {
             visit(face, &block);
         }
     }
+}
+
+/// `c [v]×`, the matrix with `[v]× δ = v × δ`.
+fn skew(v: [f64; 3], c: f64) -> [[f64; 3]; 3] {
+    [[0.0, -c * v[2], c * v[1]], [c * v[2], 0.0, -c * v[0]], [-c * v[1], c * v[0], 0.0]]
 }
 
 fn face_coords(mesh: &Mesh, face: &[usize], u: Option<&[f64]>) -> Vec<[f64; 3]> {
@@ -220,7 +219,7 @@ pub fn add_foundation(springs: &mut [f64], mesh: &Mesh, boundary: &Boundary, fac
         let x = face_coords(mesh, face, None);
         for (n, dxi, deta, w) in face_points(face.len() as u8) {
             let (a, b) = tangents(&x, &dxi, &deta);
-            let c = cross(a, b);
+            let c = Vector3::from(a).cross(&Vector3::from(b));
             let da = w * (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
             for (k, &node) in face.iter().enumerate() {
                 for &i in components {

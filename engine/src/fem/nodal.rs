@@ -36,10 +36,10 @@
 //! for incompressible and nearly incompressible dynamic explicit applications*, Commun.
 //! Numer. Meth. Engng 14 (1998) 437–449.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
 use super::assembly::{DofMap, SymmetricMatrix, scatter_cell};
-use super::hyperelastic::{CellError, LawMap, Volumetric};
+use super::hyperelastic::{CellError, LawMap, Volumetric, deformation_gradient};
 use super::shape;
 use crate::mesh::{CellKind, Mesh};
 
@@ -131,6 +131,16 @@ impl NodalPatches {
             volume,
             cell_volume,
         })
+    }
+
+    /// The patches of `mesh` when `wanted` and the mesh is tetrahedral, else none (hexahedra
+    /// take the mean dilatation instead).
+    pub fn when(mesh: &Mesh, wanted: bool) -> Result<Option<Self>, PatchError> {
+        if wanted && mesh.kind == CellKind::Tet4 {
+            Self::new(mesh).map(Some)
+        } else {
+            Ok(None)
+        }
     }
 
     /// Cells around node `a`.
@@ -302,14 +312,11 @@ impl NodalVolumes {
             }
             mesh.cell_coords(c, &mut x);
             shape::physical_gradients(&x, &shape::TET_DN, &mut g);
-            let mut f = Matrix3::<f64>::identity();
+            let mut ue = [0.0; 12];
             for (k, &b) in cell.iter().enumerate() {
-                for i in 0..3 {
-                    for j in 0..3 {
-                        f[(i, j)] += u[3 * b + i] * g[k][j];
-                    }
-                }
+                ue[3 * k..3 * k + 3].copy_from_slice(&u[3 * b..3 * b + 3]);
             }
+            let f = deformation_gradient(&ue, &g);
             let det_f = f.determinant();
             let fit = match f.try_inverse() {
                 Some(inv) if det_f.is_finite() && det_f > 0.0 => inv.transpose(),

@@ -246,10 +246,7 @@ impl Model<'_> {
 
 /// The nodal patches when `volumetric` averages over nodes of a tetrahedral mesh.
 fn nodal_patches(mesh: &Mesh, volumetric: Volumetric) -> Result<Option<NodalPatches>, NonlinearError> {
-    if volumetric != Volumetric::Nodal || mesh.kind != crate::mesh::CellKind::Tet4 {
-        return Ok(None);
-    }
-    NodalPatches::new(mesh).map(Some).map_err(|e| match e {
+    NodalPatches::when(mesh, volumetric == Volumetric::Nodal).map_err(|e| match e {
         PatchError::Degenerate { cell, volume } => NonlinearError::Mesh {
             cell,
             source: CellError::Reference { det: 6.0 * volume },
@@ -302,15 +299,7 @@ fn smallest_det_f(mesh: &Mesh, u: &[f64]) -> Option<(f64, usize)> {
             ue[3 * a..3 * a + 3].copy_from_slice(&u[3 * node..3 * node + 3]);
         }
         let _ = hyperelastic::for_each_point(mesh.kind, &x, &mut s, |_, g| {
-            let mut f = nalgebra::Matrix3::<f64>::identity();
-            for (a, ga) in g.iter().enumerate() {
-                for i in 0..3 {
-                    for j in 0..3 {
-                        f[(i, j)] += ue[3 * a + i] * ga[j];
-                    }
-                }
-            }
-            let d = f.determinant();
+            let d = hyperelastic::deformation_gradient(&ue, g).determinant();
             if best.is_none_or(|(b, _)| d < b) {
                 best = Some((d, c));
             }

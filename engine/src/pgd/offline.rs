@@ -72,7 +72,7 @@ impl BuildOptions {
                     modes: l.modes,
                 }
             }),
-            max_memory: crate::solve::memory::available_bytes(),
+            max_memory: None,
         }
     }
 }

@@ -807,10 +807,12 @@ impl Scene {
                         if faces.is_empty() {
                             return Err(empty("force (no boundary face has all its nodes inside)"));
                         }
-                        // unit traction first: its integral is the area
-                        let mut unit = vec![0.0; problem.forces.len()];
-                        let area = loads::add_traction(&mut unit, &mesh, &boundary, &faces, [1.0, 0.0, 0.0]);
-                        loads::add_traction(&mut problem.forces, &mesh, &boundary, &faces, force.map(|f| f / area));
+                        // a unit traction's nodal shares ∫ N_a dA, and their sum, the area
+                        let mut share = vec![0.0; problem.forces.len()];
+                        let area = loads::add_traction(&mut share, &mesh, &boundary, &faces, [1.0, 0.0, 0.0]);
+                        for n in 0..mesh.n_nodes() {
+                            loads::add_point_force(&mut problem.forces, n, force.map(|f| f * share[3 * n] / area));
+                        }
                     }
                     ForceDistribution::Volume => {
                         let nodes = region_nodes(region)?;

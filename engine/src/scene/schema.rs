@@ -127,6 +127,11 @@ impl Axis {
     pub fn index(self) -> usize {
         self as usize
     }
+
+    /// `x`, `y` or `z`, as scenes write it.
+    pub fn name(self) -> &'static str {
+        ["x", "y", "z"][self.index()]
+    }
 }
 
 impl FixedSpec {

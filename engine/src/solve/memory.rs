@@ -27,21 +27,8 @@ pub fn estimate_solve_bytes(mesh: &Mesh, wide: bool) -> u64 {
     (BYTES_PER_N43 * kind * n.powf(4.0 / 3.0) + 1024.0 * mesh.n_cells() as f64) as u64
 }
 
-/// The memory the kernel says is available for a new allocation without swapping
-/// (`MemAvailable` of `/proc/meminfo`), when it says.
-pub fn available_bytes() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    mem_available(&text)
-}
-
-fn mem_available(meminfo: &str) -> Option<u64> {
-    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
-/// Refuses a solve whose estimate exceeds `limit` bytes (e.g. [`available_bytes`], or a
-/// user's `--max-memory`), with both figures in the message.
+/// Refuses a solve whose estimate exceeds `limit` bytes (the memory the system has
+/// available, or a user's `--max-memory`), with both figures in the message.
 pub fn check(mesh: &Mesh, wide: bool, limit: u64) -> Result<(), String> {
     let need = estimate_solve_bytes(mesh, wide);
     if need > limit {
@@ -77,12 +64,5 @@ mod tests {
         assert!(estimate_solve_bytes(&tets, true) > estimate_solve_bytes(&tets, false));
         let e = check(&block_hex([0.0; 3], [1.0; 3], [40, 40, 40]), false, 1_000_000_000).unwrap_err();
         assert!(e.contains("needs about") && e.contains("1.0 GB allowed"), "{e}");
-    }
-
-    #[test]
-    fn mem_available_is_read_from_meminfo() {
-        let text = "MemTotal:        8000000 kB\nMemFree:          100000 kB\nMemAvailable:    6000000 kB\n";
-        assert_eq!(mem_available(text), Some(6_000_000 * 1024));
-        assert_eq!(mem_available("MemTotal: 1 kB\n"), None);
     }
 }

@@ -68,7 +68,11 @@ pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Ar
             }
         };
         eprintln!("vademecum: building the vademecum of '{name}' ({reason})");
-        let (built, bar) = build_with_progress(scene, i, &BuildOptions::for_scene(scene, true))?;
+        let opts = BuildOptions {
+            max_memory: memory_limit(None)?,
+            ..BuildOptions::for_scene(scene, true)
+        };
+        let (built, bar) = build_with_progress(scene, i, &opts)?;
         bar.stage("writing bundle");
         offline::write_bundle(&path, scene, &built).with_context(|| format!("cannot write bundle {}", path.display()))?;
         bar.finish();
@@ -81,10 +85,10 @@ pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Ar
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
-    let mut opts = BuildOptions::for_scene(&scene, !a.no_recompress);
-    if let Some(gb) = a.max_memory {
-        opts.max_memory = Some(gigabytes_to_bytes(gb)?);
-    }
+    let opts = BuildOptions {
+        max_memory: memory_limit(a.max_memory)?,
+        ..BuildOptions::for_scene(&scene, !a.no_recompress)
+    };
     let mut reports = Vec::new();
     let mut stdout = std::io::stdout().lock();
     for i in 0..scene.spec.organs.len() {
@@ -162,10 +166,35 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `--max-memory` in bytes (GB = 10⁹ bytes), refused unless positive.
-pub(crate) fn gigabytes_to_bytes(gb: f64) -> anyhow::Result<u64> {
-    if !(gb.is_finite() && gb > 0.0) {
-        anyhow::bail!("--max-memory must be a positive number of GB, got {gb}");
+/// The memory a solve may use (bytes): `--max-memory` (GB = 10⁹ bytes, refused unless
+/// positive), else what the kernel says is available (`MemAvailable` of `/proc/meminfo`), else
+/// no limit.
+pub(crate) fn memory_limit(max_memory_gb: Option<f64>) -> anyhow::Result<Option<u64>> {
+    match max_memory_gb {
+        Some(gb) if gb.is_finite() && gb > 0.0 => Ok(Some((gb * 1e9) as u64)),
+        Some(gb) => anyhow::bail!("--max-memory must be a positive number of GB, got {gb}"),
+        None => Ok(std::fs::read_to_string("/proc/meminfo").ok().and_then(|t| mem_available(&t))),
     }
-    Ok((gb * 1e9) as u64)
+}
+
+/// `MemAvailable` of a `/proc/meminfo` text, in bytes.
+fn mem_available(meminfo: &str) -> Option<u64> {
+    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_memory_limit_is_the_option_or_what_meminfo_says() {
+        let text = "MemTotal:        8000000 kB\nMemFree:          100000 kB\nMemAvailable:    6000000 kB\n";
+        assert_eq!(mem_available(text), Some(6_000_000 * 1024));
+        assert_eq!(mem_available("MemTotal: 1 kB\n"), None);
+        assert_eq!(memory_limit(Some(2.5)).unwrap(), Some(2_500_000_000));
+        assert!(memory_limit(Some(-1.0)).unwrap_err().to_string().contains("positive"));
+        assert!(memory_limit(Some(f64::NAN)).is_err());
+    }
 }

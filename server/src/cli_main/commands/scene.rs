@@ -29,9 +29,10 @@ pub fn run(c: SceneCommand) -> anyhow::Result<ExitCode> {
                     .iter()
                     .zip(&m.named_regions)
                     .map(|(sup, (name, nodes))| {
-                        let held = sup.components.as_ref().map_or("x, y, z".to_string(), |c| {
-                            c.iter().map(|a| format!("{a:?}").to_lowercase()).collect::<Vec<_>>().join(", ")
-                        });
+                        let held = sup
+                            .components
+                            .as_ref()
+                            .map_or("x, y, z".to_string(), |c| c.iter().map(|a| a.name()).collect::<Vec<_>>().join(", "));
                         match sup.stiffness {
                             Some(k) => format!("{name}: {} nodes on a foundation of {k} Pa/m ({held})", nodes.len()),
                             None => format!("{name}: {} nodes ({held} held)", nodes.len()),

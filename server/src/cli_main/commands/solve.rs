@@ -98,10 +98,7 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create output folder {}", out.display()))?;
-    let max_memory = match a.max_memory {
-        Some(gb) => Some(super::build::gigabytes_to_bytes(gb)?),
-        None => vademecum_engine::solve::memory::available_bytes(),
-    };
+    let max_memory = super::build::memory_limit(a.max_memory)?;
     let mut organs = Vec::new();
     for i in 0..scene.spec.organs.len() {
         let name = scene.spec.organs[i].name.clone();
