@@ -14,6 +14,7 @@
 //!   the asymptotic numerical method).
 //! - [`pipeline`]: one simulation tick — tool state → contact → the scene's effects → force.
 //! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
+//! - [`xfem`]: cutting by XFEM (cracking nodes, shifted Heaviside): the full-order reference.
 //! - [`bundle`]: the on-disk form of built vademecums (manifest + `.npy` + checksums).
 //! - [`scene`]: scene files (TOML), their validation, and the static problem they describe.
 //!
@@ -34,3 +35,4 @@ pub mod pipeline;
 pub mod rom;
 pub mod scene;
 pub mod solve;
+pub mod xfem;

@@ -163,7 +163,7 @@ impl SymmetricPattern {
     }
 
     /// The pattern coupling every node with the nodes of its sorted list `adj[node]`.
-    fn from_adjacency(adj: &[Vec<usize>], dofs: &DofMap) -> Self {
+    pub(crate) fn from_adjacency(adj: &[Vec<usize>], dofs: &DofMap) -> Self {
         let nn = adj.len();
         let n = dofs.n_free();
         let mut col_ptr = Vec::with_capacity(n + 1);

@@ -90,7 +90,7 @@ impl Default for ElementScratch {
 /// Adds `w · [κ a_i b_j]` (volumetric, if `vol`) and `w · μ(a_j b_i + δ_ij a·b − ⅔ a_i b_j)`
 /// (deviatoric, if `dev`) for all node pairs into `ke`.
 #[inline]
-fn add_terms(ke: &mut [f64], n: usize, g: &[[f64; 3]], w: f64, kappa: f64, mu: f64, vol: bool, dev: bool) {
+pub(crate) fn add_terms(ke: &mut [f64], n: usize, g: &[[f64; 3]], w: f64, kappa: f64, mu: f64, vol: bool, dev: bool) {
     let nd = 3 * n;
     for a in 0..n {
         let ga = g[a];

@@ -1,0 +1,22 @@
+//! Cutting by the extended finite element method (seed 000 chapter 3): Heaviside-enriched
+//! nodes around a cut, in the cracking-node form, on tetrahedra and hexahedra.
+//!
+//! `u = u_cont + u_disc`: the continuous part on the standard shape functions (or, online, on
+//! the PGD modes), the discontinuous part `Σ_{I∈S} N_I(x) H̃_I(x) q_I` on the nodes `S` a cut
+//! has cracked, with the shifted Heaviside `H̃_I(x) = H(φ_I(x)) − H(φ_I(x_I))` (seed 003
+//! Eqs. 4–6), which vanishes at the node so that `u_a` stays the displacement of node a.
+//!
+//! # Layout
+//! - [`subcell`]: cut planes, splitting a cell into sub-tetrahedra on each side, quadrature.
+//! - [`enrichment`]: from the swept blade surface to cut cells and cracked nodes (one plane per
+//!   node, the cracking-node method), the sliver rule.
+//! - [`system`]: the full-order XFEM system (the reference of the reduced online models), its
+//!   detached pieces, and the static solve.
+
+pub mod enrichment;
+pub mod subcell;
+pub mod system;
+
+pub use enrichment::{Detached, Enrichment, EnrichmentError, XfemParams};
+pub use subcell::Plane;
+pub use system::{XfemError, XfemSolution};

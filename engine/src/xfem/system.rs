@@ -1,0 +1,494 @@
+//! The full-order XFEM system: assembly over standard and enriched degrees of freedom, the
+//! detection of pieces the cuts have set loose, and the static solve.
+//!
+//! # Unknowns
+//! `u(x) = Σ_a N_a(x) u_a + Σ_{I∈S} N_I(x) [H(φ_I(x)) − H(φ_I(x_I))] q_I` (seed 000 Eq. 3.3 with
+//! the shifted Heaviside of seed 003 Eqs. 4–6): the standard nodal values `u_a` are the
+//! displacements at the nodes, and `q_I` is the jump of node I's other side. Degrees of
+//! freedom are numbered as *generalized nodes*: `0..n` the mesh nodes, `n + k` the k-th
+//! enriched node — so the sparsity pattern, the Dirichlet elimination and the sparse Cholesky
+//! of the standard solver apply unchanged.
+//!
+//! # Cell matrices
+//! A cell with no enriched node has its usual stiffness. A cell with enriched nodes is
+//! integrated on its sub-tetrahedra ([`super::subcell`]): on each, every enriched function is
+//! the node's shape function times a constant `s ∈ {−1, 0, 1}`, so the cell matrix over its
+//! `n + k` generalized nodes is the usual bilinear form of the generalized gradients
+//! `[∇N_1 … ∇N_n, s_1 ∇N_{I_1} … s_k ∇N_{I_k}]`. With B̄ (hexahedra), the mean dilatation is
+//! taken on each side of the cut separately (each side is its own piece of material).
+//!
+//! # Boundary conditions
+//! A node held on a Dirichlet boundary holds both lips of a cut through it: its enriched
+//! degrees of freedom are held at zero jump. Springs act on the standard degrees of freedom.
+//!
+//! # Detached pieces
+//! Each side of each node is a *copy*: `(a, own side)` is generalized node `a`, `(I, other
+//! side)` is generalized node `n + k`. Copies that share a sub-cell of positive volume belong
+//! to the same piece of material (union–find over all cells). A piece whose supports do not
+//! remove its six rigid motions would make the stiffness singular: it is held by a soft
+//! foundation of stiffness `E·h` on every copy (and, with [`Detached::Remove`], its loads are
+//! dropped), and reported.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use super::enrichment::{Detached, Enrichment, XfemParams};
+use super::subcell;
+use crate::fem::assembly::{self, AssemblyError, DofMap, MaterialMap, SymmetricMatrix, SymmetricPattern};
+use crate::fem::element::{self, ElementError, ElementScratch, Locking};
+use crate::fem::linear_static::{StaticError, StaticProblem};
+use crate::fem::shape;
+use crate::material::LinearElastic;
+use crate::mesh::{CellKind, Mesh};
+use crate::solve::{self, Cholesky, SolveError};
+
+/// Why an XFEM solve failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum XfemError {
+    /// The uncut problem is not well posed (no supports, a free rigid motion).
+    #[error(transparent)]
+    Problem(#[from] StaticError),
+    /// A cell could not be integrated.
+    #[error(transparent)]
+    Assembly(#[from] AssemblyError),
+    /// The factorization failed.
+    #[error(transparent)]
+    Solve(#[from] SolveError),
+    /// The solution is not finite.
+    #[error("the XFEM solution contains non-finite values")]
+    NonFinite,
+}
+
+/// A piece of material that no support holds after the cut.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Piece {
+    /// Its copies (generalized nodes: `a < n` a mesh node's own side, `n + k` the other side of
+    /// the k-th enriched node).
+    pub copies: Vec<usize>,
+    /// The rigid motions its supports left free.
+    pub free: Vec<String>,
+    /// What was done with it.
+    pub action: Detached,
+}
+
+/// The result of an XFEM static solve.
+#[derive(Debug, Clone, PartialEq)]
+pub struct XfemSolution {
+    /// Standard displacements (3 per mesh node): the displacement at each node.
+    pub u: Vec<f64>,
+    /// Enriched amplitudes (3 per enriched node): the jump to the node's other side.
+    pub q: Vec<f64>,
+    /// Pieces no support held.
+    pub detached: Vec<Piece>,
+    /// Free equations.
+    pub n_free: usize,
+    /// Stored entries of the factorized matrix (lower triangle).
+    pub nnz: usize,
+    /// `‖K x − f‖ / ‖f‖` over the free equations.
+    pub residual: f64,
+    /// Things the user should know (locking options that do not apply to cut cells).
+    pub warnings: Vec<String>,
+    /// Wall time of assembly, factorization and solve (s).
+    pub seconds: f64,
+}
+
+impl XfemSolution {
+    /// The displacement of `node`'s side `positive` of its plane (its own displacement when it
+    /// is not enriched or `positive` is its own side).
+    pub fn side_displacement(&self, enr: &Enrichment, node: usize, positive: bool) -> [f64; 3] {
+        let mut d = [self.u[3 * node], self.u[3 * node + 1], self.u[3 * node + 2]];
+        if let Some(k) = enr.index(node) {
+            let s = enr.shifted(k, positive);
+            for i in 0..3 {
+                d[i] += s * self.q[3 * k + i];
+            }
+        }
+        d
+    }
+}
+
+/// The locking option applied to XFEM cells: B̄ on hexahedra (per side of a cut), plain
+/// integration on tetrahedra (the averaged nodal pressure is not extended to enriched degrees
+/// of freedom yet). Returns whether B̄ applies, and a warning when `locking` was changed.
+pub fn effective_locking(kind: CellKind, locking: Locking) -> (bool, Option<String>) {
+    match (kind, locking) {
+        (CellKind::Hex8, Locking::Bbar) => (true, None),
+        (CellKind::Hex8, Locking::None) | (CellKind::Tet4, Locking::None | Locking::Bbar | Locking::Sri) => (false, None),
+        (CellKind::Hex8, other) => (
+            true,
+            Some(format!("locking '{other:?}' is replaced by per-side B-bar in the XFEM model")),
+        ),
+        (CellKind::Tet4, Locking::Nodal) => (
+            false,
+            Some(
+                "the averaged nodal pressure is not extended to cut tetrahedra: the XFEM model uses plain tet4 (it locks as nu -> 1/2)"
+                    .into(),
+            ),
+        ),
+    }
+}
+
+/// The generalized cell of cell `c`: its nodes, then `n_nodes + k` for each enriched node `k`
+/// among them; and the local index of each enriched node.
+pub fn generalized_cell(mesh: &Mesh, enr: &Enrichment, c: usize, cell_nodes: &mut Vec<usize>, local: &mut Vec<(usize, usize)>) {
+    cell_nodes.clear();
+    local.clear();
+    let cell = mesh.cell(c);
+    cell_nodes.extend_from_slice(cell);
+    for (a, &node) in cell.iter().enumerate() {
+        if let Some(k) = enr.index(node) {
+            local.push((a, k));
+            cell_nodes.push(mesh.n_nodes() + k);
+        }
+    }
+}
+
+/// One side of the cut inside a cell: its volume and which copies it holds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CellSide {
+    /// Physical volume.
+    pub volume: f64,
+    /// The shifted Heaviside of each enriched node of the cell on this side.
+    pub shifts: Vec<f64>,
+}
+
+/// The stiffness of a cell with enriched nodes over its generalized nodes (module docs), row-
+/// major `(3(n+k))²` into `ke`; returns the cell's sides.
+pub fn enriched_cell_stiffness(
+    kind: CellKind,
+    x: &[[f64; 3]],
+    enr: &Enrichment,
+    local: &[(usize, usize)],
+    mat: &LinearElastic,
+    bbar: bool,
+    ke: &mut Vec<f64>,
+) -> Result<Vec<CellSide>, ElementError> {
+    let n = kind.nodes_per_cell();
+    let ng = n + local.len();
+    ke.clear();
+    ke.resize(9 * ng * ng, 0.0);
+    let mut planes: Vec<subcell::Plane> = Vec::new();
+    let plane_of: Vec<usize> = local
+        .iter()
+        .map(|&(_, k)| {
+            let p = enr.planes[k];
+            planes.iter().position(|q| *q == p).unwrap_or_else(|| {
+                planes.push(p);
+                planes.len() - 1
+            })
+        })
+        .collect();
+    let (kappa, mu) = (mat.bulk(), mat.shear());
+    let mut sides: Vec<CellSide> = Vec::new();
+    let mut gsum: Vec<Vec<[f64; 3]>> = Vec::new();
+    let mut dn = [[0.0; 3]; 8];
+    let mut grad = [[0.0; 3]; 8];
+    let mut g = vec![[0.0; 3]; ng];
+    let mut bad = None;
+    for t in subcell::split(kind, x, &planes) {
+        let shifts: Vec<f64> = local
+            .iter()
+            .zip(&plane_of)
+            .map(|(&(_, k), &p)| enr.shifted(k, (t.sides >> p) & 1 == 1))
+            .collect();
+        let side = match sides.iter().position(|s| s.shifts == shifts) {
+            Some(i) => i,
+            None => {
+                sides.push(CellSide {
+                    volume: 0.0,
+                    shifts: shifts.clone(),
+                });
+                gsum.push(vec![[0.0; 3]; ng]);
+                sides.len() - 1
+            }
+        };
+        subcell::quadrature(kind, &t, |xi, w| {
+            subcell::reference_gradients(kind, xi, &mut dn);
+            let det = shape::physical_gradients(x, &dn[..n], &mut grad[..n]);
+            if det <= 0.0 {
+                bad = Some(det);
+                return;
+            }
+            g[..n].copy_from_slice(&grad[..n]);
+            for (j, &(a, _)) in local.iter().enumerate() {
+                g[n + j] = grad[a].map(|v| shifts[j] * v);
+            }
+            let wd = w * det;
+            sides[side].volume += wd;
+            if bbar {
+                for (s, gi) in gsum[side].iter_mut().zip(&g) {
+                    for i in 0..3 {
+                        s[i] += wd * gi[i];
+                    }
+                }
+            }
+            element::add_terms(ke, ng, &g, wd, kappa, mu, !bbar, true);
+        });
+        if let Some(det) = bad {
+            return Err(ElementError::NonPositiveJacobian { det });
+        }
+    }
+    if bbar {
+        for (side, sum) in sides.iter().zip(&gsum) {
+            if side.volume > 0.0 {
+                let gbar: Vec<[f64; 3]> = sum.iter().map(|s| s.map(|v| v / side.volume)).collect();
+                element::add_terms(ke, ng, &gbar, side.volume, kappa, mu, true, false);
+            }
+        }
+    }
+    Ok(sides)
+}
+
+/// Union–find over copies.
+struct Pieces {
+    parent: Vec<usize>,
+}
+
+impl Pieces {
+    fn new(n: usize) -> Self {
+        Self { parent: (0..n).collect() }
+    }
+
+    fn find(&mut self, mut a: usize) -> usize {
+        while self.parent[a] != a {
+            self.parent[a] = self.parent[self.parent[a]];
+            a = self.parent[a];
+        }
+        a
+    }
+
+    fn join(&mut self, a: usize, b: usize) {
+        let (ra, rb) = (self.find(a), self.find(b));
+        if ra != rb {
+            self.parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+}
+
+/// The assembled extended system, ready to factor.
+pub struct ExtendedSystem {
+    /// The degree-of-freedom map over `3(n + m)` generalized degrees of freedom.
+    pub dofs: DofMap,
+    /// `K_ff` over the free generalized degrees of freedom.
+    pub k: SymmetricMatrix,
+    /// `f_f − K_fc ū_c`.
+    pub rhs: Vec<f64>,
+    /// Prescribed values of every generalized degree of freedom.
+    pub prescribed: Vec<f64>,
+    /// Pieces no support held.
+    pub detached: Vec<Piece>,
+    /// Warnings.
+    pub warnings: Vec<String>,
+}
+
+/// Assembles the XFEM system of `problem` with the cut `enr` (module docs).
+pub fn assemble(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    locking: Locking,
+    problem: &StaticProblem,
+    enr: &Enrichment,
+    params: &XfemParams,
+) -> Result<ExtendedSystem, XfemError> {
+    let n = mesh.n_nodes();
+    let m = enr.len();
+    let ng = n + m;
+    let supported = problem.supported();
+    if !supported.iter().any(|c| *c) {
+        return Err(StaticError::NoConstraints.into());
+    }
+    let free = solve::free_rigid_motions(&mesh.nodes, &supported);
+    if !free.is_empty() {
+        return Err(StaticError::RigidMotion { free }.into());
+    }
+    let (bbar, warning) = effective_locking(mesh.kind, locking);
+    let cell_locking = if bbar { Locking::Bbar } else { Locking::None };
+    let mut constrained = problem.constrained.clone();
+    let mut prescribed = problem.prescribed.clone();
+    for &a in &enr.nodes {
+        for i in 0..3 {
+            constrained.push(problem.constrained[3 * a + i]);
+            prescribed.push(0.0);
+        }
+    }
+    let dofs = DofMap::new(&constrained);
+    let (mut cell_nodes, mut local) = (Vec::new(), Vec::new());
+    let mut adj: Vec<Vec<usize>> = vec![Vec::new(); ng];
+    for c in 0..mesh.n_cells() {
+        generalized_cell(mesh, enr, c, &mut cell_nodes, &mut local);
+        for &a in &cell_nodes {
+            adj[a].extend_from_slice(&cell_nodes);
+        }
+    }
+    for l in adj.iter_mut() {
+        l.sort_unstable();
+        l.dedup();
+    }
+    let pattern = Arc::new(SymmetricPattern::from_adjacency(&adj, &dofs));
+    let mut k = SymmetricMatrix::zeros(pattern);
+    let mut forces = problem.forces.clone();
+    forces.resize(3 * ng, 0.0);
+    let mut rhs = vec![0.0; dofs.n_free()];
+    let npc = mesh.kind.nodes_per_cell();
+    let mut x = vec![[0.0; 3]; npc];
+    let mut ke = Vec::new();
+    let mut eqs = Vec::new();
+    let mut s = ElementScratch::default();
+    let mut pieces = Pieces::new(ng);
+    let mut h_sum = 0.0;
+    for c in 0..mesh.n_cells() {
+        mesh.cell_coords(c, &mut x);
+        h_sum += subcell::cell_size(&x);
+        generalized_cell(mesh, enr, c, &mut cell_nodes, &mut local);
+        let mat = materials.of(c);
+        if local.is_empty() {
+            ke.resize(9 * npc * npc, 0.0);
+            element::stiffness(mesh.kind, &x, mat, cell_locking, &mut s, &mut ke).map_err(|source| AssemblyError { cell: c, source })?;
+            for &a in &cell_nodes[1..] {
+                pieces.join(cell_nodes[0], a);
+            }
+        } else {
+            let sides = enriched_cell_stiffness(mesh.kind, &x, enr, &local, mat, bbar, &mut ke)
+                .map_err(|source| AssemblyError { cell: c, source })?;
+            let total: f64 = sides.iter().map(|s| s.volume).sum();
+            for side in sides.iter().filter(|s| s.volume > 1e-12 * total) {
+                // the copies on this side: each node's own, or the other side of an enriched one
+                let mut copies = cell_nodes[..npc].to_vec();
+                for (j, &(a, _)) in local.iter().enumerate() {
+                    if side.shifts[j] != 0.0 {
+                        copies[a] = cell_nodes[npc + j];
+                    }
+                }
+                for &a in &copies[1..] {
+                    pieces.join(copies[0], a);
+                }
+            }
+        }
+        eqs.clear();
+        for &a in &cell_nodes {
+            for i in 0..3 {
+                eqs.push(dofs.eq(3 * a + i));
+            }
+        }
+        assembly::scatter_cell(&mut k, &ke, &cell_nodes, &eqs, Some(&prescribed), &mut rhs);
+    }
+    let mut springs = problem.springs.clone();
+    springs.resize(3 * ng, 0.0);
+    assembly::add_springs(&mut k, &dofs, &springs);
+
+    // pieces that no support holds
+    let mut members: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+    for a in 0..ng {
+        let r = pieces.find(a);
+        members.entry(r).or_default().push(a);
+    }
+    let copy_node = |a: usize| if a < n { a } else { enr.nodes[a - n] };
+    let held = |a: usize, i: usize| if a < n { supported[3 * a + i] } else { constrained[3 * a + i] };
+    let young = materials.table.iter().map(|m| m.young).fold(0.0, f64::max);
+    let k_hold = young * h_sum / mesh.n_cells().max(1) as f64;
+    let mut detached = Vec::new();
+    if members.len() > 1 {
+        for copies in members.values() {
+            let pos: Vec<[f64; 3]> = copies.iter().map(|&a| mesh.nodes[copy_node(a)]).collect();
+            let sup: Vec<bool> = copies
+                .iter()
+                .flat_map(|&a| (0..3).map(move |i| (a, i)))
+                .map(|(a, i)| held(a, i))
+                .collect();
+            let free = solve::free_rigid_motions(&pos, &sup);
+            if free.is_empty() {
+                continue;
+            }
+            for &a in copies {
+                hold_copy(&mut k, &dofs, enr, n, a, k_hold);
+                if params.detached == Detached::Remove && a < n {
+                    for i in 0..3 {
+                        forces[3 * a + i] = 0.0;
+                    }
+                }
+            }
+            detached.push(Piece {
+                copies: copies.clone(),
+                free,
+                action: params.detached,
+            });
+        }
+    }
+    for (d, f) in forces.iter().enumerate() {
+        if let Some(e) = dofs.eq(d) {
+            rhs[e] += f;
+        }
+    }
+    Ok(ExtendedSystem {
+        dofs,
+        k,
+        rhs,
+        prescribed,
+        detached,
+        warnings: warning.into_iter().collect(),
+    })
+}
+
+/// Adds the foundation `½ k |u_copy|²` of one copy: `u_a` for a node's own side,
+/// `u_I + s q_k` for the other side of enriched node `k`.
+fn hold_copy(k: &mut SymmetricMatrix, dofs: &DofMap, enr: &Enrichment, n: usize, copy: usize, stiffness: f64) {
+    let mut add = |r: usize, c: usize, v: f64| {
+        if let (Some(er), Some(ec)) = (dofs.eq(r), dofs.eq(c)) {
+            let pos = k
+                .pattern
+                .position(er.max(ec), er.min(ec))
+                .expect("a node couples with its enrichment");
+            k.values[pos] += v;
+        }
+    };
+    if copy < n {
+        for i in 0..3 {
+            add(3 * copy + i, 3 * copy + i, stiffness);
+        }
+        return;
+    }
+    let kk = copy - n;
+    let a = enr.nodes[kk];
+    let s = enr.shifted(kk, !enr.own_positive[kk]);
+    for i in 0..3 {
+        add(3 * a + i, 3 * a + i, stiffness);
+        add(3 * copy + i, 3 * copy + i, stiffness);
+        add(3 * copy + i, 3 * a + i, s * stiffness);
+    }
+}
+
+/// Solves the static problem with the cut `enr` by the full-order XFEM.
+pub fn solve(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    locking: Locking,
+    problem: &StaticProblem,
+    enr: &Enrichment,
+    params: &XfemParams,
+) -> Result<XfemSolution, XfemError> {
+    let clock = Instant::now();
+    let sys = assemble(mesh, materials, locking, problem, enr, params)?;
+    let chol = Cholesky::factor(&sys.k)?;
+    let mut x = sys.rhs.clone();
+    chol.solve_in_place(&mut x);
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(XfemError::NonFinite);
+    }
+    let mut kx = vec![0.0; x.len()];
+    sys.k.mul_vec(&x, &mut kx);
+    let r2: f64 = kx.iter().zip(&sys.rhs).map(|(a, b)| (a - b).powi(2)).sum();
+    let f2: f64 = sys.rhs.iter().map(|v| v * v).sum();
+    let mut full = vec![0.0; sys.dofs.n_dofs()];
+    sys.dofs.expand(&x, &sys.prescribed, &mut full);
+    let q = full.split_off(3 * mesh.n_nodes());
+    Ok(XfemSolution {
+        u: full,
+        q,
+        detached: sys.detached,
+        n_free: sys.dofs.n_free(),
+        nnz: sys.k.pattern.nnz(),
+        residual: (r2 / f2.max(f64::MIN_POSITIVE)).sqrt(),
+        warnings: sys.warnings,
+        seconds: clock.elapsed().as_secs_f64(),
+    })
+}
