@@ -10,12 +10,21 @@
 //! of the standard solver apply unchanged.
 //!
 //! # Cell matrices
-//! A cell with no enriched node has its usual stiffness. A cell with enriched nodes is
-//! integrated on its sub-tetrahedra ([`super::subcell`]): on each, every enriched function is
-//! the node's shape function times a constant `s ∈ {−1, 0, 1}`, so the cell matrix over its
-//! `n + k` generalized nodes is the usual bilinear form of the generalized gradients
-//! `[∇N_1 … ∇N_n, s_1 ∇N_{I_1} … s_k ∇N_{I_k}]`. With B̄ (hexahedra), the mean dilatation is
-//! taken on each side of the cut separately (each side is its own piece of material).
+//! The extended stiffness is `[K, K_ue; K_eu, K_ee]` where `K` is the uncut stiffness, assembled
+//! as usual with the scene's locking option — so that the reduced online model can take `XᵀKX`
+//! from the vademecum unchanged. The blocks that involve enriched functions come from the cells
+//! with enriched nodes, integrated on their sub-tetrahedra ([`super::subcell`]): on each, every
+//! enriched function is the node's shape function times a constant `s ∈ {−1, 0, 1}`, so the
+//! cell matrix over its `n + k` generalized nodes is the usual bilinear form of the generalized
+//! gradients `[∇N_1 … ∇N_n, s_1 ∇N_{I_1} … s_k ∇N_{I_k}]`. On hexahedra with B̄ the mean
+//! dilatation of every generalized function is taken over the whole cell, as for the standard
+//! ones (one mean pressure per cell, cut or not: with a per-side mean the standard block of cut
+//! cells would change by `κ (V₁V₂/V)(ḡ₁ − ḡ₂)(ḡ₁ − ḡ₂)ᵀ`). On tetrahedra the enriched blocks use
+//! the plain tet4 volumetric term, or — with the averaged nodal pressure — the nodal dilatations
+//! extended to the enriched functions: node a's volume change `G_a · u` takes every generalized
+//! function of the cells around it, so one nodal pressure acts on both lips of a cut through a
+//! node's patch (the lips may trade volume without penalty; with duplicated nodes each lip
+//! would have its own, which is why the identity check below holds without this option only).
 //!
 //! # Boundary conditions
 //! A node held on a Dirichlet boundary holds both lips of a cut through it: its enriched
@@ -35,8 +44,9 @@ use std::time::Instant;
 use super::enrichment::{Detached, Enrichment, XfemParams};
 use super::subcell;
 use crate::fem::assembly::{self, AssemblyError, DofMap, MaterialMap, SymmetricMatrix, SymmetricPattern};
-use crate::fem::element::{self, ElementError, ElementScratch, Locking};
+use crate::fem::element::{self, ElementError, Locking};
 use crate::fem::linear_static::{StaticError, StaticProblem};
+use crate::fem::nodal::{self, NodalPatches};
 use crate::fem::shape;
 use crate::material::LinearElastic;
 use crate::mesh::{CellKind, Mesh};
@@ -107,24 +117,27 @@ impl XfemSolution {
     }
 }
 
-/// The locking option applied to XFEM cells: B̄ on hexahedra (per side of a cut), plain
-/// integration on tetrahedra (the averaged nodal pressure is not extended to enriched degrees
-/// of freedom yet). Returns whether B̄ applies, and a warning when `locking` was changed.
-pub fn effective_locking(kind: CellKind, locking: Locking) -> (bool, Option<String>) {
-    match (kind, locking) {
-        (CellKind::Hex8, Locking::Bbar) => (true, None),
-        (CellKind::Hex8, Locking::None) | (CellKind::Tet4, Locking::None | Locking::Bbar | Locking::Sri) => (false, None),
-        (CellKind::Hex8, other) => (
-            true,
-            Some(format!("locking '{other:?}' is replaced by per-side B-bar in the XFEM model")),
-        ),
-        (CellKind::Tet4, Locking::Nodal) => (
-            false,
-            Some(
-                "the averaged nodal pressure is not extended to cut tetrahedra: the XFEM model uses plain tet4 (it locks as nu -> 1/2)"
-                    .into(),
-            ),
-        ),
+/// How the enriched blocks of a cut cell take the volumetric term, following the scene's
+/// locking option (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EnrichedVolumetric {
+    /// At every quadrature point (plain integration).
+    Plain,
+    /// On the cell's mean dilatation (B̄ on hexahedra).
+    CellMean,
+    /// On the nodal dilatations of the averaged-nodal-pressure tetrahedron, extended to the
+    /// enriched functions (assembled over nodal patches, not in the cell matrix).
+    Nodal,
+}
+
+impl EnrichedVolumetric {
+    /// The treatment that matches `locking` on cells of `kind`.
+    pub fn of(kind: CellKind, locking: Locking) -> Self {
+        match (kind, locking) {
+            (CellKind::Hex8, Locking::None) | (CellKind::Tet4, Locking::None | Locking::Sri | Locking::Bbar) => Self::Plain,
+            (CellKind::Hex8, _) => Self::CellMean,
+            (CellKind::Tet4, Locking::Nodal) => Self::Nodal,
+        }
     }
 }
 
@@ -153,15 +166,19 @@ pub struct CellSide {
 }
 
 /// The stiffness of a cell with enriched nodes over its generalized nodes (module docs), row-
-/// major `(3(n+k))²` into `ke`; returns the cell's sides.
+/// major `(3(n+k))²` into `ke`, with its standard–standard block left at zero (it belongs to the
+/// uncut stiffness); returns the cell's sides, and writes into `divergence` the integral over
+/// the cell of every generalized gradient, `∫_e g_j` (the cell's volume change per unit value
+/// of each generalized degree of freedom).
 pub fn enriched_cell_stiffness(
     kind: CellKind,
     x: &[[f64; 3]],
     enr: &Enrichment,
     local: &[(usize, usize)],
     mat: &LinearElastic,
-    bbar: bool,
+    volumetric: EnrichedVolumetric,
     ke: &mut Vec<f64>,
+    divergence: &mut Vec<[f64; 3]>,
 ) -> Result<Vec<CellSide>, ElementError> {
     let n = kind.nodes_per_cell();
     let ng = n + local.len();
@@ -180,7 +197,10 @@ pub fn enriched_cell_stiffness(
         .collect();
     let (kappa, mu) = (mat.bulk(), mat.shear());
     let mut sides: Vec<CellSide> = Vec::new();
-    let mut gsum: Vec<Vec<[f64; 3]>> = Vec::new();
+    divergence.clear();
+    divergence.resize(ng, [0.0; 3]);
+    let gsum = divergence;
+    let plain = volumetric == EnrichedVolumetric::Plain;
     let mut dn = [[0.0; 3]; 8];
     let mut grad = [[0.0; 3]; 8];
     let mut g = vec![[0.0; 3]; ng];
@@ -198,7 +218,6 @@ pub fn enriched_cell_stiffness(
                     volume: 0.0,
                     shifts: shifts.clone(),
                 });
-                gsum.push(vec![[0.0; 3]; ng]);
                 sides.len() - 1
             }
         };
@@ -215,26 +234,26 @@ pub fn enriched_cell_stiffness(
             }
             let wd = w * det;
             sides[side].volume += wd;
-            if bbar {
-                for (s, gi) in gsum[side].iter_mut().zip(&g) {
-                    for i in 0..3 {
-                        s[i] += wd * gi[i];
-                    }
+            for (s, gi) in gsum.iter_mut().zip(&g) {
+                for i in 0..3 {
+                    s[i] += wd * gi[i];
                 }
             }
-            element::add_terms(ke, ng, &g, wd, kappa, mu, !bbar, true);
+            element::add_terms(ke, ng, &g, wd, kappa, mu, plain, true);
         });
         if let Some(det) = bad {
             return Err(ElementError::NonPositiveJacobian { det });
         }
     }
-    if bbar {
-        for (side, sum) in sides.iter().zip(&gsum) {
-            if side.volume > 0.0 {
-                let gbar: Vec<[f64; 3]> = sum.iter().map(|s| s.map(|v| v / side.volume)).collect();
-                element::add_terms(ke, ng, &gbar, side.volume, kappa, mu, true, false);
-            }
-        }
+    if volumetric == EnrichedVolumetric::CellMean {
+        let volume: f64 = sides.iter().map(|s| s.volume).sum();
+        let gbar: Vec<[f64; 3]> = gsum.iter().map(|s| s.map(|v| v / volume)).collect();
+        element::add_terms(ke, ng, &gbar, volume, kappa, mu, true, false);
+    }
+    // the standard–standard block is the uncut stiffness's
+    let nd = 3 * ng;
+    for r in 0..3 * n {
+        ke[r * nd..r * nd + 3 * n].fill(0.0);
     }
     Ok(sides)
 }
@@ -301,8 +320,8 @@ pub fn assemble(
     if !free.is_empty() {
         return Err(StaticError::RigidMotion { free }.into());
     }
-    let (bbar, warning) = effective_locking(mesh.kind, locking);
-    let cell_locking = if bbar { Locking::Bbar } else { Locking::None };
+    let volumetric = EnrichedVolumetric::of(mesh.kind, locking);
+    let patches = NodalPatches::when(mesh, volumetric == EnrichedVolumetric::Nodal).ok().flatten();
     let mut constrained = problem.constrained.clone();
     let mut prescribed = problem.prescribed.clone();
     for &a in &enr.nodes {
@@ -312,12 +331,36 @@ pub fn assemble(
         }
     }
     let dofs = DofMap::new(&constrained);
+    // the pattern: the uncut one (with the nodal pressure's wider reach) and the generalized cells
     let (mut cell_nodes, mut local) = (Vec::new(), Vec::new());
-    let mut adj: Vec<Vec<usize>> = vec![Vec::new(); ng];
+    let mut adj: Vec<Vec<usize>> = match &patches {
+        Some(patches) => patches.couplings(),
+        None => vec![Vec::new(); n],
+    };
+    adj.resize(ng, Vec::new());
     for c in 0..mesh.n_cells() {
         generalized_cell(mesh, enr, c, &mut cell_nodes, &mut local);
         for &a in &cell_nodes {
             adj[a].extend_from_slice(&cell_nodes);
+        }
+    }
+    if let Some(patches) = &patches {
+        // the nodal dilatation of node a reaches every generalized node of its patch's cells
+        for a in 0..n {
+            let mut reach: Vec<usize> = Vec::new();
+            for &c in patches.cells(a) {
+                generalized_cell(mesh, enr, c, &mut cell_nodes, &mut local);
+                if !local.is_empty() {
+                    reach.extend_from_slice(&cell_nodes);
+                }
+            }
+            if reach.is_empty() {
+                continue;
+            }
+            reach.extend_from_slice(patches.nodes(a));
+            for &b in &reach {
+                adj[b].extend_from_slice(&reach);
+            }
         }
     }
     for l in adj.iter_mut() {
@@ -325,43 +368,46 @@ pub fn assemble(
         l.dedup();
     }
     let pattern = Arc::new(SymmetricPattern::from_adjacency(&adj, &dofs));
-    let mut k = SymmetricMatrix::zeros(pattern);
+    let mut rhs = vec![0.0; dofs.n_free()];
+    // the standard block: the uncut stiffness (standard equations come first in `dofs`)
+    let mut k = assembly::assemble_stiffness(mesh, materials, locking, &dofs, pattern, &prescribed, &mut rhs)?;
     let mut forces = problem.forces.clone();
     forces.resize(3 * ng, 0.0);
-    let mut rhs = vec![0.0; dofs.n_free()];
     let npc = mesh.kind.nodes_per_cell();
     let mut x = vec![[0.0; 3]; npc];
     let mut ke = Vec::new();
     let mut eqs = Vec::new();
-    let mut s = ElementScratch::default();
     let mut pieces = Pieces::new(ng);
     let mut h_sum = 0.0;
+    let mut divergence = Vec::new();
+    // per cut cell, the volume change of each of its enriched functions (for the nodal pressure)
+    let mut enriched_divergence: std::collections::HashMap<usize, Vec<(usize, [f64; 3])>> = Default::default();
     for c in 0..mesh.n_cells() {
         mesh.cell_coords(c, &mut x);
         h_sum += subcell::cell_size(&x);
         generalized_cell(mesh, enr, c, &mut cell_nodes, &mut local);
-        let mat = materials.of(c);
         if local.is_empty() {
-            ke.resize(9 * npc * npc, 0.0);
-            element::stiffness(mesh.kind, &x, mat, cell_locking, &mut s, &mut ke).map_err(|source| AssemblyError { cell: c, source })?;
             for &a in &cell_nodes[1..] {
                 pieces.join(cell_nodes[0], a);
             }
-        } else {
-            let sides = enriched_cell_stiffness(mesh.kind, &x, enr, &local, mat, bbar, &mut ke)
-                .map_err(|source| AssemblyError { cell: c, source })?;
-            let total: f64 = sides.iter().map(|s| s.volume).sum();
-            for side in sides.iter().filter(|s| s.volume > 1e-12 * total) {
-                // the copies on this side: each node's own, or the other side of an enriched one
-                let mut copies = cell_nodes[..npc].to_vec();
-                for (j, &(a, _)) in local.iter().enumerate() {
-                    if side.shifts[j] != 0.0 {
-                        copies[a] = cell_nodes[npc + j];
-                    }
+            continue;
+        }
+        let sides = enriched_cell_stiffness(mesh.kind, &x, enr, &local, materials.of(c), volumetric, &mut ke, &mut divergence)
+            .map_err(|source| AssemblyError { cell: c, source })?;
+        if patches.is_some() {
+            enriched_divergence.insert(c, (0..local.len()).map(|j| (cell_nodes[npc + j], divergence[npc + j])).collect());
+        }
+        let total: f64 = sides.iter().map(|s| s.volume).sum();
+        for side in sides.iter().filter(|s| s.volume > 1e-12 * total) {
+            // the copies on this side: each node's own, or the other side of an enriched one
+            let mut copies = cell_nodes[..npc].to_vec();
+            for (j, &(a, _)) in local.iter().enumerate() {
+                if side.shifts[j] != 0.0 {
+                    copies[a] = cell_nodes[npc + j];
                 }
-                for &a in &copies[1..] {
-                    pieces.join(copies[0], a);
-                }
+            }
+            for &a in &copies[1..] {
+                pieces.join(copies[0], a);
             }
         }
         eqs.clear();
@@ -371,6 +417,9 @@ pub fn assemble(
             }
         }
         assembly::scatter_cell(&mut k, &ke, &cell_nodes, &eqs, Some(&prescribed), &mut rhs);
+    }
+    if let Some(patches) = &patches {
+        add_nodal_enriched(mesh, materials, patches, &enriched_divergence, &dofs, &prescribed, &mut k, &mut rhs);
     }
     let mut springs = problem.springs.clone();
     springs.resize(3 * ng, 0.0);
@@ -425,8 +474,75 @@ pub fn assemble(
         rhs,
         prescribed,
         detached,
-        warnings: warning.into_iter().collect(),
+        warnings: Vec::new(),
     })
+}
+
+/// The enriched part of the averaged-nodal-pressure volumetric stiffness (module docs of
+/// [`crate::fem::nodal`]): node a's volume change is `G_a · u` with
+/// `G_a = Σ_{e∋a} ¼ ∫_e g_j` over every generalized function j, and its stiffness
+/// `(κ_a / V_a) G_a G_aᵀ`; the standard–standard part is already in the uncut stiffness, this
+/// adds the pairs that involve an enriched function.
+fn add_nodal_enriched(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    patches: &NodalPatches,
+    enriched_divergence: &std::collections::HashMap<usize, Vec<(usize, [f64; 3])>>,
+    dofs: &DofMap,
+    prescribed: &[f64],
+    k: &mut SymmetricMatrix,
+    rhs: &mut [f64],
+) {
+    let grads = nodal::reference_volume_gradients(mesh, patches);
+    let kappa = nodal::nodal_average(patches, |c| materials.of(c).bulk());
+    let mut g: Vec<(usize, [f64; 3])> = Vec::new();
+    for a in 0..mesh.n_nodes() {
+        g.clear();
+        let mut any = false;
+        for &c in patches.cells(a) {
+            for (b, &node) in mesh.cell(c).iter().enumerate() {
+                g.push((node, grads[c][b].map(|v| 0.25 * v)));
+            }
+            if let Some(e) = enriched_divergence.get(&c) {
+                any = true;
+                g.extend(e.iter().map(|(j, d)| (*j, d.map(|v| 0.25 * v))));
+            }
+        }
+        if !any {
+            continue;
+        }
+        g.sort_by_key(|(j, _)| *j);
+        let mut merged: Vec<(usize, [f64; 3])> = Vec::with_capacity(g.len());
+        for &(j, d) in &g {
+            match merged.last_mut() {
+                Some((last, sum)) if *last == j => (0..3).for_each(|i| sum[i] += d[i]),
+                _ => merged.push((j, d)),
+            }
+        }
+        let w = kappa[a] / patches.volume(a);
+        let n = mesh.n_nodes();
+        for &(p, gp) in &merged {
+            for &(q, gq) in &merged {
+                if p < n && q < n {
+                    continue; // in the uncut stiffness
+                }
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let v = w * gp[i] * gq[j];
+                        match (dofs.eq(3 * p + i), dofs.eq(3 * q + j)) {
+                            (Some(r), Some(c)) if r >= c => {
+                                let pos = k.pattern.position(r, c).expect("the pattern covers nodal patches");
+                                k.values[pos] += v;
+                            }
+                            // −K_fc ū_c
+                            (Some(r), None) => rhs[r] -= v * prescribed[3 * q + j],
+                            _ => {}
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
 
 /// Adds the foundation `½ k |u_copy|²` of one copy: `u_a` for a node's own side,
