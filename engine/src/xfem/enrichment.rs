@@ -106,7 +106,7 @@ pub struct DroppedNode {
 pub struct Enrichment {
     /// Cells the cut has crossed entirely, each with the plane that crossed it.
     pub cut_cells: Vec<(usize, Plane)>,
-    /// Enriched nodes, increasing.
+    /// Enriched nodes, in the order they were enriched (increasing within one cut).
     pub nodes: Vec<usize>,
     /// The plane of each enriched node.
     pub planes: Vec<Plane>,
@@ -259,6 +259,27 @@ impl Enrichment {
         if params.node_centred {
             out.keep_one_layer(mesh, cut_cells);
         }
+        Ok(out)
+    }
+
+    /// This enrichment with the cells `new_cells` cut as well, for a cut that progresses: the
+    /// nodes already enriched keep their planes and their places, and the nodes of the new cut
+    /// cells not enriched yet are appended (after the sliver rule) — so the enriched degrees of
+    /// freedom of an online model only ever grow at the end.
+    pub fn extended(&self, mesh: &Mesh, new_cells: &[(usize, Plane)], params: &XfemParams) -> Result<Self, EnrichmentError> {
+        let fresh = Self::from_cut_cells(mesh, new_cells, params)?;
+        let mut out = self.clone();
+        out.cut_cells.extend_from_slice(new_cells);
+        for (k, &a) in fresh.nodes.iter().enumerate() {
+            if out.index(a).is_none() {
+                out.index[a] = out.nodes.len() as u32;
+                out.nodes.push(a);
+                out.planes.push(fresh.planes[k]);
+                out.own_positive.push(fresh.own_positive[k]);
+            }
+        }
+        let dropped: Vec<DroppedNode> = fresh.dropped.iter().filter(|d| out.index(d.node).is_none()).copied().collect();
+        out.dropped.extend(dropped);
         Ok(out)
     }
 

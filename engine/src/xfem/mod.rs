@@ -10,10 +10,13 @@
 //! - [`subcell`]: cut planes, splitting a cell into sub-tetrahedra on each side, quadrature.
 //! - [`enrichment`]: from the swept blade surface to cut cells and cracked nodes (one plane per
 //!   node, the cracking-node method), the sliver rule.
+//! - [`reduced`]: the online model: PGD modes as a Ritz basis (PRB, SRB) bordered with the
+//!   enriched nodes, the factor updated as the cut grows.
 //! - [`system`]: the full-order XFEM system (the reference of the reduced online models), its
 //!   detached pieces, and the static solve.
 
 pub mod enrichment;
+pub mod reduced;
 pub mod subcell;
 pub mod system;
 

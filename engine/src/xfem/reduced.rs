@@ -1,0 +1,543 @@
+//! Reduced online cutting (seed 000 §3.2.3, §3.3): `u = u_cont + u_disc`, the continuous part on
+//! the PGD modes used as a Ritz basis, the discontinuous part on the enriched nodes of the
+//! current cut, solved as one small bordered system per cut.
+//!
+//! # The two Ritz bases
+//! With the spatial modes `F_k` of a vademecum (`u(x; s) ≈ Σ_k F_k(x) G_k(s)`):
+//!
+//! - **PRB**, the parametric reduced basis (§3.2.1.1, §3.3.1): one coefficient per mode,
+//!   `u_cont = Σ_k β_k F_k(x) G_k(s_p)`. At the current load state `s_p` the factor `G_k(s_p)`
+//!   only scales the k-th basis function, so the Ritz space is `span{F_k}` and the coefficients
+//!   `β_k G_k(s_p)` are what is solved for. (The seed's doubly weak form integrates over every
+//!   load state; with a discontinuous part that does not depend on `s`, that would impose one
+//!   and the same opening of the cut on every load position, not the one under the tool, so
+//!   the form is taken at the current load state.)
+//! - **SRB**, the space reduced basis (§3.2.1.2, §3.3.2, Eq. 3.1): one coefficient per mode and
+//!   displacement component, `u_j = Σ_i β_ij X̃_ji(x)` — the modes split into their three
+//!   component fields, a basis three times larger.
+//!
+//! # The bordered system
+//! The basis `X` (columns over the free standard degrees of freedom) is made K-orthonormal once
+//! (`XᵀKX = I`, by the eigen-decomposition of the Gram matrix, dropping directions below 10⁻¹²
+//! of the largest). The Galerkin system of the standard weak form (Eq. 3.6) is then
+//!
+//! `[I  E; Eᵀ  K_ee] [β; q] = [Xᵀf; 0]`,  `E = XᵀK_ue`,
+//!
+//! with `K_ue`, `K_ee` the blocks of the full-order XFEM stiffness ([`super::system`]) that
+//! involve enriched functions. Its Cholesky factor is `[I 0; Eᵀ L_S]` with `L_S L_Sᵀ =
+//! K_ee − EᵀE`. When the scalpel enriches new nodes they are *appended*
+//! ([`Enrichment::extended`]): their rows of the matrix are new, the old rows do not change
+//! (each entry couples two functions and depends on their two planes only), so the factor is
+//! *bordered* — new rows computed against the old ones, `O(d²)` per new row for a system of
+//! dimension d — and never refactored.
+//!
+//! # Bare enrichment or local discontinuous fields (§3.2.2)
+//! With the *bare* enrichment above, the continuous part has to absorb, on the modes, how the
+//! tissue around the cut adjusts to the opening — which the modes, responses of the uncut
+//! organ to surface loads, represent poorly (10–40 % error on the patch, `BENCHMARKS.md`). The
+//! seed instead pre-computes, by XFEM, a *local discontinuous field* for each cracked node: the
+//! opening together with the response of the uncut degrees of freedom to it. Taking for each
+//! enriched unknown e the function `ψ_e = [w_e; 1_e]` with `w_e = −K⁻¹ K_ue 1_e` (the static
+//! response of the standard degrees of freedom to a unit jump) makes the system block-diagonal,
+//! `XᵀK_ext Ψ = 0`:
+//!
+//! `β = Xᵀf`,  `S q = Wᵀf`,  `S = K_ee − K_eu K⁻¹ K_ue`,  `u = Xβ + Wq`,
+//!
+//! and the answer is then exact up to the error of the modes on the *uncut* response `K⁻¹f`.
+//! Each new enriched unknown costs one sparse solve with the organ's factorization (kept by the
+//! model) and borders the Cholesky factor of the Schur complement S.
+//!
+//! # Online evaluation
+//! For a load `f` on a few nodes: `b = Xᵀf` (a few rows of X), a forward and a backward
+//! substitution, and the displacement of any node `u_a = X_a β` (its own side) plus `q` for
+//! the other side of an enriched node. The contact compliance at a patch of nodes is
+//! `C = Φ A⁻¹ Φᵀ = ZᵀZ`, `Z = L⁻¹Φᵀ`: one forward substitution with three right-hand sides.
+
+use std::time::Instant;
+
+use nalgebra::DMatrix;
+
+use super::enrichment::{Enrichment, EnrichmentError, XfemParams};
+use super::subcell::Plane;
+use super::system::{self, XfemError};
+use crate::fem::Locking;
+use crate::fem::assembly::{self, DofMap, MaterialMap, SymmetricPattern};
+use crate::fem::linear_static::StaticProblem;
+use crate::mesh::Mesh;
+
+/// Which Ritz basis carries the continuous part (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RitzBasis {
+    /// Parametric reduced basis: one coefficient per mode.
+    Prb,
+    /// Space reduced basis: one coefficient per mode and component.
+    Srb,
+}
+
+impl RitzBasis {
+    /// Its short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            RitzBasis::Prb => "PRB",
+            RitzBasis::Srb => "SRB",
+        }
+    }
+}
+
+/// What carries the discontinuous part (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Discontinuous {
+    /// The enriched shape functions `N_I H̃_I` alone (Eq. 3.6 as written).
+    Bare,
+    /// Local discontinuous fields: each enriched function with the static response of the
+    /// uncut degrees of freedom to it (§3.2.2).
+    LocalFields,
+}
+
+/// Why the reduced cut model failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReducedError {
+    /// The modes do not match the mesh.
+    #[error("the modes have {got} values, expected {modes} modes × {dofs} degrees of freedom")]
+    Modes {
+        /// Values given.
+        got: usize,
+        /// Modes announced.
+        modes: usize,
+        /// Degrees of freedom of the mesh.
+        dofs: usize,
+    },
+    /// The basis spans nothing.
+    #[error("the Ritz basis is empty or all its directions are null")]
+    EmptyBasis,
+    /// Enrichment failed.
+    #[error(transparent)]
+    Enrichment(#[from] EnrichmentError),
+    /// The full-order assembly failed.
+    #[error(transparent)]
+    Xfem(#[from] XfemError),
+    /// The factorization of the uncut stiffness failed.
+    #[error(transparent)]
+    Solve(#[from] crate::solve::SolveError),
+    /// A new row of the bordered factor has no positive pivot: the new enrichment is linearly
+    /// dependent on the basis and the old one (e.g. a piece made only of cut lips came loose).
+    #[error("bordering the factor failed at enriched unknown {unknown}: the cut made the reduced system singular")]
+    Singular {
+        /// The enriched unknown.
+        unknown: usize,
+    },
+}
+
+/// What one cut step changed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CutUpdate {
+    /// Nodes enriched by this step.
+    pub new_nodes: Vec<usize>,
+    /// Enriched unknowns after the step.
+    pub enriched_unknowns: usize,
+    /// Time to assemble the new rows (s).
+    pub assembly_s: f64,
+    /// Time to border the factor (s).
+    pub bordering_s: f64,
+}
+
+/// The reduced cutting model of one organ (module docs).
+#[derive(Debug, Clone)]
+pub struct ReducedCut {
+    basis: RitzBasis,
+    disc: Discontinuous,
+    /// The uncut stiffness's factorization (local fields only).
+    chol: Option<crate::solve::Cholesky>,
+    /// The local fields' standard parts `w_e`, column-major `n_free × enriched unknowns`.
+    w: Vec<f64>,
+    n_nodes: usize,
+    dofs: DofMap,
+    /// The K-orthonormal basis, row-major: `n_free × nb`.
+    x: Vec<f64>,
+    nb: usize,
+    enr: Enrichment,
+    /// Equations (of the extended system) of the enriched unknowns, in order.
+    enriched_eqs: usize,
+    /// The bordered factor: of the whole system (bare) or of S (local fields).
+    factor: Bordered,
+    materials: MaterialMap,
+    locking: Locking,
+    problem: StaticProblem,
+    params: XfemParams,
+}
+
+impl ReducedCut {
+    /// The model with no cut yet, from the spatial modes `modes` (mode-major over all `3n`
+    /// degrees of freedom, `n_modes` of them) of a vademecum of the same mesh, supports and
+    /// material.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        mesh: &Mesh,
+        materials: &MaterialMap,
+        locking: Locking,
+        problem: &StaticProblem,
+        modes: &[f64],
+        n_modes: usize,
+        basis: RitzBasis,
+        disc: Discontinuous,
+        params: &XfemParams,
+    ) -> Result<Self, ReducedError> {
+        let n_dofs = mesh.n_dofs();
+        if modes.len() != n_modes * n_dofs {
+            return Err(ReducedError::Modes {
+                got: modes.len(),
+                modes: n_modes,
+                dofs: n_dofs,
+            });
+        }
+        let dofs = DofMap::new(&problem.constrained);
+        let nf = dofs.n_free();
+        // the raw columns
+        let columns: Vec<Vec<f64>> = match basis {
+            RitzBasis::Prb => (0..n_modes)
+                .map(|k| {
+                    let mut c = vec![0.0; nf];
+                    dofs.restrict(&modes[k * n_dofs..(k + 1) * n_dofs], &mut c);
+                    c
+                })
+                .collect(),
+            RitzBasis::Srb => (0..n_modes)
+                .flat_map(|k| (0..3).map(move |comp| (k, comp)))
+                .map(|(k, comp)| {
+                    let mut full = modes[k * n_dofs..(k + 1) * n_dofs].to_vec();
+                    for (d, v) in full.iter_mut().enumerate() {
+                        if d % 3 != comp {
+                            *v = 0.0;
+                        }
+                    }
+                    let mut c = vec![0.0; nf];
+                    dofs.restrict(&full, &mut c);
+                    c
+                })
+                .collect(),
+        };
+        // K-orthonormalise: G = XᵀKX = Q Λ Qᵀ, X̂ = X Q Λ^{-1/2}
+        let pattern = std::sync::Arc::new(SymmetricPattern::for_locking(mesh, &dofs, locking));
+        let mut rhs = vec![0.0; nf];
+        let mut k = assembly::assemble_stiffness(mesh, materials, locking, &dofs, pattern, &problem.prescribed, &mut rhs)
+            .map_err(XfemError::from)?;
+        assembly::add_springs(&mut k, &dofs, &problem.springs);
+        let nc = columns.len();
+        let mut kx = vec![0.0; nf];
+        let mut gram = DMatrix::<f64>::zeros(nc, nc);
+        for j in 0..nc {
+            k.mul_vec(&columns[j], &mut kx);
+            for i in 0..nc {
+                gram[(i, j)] = columns[i].iter().zip(&kx).map(|(a, b)| a * b).sum();
+            }
+        }
+        let gram = (&gram + gram.transpose()) * 0.5;
+        let eig = gram.symmetric_eigen();
+        let top = eig.eigenvalues.iter().fold(0.0f64, |m, v| m.max(*v));
+        let keep: Vec<usize> = (0..nc).filter(|&i| eig.eigenvalues[i] > 1e-12 * top && top > 0.0).collect();
+        let nb = keep.len();
+        if nb == 0 {
+            return Err(ReducedError::EmptyBasis);
+        }
+        let mut x = vec![0.0; nf * nb];
+        for (b, &i) in keep.iter().enumerate() {
+            let s = eig.eigenvalues[i].sqrt().recip();
+            for (j, col) in columns.iter().enumerate() {
+                let w = eig.eigenvectors[(j, i)] * s;
+                if w != 0.0 {
+                    for r in 0..nf {
+                        x[r * nb + b] += w * col[r];
+                    }
+                }
+            }
+        }
+        let chol = match disc {
+            Discontinuous::Bare => None,
+            Discontinuous::LocalFields => Some(crate::solve::Cholesky::factor(&k)?),
+        };
+        Ok(Self {
+            basis,
+            disc,
+            chol,
+            w: Vec::new(),
+            factor: Bordered::new(if disc == Discontinuous::Bare { nb } else { 0 }),
+            n_nodes: mesh.n_nodes(),
+            dofs,
+            x,
+            nb,
+            enr: Enrichment::none(mesh),
+            enriched_eqs: 0,
+            materials: materials.clone(),
+            locking,
+            problem: problem.clone(),
+            params: *params,
+        })
+    }
+
+    /// The basis in use.
+    pub fn basis(&self) -> RitzBasis {
+        self.basis
+    }
+
+    /// Dimension of the continuous part (directions kept of the basis).
+    pub fn basis_size(&self) -> usize {
+        self.nb
+    }
+
+    /// Dimension of the bordered system.
+    pub fn dim(&self) -> usize {
+        self.nb + self.enriched_eqs
+    }
+
+    /// The current enrichment.
+    pub fn enrichment(&self) -> &Enrichment {
+        &self.enr
+    }
+
+    /// What carries the discontinuous part.
+    pub fn discontinuous(&self) -> Discontinuous {
+        self.disc
+    }
+
+    /// Bytes held by the basis, the local fields and the bordered factor (not the uncut
+    /// factorization).
+    pub fn bytes(&self) -> usize {
+        8 * (self.x.len() + self.w.len() + self.factor.l.len())
+    }
+
+    /// Cuts the cells `new_cells` (each with the plane that crossed it): enriches their nodes
+    /// and borders the factor with the new rows (module docs).
+    pub fn cut(&mut self, mesh: &Mesh, new_cells: &[(usize, Plane)]) -> Result<CutUpdate, ReducedError> {
+        let fresh: Vec<(usize, Plane)> = new_cells
+            .iter()
+            .filter(|(c, _)| !self.enr.cut_cells.iter().any(|(d, _)| d == c))
+            .copied()
+            .collect();
+        let enr = self.enr.extended(mesh, &fresh, &self.params)?;
+        let old_nodes = self.enr.len();
+        let new_nodes = enr.nodes[old_nodes..].to_vec();
+        if new_nodes.is_empty() {
+            self.enr = enr;
+            return Ok(CutUpdate {
+                new_nodes,
+                enriched_unknowns: self.enriched_eqs,
+                assembly_s: 0.0,
+                bordering_s: 0.0,
+            });
+        }
+        let clock = Instant::now();
+        let sys = system::assemble(mesh, &self.materials, self.locking, &self.problem, &enr, &self.params)?;
+        let nf = self.dofs.n_free();
+        let first_new = nf + self.enriched_eqs;
+        let total = sys.dofs.n_free() - nf;
+        let n_new = total - self.enriched_eqs;
+        // the new rows, from the lower triangle: entry (r, c), r ≥ first_new
+        let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n_new];
+        let sym = sys.k.pattern.symbolic();
+        let (cp, ri) = (sym.col_ptr(), sym.row_idx());
+        for c in 0..sys.dofs.n_free() {
+            for p in cp[c]..cp[c + 1] {
+                if ri[p] >= first_new {
+                    rows[ri[p] - first_new].push((c, sys.k.values[p]));
+                }
+            }
+        }
+        let assembly_s = clock.elapsed().as_secs_f64();
+        let clock = Instant::now();
+        let nb = self.nb;
+        let m0 = self.enriched_eqs;
+        let mut a = Vec::new();
+        let mut w = vec![0.0; nf];
+        for (j, row) in rows.iter().enumerate() {
+            let e = m0 + j;
+            match self.disc {
+                Discontinuous::Bare => {
+                    // A[d, 0..nb] = Σ_c K[r, c] X̂[c, :]; A[d, nb + e'] = K[r, nf + e']
+                    let d = nb + e;
+                    a.clear();
+                    a.resize(d + 1, 0.0);
+                    for &(c, v) in row {
+                        if c < nf {
+                            let xr = &self.x[c * nb..(c + 1) * nb];
+                            for (t, xv) in xr.iter().enumerate() {
+                                a[t] += v * xv;
+                            }
+                        } else {
+                            a[nb + c - nf] += v;
+                        }
+                    }
+                    self.factor.border(d, &a).map_err(|_| ReducedError::Singular { unknown: e })?;
+                }
+                Discontinuous::LocalFields => {
+                    // w_e = −K⁻¹ K_ue 1_e; S[e, e'] = K_ee[e, e'] + K_eu[e, :] w_e'
+                    w.fill(0.0);
+                    for &(c, v) in row.iter().filter(|(c, _)| *c < nf) {
+                        w[c] = -v;
+                    }
+                    self.chol
+                        .as_ref()
+                        .expect("local fields keep the factorization")
+                        .solve_in_place(&mut w);
+                    self.w.extend_from_slice(&w);
+                    a.clear();
+                    a.resize(e + 1, 0.0);
+                    for &(c, v) in row {
+                        if c < nf {
+                            for (t, at) in a.iter_mut().enumerate() {
+                                *at += v * self.w[t * nf + c];
+                            }
+                        } else {
+                            a[c - nf] += v;
+                        }
+                    }
+                    self.factor.border(e, &a).map_err(|_| ReducedError::Singular { unknown: e })?;
+                }
+            }
+        }
+        self.enriched_eqs = total;
+        self.enr = enr;
+        Ok(CutUpdate {
+            new_nodes,
+            enriched_unknowns: total,
+            assembly_s,
+            bordering_s: clock.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// Solves the reduced system for the right-hand side `b` in place (`b.len() = dim`; the
+    /// coefficients `[β; q]`).
+    pub fn solve_in_place(&self, b: &mut [f64]) {
+        match self.disc {
+            Discontinuous::Bare => self.factor.solve_in_place(b),
+            Discontinuous::LocalFields => self.factor.solve_in_place(&mut b[self.nb..]),
+        }
+    }
+
+    /// The coefficients `[β; q]` (length [`dim`](Self::dim)) for nodal forces `forces`
+    /// (full length `3n`).
+    pub fn coefficients(&self, forces: &[f64], out: &mut [f64]) {
+        let nb = self.nb;
+        let nf = self.dofs.n_free();
+        out.fill(0.0);
+        for (d, f) in forces.iter().enumerate() {
+            if *f != 0.0
+                && let Some(e) = self.dofs.eq(d)
+            {
+                for (t, xv) in self.x[e * nb..(e + 1) * nb].iter().enumerate() {
+                    out[t] += f * xv;
+                }
+                if self.disc == Discontinuous::LocalFields {
+                    for (t, o) in out[nb..].iter_mut().enumerate() {
+                        *o += f * self.w[t * nf + e];
+                    }
+                }
+            }
+        }
+        self.solve_in_place(out);
+    }
+
+    /// The standard displacements (full length `3n`, own sides) and enriched amplitudes
+    /// (3 per enriched node) of coefficients `coeffs`.
+    pub fn fields(&self, coeffs: &[f64], u: &mut [f64], q: &mut [f64]) {
+        let nb = self.nb;
+        let nf = self.dofs.n_free();
+        u.fill(0.0);
+        for d in 0..u.len() {
+            if let Some(e) = self.dofs.eq(d) {
+                u[d] = self.x[e * nb..(e + 1) * nb].iter().zip(&coeffs[..nb]).map(|(a, b)| a * b).sum();
+                if self.disc == Discontinuous::LocalFields {
+                    u[d] += coeffs[nb..].iter().enumerate().map(|(t, qv)| qv * self.w[t * nf + e]).sum::<f64>();
+                }
+            }
+        }
+        q.fill(0.0);
+        let mut e = 0;
+        for k in 0..self.enr.len() {
+            let a = self.enr.nodes[k];
+            for i in 0..3 {
+                if self.dofs.eq(3 * a + i).is_some() {
+                    q[3 * k + i] = coeffs[nb + e];
+                    e += 1;
+                }
+            }
+        }
+    }
+
+    /// Number of mesh nodes.
+    pub fn n_nodes(&self) -> usize {
+        self.n_nodes
+    }
+}
+
+/// A Cholesky factor grown by bordering: an identity block of size `identity`, then packed
+/// rows, row d holding `L[d, 0..=d]`.
+#[derive(Debug, Clone)]
+struct Bordered {
+    identity: usize,
+    l: Vec<f64>,
+    row_start: Vec<usize>,
+}
+
+impl Bordered {
+    fn new(identity: usize) -> Self {
+        Self {
+            identity,
+            l: Vec::new(),
+            row_start: Vec::new(),
+        }
+    }
+
+    fn dim(&self) -> usize {
+        self.identity + self.row_start.len()
+    }
+
+    /// `L[d, 0..=d]` of a bordered row `d ≥ identity`.
+    #[inline]
+    fn row(&self, d: usize) -> &[f64] {
+        let s = self.row_start[d - self.identity];
+        &self.l[s..s + d + 1]
+    }
+
+    /// Appends row `d` of the factor from row `d` of the matrix, `a[0..=d]`:
+    /// `L[d, c] = (A[d, c] − Σ_{t<c} L[d, t] L[c, t]) / L[c, c]`, `L[d, d] = √(A[d, d] − Σ L[d, t]²)`.
+    fn border(&mut self, d: usize, a: &[f64]) -> Result<(), ()> {
+        debug_assert_eq!(d, self.dim());
+        let nb = self.identity;
+        let start = self.l.len();
+        self.l.extend_from_slice(&a[..nb]); // against the identity block: L[d, t] = A[d, t]
+        for c in nb..d {
+            let lc = self.row(c);
+            let s: f64 = a[c] - self.l[start..start + c].iter().zip(&lc[..c]).map(|(p, q)| p * q).sum::<f64>();
+            let v = s / lc[c];
+            self.l.push(v);
+        }
+        let diag = a[d] - self.l[start..start + d].iter().map(|v| v * v).sum::<f64>();
+        if !(diag > 1e-14 * a[d].abs()) || !diag.is_finite() {
+            self.l.truncate(start);
+            return Err(());
+        }
+        self.l.push(diag.sqrt());
+        self.row_start.push(start);
+        Ok(())
+    }
+
+    /// Solves `L Lᵀ z = b` in place.
+    fn solve_in_place(&self, b: &mut [f64]) {
+        let (nb, dim) = (self.identity, self.dim());
+        for d in nb..dim {
+            let r = self.row(d);
+            let s: f64 = r[..d].iter().zip(&b[..d]).map(|(p, q)| p * q).sum();
+            b[d] = (b[d] - s) / r[d];
+        }
+        for d in (nb..dim).rev() {
+            let r = self.row(d);
+            b[d] /= r[d];
+            let z = b[d];
+            for (t, v) in r[..d].iter().enumerate() {
+                b[t] -= v * z;
+            }
+        }
+    }
+}
