@@ -514,7 +514,7 @@ impl Bordered {
             self.l.push(v);
         }
         let diag = a[d] - self.l[start..start + d].iter().map(|v| v * v).sum::<f64>();
-        if !(diag > 1e-14 * a[d].abs()) || !diag.is_finite() {
+        if diag.is_nan() || diag <= 1e-14 * a[d].abs() || !diag.is_finite() {
             self.l.truncate(start);
             return Err(());
         }
