@@ -113,3 +113,44 @@ fn a_large_deformation_palpation_tick_allocates_nothing() {
     assert!(seen & Events::CONTACT != 0);
     assert!(seen & Events::BEYOND_RANGE != 0, "the path presses past the lattice's range");
 }
+
+#[test]
+fn the_contact_compliance_of_a_cut_organ_allocates_nothing() {
+    use vademecum_engine::meshless::cut::Cut;
+    use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
+    use vademecum_engine::xfem::{Enrichment, XfemParams};
+    let scene = Scene::builtin("patch").unwrap();
+    let built = offline::build_organ(&scene, 0, &BuildOptions::for_scene(&scene, true), &mut |_| {}).unwrap();
+    let (m, v) = (&built.model, &built.vademecum);
+    let params = XfemParams::default();
+    let cut = Cut::swept(&[([2.0, -0.1, 5.1], [2.0, 1.1, 5.1]), ([2.0, -0.1, 3.0], [2.0, 1.1, 3.0])]).unwrap();
+    let cells = Enrichment::cut_cells(&m.mesh, &cut, &params).unwrap();
+    let top: Vec<usize> = (0..m.mesh.n_nodes()).filter(|&a| m.mesh.nodes[a][2] == 5.0).collect();
+    for disc in [Discontinuous::Bare, Discontinuous::LocalFields] {
+        let mut red = ReducedCut::new(
+            &m.mesh,
+            &m.materials,
+            m.locking,
+            &m.problem,
+            v.f_raw(),
+            v.modes(),
+            RitzBasis::Srb,
+            disc,
+            &params,
+        )
+        .unwrap();
+        red.cut(&m.mesh, &cells).unwrap();
+        let mut trace = 0.0;
+        COUNT.with(|n| n.set(0));
+        COUNTING.with(|c| c.set(true));
+        for i in 0..2000 {
+            let a = top[i % top.len()];
+            let b = top[(i + 1) % top.len()];
+            let c = red.contact_compliance(&[a, b], &[0.7, 0.3]);
+            trace += c[0][0] + c[1][1] + c[2][2];
+        }
+        COUNTING.with(|c| c.set(false));
+        assert!(trace.is_finite() && trace > 0.0);
+        assert_eq!(COUNT.with(|n| n.get()), 0, "{disc:?}: the cut compliance allocated");
+    }
+}

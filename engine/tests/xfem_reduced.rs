@@ -165,3 +165,49 @@ fn bordering_step_by_step_equals_cutting_at_once() {
         }
     }
 }
+
+#[test]
+fn the_cut_compliance_at_a_node_is_the_full_xfem_displacement_per_unit_force() {
+    let scene = Scene::builtin("patch").unwrap();
+    let b = built(&scene, 1e-4);
+    let (m, v) = (&b.model, &b.vademecum);
+    let params = XfemParams::default();
+    let cut = Cut::swept(&[([2.0, -0.1, 5.1], [2.0, 1.1, 5.1]), ([2.0, -0.1, 3.0], [2.0, 1.1, 3.0])]).unwrap();
+    let cells = Enrichment::cut_cells(&m.mesh, &cut, &params).unwrap();
+    // the node at the top right of the cut's lip
+    let node = (0..m.mesh.n_nodes()).find(|&a| m.mesh.nodes[a] == [3.0, 0.0, 5.0]).unwrap();
+    for disc in [Discontinuous::Bare, Discontinuous::LocalFields] {
+        let mut red = ReducedCut::new(
+            &m.mesh,
+            &m.materials,
+            m.locking,
+            &m.problem,
+            v.f_raw(),
+            v.modes(),
+            RitzBasis::Srb,
+            disc,
+            &params,
+        )
+        .unwrap();
+        red.cut(&m.mesh, &cells).unwrap();
+        let c = red.contact_compliance(&[node], &[1.0]);
+        let enr = red.enrichment().clone();
+        let mut worst: f64 = 0.0;
+        let mut scale: f64 = 0.0;
+        for d in 0..3 {
+            let mut p = m.problem.clone();
+            p.forces.fill(0.0);
+            p.forces[3 * node + d] = 1.0;
+            let full = system::solve(&m.mesh, &m.materials, m.locking, &p, &enr, &params).unwrap();
+            for i in 0..3 {
+                worst = worst.max((c[i][d] - full.u[3 * node + i]).abs());
+                scale = scale.max(full.u[3 * node + i].abs());
+            }
+        }
+        eprintln!("{disc:?}: compliance error {:.3e} of {scale:.3e}", worst);
+        if disc == Discontinuous::LocalFields {
+            assert!(worst < 1e-3 * scale, "{worst:.3e} of {scale:.3e}");
+        }
+        assert!(c.iter().flatten().all(|x| x.is_finite()));
+    }
+}

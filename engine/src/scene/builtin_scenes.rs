@@ -1,7 +1,7 @@
 //! Scenes compiled into the binary, so defaults need no files.
 
 /// Names of the built-in scenes; the first is the default.
-pub const BUILTIN_NAMES: [&str; 5] = ["organ", "patch", "cantilever", "cornea", "stretch"];
+pub const BUILTIN_NAMES: [&str; 7] = ["organ", "patch", "cantilever", "cornea", "stretch", "patch_cut", "keratotomy"];
 
 /// The TOML text of a built-in scene.
 pub fn builtin(name: &str) -> Option<&'static str> {
@@ -11,6 +11,8 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "cantilever" => CANTILEVER,
         "cornea" => CORNEA,
         "stretch" => STRETCH,
+        "patch_cut" => PATCH_CUT,
+        "keratotomy" => KERATOTOMY,
         _ => return None,
     })
 }
@@ -227,4 +229,153 @@ z = 0.0
 
 [fidelity]
 solver = "meshless"
+"#;
+
+const PATCH_CUT: &str = r#"# Seed 000, section 3.5.1: the patch model with its cut.
+[scene]
+name = "patch_cut"
+description = "The patch of seed 000, section 3.5.1 (5 x 5 unit hexahedra one cell deep, E = 5 Pa, nu = 0.3, one base corner fixed, the base sliding horizontally) with a straight surface cut down the plane x = 4 through the top cell row (two nodes on the front face), opened by 1 N down on the upper corner node; solved by XFEM (cracking nodes)."
+
+[[organs]]
+name = "patch"
+density = 1.0
+
+[organs.mesh]
+builtin = "block"
+origin = [0.0, 0.0, 0.0]
+size = [5.0, 1.0, 5.0]               # x wide, y deep, z up
+divisions = [5, 1, 5]
+cell = "hex8"
+
+[[organs.materials]]
+model = "linear"
+young = 5.0
+poisson = 0.3
+
+[organs.fixed]                       # the fully fixed bottom corner
+sphere = { center = [0.0, 0.0, 0.0], radius = 0.01 }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 5.0], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]                     # base nodes slide on the horizontal plane
+kind = "displacement"
+name = "base"
+region = { box = { min = [0.0, 0.0, 0.0], max = [5.0, 1.0, 0.0] } }
+z = 0.0
+
+[[organs.loads]]                     # stops the remaining rotation about the vertical axis
+kind = "displacement"
+name = "anchor"
+region = { sphere = { center = [5.0, 0.0, 0.0], radius = 0.01 } }
+y = 0.0
+
+[[organs.loads]]
+kind = "point"
+at = [5.0, 0.0, 5.0]
+force = [0.0, 0.0, -1.0]             # N
+
+[[organs.cuts]]                      # the blade goes down x = 4 through the top cell row
+blade = [[[4.0, -0.1, 5.1], [4.0, 1.1, 5.1]], [[4.0, -0.1, 3.95], [4.0, 1.1, 3.95]]]
+
+[[tools]]
+kind = "scalpel"
+name = "scalpel"
+blade_length = 1.2
+cut_force = 1.0                      # N (the seed's unit threshold, section 3.4)
+
+[effects]
+cutting = true
+
+[fidelity]
+locking = "none"
+"#;
+
+const KERATOTOMY: &str = r#"# Seed 000, section 3.5.2: radial keratotomy, four radial incisions in a linear cornea.
+[scene]
+name = "keratotomy"
+description = "The cornea dome of seed 000, section 3.5.2 (radius of curvature 7.8 mm, 11.5 mm across, 0.55 mm thick; 24 x 24 x 3 hexahedra instead of the seed's 6,840, which is not available), linear, E = 2 MPa, nu = 0.48, clamped along its base, under an intraocular pressure of 2 kPa (15 mmHg); four radial incisions from 1.5 to 4.5 mm off the apex, 70 % of the thickness deep, solved by XFEM (cracking nodes)."
+
+[[organs]]
+name = "cornea"
+density = 1076.0                     # kg/m3
+
+[organs.mesh]
+builtin = "dome"
+curvature_radius = 7.8e-3            # m
+base_radius = 5.75e-3
+thickness = 0.55e-3
+divisions = [24, 24, 3]
+
+[[organs.materials]]
+model = "linear"
+young = 2e6                          # Pa
+poisson = 0.48
+
+[organs.fixed]                       # the base ring (limbus)
+half_space = { point = [0.0, 0.0, 0.05e-3], normal = [0.0, 0.0, -1.0] }
+
+[organs.accessible]                  # the anterior surface (a group of the built-in dome)
+group = "anterior"
+
+[[organs.loads]]                     # intraocular pressure on the posterior surface
+kind = "pressure"
+region = { group = "posterior" }
+pressure = 2000.0                    # Pa
+
+[[organs.cuts]]                       # radial incision along +x, 1.5 -> 4.5 mm from the apex, 70 % deep
+blade = [
+  [[1.5192e-03, 0.0, 2.4821e-03], [1.4260e-03, 0.0, 2.0062e-03]],
+  [[2.0256e-03, 0.0, 2.3655e-03], [1.9013e-03, 0.0, 1.8967e-03]],
+  [[2.5321e-03, 0.0, 2.2128e-03], [2.3766e-03, 0.0, 1.7534e-03]],
+  [[3.0385e-03, 0.0, 2.0219e-03], [2.8519e-03, 0.0, 1.5742e-03]],
+  [[3.5449e-03, 0.0, 1.7896e-03], [3.3272e-03, 0.0, 1.3562e-03]],
+  [[4.0513e-03, 0.0, 1.5117e-03], [3.8026e-03, 0.0, 1.0953e-03]],
+  [[4.5577e-03, 0.0, 1.1823e-03], [4.2779e-03, 0.0, 7.8612e-04]],
+]
+
+[[organs.cuts]]                       # radial incision along +y, 1.5 -> 4.5 mm from the apex, 70 % deep
+blade = [
+  [[0.0, 1.5192e-03, 2.4821e-03], [0.0, 1.4260e-03, 2.0062e-03]],
+  [[0.0, 2.0256e-03, 2.3655e-03], [0.0, 1.9013e-03, 1.8967e-03]],
+  [[0.0, 2.5321e-03, 2.2128e-03], [0.0, 2.3766e-03, 1.7534e-03]],
+  [[0.0, 3.0385e-03, 2.0219e-03], [0.0, 2.8519e-03, 1.5742e-03]],
+  [[0.0, 3.5449e-03, 1.7896e-03], [0.0, 3.3272e-03, 1.3562e-03]],
+  [[0.0, 4.0513e-03, 1.5117e-03], [0.0, 3.8026e-03, 1.0953e-03]],
+  [[0.0, 4.5577e-03, 1.1823e-03], [0.0, 4.2779e-03, 7.8612e-04]],
+]
+
+[[organs.cuts]]                       # radial incision along -x, 1.5 -> 4.5 mm from the apex, 70 % deep
+blade = [
+  [[-1.5192e-03, 0.0, 2.4821e-03], [-1.4260e-03, 0.0, 2.0062e-03]],
+  [[-2.0256e-03, 0.0, 2.3655e-03], [-1.9013e-03, 0.0, 1.8967e-03]],
+  [[-2.5321e-03, 0.0, 2.2128e-03], [-2.3766e-03, 0.0, 1.7534e-03]],
+  [[-3.0385e-03, 0.0, 2.0219e-03], [-2.8519e-03, 0.0, 1.5742e-03]],
+  [[-3.5449e-03, 0.0, 1.7896e-03], [-3.3272e-03, 0.0, 1.3562e-03]],
+  [[-4.0513e-03, 0.0, 1.5117e-03], [-3.8026e-03, 0.0, 1.0953e-03]],
+  [[-4.5577e-03, 0.0, 1.1823e-03], [-4.2779e-03, 0.0, 7.8612e-04]],
+]
+
+[[organs.cuts]]                       # radial incision along -y, 1.5 -> 4.5 mm from the apex, 70 % deep
+blade = [
+  [[0.0, -1.5192e-03, 2.4821e-03], [0.0, -1.4260e-03, 2.0062e-03]],
+  [[0.0, -2.0256e-03, 2.3655e-03], [0.0, -1.9013e-03, 1.8967e-03]],
+  [[0.0, -2.5321e-03, 2.2128e-03], [0.0, -2.3766e-03, 1.7534e-03]],
+  [[0.0, -3.0385e-03, 2.0219e-03], [0.0, -2.8519e-03, 1.5742e-03]],
+  [[0.0, -3.5449e-03, 1.7896e-03], [0.0, -3.3272e-03, 1.3562e-03]],
+  [[0.0, -4.0513e-03, 1.5117e-03], [0.0, -3.8026e-03, 1.0953e-03]],
+  [[0.0, -4.5577e-03, 1.1823e-03], [0.0, -4.2779e-03, 7.8612e-04]],
+]
+
+[[tools]]
+kind = "scalpel"
+name = "diamond knife"
+blade_length = 1.0e-3                # m
+cut_force = 0.05                     # N
+
+[effects]
+cutting = true
+
+[fidelity]
+locking = "bbar"
 "#;

@@ -291,15 +291,16 @@ impl Scene {
         if m.max_steps == 0 || m.max_steps <= m.loading_steps {
             return Err(self.error_at(&key("max_steps"), "max_steps must exceed loading_steps"));
         }
+        let sliver = s.fidelity.xfem.sliver;
+        if !(sliver.is_finite() && (0.0..0.5).contains(&sliver)) {
+            return Err(self.error_at(
+                &[Seg::Key("fidelity"), Seg::Key("xfem"), Seg::Key("sliver")],
+                "sliver must be a volume fraction in [0, 0.5) (default 1e-4)",
+            ));
+        }
         for (o, organ) in s.organs.iter().enumerate() {
             for (c, cut) in organ.cuts.iter().enumerate() {
                 let at = [Seg::Key("organs"), Seg::Index(o), Seg::Key("cuts"), Seg::Index(c)];
-                if s.fidelity.solver != SolverKind::Meshless {
-                    return Err(self.error_at(
-                        &at,
-                        "pre-planned cuts are made by the meshless solver: set fidelity.solver = \"meshless\"",
-                    ));
-                }
                 if !s.effects.cutting {
                     return Err(self.error_at(&at, "the organ has cuts but cutting is off: set effects.cutting = true"));
                 }

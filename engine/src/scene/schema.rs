@@ -59,8 +59,9 @@ pub struct OrganSpec {
     /// Static loads applied by `vademecum solve`.
     #[serde(default)]
     pub loads: Vec<LoadSpec>,
-    /// Pre-planned cuts, made by the meshless solver on the loaded organ (needs
-    /// `fidelity.solver = "meshless"` and `effects.cutting = true`).
+    /// Pre-planned cuts (need `effects.cutting = true`): made by the meshless solver on a
+    /// hyperelastic organ (`fidelity.solver = "meshless"`), or by the full-order XFEM on a
+    /// linear one (`vademecum solve`; `[fidelity.xfem]`).
     #[serde(default)]
     pub cuts: Vec<CutSpec>,
 }
@@ -427,6 +428,70 @@ pub struct Fidelity {
     /// Settings of the meshless solver.
     #[serde(default)]
     pub meshless: MeshlessFidelity,
+    /// Settings of cutting by XFEM (linear organs).
+    #[serde(default)]
+    pub xfem: XfemFidelity,
+}
+
+/// `[fidelity.xfem]`: cutting by XFEM with cracking nodes (seed 000 chapter 3; `docs/cutting.md`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct XfemFidelity {
+    /// The sliver rule: a node whose support has less than this fraction of its volume on one
+    /// side of the cut is not enriched (conditioning).
+    #[serde(default = "default_sliver")]
+    pub sliver: f64,
+    /// Move each cracked node's cut plane to pass through the node (the seed's node-centred
+    /// cuts) instead of following the blade's surface.
+    #[serde(default)]
+    pub node_centred: bool,
+    /// What happens to a piece the cuts detach from every support: `hold` (a soft foundation
+    /// keeps it in place) or `remove` (also held, its loads dropped, flagged not drawn).
+    #[serde(default)]
+    pub detached: crate::xfem::Detached,
+    /// The Ritz basis of the online model's continuous part: `srb` (modes split by
+    /// component) or `prb` (one coefficient per mode).
+    #[serde(default = "default_basis")]
+    pub basis: crate::xfem::reduced::RitzBasis,
+    /// What carries the online model's discontinuous part: `local_fields` (the seed's
+    /// pre-computed local XFEM fields; exact up to the modes' error) or `bare` (the enriched
+    /// shape functions alone).
+    #[serde(default = "default_discontinuous")]
+    pub discontinuous: crate::xfem::reduced::Discontinuous,
+}
+
+fn default_sliver() -> f64 {
+    1e-4
+}
+fn default_basis() -> crate::xfem::reduced::RitzBasis {
+    crate::xfem::reduced::RitzBasis::Srb
+}
+fn default_discontinuous() -> crate::xfem::reduced::Discontinuous {
+    crate::xfem::reduced::Discontinuous::LocalFields
+}
+
+impl Default for XfemFidelity {
+    fn default() -> Self {
+        Self {
+            sliver: default_sliver(),
+            node_centred: false,
+            detached: crate::xfem::Detached::Hold,
+            basis: default_basis(),
+            discontinuous: default_discontinuous(),
+        }
+    }
+}
+
+impl XfemFidelity {
+    /// The XFEM discretisation parameters.
+    pub fn params(&self) -> crate::xfem::XfemParams {
+        crate::xfem::XfemParams {
+            sliver: self.sliver,
+            node_centred: self.node_centred,
+            detached: self.detached,
+            ..crate::xfem::XfemParams::default()
+        }
+    }
 }
 
 /// Which solver `vademecum solve` runs.

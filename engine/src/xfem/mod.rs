@@ -14,11 +14,13 @@
 //!   enriched nodes, the factor updated as the cut grows.
 //! - [`system`]: the full-order XFEM system (the reference of the reduced online models), its
 //!   detached pieces, and the static solve.
+//! - [`view`]: the mesh split along a cut, for viewers and recordings.
 
 pub mod enrichment;
 pub mod reduced;
 pub mod subcell;
 pub mod system;
+pub mod view;
 
 pub use enrichment::{Detached, Enrichment, EnrichmentError, XfemParams};
 pub use subcell::Plane;

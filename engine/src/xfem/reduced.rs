@@ -166,6 +166,9 @@ pub struct ReducedCut {
     locking: Locking,
     problem: StaticProblem,
     params: XfemParams,
+    /// Workspace of [`contact_compliance`](Self::contact_compliance): three columns of the
+    /// system's dimension, sized by [`cut`](Self::cut) so that a tick never allocates.
+    scratch: Vec<f64>,
 }
 
 impl ReducedCut {
@@ -273,6 +276,7 @@ impl ReducedCut {
             locking,
             problem: problem.clone(),
             params: *params,
+            scratch: vec![0.0; 3 * nb],
         })
     }
 
@@ -398,6 +402,7 @@ impl ReducedCut {
         }
         self.enriched_eqs = total;
         self.enr = enr;
+        self.scratch.resize(3 * self.dim(), 0.0);
         Ok(CutUpdate {
             new_nodes,
             enriched_unknowns: total,
@@ -465,6 +470,71 @@ impl ReducedCut {
         }
     }
 
+    /// The 3×3 compliance of the cut organ at a load patch (`nodes` with `weights` summing to
+    /// one; the patch-averaged displacement per unit force spread over the patch):
+    /// `C = Φ A⁻¹ Φᵀ` (module docs). With local fields `C = Φ_X Φ_Xᵀ + ZᵀZ`, `Z = L_S⁻¹ W_pᵀ`;
+    /// bare, `C = ZᵀZ`, `Z = L⁻¹ [Φ_Xᵀ; 0]`. The displacement an own-side node sees; no
+    /// allocation.
+    pub fn contact_compliance(&mut self, nodes: &[usize], weights: &[f64]) -> [[f64; 3]; 3] {
+        let (nb, dim) = (self.nb, self.dim());
+        let nf = self.dofs.n_free();
+        let mut c = [[0.0; 3]; 3];
+        let m = dim - nb;
+        let len = match self.disc {
+            Discontinuous::Bare => dim,
+            Discontinuous::LocalFields => m,
+        };
+        let z = &mut self.scratch[..3 * len];
+        z.fill(0.0);
+        // the right-hand sides: Φ_Xᵀ (bare) or W_pᵀ (local fields), averaged over the patch
+        for (&a, &w) in nodes.iter().zip(weights) {
+            for i in 0..3 {
+                let Some(e) = self.dofs.eq(3 * a + i) else { continue };
+                let xr = &self.x[e * nb..(e + 1) * nb];
+                match self.disc {
+                    Discontinuous::Bare => {
+                        for (t, v) in xr.iter().enumerate() {
+                            z[i * len + t] += w * v;
+                        }
+                    }
+                    Discontinuous::LocalFields => {
+                        for t in 0..m {
+                            z[i * len + t] += w * self.w[t * nf + e];
+                        }
+                    }
+                }
+            }
+        }
+        if self.disc == Discontinuous::LocalFields {
+            // Φ_X Φ_Xᵀ, from the rows of X̂ (K-orthonormal: the uncut Ritz compliance)
+            for (&a, &wa) in nodes.iter().zip(weights) {
+                for (&b, &wb) in nodes.iter().zip(weights) {
+                    for i in 0..3 {
+                        let Some(ea) = self.dofs.eq(3 * a + i) else { continue };
+                        for j in 0..3 {
+                            let Some(eb) = self.dofs.eq(3 * b + j) else { continue };
+                            let (ra, rb) = (&self.x[ea * nb..(ea + 1) * nb], &self.x[eb * nb..(eb + 1) * nb]);
+                            c[i][j] += wa * wb * ra.iter().zip(rb).map(|(p, q)| p * q).sum::<f64>();
+                        }
+                    }
+                }
+            }
+        }
+        for i in 0..3 {
+            self.factor.forward_in_place(&mut z[i * len..(i + 1) * len]);
+        }
+        for i in 0..3 {
+            for j in 0..3 {
+                c[i][j] += z[i * len..(i + 1) * len]
+                    .iter()
+                    .zip(&z[j * len..(j + 1) * len])
+                    .map(|(p, q)| p * q)
+                    .sum::<f64>();
+            }
+        }
+        c
+    }
+
     /// Number of mesh nodes.
     pub fn n_nodes(&self) -> usize {
         self.n_nodes
@@ -523,14 +593,19 @@ impl Bordered {
         Ok(())
     }
 
-    /// Solves `L Lᵀ z = b` in place.
-    fn solve_in_place(&self, b: &mut [f64]) {
-        let (nb, dim) = (self.identity, self.dim());
-        for d in nb..dim {
+    /// Solves `L y = b` in place.
+    fn forward_in_place(&self, b: &mut [f64]) {
+        for d in self.identity..self.dim() {
             let r = self.row(d);
             let s: f64 = r[..d].iter().zip(&b[..d]).map(|(p, q)| p * q).sum();
             b[d] = (b[d] - s) / r[d];
         }
+    }
+
+    /// Solves `L Lᵀ z = b` in place.
+    fn solve_in_place(&self, b: &mut [f64]) {
+        let (nb, dim) = (self.identity, self.dim());
+        self.forward_in_place(b);
         for d in (nb..dim).rev() {
             let r = self.row(d);
             b[d] /= r[d];

@@ -10,12 +10,16 @@ use serde::Serialize;
 use vademecum_engine::fem::hyperelastic::Volumetric;
 use vademecum_engine::fem::linear_static::{self, Timings};
 use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
+use vademecum_engine::fem::{assembly, element};
 use vademecum_engine::mesh::Mesh;
 use vademecum_engine::mesh::vtk::{self, Field};
+use vademecum_engine::meshless::cut::Cut;
 use vademecum_engine::meshless::efg::AdrParams;
 use vademecum_engine::meshless::organ::{self, OrganSettings};
 use vademecum_engine::scene::schema::SolverKind;
 use vademecum_engine::scene::{OrganModel, Scene};
+use vademecum_engine::xfem::view::SplitMesh;
+use vademecum_engine::xfem::{Detached, Enrichment, system};
 
 use crate::cli_main::cli::{SceneSource, SolveArgs};
 use crate::cli_main::progress::Stages;
@@ -46,7 +50,28 @@ struct OrganSummary {
     /// The meshless solver's discretisation, relaxation and cuts.
     #[serde(skip_serializing_if = "Option::is_none")]
     meshless: Option<MeshlessSummary>,
+    /// The full-order XFEM's cut, for linear organs with pre-planned cuts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    xfem: Option<XfemSummary>,
     output: PathBuf,
+}
+
+#[derive(Debug, Serialize)]
+struct XfemSummary {
+    cuts: usize,
+    /// Cells the blade crossed entirely.
+    cut_cells: usize,
+    /// Cracked (enriched) nodes.
+    enriched_nodes: usize,
+    /// Nodes left out by the sliver rule.
+    sliver_nodes: usize,
+    /// Pieces no support held, and what was done with them.
+    detached_pieces: usize,
+    detached_action: &'static str,
+    /// Largest jump between the two lips at a cracked node (m).
+    max_opening_m: f64,
+    /// Strain energy of the same organ uncut (J).
+    uncut_strain_energy_j: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -110,6 +135,16 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         }
         if scene.spec.fidelity.solver == SolverKind::Meshless {
             organs.push(solve_meshless(&scene, i, &model, &out, &progress)?);
+            progress.finish();
+            continue;
+        }
+        let cuts = scene.organ_cuts(i)?;
+        if !cuts.is_empty() {
+            anyhow::ensure!(
+                model.laws.is_none(),
+                "organ '{name}': cuts in a hyperelastic organ are made by the meshless solver; set fidelity.solver = \"meshless\" (or use a linear material for XFEM)"
+            );
+            organs.push(solve_xfem(&scene, &model, &cuts, &out, &progress)?);
             progress.finish();
             continue;
         }
@@ -185,6 +220,7 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
             }),
             solver: "fem",
             meshless: None,
+            xfem: None,
             output: file,
         });
     }
@@ -247,6 +283,17 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
                     writeln!(stdout, "  node cloud         {} (both faces of the cuts)", f.display())?;
                 }
             }
+            if let Some(x) = &o.xfem {
+                writeln!(
+                    stdout,
+                    "  XFEM cut           {} cut(s): {} cells crossed, {} cracked nodes ({} left out by the sliver rule), largest opening {:.3e} m",
+                    x.cuts, x.cut_cells, x.enriched_nodes, x.sliver_nodes, x.max_opening_m
+                )?;
+                writeln!(stdout, "  uncut              strain energy {:.6e} J", x.uncut_strain_energy_j)?;
+                if x.detached_pieces > 0 {
+                    writeln!(stdout, "  detached pieces    {} ({})", x.detached_pieces, x.detached_action)?;
+                }
+            }
             if let Some(n) = &o.newton {
                 writeln!(
                     stdout,
@@ -262,6 +309,139 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         )?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A linear organ with pre-planned cuts: the full-order XFEM (cracking nodes, seed 000 ch. 3),
+/// written on the mesh split along the cut so that ParaView shows the opening.
+fn solve_xfem(scene: &Scene, model: &OrganModel, cuts: &[Cut], out: &std::path::Path, progress: &Stages) -> anyhow::Result<OrganSummary> {
+    let name = &model.name;
+    let fx = scene.spec.fidelity.xfem;
+    let params = fx.params();
+    progress.stage("XFEM: cut cells and cracked nodes");
+    let mut cut = cuts[0].clone();
+    for c in &cuts[1..] {
+        cut = cut.union(c)?;
+    }
+    let enr = Enrichment::from_cut(&model.mesh, &cut, &params).with_context(|| format!("organ '{name}': the cut"))?;
+    if enr.is_empty() {
+        progress.warn(&format!(
+            "organ '{name}': the cuts cross no cell entirely (a cut ends on cell boundaries): nothing is cut"
+        ));
+    }
+    progress.stage("XFEM: assembly and solve");
+    let started = std::time::Instant::now();
+    let sol = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, &enr, &params)
+        .with_context(|| format!("organ '{name}' could not be solved with its cuts"))?;
+    let solve_time_s = started.elapsed().as_secs_f64();
+    for w in &sol.warnings {
+        progress.warn(w);
+    }
+    progress.stage("uncut solve, for comparison");
+    let uncut = linear_static::solve(&model.mesh, &model.materials, model.locking, &model.problem, &mut |_| {})
+        .with_context(|| format!("organ '{name}' could not be solved uncut"))?;
+    progress.stage("writing .vtu (split along the cut)");
+    let split = SplitMesh::new(&model.mesh, &enr);
+    let u = split.of_solution(&enr, &sol);
+    let stresses = assembly::cell_stresses(&split.mesh, &model.materials, model.locking, &u)?;
+    let von_mises: Vec<f64> = stresses.iter().map(|s| element::von_mises(*s)).collect();
+    let f_int = assembly::internal_forces(&split.mesh, &model.materials, model.locking, &u)?;
+    let forces = split.extend_zero(&model.problem.forces, 3);
+    let n = model.mesh.n_nodes();
+    let mut reactions = vec![0.0; 3 * n];
+    for d in 0..3 * n {
+        if model.problem.constrained[d] {
+            reactions[d] = f_int[d] - forces[d];
+        }
+    }
+    // the copies of held nodes carry their share of the reaction
+    for (k, &a) in enr.nodes.iter().enumerate() {
+        for i in 0..3 {
+            if model.problem.constrained[3 * a + i] {
+                reactions[3 * a + i] += f_int[3 * (n + k) + i] - forces[3 * (n + k) + i];
+            }
+        }
+    }
+    let file = out.join(format!("{name}.vtu"));
+    let side: Vec<f64> = (0..split.mesh.n_nodes()).map(|a| if a < n { 0.0 } else { 1.0 }).collect();
+    vtk::write_vtu(
+        &file,
+        &split.mesh,
+        &[
+            Field {
+                name: "displacement",
+                components: 3,
+                values: &u,
+            },
+            Field {
+                name: "reaction",
+                components: 3,
+                values: &split.extend_zero(&reactions, 3),
+            },
+            Field {
+                name: "cut_lip_copy",
+                components: 1,
+                values: &side,
+            },
+        ],
+        &[Field {
+            name: "von_mises",
+            components: 1,
+            values: &von_mises,
+        }],
+    )?;
+    let (mut max_d, mut max_node) = (0.0, 0);
+    for a in 0..split.mesh.n_nodes() {
+        let d = (0..3).map(|i| u[3 * a + i].powi(2)).sum::<f64>().sqrt();
+        if d > max_d {
+            (max_d, max_node) = (d, if a < n { a } else { enr.nodes[a - n] });
+        }
+    }
+    let max_opening_m = (0..enr.len())
+        .map(|k| (0..3).map(|i| sol.q[3 * k + i].powi(2)).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    let reaction_force_n = model
+        .named_regions
+        .iter()
+        .map(|(r, nodes)| (r.clone(), vademecum_engine::fem::node_sum(&reactions, nodes)))
+        .collect();
+    let strain_energy_j = 0.5 * model.problem.forces.iter().zip(&sol.u).map(|(f, u)| f * u).sum::<f64>();
+    Ok(OrganSummary {
+        name: name.clone(),
+        cell_kind: model.mesh.kind.name(),
+        nodes: model.mesh.n_nodes(),
+        cells: model.mesh.n_cells(),
+        dofs: model.mesh.n_dofs() + 3 * enr.len(),
+        equations: sol.n_free,
+        nonzeros_lower: sol.nnz,
+        strain_energy_j,
+        max_displacement_m: max_d,
+        max_displacement_node: max_node,
+        max_von_mises_pa: von_mises.iter().copied().fold(0.0, f64::max),
+        reaction_force_n,
+        relative_residual: sol.residual,
+        solve_time_s,
+        timings: Timings {
+            solve_s: solve_time_s,
+            ..Timings::default()
+        },
+        newton: None,
+        solver: "fem",
+        meshless: None,
+        xfem: Some(XfemSummary {
+            cuts: cuts.len(),
+            cut_cells: enr.cut_cells.len(),
+            enriched_nodes: enr.len(),
+            sliver_nodes: enr.dropped.iter().filter(|d| d.fraction > 0.0).count(),
+            detached_pieces: sol.detached.len(),
+            detached_action: match params.detached {
+                Detached::Hold => "held in place",
+                Detached::Remove => "removed",
+            },
+            max_opening_m,
+            uncut_strain_energy_j: uncut.strain_energy,
+        }),
+        output: file,
+    })
 }
 
 /// `fidelity.solver = "meshless"`: the organ by EFG and adaptive dynamic relaxation (seed 004),
@@ -401,6 +581,7 @@ fn solve_meshless(
         },
         newton: None,
         solver: "meshless",
+        xfem: None,
         meshless: Some(MeshlessSummary {
             cloud_nodes: result.cloud.len(),
             integration_points: result.integration_points,
