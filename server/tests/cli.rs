@@ -294,3 +294,34 @@ fn solve_on_a_meshless_scene_prints_the_same_summary_and_cuts() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("hyperelastic material"), "{}", stderr(&o));
 }
+
+/// `vademecum solve` on the built-in cutting scenes: the full-order XFEM with their pre-planned
+/// cuts (seed 000 §3.5), written on the mesh split along the cut.
+#[test]
+fn solve_cuts_the_built_in_cutting_scenes_by_xfem() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["solve", "--builtin", "keratotomy", "--json", "--out", "k"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let organ = &v["organs"][0];
+    let x = &organ["xfem"];
+    assert_eq!(x["cuts"], 4, "{organ}");
+    assert_eq!(x["enriched_nodes"], 72, "{organ}");
+    assert_eq!(x["detached_pieces"], 0);
+    // the incisions gape under the intraocular pressure and the cornea gets softer
+    let opening = x["max_opening_m"].as_f64().unwrap();
+    assert!(opening > 1e-6 && opening < 1e-3, "{opening}");
+    assert!(organ["strain_energy_j"].as_f64().unwrap() > x["uncut_strain_energy_j"].as_f64().unwrap());
+    assert!(organ["relative_residual"].as_f64().unwrap() < 1e-8);
+    // the .vtu holds the split mesh: 2,500 nodes and one copy per cracked node
+    let vtu = std::fs::read_to_string(dir.path().join("k/cornea.vtu")).unwrap();
+    assert!(vtu.contains("NumberOfPoints=\"2572\""), "{}", &vtu[..400.min(vtu.len())]);
+    assert!(vtu.contains("cut_lip_copy"));
+    // a hyperelastic organ with cuts and the finite-element solver is refused with the remedy
+    let show = vademecum(&["scene", "show", "patch_cut"], dir.path());
+    let hyper = stdout(&show).replace("model = \"linear\"", "model = \"neo_hookean\"");
+    std::fs::write(dir.path().join("hyper.toml"), hyper).unwrap();
+    let o = vademecum(&["solve", "hyper.toml"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("meshless"), "{}", stderr(&o));
+}

@@ -200,6 +200,20 @@ impl Enrichment {
         Ok(out)
     }
 
+    /// Every cell an unbounded `plane` crosses entirely (nodes on both sides, or a face on the
+    /// plane), each with the plane: the cut cells of a cut through the whole organ.
+    pub fn cells_crossed_by(mesh: &Mesh, plane: &Plane) -> Vec<(usize, Plane)> {
+        let n = mesh.kind.nodes_per_cell();
+        let mut x = vec![[0.0; 3]; n];
+        (0..mesh.n_cells())
+            .filter(|&c| {
+                mesh.cell_coords(c, &mut x);
+                crossed(mesh.kind, &x, plane, subcell::cell_size(&x), |_| true)
+            })
+            .map(|c| (c, *plane))
+            .collect()
+    }
+
     /// The enrichment of a swept cut.
     pub fn from_cut(mesh: &Mesh, cut: &Cut, params: &XfemParams) -> Result<Self, EnrichmentError> {
         let cells = Self::cut_cells(mesh, cut, params)?;

@@ -7,6 +7,7 @@
 //! Eqs. 4–6), which vanishes at the node so that `u_a` stays the displacement of node a.
 //!
 //! # Layout
+//! - [`blade`]: the scalpel's blade, the split of its force and the cut criterion (§3.4).
 //! - [`subcell`]: cut planes, splitting a cell into sub-tetrahedra on each side, quadrature.
 //! - [`enrichment`]: from the swept blade surface to cut cells and cracked nodes (one plane per
 //!   node, the cracking-node method), the sliver rule.
@@ -16,6 +17,7 @@
 //!   detached pieces, and the static solve.
 //! - [`view`]: the mesh split along a cut, for viewers and recordings.
 
+pub mod blade;
 pub mod enrichment;
 pub mod reduced;
 pub mod subcell;

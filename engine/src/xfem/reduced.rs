@@ -332,21 +332,37 @@ impl ReducedCut {
             });
         }
         let clock = Instant::now();
-        let sys = system::assemble(mesh, &self.materials, self.locking, &self.problem, &enr, &self.params)?;
+        let triplets = system::enriched_rows(mesh, &self.materials, self.locking, &enr, old_nodes)?;
         let nf = self.dofs.n_free();
-        let first_new = nf + self.enriched_eqs;
-        let total = sys.dofs.n_free() - nf;
-        let n_new = total - self.enriched_eqs;
-        // the new rows, from the lower triangle: entry (r, c), r ≥ first_new
-        let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n_new];
-        let sym = sys.k.pattern.symbolic();
-        let (cp, ri) = (sym.col_ptr(), sym.row_idx());
-        for c in 0..sys.dofs.n_free() {
-            for p in cp[c]..cp[c + 1] {
-                if ri[p] >= first_new {
-                    rows[ri[p] - first_new].push((c, sys.k.values[p]));
-                }
+        let n3 = 3 * self.n_nodes;
+        // the unknown of every enriched degree of freedom (none where the node is held)
+        let mut unknown_of = Vec::with_capacity(3 * enr.len());
+        let mut total = 0;
+        for &a in &enr.nodes {
+            for i in 0..3 {
+                unknown_of.push((!self.problem.constrained[3 * a + i]).then(|| {
+                    total += 1;
+                    total - 1
+                }));
             }
+        }
+        let n_new = total - self.enriched_eqs;
+        // the new rows over standard equations (c < nf) and enriched unknowns (nf + e)
+        let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n_new];
+        for (r, c, v) in triplets {
+            let Some(row) = unknown_of[r - n3] else { continue };
+            let col = if c < n3 {
+                match self.dofs.eq(c) {
+                    Some(e) => e,
+                    None => continue,
+                }
+            } else {
+                match unknown_of[c - n3] {
+                    Some(e) if e <= row => nf + e,
+                    _ => continue,
+                }
+            };
+            rows[row - self.enriched_eqs].push((col, v));
         }
         let assembly_s = clock.elapsed().as_secs_f64();
         let clock = Instant::now();
@@ -378,7 +394,7 @@ impl ReducedCut {
                     // w_e = −K⁻¹ K_ue 1_e; S[e, e'] = K_ee[e, e'] + K_eu[e, :] w_e'
                     w.fill(0.0);
                     for &(c, v) in row.iter().filter(|(c, _)| *c < nf) {
-                        w[c] = -v;
+                        w[c] -= v;
                     }
                     self.chol
                         .as_ref()
@@ -520,9 +536,7 @@ impl ReducedCut {
                 }
             }
         }
-        for i in 0..3 {
-            self.factor.forward_in_place(&mut z[i * len..(i + 1) * len]);
-        }
+        self.factor.forward3_in_place(z, len);
         for i in 0..3 {
             for j in 0..3 {
                 c[i][j] += z[i * len..(i + 1) * len]
@@ -599,6 +613,25 @@ impl Bordered {
             let r = self.row(d);
             let s: f64 = r[..d].iter().zip(&b[..d]).map(|(p, q)| p * q).sum();
             b[d] = (b[d] - s) / r[d];
+        }
+    }
+
+    /// Solves `L y = b` for three right-hand sides stored one after the other (`len` each) in
+    /// one pass over the factor (the factor is read once, not three times).
+    fn forward3_in_place(&self, z: &mut [f64], len: usize) {
+        let (z0, rest) = z.split_at_mut(len);
+        let (z1, z2) = rest.split_at_mut(len);
+        for d in self.identity..self.dim() {
+            let r = self.row(d);
+            let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+            for (t, v) in r[..d].iter().enumerate() {
+                s0 += v * z0[t];
+                s1 += v * z1[t];
+                s2 += v * z2[t];
+            }
+            z0[d] = (z0[d] - s0) / r[d];
+            z1[d] = (z1[d] - s1) / r[d];
+            z2[d] = (z2[d] - s2) / r[d];
         }
     }
 

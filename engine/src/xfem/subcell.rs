@@ -10,8 +10,8 @@
 //! plane is approximated by a piecewise planar surface in the reference cube.
 //!
 //! Quadrature on each sub-tetrahedron: on a tetrahedral cell the strain of a linear field is
-//! constant and the centroid is exact; on a hexahedral cell a collapsed (Duffy) 4×4×4 Gauss rule,
-//! exact for polynomials of total degree 5, so that the trilinear stiffness integrand (degree ≤ 4
+//! constant and the centroid is exact; on a hexahedral cell a 27-point conical-product rule
+//! (Duffy collapse with Gauss–Jacobi factors), exact for polynomials of total degree 5, so that the trilinear stiffness integrand (degree ≤ 4
 //! on a parallelepiped) is integrated exactly and the sub-cells add up to the cell's own 2×2×2
 //! Gauss stiffness to rounding.
 
@@ -141,7 +141,7 @@ pub fn cell_size(x: &[[f64; 3]]) -> f64 {
     h
 }
 
-/// `φ` of `plane` at `p`, snapped to zero within [`SNAP`]` · h`.
+/// `φ` of `plane` at `p`, snapped to zero within `10⁻¹⁰ · h` (a node on the plane).
 #[inline]
 pub fn snapped_phi(plane: &Plane, p: [f64; 3], h: f64) -> f64 {
     let v = plane.phi(p);
@@ -222,24 +222,53 @@ fn prism(a: [[f64; 3]; 3], b: [[f64; 3]; 3], mut push: impl FnMut([[f64; 3]; 4])
     push([a[0], b[0], b[1], b[2]]);
 }
 
-/// The collapsed Gauss rule on the reference tetrahedron: points and weights (summing to ⅙).
+/// The `n`-point Gauss–Jacobi rule on [0, 1] for the weight `(1 − x)^α` (Golub–Welsch: the
+/// eigenvalues of the Jacobi matrix of the Jacobi polynomials `P^(α,0)`): nodes and weights.
+fn gauss_jacobi(n: usize, alpha: f64) -> Vec<(f64, f64)> {
+    let (a, b) = (alpha, 0.0);
+    let mut j = nalgebra::DMatrix::<f64>::zeros(n, n);
+    for k in 0..n {
+        let kf = k as f64;
+        let s = 2.0 * kf + a + b;
+        j[(k, k)] = if k == 0 {
+            (b - a) / (a + b + 2.0)
+        } else {
+            (b * b - a * a) / (s * (s + 2.0))
+        };
+        if k + 1 < n {
+            let k1 = kf + 1.0;
+            let s1 = 2.0 * k1 + a + b;
+            let off = (4.0 * k1 * (k1 + a) * (k1 + b) * (k1 + a + b) / (s1 * s1 * (s1 + 1.0) * (s1 - 1.0))).sqrt();
+            j[(k, k + 1)] = off;
+            j[(k + 1, k)] = off;
+        }
+    }
+    let e = j.symmetric_eigen();
+    // ∫_{−1}^{1} (1 − t)^α dt = 2^{α+1}/(α+1); on [0, 1] the weights scale by 2^{−(α+1)}
+    let mu0 = 2f64.powf(a + 1.0) / (a + 1.0);
+    let mut out: Vec<(f64, f64)> = (0..n)
+        .map(|i| {
+            let t = e.eigenvalues[i];
+            let v = e.eigenvectors[(0, i)];
+            (0.5 * (1.0 + t), mu0 * v * v / 2f64.powf(a + 1.0))
+        })
+        .collect();
+    out.sort_by(|p, q| p.0.total_cmp(&q.0));
+    out
+}
+
+/// The conical-product rule on the reference tetrahedron (Stroud): the Duffy collapse
+/// `ξ = u, η = (1 − u)v, ζ = (1 − u)(1 − v)w` with 3-point Gauss–Jacobi rules for its Jacobian
+/// `(1 − u)²(1 − v)` — 27 points, exact for polynomials of total degree 5. Weights sum to ⅙.
 fn duffy_rule() -> &'static [([f64; 3], f64)] {
     static RULE: OnceLock<Vec<([f64; 3], f64)>> = OnceLock::new();
     RULE.get_or_init(|| {
-        // 4-point Gauss–Legendre on [0, 1]
-        let g = [0.339_981_043_584_856_3, 0.861_136_311_594_052_6];
-        let w = [0.652_145_154_862_546_1, 0.347_854_845_137_453_9];
-        let mut pts = Vec::with_capacity(4);
-        for (gi, wi) in g.iter().zip(w) {
-            pts.push((0.5 * (1.0 - gi), 0.5 * wi));
-            pts.push((0.5 * (1.0 + gi), 0.5 * wi));
-        }
-        let mut rule = Vec::with_capacity(64);
-        for &(u, wu) in &pts {
-            for &(v, wv) in &pts {
-                for &(s, ws) in &pts {
-                    let xi = [u, (1.0 - u) * v, (1.0 - u) * (1.0 - v) * s];
-                    rule.push((xi, wu * wv * ws * (1.0 - u) * (1.0 - u) * (1.0 - v)));
+        let (gu, gv, gw) = (gauss_jacobi(3, 2.0), gauss_jacobi(3, 1.0), gauss_jacobi(3, 0.0));
+        let mut rule = Vec::with_capacity(27);
+        for &(u, wu) in &gu {
+            for &(v, wv) in &gv {
+                for &(s, ws) in &gw {
+                    rule.push(([u, (1.0 - u) * v, (1.0 - u) * (1.0 - v) * s], wu * wv * ws));
                 }
             }
         }
@@ -273,6 +302,16 @@ pub fn quadrature(kind: CellKind, t: &SubTet, mut f: impl FnMut([f64; 3], f64)) 
                 f(xi, 6.0 * vol * w);
             }
         }
+    }
+}
+
+/// Calls `f(ξ, w)` at the quadrature points of a whole cell of `kind` (a cell no plane
+/// crosses): the 2×2×2 Gauss rule of the hexahedron (the uncut stiffness's), the centroid of the
+/// tetrahedron.
+pub fn whole_cell_quadrature(kind: CellKind, mut f: impl FnMut([f64; 3], f64)) {
+    match kind {
+        CellKind::Tet4 => f([0.25; 3], 1.0 / 6.0),
+        CellKind::Hex8 => shape::hex_gauss_2().into_iter().for_each(|p| f(p, 1.0)),
     }
 }
 

@@ -184,6 +184,8 @@ pub fn enriched_cell_stiffness(
     let ng = n + local.len();
     ke.clear();
     ke.resize(9 * ng * ng, 0.0);
+    divergence.clear();
+    divergence.resize(ng, [0.0; 3]);
     let mut planes: Vec<subcell::Plane> = Vec::new();
     let plane_of: Vec<usize> = local
         .iter()
@@ -196,16 +198,19 @@ pub fn enriched_cell_stiffness(
         })
         .collect();
     let (kappa, mu) = (mat.bulk(), mat.shear());
-    let mut sides: Vec<CellSide> = Vec::new();
-    divergence.clear();
-    divergence.resize(ng, [0.0; 3]);
-    let gsum = divergence;
     let plain = volumetric == EnrichedVolumetric::Plain;
+    // per side: the moments M_ab = ∫ ∇N_a ⊗ ∇N_b and ∫ ∇N_a of the standard functions; on a
+    // side every generalized gradient is s ∇N_a, so the cell matrix follows from them
+    let mut sides: Vec<CellSide> = Vec::new();
+    let mut moments: Vec<Vec<[[f64; 3]; 3]>> = Vec::new();
+    let mut integrals: Vec<[[f64; 3]; 8]> = Vec::new();
     let mut dn = [[0.0; 3]; 8];
     let mut grad = [[0.0; 3]; 8];
-    let mut g = vec![[0.0; 3]; ng];
     let mut bad = None;
-    for t in subcell::split(kind, x, &planes) {
+    let pieces = subcell::split(kind, x, &planes);
+    // a cell no plane crosses is one side: its own Gauss rule, not the sub-cells'
+    let whole = pieces.iter().all(|t| t.sides == pieces[0].sides);
+    for t in pieces.iter().take(if whole { 1 } else { pieces.len() }) {
         let shifts: Vec<f64> = local
             .iter()
             .zip(&plane_of)
@@ -214,46 +219,97 @@ pub fn enriched_cell_stiffness(
         let side = match sides.iter().position(|s| s.shifts == shifts) {
             Some(i) => i,
             None => {
-                sides.push(CellSide {
-                    volume: 0.0,
-                    shifts: shifts.clone(),
-                });
+                sides.push(CellSide { volume: 0.0, shifts });
+                moments.push(vec![[[0.0; 3]; 3]; n * n]);
+                integrals.push([[0.0; 3]; 8]);
                 sides.len() - 1
             }
         };
-        subcell::quadrature(kind, &t, |xi, w| {
+        let (m, gi) = (&mut moments[side], &mut integrals[side]);
+        let at_point = |xi: [f64; 3], w: f64| {
             subcell::reference_gradients(kind, xi, &mut dn);
             let det = shape::physical_gradients(x, &dn[..n], &mut grad[..n]);
             if det <= 0.0 {
                 bad = Some(det);
                 return;
             }
-            g[..n].copy_from_slice(&grad[..n]);
-            for (j, &(a, _)) in local.iter().enumerate() {
-                g[n + j] = grad[a].map(|v| shifts[j] * v);
-            }
             let wd = w * det;
             sides[side].volume += wd;
-            for (s, gi) in gsum.iter_mut().zip(&g) {
+            for a in 0..n {
+                let ga = grad[a].map(|v| wd * v);
                 for i in 0..3 {
-                    s[i] += wd * gi[i];
+                    gi[a][i] += ga[i];
+                }
+                for b in a..n {
+                    let mab = &mut m[a * n + b];
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            mab[i][j] += ga[i] * grad[b][j];
+                        }
+                    }
                 }
             }
-            element::add_terms(ke, ng, &g, wd, kappa, mu, plain, true);
-        });
+        };
+        if whole {
+            subcell::whole_cell_quadrature(kind, at_point);
+        } else {
+            subcell::quadrature(kind, t, at_point);
+        }
         if let Some(det) = bad {
             return Err(ElementError::NonPositiveJacobian { det });
         }
     }
+    // generalized function p: standard node p (p < n), or s_j ∇N_{a_j} (p = n + j)
+    let node_of = |p: usize| if p < n { p } else { local[p - n].0 };
+    let nd = 3 * ng;
+    for (side, (m, gi)) in sides.iter().zip(moments.iter().zip(&integrals)) {
+        let s = |p: usize| if p < n { 1.0 } else { side.shifts[p - n] };
+        for p in 0..ng {
+            for q in 0..ng {
+                let spq = s(p) * s(q);
+                if (p < n && q < n) || spq == 0.0 {
+                    continue; // the standard–standard block is the uncut stiffness's
+                }
+                // only a ≤ b is accumulated: M_ba = M_abᵀ
+                let (a, b) = (node_of(p), node_of(q));
+                let mab = if a <= b {
+                    m[a * n + b]
+                } else {
+                    let t = m[b * n + a];
+                    [
+                        [t[0][0], t[1][0], t[2][0]],
+                        [t[0][1], t[1][1], t[2][1]],
+                        [t[0][2], t[1][2], t[2][2]],
+                    ]
+                };
+                let trace = mab[0][0] + mab[1][1] + mab[2][2];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        let mut v = mu * (mab[j][i] - 2.0 / 3.0 * mab[i][j]);
+                        if i == j {
+                            v += mu * trace;
+                        }
+                        if plain {
+                            v += kappa * mab[i][j];
+                        }
+                        ke[(3 * p + i) * nd + 3 * q + j] += spq * v;
+                    }
+                }
+            }
+        }
+        for p in 0..ng {
+            for i in 0..3 {
+                divergence[p][i] += s(p) * gi[node_of(p)][i];
+            }
+        }
+    }
     if volumetric == EnrichedVolumetric::CellMean {
         let volume: f64 = sides.iter().map(|s| s.volume).sum();
-        let gbar: Vec<[f64; 3]> = gsum.iter().map(|s| s.map(|v| v / volume)).collect();
+        let gbar: Vec<[f64; 3]> = divergence.iter().map(|s| s.map(|v| v / volume)).collect();
         element::add_terms(ke, ng, &gbar, volume, kappa, mu, true, false);
-    }
-    // the standard–standard block is the uncut stiffness's
-    let nd = 3 * ng;
-    for r in 0..3 * n {
-        ke[r * nd..r * nd + 3 * n].fill(0.0);
+        for r in 0..3 * n {
+            ke[r * nd..r * nd + 3 * n].fill(0.0);
+        }
     }
     Ok(sides)
 }
@@ -374,52 +430,69 @@ pub fn assemble(
     let mut forces = problem.forces.clone();
     forces.resize(3 * ng, 0.0);
     let npc = mesh.kind.nodes_per_cell();
-    let mut x = vec![[0.0; 3]; npc];
-    let mut ke = Vec::new();
     let mut eqs = Vec::new();
     let mut pieces = Pieces::new(ng);
-    let mut h_sum = 0.0;
-    let mut divergence = Vec::new();
+    for c in 0..mesh.n_cells() {
+        let cell = mesh.cell(c);
+        if !cell.iter().any(|&a| enr.index(a).is_some()) {
+            for &a in &cell[1..] {
+                pieces.join(cell[0], a);
+            }
+        }
+    }
     // per cut cell, the volume change of each of its enriched functions (for the nodal pressure)
     let mut enriched_divergence: std::collections::HashMap<usize, Vec<(usize, [f64; 3])>> = Default::default();
-    for c in 0..mesh.n_cells() {
-        mesh.cell_coords(c, &mut x);
-        h_sum += subcell::cell_size(&x);
-        generalized_cell(mesh, enr, c, &mut cell_nodes, &mut local);
-        if local.is_empty() {
-            for &a in &cell_nodes[1..] {
-                pieces.join(cell_nodes[0], a);
+    visit_enriched_cells(
+        mesh,
+        materials,
+        enr,
+        volumetric,
+        |_| true,
+        |c, cell_nodes, local, ke, sides, divergence| {
+            if patches.is_some() {
+                enriched_divergence.insert(c, (0..local.len()).map(|j| (cell_nodes[npc + j], divergence[npc + j])).collect());
             }
-            continue;
-        }
-        let sides = enriched_cell_stiffness(mesh.kind, &x, enr, &local, materials.of(c), volumetric, &mut ke, &mut divergence)
-            .map_err(|source| AssemblyError { cell: c, source })?;
-        if patches.is_some() {
-            enriched_divergence.insert(c, (0..local.len()).map(|j| (cell_nodes[npc + j], divergence[npc + j])).collect());
-        }
-        let total: f64 = sides.iter().map(|s| s.volume).sum();
-        for side in sides.iter().filter(|s| s.volume > 1e-12 * total) {
-            // the copies on this side: each node's own, or the other side of an enriched one
-            let mut copies = cell_nodes[..npc].to_vec();
-            for (j, &(a, _)) in local.iter().enumerate() {
-                if side.shifts[j] != 0.0 {
-                    copies[a] = cell_nodes[npc + j];
+            let total: f64 = sides.iter().map(|s| s.volume).sum();
+            for side in sides.iter().filter(|s| s.volume > 1e-12 * total) {
+                // the copies on this side: each node's own, or the other side of an enriched one
+                let mut copies = cell_nodes[..npc].to_vec();
+                for (j, &(a, _)) in local.iter().enumerate() {
+                    if side.shifts[j] != 0.0 {
+                        copies[a] = cell_nodes[npc + j];
+                    }
+                }
+                for &a in &copies[1..] {
+                    pieces.join(copies[0], a);
                 }
             }
-            for &a in &copies[1..] {
-                pieces.join(copies[0], a);
+            eqs.clear();
+            for &a in cell_nodes {
+                for i in 0..3 {
+                    eqs.push(dofs.eq(3 * a + i));
+                }
             }
-        }
-        eqs.clear();
-        for &a in &cell_nodes {
-            for i in 0..3 {
-                eqs.push(dofs.eq(3 * a + i));
-            }
-        }
-        assembly::scatter_cell(&mut k, &ke, &cell_nodes, &eqs, Some(&prescribed), &mut rhs);
-    }
+            assembly::scatter_cell(&mut k, ke, cell_nodes, &eqs, Some(&prescribed), &mut rhs);
+        },
+    )?;
+    let h_sum: f64 = (0..mesh.n_cells())
+        .map(|c| {
+            let mut x = [[0.0; 3]; 8];
+            mesh.cell_coords(c, &mut x[..npc]);
+            subcell::cell_size(&x[..npc])
+        })
+        .sum();
     if let Some(patches) = &patches {
-        add_nodal_enriched(mesh, materials, patches, &enriched_divergence, &dofs, &prescribed, &mut k, &mut rhs);
+        visit_nodal_enriched(mesh, materials, patches, &enriched_divergence, |p, q, v| {
+            match (dofs.eq(p), dofs.eq(q)) {
+                (Some(r), Some(c)) if r >= c => {
+                    let pos = k.pattern.position(r, c).expect("the pattern covers nodal patches");
+                    k.values[pos] += v;
+                }
+                // −K_fc ū_c
+                (Some(r), None) => rhs[r] -= v * prescribed[q],
+                _ => {}
+            }
+        });
     }
     let mut springs = problem.springs.clone();
     springs.resize(3 * ng, 0.0);
@@ -478,25 +551,55 @@ pub fn assemble(
     })
 }
 
+/// Calls `each(c, cell_nodes, local, ke, sides, divergence)` for every cell with enriched
+/// nodes for which `want(local)` holds, with its generalized nodes, the local index and
+/// enriched index of each of its enriched nodes, its matrix over them (standard–standard block
+/// zero), its sides and the integral of each generalized gradient
+/// ([`enriched_cell_stiffness`]).
+#[allow(clippy::type_complexity)]
+fn visit_enriched_cells(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    enr: &Enrichment,
+    volumetric: EnrichedVolumetric,
+    want: impl Fn(&[(usize, usize)]) -> bool,
+    mut each: impl FnMut(usize, &[usize], &[(usize, usize)], &[f64], &[CellSide], &[[f64; 3]]),
+) -> Result<(), AssemblyError> {
+    let npc = mesh.kind.nodes_per_cell();
+    let mut x = vec![[0.0; 3]; npc];
+    let (mut cell_nodes, mut local) = (Vec::new(), Vec::new());
+    let (mut ke, mut divergence) = (Vec::new(), Vec::new());
+    for c in 0..mesh.n_cells() {
+        generalized_cell(mesh, enr, c, &mut cell_nodes, &mut local);
+        if local.is_empty() || !want(&local) {
+            continue;
+        }
+        mesh.cell_coords(c, &mut x);
+        let sides = enriched_cell_stiffness(mesh.kind, &x, enr, &local, materials.of(c), volumetric, &mut ke, &mut divergence)
+            .map_err(|source| AssemblyError { cell: c, source })?;
+        each(c, &cell_nodes, &local, &ke, &sides, &divergence);
+    }
+    Ok(())
+}
+
 /// The enriched part of the averaged-nodal-pressure volumetric stiffness (module docs of
 /// [`crate::fem::nodal`]): node a's volume change is `G_a · u` with
 /// `G_a = Σ_{e∋a} ¼ ∫_e g_j` over every generalized function j, and its stiffness
-/// `(κ_a / V_a) G_a G_aᵀ`; the standard–standard part is already in the uncut stiffness, this
-/// adds the pairs that involve an enriched function.
-fn add_nodal_enriched(
+/// `(κ_a / V_a) G_a G_aᵀ`; the standard–standard part is in the uncut stiffness. Calls
+/// `emit(p, q, value)` for every pair of generalized degrees of freedom `p = 3g + i` of which
+/// one at least is enriched, for the nodes whose patch holds a cell of `enriched_divergence`.
+fn visit_nodal_enriched(
     mesh: &Mesh,
     materials: &MaterialMap,
     patches: &NodalPatches,
     enriched_divergence: &std::collections::HashMap<usize, Vec<(usize, [f64; 3])>>,
-    dofs: &DofMap,
-    prescribed: &[f64],
-    k: &mut SymmetricMatrix,
-    rhs: &mut [f64],
+    mut emit: impl FnMut(usize, usize, f64),
 ) {
     let grads = nodal::reference_volume_gradients(mesh, patches);
     let kappa = nodal::nodal_average(patches, |c| materials.of(c).bulk());
+    let n = mesh.n_nodes();
     let mut g: Vec<(usize, [f64; 3])> = Vec::new();
-    for a in 0..mesh.n_nodes() {
+    for a in 0..n {
         g.clear();
         let mut any = false;
         for &c in patches.cells(a) {
@@ -520,29 +623,89 @@ fn add_nodal_enriched(
             }
         }
         let w = kappa[a] / patches.volume(a);
-        let n = mesh.n_nodes();
         for &(p, gp) in &merged {
             for &(q, gq) in &merged {
                 if p < n && q < n {
-                    continue; // in the uncut stiffness
+                    continue;
                 }
                 for i in 0..3 {
                     for j in 0..3 {
-                        let v = w * gp[i] * gq[j];
-                        match (dofs.eq(3 * p + i), dofs.eq(3 * q + j)) {
-                            (Some(r), Some(c)) if r >= c => {
-                                let pos = k.pattern.position(r, c).expect("the pattern covers nodal patches");
-                                k.values[pos] += v;
-                            }
-                            // −K_fc ū_c
-                            (Some(r), None) => rhs[r] -= v * prescribed[3 * q + j],
-                            _ => {}
-                        }
+                        emit(3 * p + i, 3 * q + j, w * gp[i] * gq[j]);
                     }
                 }
             }
         }
     }
+}
+
+/// The rows of the extended stiffness that belong to the enriched nodes `from..` (enriched
+/// indices; the nodes a progressing cut has just added): triplets `(row, column, value)` over
+/// generalized degrees of freedom `3g + i` (`g < n` a mesh node, `g = n + k` enriched node k),
+/// each row one of those nodes' degrees of freedom, entries of one position summing. Only the
+/// cells (and nodal patches) around the new nodes are integrated, so the cost follows the
+/// cut's growth, not its length.
+pub fn enriched_rows(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    locking: Locking,
+    enr: &Enrichment,
+    from: usize,
+) -> Result<Vec<(usize, usize, f64)>, XfemError> {
+    let n = mesh.n_nodes();
+    let npc = mesh.kind.nodes_per_cell();
+    let first = 3 * (n + from);
+    let volumetric = EnrichedVolumetric::of(mesh.kind, locking);
+    let patches = NodalPatches::when(mesh, volumetric == EnrichedVolumetric::Nodal).ok().flatten();
+    let mut out = Vec::new();
+    let mut enriched_divergence: std::collections::HashMap<usize, Vec<(usize, [f64; 3])>> = Default::default();
+    // with the nodal pressure, a new node's rows reach the cells of its neighbours' patches
+    let near_new: Option<Vec<bool>> = patches.as_ref().map(|p| {
+        let mut near = vec![false; n];
+        for &a in &enr.nodes[from..] {
+            for &b in p.nodes(a) {
+                for &c in p.nodes(b) {
+                    near[c] = true;
+                }
+            }
+        }
+        near
+    });
+    let want = |local: &[(usize, usize)]| local.iter().any(|&(_, k)| k >= from) || near_new.is_some();
+    visit_enriched_cells(mesh, materials, enr, volumetric, want, |c, cell_nodes, local, ke, _, divergence| {
+        if let Some(near) = &near_new {
+            if mesh.cell(c).iter().any(|&a| near[a]) {
+                enriched_divergence.insert(c, (0..local.len()).map(|j| (cell_nodes[npc + j], divergence[npc + j])).collect());
+            }
+            if !local.iter().any(|&(_, k)| k >= from) {
+                return;
+            }
+        }
+        let nd = 3 * cell_nodes.len();
+        for (lp, &gp) in cell_nodes.iter().enumerate() {
+            if 3 * gp < first {
+                continue;
+            }
+            for i in 0..3 {
+                let row = (3 * lp + i) * nd;
+                for (lq, &gq) in cell_nodes.iter().enumerate() {
+                    for j in 0..3 {
+                        let v = ke[row + 3 * lq + j];
+                        if v != 0.0 {
+                            out.push((3 * gp + i, 3 * gq + j, v));
+                        }
+                    }
+                }
+            }
+        }
+    })?;
+    if let Some(patches) = &patches {
+        visit_nodal_enriched(mesh, materials, patches, &enriched_divergence, |p, q, v| {
+            if p >= first {
+                out.push((p, q, v));
+            }
+        });
+    }
+    Ok(out)
 }
 
 /// Adds the foundation `½ k |u_copy|²` of one copy: `u_a` for a node's own side,

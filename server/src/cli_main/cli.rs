@@ -97,7 +97,7 @@ geometry of a large organ).")]
 pub struct SceneSource {
     /// Scene file (TOML). Default: the built-in scene named by --builtin.
     pub scene: Option<PathBuf>,
-    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever, cornea, stretch).
+    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever, cornea, stretch, patch_cut, keratotomy).
     #[arg(long, default_value = "organ", conflicts_with = "scene")]
     pub builtin: String,
 }
@@ -281,7 +281,7 @@ pub struct MeshInfoArgs {
 pub enum SceneCommand {
     /// Print a built-in scene's TOML (a starting point for your own).
     Show {
-        /// Built-in scene name (organ, patch, cantilever, cornea, stretch).
+        /// Built-in scene name (organ, patch, cantilever, cornea, stretch, patch_cut, keratotomy).
         #[arg(default_value = "organ")]
         name: String,
     },
@@ -377,6 +377,47 @@ there; the cut enters from the top edge through A) in three stages, relaxed afte
 nodes and with nodes refined around the cut; --plot draws the cut specimen."
     )]
     Efg(BenchEfgArgs),
+    /// Reduced online cutting (PRB, SRB; bare or local fields) against the full XFEM.
+    #[command(long_about = "The reduced online cutting models of seed 000 (sections 3.2-3.3) against the \
+full-order XFEM on the same mesh and cut: the PGD modes of the organ's vademecum as a Ritz basis, \
+parametric (PRB, one coefficient per mode) or spatial (SRB, one per mode and component), with the \
+bare enrichment or the seed's local discontinuous fields. Along the scene's pre-planned cuts, one \
+blade position at a time: the relative L2 error of the displacement (both lips of every node) and \
+the opening. At the final cut: the error against the number of modes (--modes; a plot). Then the \
+tick cost (the cut organ's contact compliance) at --enriched nodes, cut along planes through the \
+organ, beside a null loop, with the time to enrich one node and the memory.")]
+    Cut(BenchCutArgs),
+}
+
+/// Arguments of `vademecum bench cut`.
+#[derive(Debug, Args)]
+pub struct BenchCutArgs {
+    /// Scene file (TOML) with pre-planned cuts. Default: the built-in scene named by --builtin.
+    pub scene: Option<PathBuf>,
+    /// Built-in scene to use when no SCENE is given.
+    #[arg(long, default_value = "keratotomy", conflicts_with = "scene")]
+    pub builtin: String,
+    /// PGD tolerance of the vademecum (seed 000 uses 1e-4).
+    #[arg(long, default_value_t = 1e-4)]
+    pub tolerance: f64,
+    /// Most PGD modes.
+    #[arg(long, default_value_t = 300)]
+    pub max_modes: usize,
+    /// Mode counts of the error-against-modes sweep (capped at the vademecum's).
+    #[arg(long, value_delimiter = ',', default_values_t = vec![5, 10, 20, 40, 54, 80, 120, 200])]
+    pub modes: Vec<usize>,
+    /// Enriched-node counts at which the tick is timed.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![16, 64, 256])]
+    pub enriched: Vec<usize>,
+    /// Ticks timed per figure.
+    #[arg(long, default_value_t = 20_000)]
+    pub ticks: usize,
+    /// Where to write the error-against-modes plot. Default: `out/<scene>/cut_modes.svg`.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Print the results as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum bench efg`.

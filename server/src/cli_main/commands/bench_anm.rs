@@ -70,6 +70,18 @@ fn online(case: &ReducedCase, force: f64, calls: usize) -> anyhow::Result<Vec<St
     ])
 }
 
+/// The series colours of the benchmark plots.
+pub(crate) const PALETTE: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(214, 39, 40),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+];
+
 fn plot(study: &Study, title: &str, file: &Path) -> anyhow::Result<()> {
     let mm = |d: f64| 1e3 * d.abs();
     let d_max = study.points.iter().map(|p| mm(p.newton)).fold(0.0, f64::max) * 1.15;
@@ -87,16 +99,7 @@ fn plot(study: &Study, title: &str, file: &Path) -> anyhow::Result<()> {
         .x_desc("displacement under the load (mm)")
         .y_desc("load (N)")
         .draw()?;
-    let palette = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-        RGBColor(214, 39, 40),
-        RGBColor(227, 119, 194),
-        RGBColor(127, 127, 127),
-    ];
+    let palette = PALETTE;
     for (k, curve) in study.curves.iter().enumerate() {
         let color = palette[k % palette.len()];
         chart

@@ -3,6 +3,7 @@
 mod bench;
 mod bench_anm;
 mod bench_cube;
+mod bench_cut;
 mod bench_efg;
 mod bench_haptic;
 mod bench_pgd;
@@ -37,5 +38,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Cube(a)) => bench_cube::run(a),
         Command::Bench(BenchCommand::Anm(a)) => bench_anm::run(a),
         Command::Bench(BenchCommand::Efg(a)) => bench_efg::run(a),
+        Command::Bench(BenchCommand::Cut(a)) => bench_cut::run(a),
     }
 }
