@@ -6,9 +6,26 @@ use vademecum_engine::meshless::cut::Cut;
 use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
-use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
+use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, ReducedError, RitzBasis};
 use vademecum_engine::xfem::system;
 use vademecum_engine::xfem::{Enrichment, XfemParams};
+
+/// The reduced cutting model of a built organ, with the default XFEM settings.
+fn reduced(b: &offline::Built, basis: RitzBasis, disc: Discontinuous) -> ReducedCut {
+    let (m, v) = (&b.model, &b.vademecum);
+    ReducedCut::new(
+        &m.mesh,
+        &m.materials,
+        m.locking,
+        &m.problem,
+        v.f_raw(),
+        v.modes(),
+        basis,
+        disc,
+        &XfemParams::default(),
+    )
+    .unwrap()
+}
 
 fn built(scene: &Scene, tolerance: f64) -> offline::Built {
     let opts = BuildOptions {
@@ -56,23 +73,11 @@ fn prb_and_srb_follow_the_full_xfem_on_the_patch_as_the_cut_grows() {
     let scene = Scene::builtin("patch").unwrap();
     let b = built(&scene, 1e-4);
     let m = &b.model;
-    let v = &b.vademecum;
     let params = XfemParams::default();
     for basis in [RitzBasis::Prb, RitzBasis::Srb] {
         let mut errors = Vec::new();
         for disc in [Discontinuous::Bare, Discontinuous::LocalFields] {
-            let mut red = ReducedCut::new(
-                &m.mesh,
-                &m.materials,
-                m.locking,
-                &m.problem,
-                v.f_raw(),
-                v.modes(),
-                basis,
-                disc,
-                &params,
-            )
-            .unwrap();
+            let mut red = reduced(&b, basis, disc);
             // the blade goes down the plane x = 2 from the top, one cell row at a time
             for (step, depth) in [4.0, 3.0, 2.0].into_iter().enumerate() {
                 let cut = Cut::swept(&[([2.0, -0.1, 5.1], [2.0, 1.1, 5.1]), ([2.0, -0.1, depth], [2.0, 1.1, depth])]).unwrap();
@@ -112,24 +117,11 @@ fn prb_and_srb_follow_the_full_xfem_on_the_patch_as_the_cut_grows() {
 fn bordering_step_by_step_equals_cutting_at_once() {
     let scene = Scene::builtin("patch").unwrap();
     let b = built(&scene, 1e-4);
-    let (m, v) = (&b.model, &b.vademecum);
+    let m = &b.model;
     let params = XfemParams::default();
     let cut = |depth: f64| Cut::swept(&[([2.0, -0.1, 5.1], [2.0, 1.1, 5.1]), ([2.0, -0.1, depth], [2.0, 1.1, depth])]).unwrap();
     for disc in [Discontinuous::Bare, Discontinuous::LocalFields] {
-        let new = || {
-            ReducedCut::new(
-                &m.mesh,
-                &m.materials,
-                m.locking,
-                &m.problem,
-                v.f_raw(),
-                v.modes(),
-                RitzBasis::Srb,
-                disc,
-                &params,
-            )
-            .unwrap()
-        };
+        let new = || reduced(&b, RitzBasis::Srb, disc);
         let (mut steps, mut once) = (new(), new());
         for depth in [4.0, 3.0, 2.0] {
             steps
@@ -170,25 +162,14 @@ fn bordering_step_by_step_equals_cutting_at_once() {
 fn the_cut_compliance_at_a_node_is_the_full_xfem_displacement_per_unit_force() {
     let scene = Scene::builtin("patch").unwrap();
     let b = built(&scene, 1e-4);
-    let (m, v) = (&b.model, &b.vademecum);
+    let m = &b.model;
     let params = XfemParams::default();
     let cut = Cut::swept(&[([2.0, -0.1, 5.1], [2.0, 1.1, 5.1]), ([2.0, -0.1, 3.0], [2.0, 1.1, 3.0])]).unwrap();
     let cells = Enrichment::cut_cells(&m.mesh, &cut, &params).unwrap();
     // the node at the top right of the cut's lip
     let node = (0..m.mesh.n_nodes()).find(|&a| m.mesh.nodes[a] == [3.0, 0.0, 5.0]).unwrap();
     for disc in [Discontinuous::Bare, Discontinuous::LocalFields] {
-        let mut red = ReducedCut::new(
-            &m.mesh,
-            &m.materials,
-            m.locking,
-            &m.problem,
-            v.f_raw(),
-            v.modes(),
-            RitzBasis::Srb,
-            disc,
-            &params,
-        )
-        .unwrap();
+        let mut red = reduced(&b, RitzBasis::Srb, disc);
         red.cut(&m.mesh, &cells).unwrap();
         let c = red.contact_compliance(&[node], &[1.0]);
         let enr = red.enrichment().clone();
@@ -210,4 +191,144 @@ fn the_cut_compliance_at_a_node_is_the_full_xfem_displacement_per_unit_force() {
         }
         assert!(c.iter().flatten().all(|x| x.is_finite()));
     }
+}
+
+#[test]
+fn a_piece_cut_loose_is_a_typed_error_and_leaves_the_model_at_the_previous_cut() {
+    // a bar clamped at x = 0, its free end loaded; cutting it through at x = 2 frees the end
+    let scene = Scene::from_toml(
+        r#"
+[scene]
+name = "bar"
+[[organs]]
+name = "bar"
+density = 1.0
+[organs.mesh]
+builtin = "block"
+size = [4.0, 1.0, 1.0]
+divisions = [4, 1, 1]
+cell = "hex8"
+[[organs.materials]]
+model = "linear"
+young = 100.0
+poisson = 0.3
+[organs.fixed]
+box = { min = [0.0, 0.0, 0.0], max = [0.0, 1.0, 1.0] }
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }
+[[organs.loads]]
+kind = "point"
+at = [4.0, 0.0, 1.0]
+force = [0.0, 0.0, -1.0]
+"#,
+        "bar.toml",
+    )
+    .unwrap();
+    let b = built(&scene, 1e-6);
+    let m = &b.model;
+    let params = XfemParams::default();
+    let mut red = reduced(&b, RitzBasis::Srb, Discontinuous::LocalFields);
+    // a first cut from the top down to mid-height: fine
+    let half = Cut::swept(&[([2.0, -0.1, 1.1], [2.0, 1.1, 1.1]), ([2.0, -0.1, 0.5], [2.0, 1.1, 0.5])]).unwrap();
+    let cells = Enrichment::cut_cells(&m.mesh, &half, &params).unwrap();
+    assert!(cells.is_empty(), "half a cell is not cut");
+    let through = Cut::swept(&[([2.0, -0.1, 1.1], [2.0, 1.1, 1.1]), ([2.0, -0.1, -0.1], [2.0, 1.1, -0.1])]).unwrap();
+    let cells = Enrichment::cut_cells(&m.mesh, &through, &params).unwrap();
+    let before = red.dim();
+    match red.cut(&m.mesh, &cells) {
+        Err(ReducedError::Singular { .. }) => {}
+        other => panic!("expected a singular bordering, got {other:?}"),
+    }
+    // nothing changed: the model still answers, finite, as before the cut
+    assert_eq!(red.dim(), before);
+    assert!(red.enrichment().is_empty());
+    let mut c = vec![0.0; red.dim()];
+    red.coefficients(&m.problem.forces, &mut c);
+    assert!(c.iter().all(|x| x.is_finite()));
+    let k = red.contact_compliance(&[0], &[1.0]);
+    assert!(k.iter().flatten().all(|x| x.is_finite()));
+}
+
+/// The patch's reduced model (local fields, SRB) and an online scalpel on it.
+fn patch_scalpel() -> (offline::Built, vademecum_engine::xfem::online::OnlineCut) {
+    let scene = Scene::builtin("patch").unwrap();
+    let b = built(&scene, 1e-4);
+    let params = XfemParams::default();
+    let red = reduced(&b, RitzBasis::Srb, Discontinuous::LocalFields);
+    let online = vademecum_engine::xfem::online::OnlineCut::new(&b.model.mesh, red, 1.0, &params).unwrap();
+    (b, online)
+}
+
+#[test]
+fn a_scalpel_drawn_down_with_enough_force_cuts_cell_by_cell() {
+    use vademecum_engine::xfem::blade::Blade;
+    let (b, mut s) = patch_scalpel();
+    let mesh = &b.model.mesh;
+    // the blade across the depth, in the plane x = 4 (normal x: a quarter turn about z), drawn
+    // down from above the top to z = 3.9 in 1,000 ticks, the tissue resisting with 2 N upwards
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let q = [h, 0.0, 0.0, -h];
+    let mut cracked = Vec::new();
+    for i in 0..=1000 {
+        let z = 5.1 - 1.2 * i as f64 / 1000.0;
+        let blade = Blade::new([4.0, -0.1, z], [4.0, 1.1, z], q).unwrap();
+        assert!((blade.normal[0].abs() - 1.0).abs() < 1e-12);
+        let step = s.step(mesh, &blade, [0.0, 0.0, 2.0]).unwrap();
+        assert!(step.cutting && (step.split.in_plane() - 2.0).abs() < 1e-12);
+        cracked.push(s.model().enrichment().len());
+    }
+    // the top cell row is cut once the blade has crossed it: the two cells at x = 4, their four
+    // nodes on the plane cracked — the pre-planned patch_cut
+    assert_eq!(s.model().enrichment().cut_cells.len(), 2);
+    let mut nodes: Vec<[f64; 3]> = s.model().enrichment().nodes.iter().map(|&a| mesh.nodes[a]).collect();
+    nodes.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    assert_eq!(nodes, vec![[4.0, 0.0, 4.0], [4.0, 0.0, 5.0], [4.0, 1.0, 4.0], [4.0, 1.0, 5.0]]);
+    // and only once the blade reached the bottom of the row (z = 4, at tick 917) to within the
+    // coverage tolerance (5 % of the cell's size √3: z = 4.087, tick 844)
+    let first = cracked.iter().position(|&n| n > 0).unwrap();
+    assert!((844..=917).contains(&first), "cracked at tick {first}");
+}
+
+#[test]
+fn friction_pressing_the_flat_and_bad_forces_cut_nothing() {
+    use vademecum_engine::xfem::blade::Blade;
+    let (b, mut s) = patch_scalpel();
+    let mesh = &b.model.mesh;
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let q = [h, 0.0, 0.0, -h];
+    for i in 0..=1000 {
+        let z = 5.1 - 1.2 * i as f64 / 1000.0;
+        let blade = Blade::new([4.0, -0.1, z], [4.0, 1.1, z], q).unwrap();
+        // below the threshold (friction), normal to the blade (the flat), or not finite
+        let f = match i % 3 {
+            0 => [0.0, 0.0, 0.9],
+            1 => [50.0, 0.0, 0.0],
+            _ => [f64::NAN, 0.0, 1e9],
+        };
+        let step = s.step(mesh, &blade, f).unwrap();
+        assert!(!step.cutting, "tick {i}: {f:?}");
+    }
+    assert!(s.model().enrichment().is_empty() && s.cut().is_none());
+}
+
+#[test]
+fn a_trembling_blade_and_a_blade_back_in_its_cut_stay_bounded() {
+    use vademecum_engine::xfem::blade::Blade;
+    let (b, mut s) = patch_scalpel();
+    let mesh = &b.model.mesh;
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let q = [h, 0.0, 0.0, -h];
+    // 1,000 ticks trembling up and down across the top cell row
+    for i in 0..1000 {
+        let z = if i % 2 == 0 { 5.1 } else { 3.9 };
+        let blade = Blade::new([4.0, -0.1, z], [4.0, 1.1, z], q).unwrap();
+        s.step(mesh, &blade, [0.0, 0.0, 2.0]).unwrap();
+    }
+    assert_eq!(s.model().enrichment().len(), 4);
+    // back in the cut: reported, nothing new
+    let blade = Blade::new([4.0, -0.1, 4.5], [4.0, 1.1, 4.5], q).unwrap();
+    let step = s.step(mesh, &blade, [0.0, 0.0, 0.5]).unwrap();
+    assert!(step.in_cut && !step.cutting && step.new_nodes == 0);
+    let c = s.model_mut().contact_compliance(&[0], &[1.0]);
+    assert!(c.iter().flatten().all(|x| x.is_finite()));
 }

@@ -167,13 +167,24 @@ impl Enrichment {
 
     /// The cells a swept cut has crossed entirely (module docs), each with its facet's plane.
     pub fn cut_cells(mesh: &Mesh, cut: &Cut, params: &XfemParams) -> Result<Vec<(usize, Plane)>, EnrichmentError> {
+        Self::cut_cells_among(mesh, cut, params, 0..mesh.n_cells())
+    }
+
+    /// [`cut_cells`](Self::cut_cells) among the cells `candidates` only (those near the part
+    /// of the cut that just grew).
+    pub fn cut_cells_among(
+        mesh: &Mesh,
+        cut: &Cut,
+        params: &XfemParams,
+        candidates: impl IntoIterator<Item = usize>,
+    ) -> Result<Vec<(usize, Plane)>, EnrichmentError> {
         if cut.dim() != 3 {
             return Err(EnrichmentError::Dimension(cut.dim()));
         }
         let n = mesh.kind.nodes_per_cell();
         let mut x = vec![[0.0; 3]; n];
         let mut out = Vec::new();
-        for c in 0..mesh.n_cells() {
+        for c in candidates {
             mesh.cell_coords(c, &mut x);
             let h = subcell::cell_size(&x);
             let centre = x.iter().fold([0.0; 3], |s, p| {

@@ -11,6 +11,8 @@
 //! - [`subcell`]: cut planes, splitting a cell into sub-tetrahedra on each side, quadrature.
 //! - [`enrichment`]: from the swept blade surface to cut cells and cracked nodes (one plane per
 //!   node, the cracking-node method), the sliver rule.
+//! - [`online`]: the scalpel cutting as it moves: the criterion, the swept surface, the cells
+//!   it crosses, the model bordered.
 //! - [`reduced`]: the online model: PGD modes as a Ritz basis (PRB, SRB) bordered with the
 //!   enriched nodes, the factor updated as the cut grows.
 //! - [`system`]: the full-order XFEM system (the reference of the reduced online models), its
@@ -19,6 +21,7 @@
 
 pub mod blade;
 pub mod enrichment;
+pub mod online;
 pub mod reduced;
 pub mod subcell;
 pub mod system;

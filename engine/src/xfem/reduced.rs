@@ -368,6 +368,8 @@ impl ReducedCut {
         let clock = Instant::now();
         let nb = self.nb;
         let m0 = self.enriched_eqs;
+        // a failed step leaves the model at the previous cut
+        let rollback = (self.factor.l.len(), self.factor.row_start.len(), self.w.len());
         let mut a = Vec::new();
         let mut w = vec![0.0; nf];
         for (j, row) in rows.iter().enumerate() {
@@ -388,7 +390,10 @@ impl ReducedCut {
                             a[nb + c - nf] += v;
                         }
                     }
-                    self.factor.border(d, &a).map_err(|_| ReducedError::Singular { unknown: e })?;
+                    if self.factor.border(d, &a).is_err() {
+                        self.undo(rollback);
+                        return Err(ReducedError::Singular { unknown: e });
+                    }
                 }
                 Discontinuous::LocalFields => {
                     // w_e = −K⁻¹ K_ue 1_e; S[e, e'] = K_ee[e, e'] + K_eu[e, :] w_e'
@@ -412,7 +417,10 @@ impl ReducedCut {
                             a[c - nf] += v;
                         }
                     }
-                    self.factor.border(e, &a).map_err(|_| ReducedError::Singular { unknown: e })?;
+                    if self.factor.border(e, &a).is_err() {
+                        self.undo(rollback);
+                        return Err(ReducedError::Singular { unknown: e });
+                    }
                 }
             }
         }
@@ -425,6 +433,13 @@ impl ReducedCut {
             assembly_s,
             bordering_s: clock.elapsed().as_secs_f64(),
         })
+    }
+
+    /// Drops the rows and fields a failed [`cut`](Self::cut) appended.
+    fn undo(&mut self, (l, rows, w): (usize, usize, usize)) {
+        self.factor.l.truncate(l);
+        self.factor.row_start.truncate(rows);
+        self.w.truncate(w);
     }
 
     /// Solves the reduced system for the right-hand side `b` in place (`b.len() = dim`; the

@@ -363,6 +363,14 @@ fn solve_xfem(scene: &Scene, model: &OrganModel, cuts: &[Cut], out: &std::path::
     }
     let file = out.join(format!("{name}.vtu"));
     let side: Vec<f64> = (0..split.mesh.n_nodes()).map(|a| if a < n { 0.0 } else { 1.0 }).collect();
+    // cells of detached pieces (the split mesh numbers its nodes as the pieces' copies)
+    let mut in_piece = vec![0.0; split.mesh.n_nodes()];
+    for p in &sol.detached {
+        for &c in &p.copies {
+            in_piece[c] = 1.0;
+        }
+    }
+    let detached: Vec<f64> = split.mesh.cells_iter().map(|c| in_piece[c[0]]).collect();
     vtk::write_vtu(
         &file,
         &split.mesh,
@@ -383,11 +391,18 @@ fn solve_xfem(scene: &Scene, model: &OrganModel, cuts: &[Cut], out: &std::path::
                 values: &side,
             },
         ],
-        &[Field {
-            name: "von_mises",
-            components: 1,
-            values: &von_mises,
-        }],
+        &[
+            Field {
+                name: "von_mises",
+                components: 1,
+                values: &von_mises,
+            },
+            Field {
+                name: "detached",
+                components: 1,
+                values: &detached,
+            },
+        ],
     )?;
     let (mut max_d, mut max_node) = (0.0, 0);
     for a in 0..split.mesh.n_nodes() {
