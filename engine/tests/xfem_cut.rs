@@ -4,6 +4,8 @@
 //! hard cases (a cut through nodes, a sliver, a detached piece, a cut reaching the fixed
 //! boundary, ν = 0.499, bad blades), each with a finite, bounded answer or a typed error.
 
+mod common;
+
 use vademecum_engine::fem::Locking;
 use vademecum_engine::fem::assembly::MaterialMap;
 use vademecum_engine::fem::linear_static::{self, StaticProblem};
@@ -416,4 +418,37 @@ fn a_cut_across_the_nearly_incompressible_organ_with_nodal_pressure_solves() {
     let umax = x.u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let qmax = x.q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     assert!(qmax > 0.1 * umax, "jump {qmax:.3e} vs displacement {umax:.3e}");
+}
+
+#[test]
+fn an_incision_in_the_liver_opens_and_softens_it() {
+    // scenes/liver_h20_cut.toml: the OpenHELP liver (nodal-pressure tetrahedra, ν = 0.48) with a
+    // 4 cm incision through cells (not along faces), its lower lip pulled
+    let Some(shared) = common::shared_data() else { return };
+    let scene = common::shared_scene("liver_h20_cut.toml", &shared);
+    let m = scene.organ_model(0).unwrap();
+    let cuts = scene.organ_cuts(0).unwrap();
+    let params = scene.spec.fidelity.xfem.params();
+    let enr = Enrichment::from_cut(&m.mesh, &cuts[0], &params).unwrap();
+    assert!(
+        enr.cut_cells.len() >= 10 && enr.len() >= 10,
+        "{} cells, {} nodes",
+        enr.cut_cells.len(),
+        enr.len()
+    );
+    let x = system::solve(&m.mesh, &m.materials, m.locking, &m.problem, &enr, &params).unwrap();
+    assert!(x.residual < 1e-8, "{:.3e}", x.residual);
+    assert!(x.detached.is_empty());
+    let uncut = linear_static::solve(&m.mesh, &m.materials, m.locking, &m.problem, &mut |_| {}).unwrap();
+    let energy = 0.5 * m.problem.forces.iter().zip(&x.u).map(|(f, u)| f * u).sum::<f64>();
+    assert!(
+        energy > 1.1 * uncut.strain_energy,
+        "cut {energy:.3e} J, uncut {:.3e} J",
+        uncut.strain_energy
+    );
+    let opening =
+        x.q.chunks(3)
+            .map(|j| (j[0] * j[0] + j[1] * j[1] + j[2] * j[2]).sqrt())
+            .fold(0.0, f64::max);
+    assert!(opening > 1e-4 && opening < 1e-2, "opening {opening:.3e} m");
 }
