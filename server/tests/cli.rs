@@ -317,6 +317,14 @@ fn solve_cuts_the_built_in_cutting_scenes_by_xfem() {
     let vtu = std::fs::read_to_string(dir.path().join("k/cornea.vtu")).unwrap();
     assert!(vtu.contains("NumberOfPoints=\"2572\""), "{}", &vtu[..400.min(vtu.len())]);
     assert!(vtu.contains("cut_lip_copy"));
+    // a session cannot cut yet: `run` says what can
+    let o = vademecum(&["run", "--builtin", "keratotomy"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(
+        stderr(&o).contains("vademecum solve") && stderr(&o).contains("bench cut"),
+        "{}",
+        stderr(&o)
+    );
     // a hyperelastic organ with cuts and the finite-element solver is refused with the remedy
     let show = vademecum(&["scene", "show", "patch_cut"], dir.path());
     let hyper = stdout(&show).replace("model = \"linear\"", "model = \"neo_hookean\"");

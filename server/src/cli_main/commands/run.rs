@@ -65,6 +65,11 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let record = a.record.clone().unwrap_or_else(|| base.join("run"));
     // a bad trajectory file fails before any build
     let scripted = a.script.as_ref().map(|p| Trajectory::read(p)).transpose()?;
+    if scene.spec.effects.cutting {
+        bail!(
+            "cutting in live sessions is not available yet: `vademecum solve` cuts this scene's pre-planned cuts by the full-order XFEM, and `vademecum bench cut` runs the reduced online model along them (docs/cutting.md)"
+        );
+    }
     let radius = offline_probe_radius(&scene)?;
     let bundles = ensure_bundles(&scene, &bundle_dir)?;
     let (trajectory, source) = match (scripted, &a.script) {
