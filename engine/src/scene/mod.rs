@@ -304,6 +304,13 @@ impl Scene {
                 if !s.effects.cutting {
                     return Err(self.error_at(&at, "the organ has cuts but cutting is off: set effects.cutting = true"));
                 }
+                let hyperelastic = organ.materials.iter().any(|m| m.model != schema::MaterialModel::Linear);
+                if hyperelastic && s.fidelity.solver != SolverKind::Meshless {
+                    return Err(self.error_at(
+                        &at,
+                        "cuts in a hyperelastic organ are made by the meshless solver: set fidelity.solver = \"meshless\" (linear organs are cut by XFEM)",
+                    ));
+                }
                 let blade: Vec<([f64; 3], [f64; 3])> = cut.blade.iter().map(|b| (b[0], b[1])).collect();
                 if let Err(e) = Cut::swept(&blade) {
                     return Err(self.error_at(&[&at[..], &[Seg::Key("blade")]].concat(), e.to_string()));
