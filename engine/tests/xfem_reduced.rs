@@ -86,11 +86,7 @@ fn prb_and_srb_follow_the_full_xfem_on_the_patch_as_the_cut_grows() {
                 assert_eq!(up.new_nodes.len(), if step == 0 { 4 } else { 2 });
                 let enr = red.enrichment().clone();
                 let full = system::solve(&m.mesh, &m.materials, m.locking, &m.problem, &enr, &params).unwrap();
-                let mut c = vec![0.0; red.dim()];
-                red.coefficients(&m.problem.forces, &mut c);
-                let mut u = vec![0.0; m.mesh.n_dofs()];
-                let mut q = vec![0.0; 3 * enr.len()];
-                red.fields(&c, &mut u, &mut q);
+                let (u, q) = red.displacements(&m.problem.forces);
                 let e = error(&enr, &u, &q, &full);
                 eprintln!(
                     "{} {disc:?} depth {depth}: {} enriched, dim {}, L2 error {e:.3e}",
@@ -133,11 +129,7 @@ fn bordering_step_by_step_equals_cutting_at_once() {
         assert_eq!(steps.dim(), once.dim());
         // the same unknowns, possibly in another order: compare the fields
         let fields = |r: &ReducedCut| {
-            let mut c = vec![0.0; r.dim()];
-            r.coefficients(&m.problem.forces, &mut c);
-            let mut u = vec![0.0; m.mesh.n_dofs()];
-            let mut q = vec![0.0; 3 * r.enrichment().len()];
-            r.fields(&c, &mut u, &mut q);
+            let (u, q) = r.displacements(&m.problem.forces);
             let mut jumps: Vec<(usize, [f64; 3])> = r
                 .enrichment()
                 .nodes
@@ -242,9 +234,8 @@ force = [0.0, 0.0, -1.0]
     // nothing changed: the model still answers, finite, as before the cut
     assert_eq!(red.dim(), before);
     assert!(red.enrichment().is_empty());
-    let mut c = vec![0.0; red.dim()];
-    red.coefficients(&m.problem.forces, &mut c);
-    assert!(c.iter().all(|x| x.is_finite()));
+    let (u, q) = red.displacements(&m.problem.forces);
+    assert!(u.iter().chain(&q).all(|x| x.is_finite()));
     let k = red.contact_compliance(&[0], &[1.0]);
     assert!(k.iter().flatten().all(|x| x.is_finite()));
 }
@@ -344,24 +335,14 @@ fn on_the_organ_cutting_adds_no_error_to_the_local_fields_model() {
     let params = XfemParams::default();
     let mut red = reduced(&b, RitzBasis::Prb, Discontinuous::LocalFields);
     let uncut_full = system::solve(&m.mesh, &m.materials, m.locking, &m.problem, red.enrichment(), &params).unwrap();
-    let (u, q) = {
-        let mut c = vec![0.0; red.dim()];
-        red.coefficients(&m.problem.forces, &mut c);
-        let mut u = vec![0.0; m.mesh.n_dofs()];
-        red.fields(&c, &mut u, &mut []);
-        (u, Vec::<f64>::new())
-    };
+    let (u, q) = red.displacements(&m.problem.forces);
     let e_uncut = error(red.enrichment(), &u, &q, &uncut_full);
     let cut = Cut::swept(&[([0.0, -0.01, 0.08], [0.0, 0.06, 0.08]), ([0.0, -0.01, 0.0], [0.0, 0.06, 0.0])]).unwrap();
     red.cut(&m.mesh, &Enrichment::cut_cells(&m.mesh, &cut, &params).unwrap()).unwrap();
     let enr = red.enrichment().clone();
     assert!(enr.len() > 20);
     let full = system::solve(&m.mesh, &m.materials, m.locking, &m.problem, &enr, &params).unwrap();
-    let mut c = vec![0.0; red.dim()];
-    red.coefficients(&m.problem.forces, &mut c);
-    let mut u = vec![0.0; m.mesh.n_dofs()];
-    let mut q = vec![0.0; 3 * enr.len()];
-    red.fields(&c, &mut u, &mut q);
+    let (u, q) = red.displacements(&m.problem.forces);
     let e_cut = error(&enr, &u, &q, &full);
     eprintln!("organ: {} cracked nodes; error uncut {e_uncut:.3e}, cut {e_cut:.3e}", enr.len());
     assert!(e_cut <= 1.5 * e_uncut + 1e-9, "uncut {e_uncut:.3e}, cut {e_cut:.3e}");

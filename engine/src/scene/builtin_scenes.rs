@@ -61,12 +61,11 @@ deformation = "linear"
 locking = "bbar"
 "#;
 
-const PATCH: &str = r#"# Seed 000, section 3.5.1: the patch model (without its cut).
-[scene]
-name = "patch"
-description = "A vertical 5 x 5 grid of unit hexahedra (one cell deep), E = 5 Pa, nu = 0.3; one base corner fully fixed, the other base nodes sliding on the horizontal plane, 1 N down on an upper corner node."
-
-[[organs]]
+/// The patch model of seed 000 §3.5.1 (organ, mesh, material, supports, load), shared by the
+/// `patch` and `patch_cut` scenes.
+macro_rules! patch_organ {
+    () => {
+        r#"[[organs]]
 name = "patch"
 density = 1.0
 
@@ -105,9 +104,22 @@ kind = "point"
 at = [5.0, 0.0, 5.0]
 force = [0.0, 0.0, -1.0]             # N
 
-[fidelity]
+"#
+    };
+}
+
+const PATCH: &str = concat!(
+    r#"# Seed 000, section 3.5.1: the patch model (without its cut).
+[scene]
+name = "patch"
+description = "A vertical 5 x 5 grid of unit hexahedra (one cell deep), E = 5 Pa, nu = 0.3; one base corner fully fixed, the other base nodes sliding on the horizontal plane, 1 N down on an upper corner node."
+
+"#,
+    patch_organ!(),
+    r#"[fidelity]
 locking = "none"
-"#;
+"#
+);
 
 const CANTILEVER: &str = r#"# A cantilever ten times longer than high under a tip load (compare with beam theory).
 [scene]
@@ -144,12 +156,12 @@ force = [0.0, 0.0, -1.0]
 locking = "none"
 "#;
 
-const CORNEA: &str = r#"# Seed 001, section 6.1: pinching a cornea-like dome (large deformations).
-[scene]
-name = "cornea"
-description = "A cornea-like spherical cap (radius of curvature 7.8 mm, 11.5 mm across, 0.55 mm thick; 24 x 24 x 3 hexahedra), St Venant-Kirchhoff, E = 2 MPa, nu = 0.48, clamped along its base; 0.014 N pressed down on each of its nine central nodes."
-
-[[organs]]
+/// The cornea dome of seeds 000 §3.5.2 and 001 §6.1 (mesh, supports, the anterior surface
+/// accessible) with the material model `$model`, shared by `cornea` and `keratotomy`.
+macro_rules! cornea_organ {
+    ($model:literal) => {
+        concat!(
+            r#"[[organs]]
 name = "cornea"
 density = 1076.0                     # kg/m3
 
@@ -161,7 +173,9 @@ thickness = 0.55e-3
 divisions = [24, 24, 3]
 
 [[organs.materials]]
-model = "stvk"
+model = ""#,
+            $model,
+            r#""
 young = 2e6                          # Pa
 poisson = 0.48
 
@@ -171,7 +185,20 @@ half_space = { point = [0.0, 0.0, 0.05e-3], normal = [0.0, 0.0, -1.0] }
 [organs.accessible]                  # the anterior surface (a group of the built-in dome)
 group = "anterior"
 
-[[organs.loads]]                     # the nine central nodes of the anterior surface (apex z = 2.53 mm)
+"#
+        )
+    };
+}
+
+const CORNEA: &str = concat!(
+    r#"# Seed 001, section 6.1: pinching a cornea-like dome (large deformations).
+[scene]
+name = "cornea"
+description = "A cornea-like spherical cap (radius of curvature 7.8 mm, 11.5 mm across, 0.55 mm thick; 24 x 24 x 3 hexahedra), St Venant-Kirchhoff, E = 2 MPa, nu = 0.48, clamped along its base; 0.014 N pressed down on each of its nine central nodes."
+
+"#,
+    cornea_organ!("stvk"),
+    r#"[[organs.loads]]                     # the nine central nodes of the anterior surface (apex z = 2.53 mm)
 kind = "force"
 region = { box = { min = [-0.55e-3, -0.55e-3, 2.45e-3], max = [0.55e-3, 0.55e-3, 2.65e-3] } }
 force = [0.0, 0.0, -0.126]           # N in all: 0.014 N on each node (seed 001, section 6.1)
@@ -191,7 +218,8 @@ locking = "none"
 positions = 9
 max_force = 0.126                    # N, the seed's pinch
 load_steps = 6
-"#;
+"#
+);
 
 const STRETCH: &str = r#"# Seed 004, Table 5.2, by the meshless solver: a soft cube stretched by 20 %.
 [scene]
@@ -231,51 +259,15 @@ z = 0.0
 solver = "meshless"
 "#;
 
-const PATCH_CUT: &str = r#"# Seed 000, section 3.5.1: the patch model with its cut.
+const PATCH_CUT: &str = concat!(
+    r#"# Seed 000, section 3.5.1: the patch model with its cut.
 [scene]
 name = "patch_cut"
 description = "The patch of seed 000, section 3.5.1 (5 x 5 unit hexahedra one cell deep, E = 5 Pa, nu = 0.3, one base corner fixed, the base sliding horizontally) with a straight surface cut down the plane x = 4 through the top cell row (two nodes on the front face), opened by 1 N down on the upper corner node; solved by XFEM (cracking nodes)."
 
-[[organs]]
-name = "patch"
-density = 1.0
-
-[organs.mesh]
-builtin = "block"
-origin = [0.0, 0.0, 0.0]
-size = [5.0, 1.0, 5.0]               # x wide, y deep, z up
-divisions = [5, 1, 5]
-cell = "hex8"
-
-[[organs.materials]]
-model = "linear"
-young = 5.0
-poisson = 0.3
-
-[organs.fixed]                       # the fully fixed bottom corner
-sphere = { center = [0.0, 0.0, 0.0], radius = 0.01 }
-
-[organs.accessible]
-half_space = { point = [0.0, 0.0, 5.0], normal = [0.0, 0.0, 1.0] }
-
-[[organs.loads]]                     # base nodes slide on the horizontal plane
-kind = "displacement"
-name = "base"
-region = { box = { min = [0.0, 0.0, 0.0], max = [5.0, 1.0, 0.0] } }
-z = 0.0
-
-[[organs.loads]]                     # stops the remaining rotation about the vertical axis
-kind = "displacement"
-name = "anchor"
-region = { sphere = { center = [5.0, 0.0, 0.0], radius = 0.01 } }
-y = 0.0
-
-[[organs.loads]]
-kind = "point"
-at = [5.0, 0.0, 5.0]
-force = [0.0, 0.0, -1.0]             # N
-
-[[organs.cuts]]                      # the blade goes down x = 4 through the top cell row
+"#,
+    patch_organ!(),
+    r#"[[organs.cuts]]                      # the blade goes down x = 4 through the top cell row
 blade = [[[4.0, -0.1, 5.1], [4.0, 1.1, 5.1]], [[4.0, -0.1, 3.95], [4.0, 1.1, 3.95]]]
 
 [[tools]]
@@ -289,36 +281,18 @@ cutting = true
 
 [fidelity]
 locking = "none"
-"#;
+"#
+);
 
-const KERATOTOMY: &str = r#"# Seed 000, section 3.5.2: radial keratotomy, four radial incisions in a linear cornea.
+const KERATOTOMY: &str = concat!(
+    r#"# Seed 000, section 3.5.2: radial keratotomy, four radial incisions in a linear cornea.
 [scene]
 name = "keratotomy"
 description = "The cornea dome of seed 000, section 3.5.2 (radius of curvature 7.8 mm, 11.5 mm across, 0.55 mm thick; 24 x 24 x 3 hexahedra instead of the seed's 6,840, which is not available), linear, E = 2 MPa, nu = 0.48, clamped along its base, under an intraocular pressure of 2 kPa (15 mmHg); four radial incisions from 1.5 to 4.5 mm off the apex, 70 % of the thickness deep, solved by XFEM (cracking nodes)."
 
-[[organs]]
-name = "cornea"
-density = 1076.0                     # kg/m3
-
-[organs.mesh]
-builtin = "dome"
-curvature_radius = 7.8e-3            # m
-base_radius = 5.75e-3
-thickness = 0.55e-3
-divisions = [24, 24, 3]
-
-[[organs.materials]]
-model = "linear"
-young = 2e6                          # Pa
-poisson = 0.48
-
-[organs.fixed]                       # the base ring (limbus)
-half_space = { point = [0.0, 0.0, 0.05e-3], normal = [0.0, 0.0, -1.0] }
-
-[organs.accessible]                  # the anterior surface (a group of the built-in dome)
-group = "anterior"
-
-[[organs.loads]]                     # intraocular pressure on the posterior surface
+"#,
+    cornea_organ!("linear"),
+    r#"[[organs.loads]]                     # intraocular pressure on the posterior surface
 kind = "pressure"
 region = { group = "posterior" }
 pressure = 2000.0                    # Pa
@@ -378,4 +352,5 @@ cutting = true
 
 [fidelity]
 locking = "bbar"
-"#;
+"#
+);

@@ -28,7 +28,7 @@
 //! stays attached to the other side. The dropped nodes are reported.
 
 use super::subcell::{self, Plane};
-use crate::mesh::{CellKind, Mesh};
+use crate::mesh::{CellKind, Mesh, quality};
 use crate::meshless::cut::Cut;
 
 /// What a scene does with a piece of tissue the cuts have detached from every support.
@@ -119,27 +119,6 @@ pub struct Enrichment {
 }
 
 const NONE: u32 = u32::MAX;
-
-/// The edges of each cell kind, as local node pairs.
-pub fn cell_edges(kind: CellKind) -> &'static [(usize, usize)] {
-    match kind {
-        CellKind::Tet4 => &[(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)],
-        CellKind::Hex8 => &[
-            (0, 1),
-            (1, 2),
-            (2, 3),
-            (3, 0),
-            (4, 5),
-            (5, 6),
-            (6, 7),
-            (7, 4),
-            (0, 4),
-            (1, 5),
-            (2, 6),
-            (3, 7),
-        ],
-    }
-}
 
 /// For every node, the cells containing it.
 pub fn node_cells(mesh: &Mesh) -> Vec<Vec<usize>> {
@@ -377,7 +356,7 @@ fn crossed(kind: CellKind, x: &[[f64; 3]], plane: &Plane, h: f64, covered: impl 
     }
     let zeros_covered = x.iter().zip(&phi).filter(|(_, v)| **v == 0.0).all(|(p, _)| covered(*p));
     zeros_covered
-        && cell_edges(kind).iter().all(|&(a, b)| {
+        && quality::edges(kind).iter().all(|&(a, b)| {
             if phi[a] * phi[b] >= 0.0 {
                 return true;
             }

@@ -564,9 +564,16 @@ impl ReducedCut {
         c
     }
 
-    /// Number of mesh nodes.
-    pub fn n_nodes(&self) -> usize {
-        self.n_nodes
+    /// The standard displacements (full length `3n`) and enriched amplitudes for nodal forces
+    /// `forces` (full length): [`coefficients`](Self::coefficients) then
+    /// [`fields`](Self::fields), allocating — for offline comparisons, not for a tick.
+    pub fn displacements(&self, forces: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let mut c = vec![0.0; self.dim()];
+        self.coefficients(forces, &mut c);
+        let mut u = vec![0.0; 3 * self.n_nodes];
+        let mut q = vec![0.0; 3 * self.enr.len()];
+        self.fields(&c, &mut u, &mut q);
+        (u, q)
     }
 }
 

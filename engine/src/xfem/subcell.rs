@@ -118,14 +118,6 @@ pub fn reference_gradients(kind: CellKind, xi: [f64; 3], out: &mut [[f64; 3]]) {
     }
 }
 
-/// The shape-function values at `xi`.
-pub fn shape_values(kind: CellKind, xi: [f64; 3], out: &mut [f64]) {
-    match kind {
-        CellKind::Tet4 => out[..4].copy_from_slice(&[1.0 - xi[0] - xi[1] - xi[2], xi[0], xi[1], xi[2]]),
-        CellKind::Hex8 => out[..8].copy_from_slice(&shape::hex_n(xi)),
-    }
-}
-
 /// Level-set values below `SNAP` times the cell's size count as zero (a node on a plane).
 const SNAP: f64 = 1e-10;
 

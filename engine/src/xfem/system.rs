@@ -96,8 +96,6 @@ pub struct XfemSolution {
     pub nnz: usize,
     /// `‖K x − f‖ / ‖f‖` over the free equations.
     pub residual: f64,
-    /// Things the user should know (locking options that do not apply to cut cells).
-    pub warnings: Vec<String>,
     /// Wall time of assembly, factorization and solve (s).
     pub seconds: f64,
 }
@@ -352,8 +350,6 @@ pub struct ExtendedSystem {
     pub prescribed: Vec<f64>,
     /// Pieces no support held.
     pub detached: Vec<Piece>,
-    /// Warnings.
-    pub warnings: Vec<String>,
 }
 
 /// Assembles the XFEM system of `problem` with the cut `enr` (module docs).
@@ -547,7 +543,6 @@ pub fn assemble(
         rhs,
         prescribed,
         detached,
-        warnings: Vec::new(),
     })
 }
 
@@ -767,7 +762,6 @@ pub fn solve(
         n_free: sys.dofs.n_free(),
         nnz: sys.k.pattern.nnz(),
         residual: (r2 / f2.max(f64::MIN_POSITIVE)).sqrt(),
-        warnings: sys.warnings,
         seconds: clock.elapsed().as_secs_f64(),
     })
 }

@@ -124,16 +124,6 @@ fn reduced(
     )?)
 }
 
-/// The reduced model's fields for the model's loads.
-fn fields(red: &ReducedCut, model: &OrganModel) -> (Vec<f64>, Vec<f64>) {
-    let mut c = vec![0.0; red.dim()];
-    red.coefficients(&model.problem.forces, &mut c);
-    let mut u = vec![0.0; model.mesh.n_dofs()];
-    let mut q = vec![0.0; 3 * red.enrichment().len()];
-    red.fields(&c, &mut u, &mut q);
-    (u, q)
-}
-
 /// The cut cells of each blade position of the scene's cuts, in order (each cut from its first
 /// position to its last).
 fn progressive_cells(model: &OrganModel, cuts: &[Cut], params: &XfemParams) -> anyhow::Result<Vec<Vec<(usize, Plane)>>> {
@@ -303,7 +293,7 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
         let (mut errors, mut openings_m) = (Vec::new(), Vec::new());
         for m in &models {
             // each model keeps its own order of enriched nodes: compare through its enrichment
-            let (u, q) = fields(m, model);
+            let (u, q) = m.displacements(&model.problem.forces);
             let full_m = system::solve(
                 &model.mesh,
                 &model.materials,
@@ -344,7 +334,7 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
         for &var in &VARIANTS {
             let mut r = reduced(model, &v.f_raw()[..m * n_dofs], m, var, &params)?;
             r.cut(&model.mesh, &final_cells)?;
-            let (u, q) = fields(&r, model);
+            let (u, q) = r.displacements(&model.problem.forces);
             let full_m = if r.enrichment().nodes == final_enr.nodes {
                 None
             } else {

@@ -329,13 +329,9 @@ fn solve_xfem(scene: &Scene, model: &OrganModel, cuts: &[Cut], out: &std::path::
         ));
     }
     progress.stage("XFEM: assembly and solve");
-    let started = std::time::Instant::now();
     let sol = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, &enr, &params)
         .with_context(|| format!("organ '{name}' could not be solved with its cuts"))?;
-    let solve_time_s = started.elapsed().as_secs_f64();
-    for w in &sol.warnings {
-        progress.warn(w);
-    }
+    let solve_time_s = sol.seconds;
     progress.stage("uncut solve, for comparison");
     let uncut = linear_static::solve(&model.mesh, &model.materials, model.locking, &model.problem, &mut |_| {})
         .with_context(|| format!("organ '{name}' could not be solved uncut"))?;
