@@ -9,6 +9,16 @@
 //! 0.0,0.0,0.0,0.05
 //! 1.0,0.0,0.0,0.03
 //! ```
+//!
+//! A scalpel's trajectory adds its blade on every row: the other end of the cutting edge
+//! (`bx_m,by_m,bz_m`; `x_m,y_m,z_m` is the tip) and the orientation as a unit quaternion
+//! (`qw,qx,qy,qz`; the tool frame's y axis turned by it is the normal of the blade's plane).
+//! The end is interpolated linearly, the orientation by normalised linear interpolation.
+//!
+//! ```text
+//! t_s,x_m,y_m,z_m,closure,bx_m,by_m,bz_m,qw,qx,qy,qz
+//! 0.0,4.0,-0.1,5.1,0,4.0,1.1,5.1,0.7071,0,0,-0.7071
+//! ```
 
 use std::path::Path;
 
@@ -36,6 +46,17 @@ pub struct Sample {
     pub velocity_m_s: [f64; 3],
     /// Closure, 0 to 1.
     pub closure: f64,
+    /// A scalpel's blade, when the trajectory has one.
+    pub blade: Option<BladeKey>,
+}
+
+/// A scalpel's blade at a keyframe: the other end of its edge and its orientation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BladeKey {
+    /// The other end of the cutting edge (m); the trajectory's position is the tip.
+    pub end_m: [f64; 3],
+    /// Unit quaternion `[w, x, y, z]`.
+    pub orientation: [f64; 4],
 }
 
 /// A keyframed trajectory.
@@ -44,9 +65,11 @@ pub struct Trajectory {
     times: Vec<f64>,
     positions: Vec<[f64; 3]>,
     closures: Vec<f64>,
+    blades: Option<Vec<BladeKey>>,
 }
 
-/// One CSV row, `t_s,x_m,y_m,z_m[,closure]` (also the replay driver's format).
+/// One CSV row, `t_s,x_m,y_m,z_m[,closure][,bx_m,by_m,bz_m,qw,qx,qy,qz]` (also the replay
+/// driver's format, which ignores the blade).
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 pub(crate) struct Row {
     pub t_s: f64,
@@ -55,6 +78,38 @@ pub(crate) struct Row {
     pub z_m: f64,
     #[serde(default)]
     pub closure: f64,
+    #[serde(default)]
+    pub bx_m: Option<f64>,
+    #[serde(default)]
+    pub by_m: Option<f64>,
+    #[serde(default)]
+    pub bz_m: Option<f64>,
+    #[serde(default)]
+    pub qw: Option<f64>,
+    #[serde(default)]
+    pub qx: Option<f64>,
+    #[serde(default)]
+    pub qy: Option<f64>,
+    #[serde(default)]
+    pub qz: Option<f64>,
+}
+
+impl Row {
+    /// The row's blade: `Ok(None)` without blade columns, an error if only some are set.
+    fn blade(&self) -> Result<Option<BladeKey>, String> {
+        let b = [self.bx_m, self.by_m, self.bz_m, self.qw, self.qx, self.qy, self.qz];
+        match b.iter().filter(|v| v.is_some()).count() {
+            0 => Ok(None),
+            7 => {
+                let v = b.map(|v| v.unwrap_or_default());
+                Ok(Some(BladeKey {
+                    end_m: [v[0], v[1], v[2]],
+                    orientation: [v[3], v[4], v[5], v[6]],
+                }))
+            }
+            _ => Err("a blade needs all of bx_m, by_m, bz_m, qw, qx, qy, qz".into()),
+        }
+    }
 }
 
 /// The longest trajectory accepted (s): a day. Scripted sessions and device replays are
@@ -93,7 +148,32 @@ impl Trajectory {
             times: keys.iter().map(|k| k.0).collect(),
             positions: keys.iter().map(|k| k.1).collect(),
             closures: keys.iter().map(|k| k.2).collect(),
+            blades: None,
         })
+    }
+
+    /// The trajectory of a scalpel: one blade per keyframe, each with a finite end and a
+    /// finite orientation of norm within 0.1 of 1.
+    pub fn with_blades(mut self, blades: Vec<BladeKey>) -> Result<Self, String> {
+        if blades.len() != self.times.len() {
+            return Err(format!("{} blades for {} keyframes", blades.len(), self.times.len()));
+        }
+        for (i, b) in blades.iter().enumerate() {
+            let q = b.orientation.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if !b.end_m.iter().chain(&b.orientation).all(|x| x.is_finite()) || (q - 1.0).abs() > 0.1 {
+                return Err(format!(
+                    "keyframe {}: the blade's end must be finite and its orientation a unit quaternion",
+                    i + 1
+                ));
+            }
+        }
+        self.blades = Some(blades);
+        Ok(self)
+    }
+
+    /// Whether the trajectory carries a scalpel's blade.
+    pub fn has_blade(&self) -> bool {
+        self.blades.is_some()
     }
 
     /// Reads a CSV trajectory.
@@ -107,14 +187,28 @@ impl Trajectory {
             .from_path(path)
             .map_err(|e| bad(e.to_string()))?;
         let mut keys = Vec::new();
+        let mut blades = Vec::new();
         for row in r.deserialize::<Row>() {
             let row = row.map_err(|e| bad(e.to_string()))?;
             if keys.len() == MAX_KEYFRAMES {
                 return Err(bad(format!("more than {MAX_KEYFRAMES} keyframes")));
             }
+            let blade = row.blade().map_err(|e| bad(format!("keyframe {}: {e}", keys.len() + 1)))?;
+            if blade.is_some() != (blades.len() == keys.len()) && !keys.is_empty() {
+                return Err(bad(format!(
+                    "keyframe {}: either every row has a blade or none does",
+                    keys.len() + 1
+                )));
+            }
+            blades.extend(blade);
             keys.push((row.t_s, [row.x_m, row.y_m, row.z_m], row.closure));
         }
-        Self::new(keys).map_err(bad)
+        let t = Self::new(keys).map_err(bad)?;
+        if blades.is_empty() {
+            Ok(t)
+        } else {
+            t.with_blades(blades).map_err(bad)
+        }
     }
 
     /// Duration (s) from the first keyframe to the last.
@@ -139,6 +233,23 @@ impl Trajectory {
     pub fn at(&self, t: f64) -> Sample {
         let t = t + self.times[0];
         let i = self.times.partition_point(|&x| x <= t);
+        let blade = self.blades.as_ref().map(|b| {
+            if i == 0 || i >= self.times.len() {
+                b[i.clamp(1, self.times.len()) - 1]
+            } else {
+                let a = (t - self.times[i - 1]) / (self.times[i] - self.times[i - 1]);
+                let (k0, k1) = (b[i - 1], b[i]);
+                // the shorter way round: q and −q are the same rotation
+                let dot: f64 = (0..4).map(|k| k0.orientation[k] * k1.orientation[k]).sum();
+                let s = if dot < 0.0 { -1.0 } else { 1.0 };
+                let q: [f64; 4] = std::array::from_fn(|k| k0.orientation[k] + a * (s * k1.orientation[k] - k0.orientation[k]));
+                let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+                BladeKey {
+                    end_m: std::array::from_fn(|k| k0.end_m[k] + a * (k1.end_m[k] - k0.end_m[k])),
+                    orientation: if n > 0.0 { q.map(|x| x / n) } else { k0.orientation },
+                }
+            }
+        });
         let (position_m, closure, velocity_m_s) = if i == 0 {
             (self.positions[0], self.closures[0], [0.0; 3])
         } else if i >= self.times.len() {
@@ -159,15 +270,24 @@ impl Trajectory {
             position_m,
             velocity_m_s,
             closure,
+            blade,
         }
     }
 
     /// Writes the keyframes as CSV (the format [`Trajectory::read`] reads).
     pub fn write(&self, path: &Path) -> std::io::Result<()> {
         let mut w = csv::Writer::from_path(path)?;
-        w.write_record(["t_s", "x_m", "y_m", "z_m", "closure"])?;
-        for ((t, p), c) in self.times.iter().zip(&self.positions).zip(&self.closures) {
-            w.write_record([t, &p[0], &p[1], &p[2], c].map(|x| format!("{x:?}")))?;
+        let mut header = vec!["t_s", "x_m", "y_m", "z_m", "closure"];
+        if self.blades.is_some() {
+            header.extend(["bx_m", "by_m", "bz_m", "qw", "qx", "qy", "qz"]);
+        }
+        w.write_record(&header)?;
+        for (k, ((t, p), c)) in self.times.iter().zip(&self.positions).zip(&self.closures).enumerate() {
+            let mut row: Vec<f64> = vec![*t, p[0], p[1], p[2], *c];
+            if let Some(b) = &self.blades {
+                row.extend(b[k].end_m.iter().chain(&b[k].orientation));
+            }
+            w.write_record(row.iter().map(|x| format!("{x:?}")))?;
         }
         w.flush()
     }
@@ -187,6 +307,49 @@ mod tests {
         assert!((m.closure - 0.5).abs() < 1e-12);
         assert_eq!(tr.at(-5.0).position_m, [0.0; 3]);
         assert_eq!(tr.at(50.0).position_m, [2.0, 0.0, -2.0]);
+    }
+
+    #[test]
+    fn a_scalpel_trajectory_interpolates_its_blade_and_round_trips_through_csv() {
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let tr = Trajectory::new(vec![(0.0, [0.0; 3], 0.0), (2.0, [2.0, 0.0, 0.0], 0.0)])
+            .unwrap()
+            .with_blades(vec![
+                BladeKey {
+                    end_m: [0.0, 0.0, 1.0],
+                    orientation: [1.0, 0.0, 0.0, 0.0],
+                },
+                BladeKey {
+                    end_m: [2.0, 0.0, 3.0],
+                    orientation: [-h, 0.0, 0.0, -h],
+                },
+            ])
+            .unwrap();
+        let b = tr.at(1.0).blade.unwrap();
+        assert_eq!(b.end_m, [1.0, 0.0, 2.0]);
+        // half way to a quarter turn about z (given as −q: the shorter way round)
+        let e = (std::f64::consts::PI / 8.0).cos();
+        assert!((b.orientation[0] - e).abs() < 0.01 && b.orientation[3] > 0.3, "{b:?}");
+        assert_eq!(tr.at(9.0).blade.unwrap().end_m, [2.0, 0.0, 3.0]);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.csv");
+        tr.write(&path).unwrap();
+        assert_eq!(Trajectory::read(&path).unwrap(), tr);
+        // a row without its blade
+        std::fs::write(
+            &path,
+            "t_s,x_m,y_m,z_m,closure,bx_m,by_m,bz_m,qw,qx,qy,qz\n0,0,0,0,0,0,0,1,1,0,0,0\n1,0,0,0,0,,,,,,,\n",
+        )
+        .unwrap();
+        let e = Trajectory::read(&path).unwrap_err().to_string();
+        assert!(e.contains("keyframe 2"), "{e}");
+        std::fs::write(
+            &path,
+            "t_s,x_m,y_m,z_m,closure,bx_m,by_m,bz_m,qw,qx,qy,qz\n0,0,0,0,0,0,0,1,0,0,0,0\n",
+        )
+        .unwrap();
+        let e = Trajectory::read(&path).unwrap_err().to_string();
+        assert!(e.contains("unit quaternion"), "{e}");
     }
 
     #[test]

@@ -17,6 +17,7 @@ struct Counting;
 thread_local! {
     static COUNTING: Cell<bool> = const { Cell::new(false) };
     static COUNT: Cell<u64> = const { Cell::new(0) };
+    static FREES: Cell<u64> = const { Cell::new(0) };
 }
 
 // SAFETY: forwards to the system allocator; only counts, on the calling thread.
@@ -28,6 +29,9 @@ unsafe impl GlobalAlloc for Counting {
         unsafe { System.alloc(layout) }
     }
     unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        if COUNTING.with(|c| c.get()) {
+            FREES.with(|n| n.set(n.get() + 1));
+        }
         unsafe { System.dealloc(ptr, layout) }
     }
 }
@@ -153,4 +157,52 @@ fn the_contact_compliance_of_a_cut_organ_allocates_nothing() {
         assert!(trace.is_finite() && trace > 0.0);
         assert_eq!(COUNT.with(|n| n.get()), 0, "{disc:?}: the cut compliance allocated");
     }
+}
+
+#[test]
+fn a_cutting_tick_allocates_and_frees_nothing_while_the_cut_grows() {
+    use vademecum_engine::pipeline::ToolKind;
+    // the patch of seed 000 §3.5.1, a scalpel pressed down through its top cell row: the cut
+    // thread cuts two cells and the tick swaps the cut model in (the old one is freed on the
+    // cut thread); counted on the tick's thread only
+    let scene = Scene::builtin("patch_cut").unwrap();
+    let mut p = pipeline(&scene);
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let blade = |z: f64| ToolInput {
+        kind: ToolKind::Scalpel,
+        position_m: [4.0, -0.1, z],
+        blade_end_m: [4.0, 1.1, z],
+        orientation: [h, 0.0, 0.0, -h],
+        ..ToolInput::default()
+    };
+    let tools: Vec<ToolInput> = (0..=1200).map(|i| blade(5.1 - 1.2 * i as f64 / 1200.0)).collect();
+    let bad = ToolInput {
+        blade_end_m: [f64::NAN; 3],
+        ..blade(4.0)
+    };
+    let mut seen = 0u32;
+    COUNT.with(|n| n.set(0));
+    FREES.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    for (i, t) in tools.iter().enumerate() {
+        seen |= p.tick(t).events.0;
+        seen |= p.tick(&bad).events.0;
+        if i % 100 == 0 {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+    }
+    let start = std::time::Instant::now();
+    while seen & Events::CUT_ADVANCED == 0 && start.elapsed().as_secs() < 10 {
+        seen |= p.tick(&blade(3.9)).events.0;
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    for _ in 0..1000 {
+        seen |= p.tick(&blade(4.5)).events.0;
+    }
+    COUNTING.with(|c| c.set(false));
+    for e in [Events::CONTACT, Events::CUT_STARTED, Events::CUT_ADVANCED, Events::REJECTED_INPUT] {
+        assert!(seen & e != 0, "event {e} never happened");
+    }
+    assert_eq!(COUNT.with(|n| n.get()), 0, "the cutting tick allocated");
+    assert_eq!(FREES.with(|n| n.get()), 0, "the cutting tick freed memory");
 }

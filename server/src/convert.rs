@@ -35,6 +35,7 @@ pub fn tool_input(t: &pb::ToolState) -> ToolInput {
             Some(q) if [q.w, q.x, q.y, q.z] == [0.0; 4] => [1.0, 0.0, 0.0, 0.0],
             Some(q) => [q.w, q.x, q.y, q.z],
         },
+        blade_end_m: vec3(t.blade_end_m.as_ref()),
     }
 }
 
@@ -54,6 +55,11 @@ pub fn tool_response(a: &Answer) -> pb::ToolResponse {
         server_received_us: a.received_us,
         server_answered_us: a.answered_us,
         tick: a.tick,
+        blade: a.state.blade.map(|b| pb::BladeForce {
+            perpendicular_n: Some(pb_vec3(b.perpendicular_n)),
+            parallel_n: Some(pb_vec3(b.parallel_n)),
+            cutting: b.cutting,
+        }),
     }
 }
 
@@ -160,16 +166,26 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
 
 /// What a client needs to know of a scene's tool.
 fn tool_info(t: &ToolSpec) -> pb::ToolInfo {
+    use vademecum_engine::pipeline::SCALPEL_TIP_FRACTION;
+    use vademecum_engine::scene::schema::GLOBAL_FORCE_LIMIT_N;
     let (kind, radius_m, max_force_n) = match t {
         ToolSpec::Probe { radius, max_force, .. } => (pb::ToolKind::Probe, *radius, *max_force),
-        ToolSpec::Scalpel { .. } => (pb::ToolKind::Scalpel, 0.0, 0.0),
+        ToolSpec::Scalpel { blade_length, .. } => (pb::ToolKind::Scalpel, SCALPEL_TIP_FRACTION * blade_length, GLOBAL_FORCE_LIMIT_N),
         ToolSpec::Grasper { max_force, .. } => (pb::ToolKind::Grasper, 0.0, *max_force),
+    };
+    let (blade_length_m, cut_force_n) = match t {
+        ToolSpec::Scalpel {
+            blade_length, cut_force, ..
+        } => (*blade_length, *cut_force),
+        _ => (0.0, 0.0),
     };
     pb::ToolInfo {
         name: t.name().to_string(),
         kind: kind as i32,
         radius_m,
         max_force_n,
+        blade_length_m,
+        cut_force_n,
     }
 }
 

@@ -164,6 +164,67 @@ fn run_builds_the_missing_vademecum_plays_the_palpation_and_records_it() {
     assert!(!stderr(&o).contains("building"), "{}", stderr(&o));
 }
 
+/// `vademecum run` on a cutting scene: the scalpel draws the scene's pre-planned cut in a
+/// headless session; the force log carries the blade's force split, the summary the cut, and
+/// the recording the organ opened by the session's cut.
+#[test]
+fn run_cuts_the_patch_with_a_scalpel_and_records_the_opening() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["run", "--builtin", "patch_cut", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    assert_eq!(s["effects"], serde_json::json!(["palpation", "cutting"]));
+    let cut = &s["cut"];
+    // the top cell row at x = 4, as the full-order solve of the pre-planned cut cuts it
+    assert_eq!(cut["cut_cells"], 2, "{s}");
+    assert_eq!(cut["enriched_nodes"], 4, "{s}");
+    assert_eq!(cut["refused_steps"], 0, "{s}");
+    assert!(
+        cut["strokes"].as_u64().unwrap() >= 1 && cut["advances"].as_u64().unwrap() >= 1,
+        "{s}"
+    );
+    assert!(cut["cutting_ticks"].as_u64().unwrap() > 100, "{s}");
+    assert!(cut["opened"]["max_opening_m"].as_f64().unwrap() > 0.0, "{s}");
+    let rec = dir.path().join("out/patch_cut/run");
+    let forces = std::fs::read_to_string(rec.join("forces.csv")).unwrap();
+    let header = forces.lines().next().unwrap();
+    assert!(header.ends_with("f_perp_n,f_par_n,cutting"), "{header}");
+    assert!(forces.lines().skip(1).any(|l| l.ends_with(",1")), "some ticks cut");
+    // the trajectory is written with its blade, and the organ's series ends opened
+    let traj = std::fs::read_to_string(rec.join("trajectory.csv")).unwrap();
+    assert!(traj.starts_with("t_s,x_m,y_m,z_m,closure,bx_m,by_m,bz_m,qw,qx,qy,qz"), "{traj}");
+    let pvd = std::fs::read_to_string(rec.join("patch.pvd")).unwrap();
+    assert!(pvd.contains("frames/patch_cut.vtu"), "{pvd}");
+    let vtu = std::fs::read_to_string(rec.join("frames/patch_cut.vtu")).unwrap();
+    assert!(
+        vtu.contains("cut_lip_copy") && vtu.contains("NumberOfPoints=\"76\""),
+        "72 nodes and 4 copies"
+    );
+    assert!(rec.join("patch_cut_surface.vtu").is_file());
+    // the written trajectory plays again as a script: the same cut
+    let o = vademecum(
+        &[
+            "run",
+            "--builtin",
+            "patch_cut",
+            "--script",
+            "out/patch_cut/run/trajectory.csv",
+            "--record",
+            "again",
+            "--json",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(s["cut"]["cut_cells"], 2, "{s}");
+    // a trajectory without a blade cannot cut a scene without a probe
+    std::fs::write(dir.path().join("t.csv"), "t_s,x_m,y_m,z_m\n0,4,0.5,5.2\n1,4,0.5,4.5\n").unwrap();
+    let o = vademecum(&["run", "--builtin", "patch_cut", "--script", "t.csv"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("bx_m"), "{}", stderr(&o));
+}
+
 #[test]
 fn run_refuses_a_bad_trajectory_with_its_line() {
     let dir = tempfile::tempdir().unwrap();
@@ -317,14 +378,6 @@ fn solve_cuts_the_built_in_cutting_scenes_by_xfem() {
     let vtu = std::fs::read_to_string(dir.path().join("k/cornea.vtu")).unwrap();
     assert!(vtu.contains("NumberOfPoints=\"2572\""), "{}", &vtu[..400.min(vtu.len())]);
     assert!(vtu.contains("cut_lip_copy"));
-    // a session cannot cut yet: `run` says what can
-    let o = vademecum(&["run", "--builtin", "keratotomy"], dir.path());
-    assert_ne!(o.status.code(), Some(0));
-    assert!(
-        stderr(&o).contains("vademecum solve") && stderr(&o).contains("bench cut"),
-        "{}",
-        stderr(&o)
-    );
     // a hyperelastic organ with cuts and the finite-element solver is refused with the remedy
     let show = vademecum(&["scene", "show", "patch_cut"], dir.path());
     let hyper = stdout(&show).replace("model = \"linear\"", "model = \"neo_hookean\"");

@@ -14,6 +14,7 @@
 //! - [`palpation`]: the linear PGD deformation effect (a spherical tip tracked on the
 //!   organ's surface by a proxy, force `f = C(s)⁻¹δ` from the vademecum).
 
+pub mod cutting;
 pub mod palpation;
 
 use std::sync::Arc;
@@ -22,6 +23,7 @@ use crate::pgd::offline::LoadedBundle;
 use crate::scene::Scene;
 use crate::scene::schema::{DeformationModel, GLOBAL_FORCE_LIMIT_N, ToolSpec};
 
+pub use cutting::{BladeForce, Cutting};
 pub use palpation::Palpation;
 
 /// The kind of tool a tool state describes.
@@ -49,8 +51,12 @@ pub struct ToolInput {
     pub velocity_m_s: [f64; 3],
     /// Blade engagement or jaw closure, 0 (open) to 1 (closed).
     pub closure: f64,
-    /// Tool orientation as a unit quaternion `[w, x, y, z]`.
+    /// Tool orientation as a unit quaternion `[w, x, y, z]`. For a scalpel, the tool frame's
+    /// y axis turned by it is the normal of the blade's plane.
     pub orientation: [f64; 4],
+    /// A scalpel's blade is the segment from `position_m` (its tip) to this point (m), the
+    /// other end of its cutting edge; other tools ignore it.
+    pub blade_end_m: [f64; 3],
 }
 
 impl Default for ToolInput {
@@ -62,6 +68,7 @@ impl Default for ToolInput {
             velocity_m_s: [0.0; 3],
             closure: 0.0,
             orientation: [1.0, 0.0, 0.0, 0.0],
+            blade_end_m: [0.0; 3],
         }
     }
 }
@@ -74,6 +81,16 @@ pub const QUATERNION_NORM_TOLERANCE: f64 = 0.1;
 pub const MAX_TOOL_SPEED_M_S: f64 = 10.0;
 
 impl ToolInput {
+    /// Where the tool touches the organ: a probe's tip centre (`position_m`); a scalpel's, the
+    /// middle of its cutting edge (from `position_m` to `blade_end_m`), the point of the blade
+    /// that presses on the tissue.
+    pub fn contact_point(&self) -> [f64; 3] {
+        match self.kind {
+            ToolKind::Scalpel => std::array::from_fn(|k| 0.5 * (self.position_m[k] + self.blade_end_m[k])),
+            _ => self.position_m,
+        }
+    }
+
     /// Whether every field is finite, the closure lies in [0, 1], the speed is at most
     /// [`MAX_TOOL_SPEED_M_S`] and the orientation's norm is within
     /// [`QUATERNION_NORM_TOLERANCE`] of 1.
@@ -84,6 +101,7 @@ impl ToolInput {
             .iter()
             .chain(&self.velocity_m_s)
             .chain(&self.orientation)
+            .chain(&self.blade_end_m)
             .all(|v| v.is_finite())
             && (0.0..=1.0).contains(&self.closure)
             && v2 <= MAX_TOOL_SPEED_M_S * MAX_TOOL_SPEED_M_S
@@ -109,6 +127,11 @@ impl Events {
     pub const BEYOND_RANGE: u32 = 16;
     /// The force reached the tool's `max_force` and was clamped to it (direction kept).
     pub const FORCE_SATURATED: u32 = 32;
+    /// The force in the blade's plane rose above the scalpel's `cut_force`: a cutting stroke
+    /// starts (cutting effect).
+    pub const CUT_STARTED: u32 = 64;
+    /// The blade's edge lies in a cut already made (cutting effect).
+    pub const BLADE_IN_CUT: u32 = 128;
 
     /// Whether flag `f` is set.
     pub fn has(self, f: u32) -> bool {
@@ -137,6 +160,11 @@ pub struct Contact {
     /// The part of the force the deformable tissue carries at `point_m` (N, on the tissue;
     /// the rest goes into the rigid support).
     pub tissue_force_n: [f64; 3],
+    /// The share λ of the contact the deformable tissue carries (0 to 1; the rest lies on
+    /// the rigid support).
+    pub loadable: f64,
+    /// The displacement imposed on the tissue at `point_m`, `δ = −depth · n` (m).
+    pub imposed_m: [f64; 3],
 }
 
 /// What a tick produces, filled in by the effects in order. `Copy` and small: the tick
@@ -150,6 +178,8 @@ pub struct TickState {
     pub contact: Option<Contact>,
     /// Events of this tick.
     pub events: Events,
+    /// The force on a scalpel's blade split along it (cutting scenes, scalpel ticks).
+    pub blade: Option<BladeForce>,
 }
 
 /// A simulated effect: one stage of the tick.
@@ -190,21 +220,46 @@ pub enum PipelineError {
     /// The scene has no probe tool to palpate with.
     #[error("the scene has no probe tool; add a [[tools]] entry with kind = \"probe\"")]
     NoProbe,
+    /// A cutting scene has no scalpel.
+    #[error("the scene asks for cutting but has no scalpel; add a [[tools]] entry with kind = \"scalpel\"")]
+    NoScalpel,
+    /// The cutting model of an organ could not be prepared.
+    #[error("cannot prepare the cutting model of organ {organ}: {message}")]
+    Cutting {
+        /// The organ.
+        organ: usize,
+        /// What went wrong.
+        message: String,
+    },
 }
 
 /// The effects of a session, in tick order.
 pub struct Pipeline {
     effects: Vec<Box<dyn Effect>>,
-    /// The probe's force limit (N).
+    /// The force limit (N): the probe's `max_force`, or the global limit in a scene without
+    /// a probe.
     max_force_n: f64,
     /// Where tool positions are accepted: the organs' bounding box grown by
     /// [`WORKSPACE_MARGIN_M`].
     workspace: crate::contact::Bounds,
+    /// Whether the scene palpates with a probe.
+    probe: bool,
+    /// The scalpel's blade length (m), in a cutting scene.
+    blade_length_m: Option<f64>,
+    /// What the cut thread has done (cutting scenes).
+    cut_status: Option<Arc<cutting::CutStatus>>,
 }
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
 /// positions are rejected as out of range (a device or client in the wrong units or frame).
 pub const WORKSPACE_MARGIN_M: f64 = 1.0;
+
+/// The scalpel's tip, for the contact, is a sphere of this fraction of its blade length.
+pub const SCALPEL_TIP_FRACTION: f64 = 0.05;
+
+/// The longest blade edge a scalpel state may carry, in blade lengths (farther: a device in
+/// the wrong units or frame).
+pub const MAX_BLADE_EDGE: f64 = 2.0;
 
 impl std::fmt::Debug for Pipeline {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -215,11 +270,12 @@ impl std::fmt::Debug for Pipeline {
 impl Pipeline {
     /// Assembles the effects `scene` names, over its organs' loaded bundles (one per organ,
     /// in scene order, shared read-only between sessions).
+    ///
+    /// A cutting scene (`effects.cutting`, linear, one organ, a scalpel) also reads the
+    /// organ's mesh and prepares its reduced cutting model from the bundle's modes (seconds
+    /// on a large organ: call it off any async runtime), and starts the cut thread.
     pub fn for_scene(scene: &Scene, bundles: &[Arc<LoadedBundle>]) -> Result<Self, PipelineError> {
         let fx = &scene.spec.effects;
-        if fx.cutting {
-            return Err(PipelineError::Unsupported("cutting (effects.cutting = true)"));
-        }
         if fx.tearing {
             return Err(PipelineError::Unsupported("tearing (effects.tearing = true)"));
         }
@@ -229,20 +285,49 @@ impl Pipeline {
                 bundles: bundles.len(),
             });
         }
-        let (radius, max_force) = scene
-            .spec
-            .tools
-            .iter()
-            .find_map(|t| match t {
-                ToolSpec::Probe { radius, max_force, .. } => Some((*radius, *max_force)),
-                _ => None,
-            })
-            .ok_or(PipelineError::NoProbe)?;
+        let probe = scene.spec.tools.iter().find_map(|t| match t {
+            ToolSpec::Probe { radius, max_force, .. } => Some((*radius, *max_force)),
+            _ => None,
+        });
+        let scalpel = scene.spec.tools.iter().find_map(|t| match t {
+            ToolSpec::Scalpel {
+                blade_length, cut_force, ..
+            } => Some((*blade_length, *cut_force)),
+            _ => None,
+        });
         let large = fx.deformation == DeformationModel::Large;
+        if fx.cutting {
+            if large {
+                return Err(PipelineError::Unsupported(
+                    "cutting with large deformations (effects.cutting with deformation = \"large\")",
+                ));
+            }
+            if scalpel.is_none() {
+                return Err(PipelineError::NoScalpel);
+            }
+            if bundles.len() != 1 {
+                return Err(PipelineError::Unsupported("cutting in a scene of more than one organ"));
+            }
+        } else if probe.is_none() {
+            return Err(PipelineError::NoProbe);
+        }
         if large && let Some(i) = bundles.iter().position(|b| b.anm.is_none()) {
             return Err(PipelineError::NoLattice { organ: i });
         }
-        let effects: Vec<Box<dyn Effect>> = vec![Box::new(Palpation::new(bundles.to_vec(), radius, large))];
+        let radius = match (probe, scalpel) {
+            (Some((r, _)), _) => r,
+            (None, Some((blade, _))) => SCALPEL_TIP_FRACTION * blade,
+            (None, None) => unreachable!("checked above"),
+        };
+        let mut effects: Vec<Box<dyn Effect>> = vec![Box::new(Palpation::new(bundles.to_vec(), radius, large))];
+        let mut cut_status = None;
+        if fx.cutting
+            && let Some((_, cut_force)) = scalpel
+        {
+            let c = cutting_effect(scene, &bundles[0], cut_force)?;
+            cut_status = Some(c.status());
+            effects.push(Box::new(c));
+        }
         let mut workspace = crate::contact::Bounds {
             min: [f64::INFINITY; 3],
             max: [f64::NEG_INFINITY; 3],
@@ -256,9 +341,17 @@ impl Pipeline {
         }
         Ok(Self {
             effects,
-            max_force_n: max_force.clamp(0.0, GLOBAL_FORCE_LIMIT_N),
+            max_force_n: probe.map_or(GLOBAL_FORCE_LIMIT_N, |p| p.1).clamp(0.0, GLOBAL_FORCE_LIMIT_N),
             workspace,
+            probe: probe.is_some(),
+            blade_length_m: scalpel.filter(|_| fx.cutting).map(|s| s.0),
+            cut_status,
         })
+    }
+
+    /// What the cut thread has done so far (cutting scenes).
+    pub fn cut_status(&self) -> Option<Arc<cutting::CutStatus>> {
+        self.cut_status.clone()
     }
 
     /// Names of the effects, in tick order.
@@ -266,9 +359,25 @@ impl Pipeline {
         self.effects.iter().map(|e| e.name()).collect()
     }
 
-    /// The tool kinds this pipeline simulates (a palpation scene: the probe only).
+    /// The tool kinds this pipeline simulates (a palpation scene: the probe; a cutting
+    /// scene: the scalpel, and the probe if it has one).
     pub fn accepts(&self, kind: ToolKind) -> bool {
-        kind == ToolKind::Probe
+        match kind {
+            ToolKind::Probe => self.probe,
+            ToolKind::Scalpel => self.blade_length_m.is_some(),
+            _ => false,
+        }
+    }
+
+    /// Whether a scalpel state's blade is one: finite, of positive length at most
+    /// [`MAX_BLADE_EDGE`] blade lengths, its orientation giving a plane through its edge.
+    fn blade_ok(&self, tool: &ToolInput) -> bool {
+        let Some(len) = self.blade_length_m else { return false };
+        let edge = (0..3)
+            .map(|k| (tool.blade_end_m[k] - tool.position_m[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        edge <= MAX_BLADE_EDGE * len && crate::xfem::blade::Blade::new(tool.position_m, tool.blade_end_m, tool.orientation).is_ok()
     }
 
     /// Where tool positions are accepted (the organs' box grown by [`WORKSPACE_MARGIN_M`]).
@@ -276,7 +385,8 @@ impl Pipeline {
         self.workspace
     }
 
-    /// The largest force magnitude a tick returns (N): the probe's `max_force`.
+    /// The largest force magnitude a probe tick returns (N): the probe's `max_force` (a
+    /// scalpel's: the global limit).
     pub fn max_force_n(&self) -> f64 {
         self.max_force_n
     }
@@ -293,10 +403,16 @@ impl Pipeline {
     /// the scene does not simulate, gives zero force and the `REJECTED_INPUT` event, and
     /// no effect sees it (the contact carried from the last tick is kept). A force larger
     /// than the probe's `max_force` is scaled down to it (direction kept) and flagged
-    /// `FORCE_SATURATED`; a non-finite one becomes zero.
+    /// `FORCE_SATURATED`; a non-finite one becomes zero. A scalpel state whose blade is not
+    /// one (zero length, longer than [`MAX_BLADE_EDGE`] blade lengths, no plane) is rejected
+    /// the same way.
     pub fn tick(&mut self, tool: &ToolInput) -> TickState {
         let mut state = TickState::default();
-        if !tool.is_valid() || !self.accepts(tool.kind) || !self.workspace.contains(tool.position_m, 0.0) {
+        if !tool.is_valid()
+            || !self.accepts(tool.kind)
+            || !self.workspace.contains(tool.position_m, 0.0)
+            || (tool.kind == ToolKind::Scalpel && !self.blade_ok(tool))
+        {
             state.events.0 |= Events::REJECTED_INPUT;
             return state;
         }
@@ -307,14 +423,59 @@ impl Pipeline {
             state.force_n = [0.0; 3];
         }
         let norm = state.force_n.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if norm > self.max_force_n {
-            let scale = self.max_force_n / norm;
+        let limit = if tool.kind == ToolKind::Scalpel {
+            GLOBAL_FORCE_LIMIT_N
+        } else {
+            self.max_force_n
+        };
+        if norm > limit {
+            let scale = limit / norm;
             state.force_n = state.force_n.map(|x| x * scale);
             if let Some(c) = &mut state.contact {
                 c.tissue_force_n = c.tissue_force_n.map(|x| x * scale);
+            }
+            if let Some(b) = &mut state.blade {
+                b.perpendicular_n = b.perpendicular_n.map(|x| x * scale);
+                b.parallel_n = b.parallel_n.map(|x| x * scale);
             }
             state.events.0 |= Events::FORCE_SATURATED;
         }
         state
     }
+}
+
+/// The cutting effect of organ 0 of `scene` (module [`cutting`]): its mesh and model from the
+/// scene, checked against the bundle, the reduced model on the bundle's modes.
+fn cutting_effect(scene: &Scene, bundle: &Arc<LoadedBundle>, cut_force: f64) -> Result<Cutting, PipelineError> {
+    use crate::xfem::online::OnlineCut;
+    use crate::xfem::reduced::ReducedCut;
+    let fail = |message: String| PipelineError::Cutting { organ: 0, message };
+    let model = scene.organ_model(0).map_err(|e| fail(e.to_string()))?;
+    let same = model.mesh.nodes.len() == bundle.nodes.len()
+        && model.mesh.nodes.iter().zip(&bundle.nodes).all(|(p, q)| {
+            let tol = 1e-9 * (1.0 + p.iter().chain(q).fold(0.0f64, |m, v| m.max(v.abs())));
+            (0..3).all(|k| (p[k] - q[k]).abs() <= tol)
+        });
+    if !same {
+        return Err(fail(
+            "the bundle was built for another mesh than the scene's; rebuild it with `vademecum build`".into(),
+        ));
+    }
+    let fx = &scene.spec.fidelity.xfem;
+    let params = fx.params();
+    let v = &bundle.vademecum;
+    let reduced = ReducedCut::new(
+        &model.mesh,
+        &model.materials,
+        model.locking,
+        &model.problem,
+        v.f_raw(),
+        v.modes(),
+        fx.basis,
+        fx.discontinuous,
+        &params,
+    )
+    .map_err(|e| fail(e.to_string()))?;
+    let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(fail)?;
+    Ok(Cutting::new(0, bundle.clone(), model.mesh, online, cut_force))
 }

@@ -138,7 +138,7 @@ impl Effect for Palpation {
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
         let mut best: Option<(usize, Touch)> = None;
         for (i, o) in self.organs.iter_mut().enumerate() {
-            if let Some(t) = o.proxy.update(&o.surface, &o.bounds, tool.position_m, self.radius_m)
+            if let Some(t) = o.proxy.update(&o.surface, &o.bounds, tool.contact_point(), self.radius_m)
                 && best.is_none_or(|(_, b)| t.depth > b.depth)
             {
                 best = Some((i, t));
@@ -177,6 +177,8 @@ impl Effect for Palpation {
             proxy_m: touch.at.point,
             depth_m: touch.depth,
             tissue_force_n: tissue,
+            loadable: lambda,
+            imposed_m: touch.penetration(),
         });
         state.events.0 |= Events::CONTACT;
     }

@@ -21,6 +21,11 @@ use super::reduced::{ReducedCut, ReducedError};
 use crate::mesh::Mesh;
 use crate::meshless::cut::Cut;
 
+/// The distance from `p` to `q`.
+fn moved(p: [f64; 3], q: [f64; 3]) -> f64 {
+    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt()
+}
+
 /// What one step did.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct CutStep {
@@ -105,6 +110,14 @@ impl OnlineCut {
     /// enrichment (a piece cut loose, [`ReducedError::Singular`]) leaves the model at its
     /// previous cut.
     pub fn step(&mut self, mesh: &Mesh, blade: &Blade, force: [f64; 3]) -> Result<CutStep, ReducedError> {
+        self.step_in_contact(mesh, blade, force, [0.0; 3])
+    }
+
+    /// [`step`](Self::step) for a blade pressed into the tissue, which gave way by `pushed`
+    /// (m) at the contact: a stroke starts where the blade met the tissue, at the edge moved
+    /// back by `pushed` (in the reference frame the tissue ahead of the blade was pushed, not
+    /// cut, until the criterion held), and goes on with the blade's own positions.
+    pub fn step_in_contact(&mut self, mesh: &Mesh, blade: &Blade, force: [f64; 3], pushed: [f64; 3]) -> Result<CutStep, ReducedError> {
         let split = blade.split(force);
         let mid = [
             0.5 * (blade.a[0] + blade.b[0]),
@@ -112,7 +125,7 @@ impl OnlineCut {
             0.5 * (blade.a[2] + blade.b[2]),
         ];
         let in_cut = self.cut.as_ref().is_some_and(|c| c.distance(mid) <= 1e-3 * self.min_step);
-        let mut step = CutStep {
+        let step = CutStep {
             split,
             cutting: split.cuts(self.cut_force),
             in_cut,
@@ -124,10 +137,23 @@ impl OnlineCut {
         }
         let here = (blade.a, blade.b);
         let Some(&last) = self.stroke.last() else {
-            self.stroke.push(here);
-            return Ok(step);
+            let back = |p: [f64; 3]| std::array::from_fn(|k| p[k] - pushed[k]);
+            let entry = (back(blade.a), back(blade.b));
+            self.stroke.push(entry);
+            return self.sweep(mesh, entry, here, step);
         };
-        let moved = |p: [f64; 3], q: [f64; 3]| ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+        self.sweep(mesh, last, here, step)
+    }
+
+    /// Adds the surface the edge swept from `last` to `here` to the cut and cuts the cells it
+    /// has now crossed entirely.
+    fn sweep(
+        &mut self,
+        mesh: &Mesh,
+        last: ([f64; 3], [f64; 3]),
+        here: ([f64; 3], [f64; 3]),
+        mut step: CutStep,
+    ) -> Result<CutStep, ReducedError> {
         if moved(last.0, here.0).max(moved(last.1, here.1)) < self.min_step {
             return Ok(step);
         }

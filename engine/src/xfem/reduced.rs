@@ -143,32 +143,44 @@ pub struct CutUpdate {
     pub bordering_s: f64,
 }
 
+/// What a tick reads of the reduced cutting model: the basis rows, the local fields, the
+/// bordered factor — the contact compliance of the cut organ, and nothing that allocates.
+///
+/// A view is cheap to take ([`ReducedCut::view`]): the basis is shared, each local field is a
+/// shared column, only the factor (`O(m²)` for m enriched unknowns) is copied. A session's
+/// tick holds one while the cut grows on another thread, and swaps in the next one when it
+/// is ready.
+#[derive(Debug, Clone)]
+pub struct CutView {
+    disc: Discontinuous,
+    /// The local fields' standard parts `w_e`, one shared column (`n_free`) per enriched unknown.
+    w: Vec<std::sync::Arc<[f64]>>,
+    dofs: std::sync::Arc<DofMap>,
+    /// The K-orthonormal basis, row-major: `n_free × nb`.
+    x: std::sync::Arc<[f64]>,
+    nb: usize,
+    /// The bordered factor: of the whole system (bare) or of S (local fields).
+    factor: Bordered,
+    /// Workspace of the compliance: three columns of the system's dimension.
+    scratch: Vec<f64>,
+}
+
 /// The reduced cutting model of one organ (module docs).
 #[derive(Debug, Clone)]
 pub struct ReducedCut {
     basis: RitzBasis,
-    disc: Discontinuous,
     /// The uncut stiffness's factorization (local fields only).
     chol: Option<crate::solve::Cholesky>,
-    /// The local fields' standard parts `w_e`, column-major `n_free × enriched unknowns`.
-    w: Vec<f64>,
     n_nodes: usize,
-    dofs: DofMap,
-    /// The K-orthonormal basis, row-major: `n_free × nb`.
-    x: Vec<f64>,
-    nb: usize,
+    /// What the tick reads.
+    online: CutView,
     enr: Enrichment,
     /// Equations (of the extended system) of the enriched unknowns, in order.
     enriched_eqs: usize,
-    /// The bordered factor: of the whole system (bare) or of S (local fields).
-    factor: Bordered,
     materials: MaterialMap,
     locking: Locking,
     problem: StaticProblem,
     params: XfemParams,
-    /// Workspace of [`contact_compliance`](Self::contact_compliance): three columns of the
-    /// system's dimension, sized by [`cut`](Self::cut) so that a tick never allocates.
-    scratch: Vec<f64>,
 }
 
 impl ReducedCut {
@@ -262,21 +274,23 @@ impl ReducedCut {
         };
         Ok(Self {
             basis,
-            disc,
             chol,
-            w: Vec::new(),
-            factor: Bordered::new(if disc == Discontinuous::Bare { nb } else { 0 }),
             n_nodes: mesh.n_nodes(),
-            dofs,
-            x,
-            nb,
+            online: CutView {
+                disc,
+                w: Vec::new(),
+                dofs: std::sync::Arc::new(dofs),
+                x: x.into(),
+                nb,
+                factor: Bordered::new(if disc == Discontinuous::Bare { nb } else { 0 }),
+                scratch: vec![0.0; 3 * nb],
+            },
             enr: Enrichment::none(mesh),
             enriched_eqs: 0,
             materials: materials.clone(),
             locking,
             problem: problem.clone(),
             params: *params,
-            scratch: vec![0.0; 3 * nb],
         })
     }
 
@@ -287,12 +301,12 @@ impl ReducedCut {
 
     /// Dimension of the continuous part (directions kept of the basis).
     pub fn basis_size(&self) -> usize {
-        self.nb
+        self.online.nb
     }
 
     /// Dimension of the bordered system.
     pub fn dim(&self) -> usize {
-        self.nb + self.enriched_eqs
+        self.online.nb + self.enriched_eqs
     }
 
     /// The current enrichment.
@@ -302,13 +316,13 @@ impl ReducedCut {
 
     /// What carries the discontinuous part.
     pub fn discontinuous(&self) -> Discontinuous {
-        self.disc
+        self.online.disc
     }
 
     /// Bytes held by the basis, the local fields and the bordered factor (not the uncut
     /// factorization).
     pub fn bytes(&self) -> usize {
-        8 * (self.x.len() + self.w.len() + self.factor.l.len())
+        8 * (self.online.x.len() + self.online.w.len() * self.online.dofs.n_free() + self.online.factor.l.len())
     }
 
     /// Cuts the cells `new_cells` (each with the plane that crossed it): enriches their nodes
@@ -333,7 +347,7 @@ impl ReducedCut {
         }
         let clock = Instant::now();
         let triplets = system::enriched_rows(mesh, &self.materials, self.locking, &enr, old_nodes)?;
-        let nf = self.dofs.n_free();
+        let nf = self.online.dofs.n_free();
         let n3 = 3 * self.n_nodes;
         // the unknown of every enriched degree of freedom (none where the node is held)
         let mut unknown_of = Vec::with_capacity(3 * enr.len());
@@ -352,7 +366,7 @@ impl ReducedCut {
         for (r, c, v) in triplets {
             let Some(row) = unknown_of[r - n3] else { continue };
             let col = if c < n3 {
-                match self.dofs.eq(c) {
+                match DofMap::eq(&self.online.dofs, c) {
                     Some(e) => e,
                     None => continue,
                 }
@@ -366,15 +380,15 @@ impl ReducedCut {
         }
         let assembly_s = clock.elapsed().as_secs_f64();
         let clock = Instant::now();
-        let nb = self.nb;
+        let nb = self.online.nb;
         let m0 = self.enriched_eqs;
         // a failed step leaves the model at the previous cut
-        let rollback = (self.factor.l.len(), self.factor.row_start.len(), self.w.len());
+        let rollback = (self.online.factor.l.len(), self.online.factor.row_start.len(), self.online.w.len());
         let mut a = Vec::new();
         let mut w = vec![0.0; nf];
         for (j, row) in rows.iter().enumerate() {
             let e = m0 + j;
-            match self.disc {
+            match self.online.disc {
                 Discontinuous::Bare => {
                     // A[d, 0..nb] = Σ_c K[r, c] X̂[c, :]; A[d, nb + e'] = K[r, nf + e']
                     let d = nb + e;
@@ -382,7 +396,7 @@ impl ReducedCut {
                     a.resize(d + 1, 0.0);
                     for &(c, v) in row {
                         if c < nf {
-                            let xr = &self.x[c * nb..(c + 1) * nb];
+                            let xr = &self.online.x[c * nb..(c + 1) * nb];
                             for (t, xv) in xr.iter().enumerate() {
                                 a[t] += v * xv;
                             }
@@ -390,7 +404,7 @@ impl ReducedCut {
                             a[nb + c - nf] += v;
                         }
                     }
-                    if self.factor.border(d, &a).is_err() {
+                    if self.online.factor.border(d, &a).is_err() {
                         self.undo(rollback);
                         return Err(ReducedError::Singular { unknown: e });
                     }
@@ -405,19 +419,19 @@ impl ReducedCut {
                         .as_ref()
                         .expect("local fields keep the factorization")
                         .solve_in_place(&mut w);
-                    self.w.extend_from_slice(&w);
+                    self.online.w.push(w.as_slice().into());
                     a.clear();
                     a.resize(e + 1, 0.0);
                     for &(c, v) in row {
                         if c < nf {
                             for (t, at) in a.iter_mut().enumerate() {
-                                *at += v * self.w[t * nf + c];
+                                *at += v * self.online.w[t][c];
                             }
                         } else {
                             a[c - nf] += v;
                         }
                     }
-                    if self.factor.border(e, &a).is_err() {
+                    if self.online.factor.border(e, &a).is_err() {
                         self.undo(rollback);
                         return Err(ReducedError::Singular { unknown: e });
                     }
@@ -426,7 +440,7 @@ impl ReducedCut {
         }
         self.enriched_eqs = total;
         self.enr = enr;
-        self.scratch.resize(3 * self.dim(), 0.0);
+        self.online.scratch.resize(3 * self.dim(), 0.0);
         Ok(CutUpdate {
             new_nodes,
             enriched_unknowns: total,
@@ -437,36 +451,35 @@ impl ReducedCut {
 
     /// Drops the rows and fields a failed [`cut`](Self::cut) appended.
     fn undo(&mut self, (l, rows, w): (usize, usize, usize)) {
-        self.factor.l.truncate(l);
-        self.factor.row_start.truncate(rows);
-        self.w.truncate(w);
+        self.online.factor.l.truncate(l);
+        self.online.factor.row_start.truncate(rows);
+        self.online.w.truncate(w);
     }
 
     /// Solves the reduced system for the right-hand side `b` in place (`b.len() = dim`; the
     /// coefficients `[β; q]`).
     pub fn solve_in_place(&self, b: &mut [f64]) {
-        match self.disc {
-            Discontinuous::Bare => self.factor.solve_in_place(b),
-            Discontinuous::LocalFields => self.factor.solve_in_place(&mut b[self.nb..]),
+        match self.online.disc {
+            Discontinuous::Bare => self.online.factor.solve_in_place(b),
+            Discontinuous::LocalFields => self.online.factor.solve_in_place(&mut b[self.online.nb..]),
         }
     }
 
     /// The coefficients `[β; q]` (length [`dim`](Self::dim)) for nodal forces `forces`
     /// (full length `3n`).
     pub fn coefficients(&self, forces: &[f64], out: &mut [f64]) {
-        let nb = self.nb;
-        let nf = self.dofs.n_free();
+        let nb = self.online.nb;
         out.fill(0.0);
         for (d, f) in forces.iter().enumerate() {
             if *f != 0.0
-                && let Some(e) = self.dofs.eq(d)
+                && let Some(e) = DofMap::eq(&self.online.dofs, d)
             {
-                for (t, xv) in self.x[e * nb..(e + 1) * nb].iter().enumerate() {
+                for (t, xv) in self.online.x[e * nb..(e + 1) * nb].iter().enumerate() {
                     out[t] += f * xv;
                 }
-                if self.disc == Discontinuous::LocalFields {
+                if self.online.disc == Discontinuous::LocalFields {
                     for (t, o) in out[nb..].iter_mut().enumerate() {
-                        *o += f * self.w[t * nf + e];
+                        *o += f * self.online.w[t][e];
                     }
                 }
             }
@@ -477,14 +490,17 @@ impl ReducedCut {
     /// The standard displacements (full length `3n`, own sides) and enriched amplitudes
     /// (3 per enriched node) of coefficients `coeffs`.
     pub fn fields(&self, coeffs: &[f64], u: &mut [f64], q: &mut [f64]) {
-        let nb = self.nb;
-        let nf = self.dofs.n_free();
+        let nb = self.online.nb;
         u.fill(0.0);
         for d in 0..u.len() {
-            if let Some(e) = self.dofs.eq(d) {
-                u[d] = self.x[e * nb..(e + 1) * nb].iter().zip(&coeffs[..nb]).map(|(a, b)| a * b).sum();
-                if self.disc == Discontinuous::LocalFields {
-                    u[d] += coeffs[nb..].iter().enumerate().map(|(t, qv)| qv * self.w[t * nf + e]).sum::<f64>();
+            if let Some(e) = DofMap::eq(&self.online.dofs, d) {
+                u[d] = self.online.x[e * nb..(e + 1) * nb]
+                    .iter()
+                    .zip(&coeffs[..nb])
+                    .map(|(a, b)| a * b)
+                    .sum();
+                if self.online.disc == Discontinuous::LocalFields {
+                    u[d] += coeffs[nb..].iter().enumerate().map(|(t, qv)| qv * self.online.w[t][e]).sum::<f64>();
                 }
             }
         }
@@ -493,7 +509,7 @@ impl ReducedCut {
         for k in 0..self.enr.len() {
             let a = self.enr.nodes[k];
             for i in 0..3 {
-                if self.dofs.eq(3 * a + i).is_some() {
+                if DofMap::eq(&self.online.dofs, 3 * a + i).is_some() {
                     q[3 * k + i] = coeffs[nb + e];
                     e += 1;
                 }
@@ -501,67 +517,14 @@ impl ReducedCut {
         }
     }
 
-    /// The 3×3 compliance of the cut organ at a load patch (`nodes` with `weights` summing to
-    /// one; the patch-averaged displacement per unit force spread over the patch):
-    /// `C = Φ A⁻¹ Φᵀ` (module docs). With local fields `C = Φ_X Φ_Xᵀ + ZᵀZ`, `Z = L_S⁻¹ W_pᵀ`;
-    /// bare, `C = ZᵀZ`, `Z = L⁻¹ [Φ_Xᵀ; 0]`. The displacement an own-side node sees; no
-    /// allocation.
+    /// The 3×3 compliance of the cut organ at a load patch ([`CutView::contact_compliance`]).
     pub fn contact_compliance(&mut self, nodes: &[usize], weights: &[f64]) -> [[f64; 3]; 3] {
-        let (nb, dim) = (self.nb, self.dim());
-        let nf = self.dofs.n_free();
-        let mut c = [[0.0; 3]; 3];
-        let m = dim - nb;
-        let len = match self.disc {
-            Discontinuous::Bare => dim,
-            Discontinuous::LocalFields => m,
-        };
-        let z = &mut self.scratch[..3 * len];
-        z.fill(0.0);
-        // the right-hand sides: Φ_Xᵀ (bare) or W_pᵀ (local fields), averaged over the patch
-        for (&a, &w) in nodes.iter().zip(weights) {
-            for i in 0..3 {
-                let Some(e) = self.dofs.eq(3 * a + i) else { continue };
-                let xr = &self.x[e * nb..(e + 1) * nb];
-                match self.disc {
-                    Discontinuous::Bare => {
-                        for (t, v) in xr.iter().enumerate() {
-                            z[i * len + t] += w * v;
-                        }
-                    }
-                    Discontinuous::LocalFields => {
-                        for t in 0..m {
-                            z[i * len + t] += w * self.w[t * nf + e];
-                        }
-                    }
-                }
-            }
-        }
-        if self.disc == Discontinuous::LocalFields {
-            // Φ_X Φ_Xᵀ, from the rows of X̂ (K-orthonormal: the uncut Ritz compliance)
-            for (&a, &wa) in nodes.iter().zip(weights) {
-                for (&b, &wb) in nodes.iter().zip(weights) {
-                    for i in 0..3 {
-                        let Some(ea) = self.dofs.eq(3 * a + i) else { continue };
-                        for j in 0..3 {
-                            let Some(eb) = self.dofs.eq(3 * b + j) else { continue };
-                            let (ra, rb) = (&self.x[ea * nb..(ea + 1) * nb], &self.x[eb * nb..(eb + 1) * nb]);
-                            c[i][j] += wa * wb * ra.iter().zip(rb).map(|(p, q)| p * q).sum::<f64>();
-                        }
-                    }
-                }
-            }
-        }
-        self.factor.forward3_in_place(z, len);
-        for i in 0..3 {
-            for j in 0..3 {
-                c[i][j] += z[i * len..(i + 1) * len]
-                    .iter()
-                    .zip(&z[j * len..(j + 1) * len])
-                    .map(|(p, q)| p * q)
-                    .sum::<f64>();
-            }
-        }
-        c
+        self.online.contact_compliance(nodes, weights)
+    }
+
+    /// What a tick reads of the model as it is now (see [`CutView`]).
+    pub fn view(&self) -> CutView {
+        self.online.clone()
     }
 
     /// The standard displacements (full length `3n`) and enriched amplitudes for nodal forces
@@ -574,6 +537,115 @@ impl ReducedCut {
         let mut q = vec![0.0; 3 * self.enr.len()];
         self.fields(&c, &mut u, &mut q);
         (u, q)
+    }
+}
+
+impl CutView {
+    /// Dimension of the bordered system.
+    pub fn dim(&self) -> usize {
+        self.nb + self.enriched_unknowns()
+    }
+
+    /// Enriched unknowns of the cut so far (0 before any cut).
+    pub fn enriched_unknowns(&self) -> usize {
+        self.factor.dim() - self.factor.identity
+    }
+
+    /// The 3×3 compliance of the cut organ at a load patch (`nodes` with `weights` summing to
+    /// one; the patch-averaged displacement per unit force spread over the patch):
+    /// `C = Φ A⁻¹ Φᵀ` (module docs). With local fields `C = Φ_X Φ_Xᵀ + ZᵀZ`, `Z = L_S⁻¹ W_pᵀ`;
+    /// bare, `C = ZᵀZ`, `Z = L⁻¹ [Φ_Xᵀ; 0]`. The displacement an own-side node sees; no
+    /// allocation.
+    pub fn contact_compliance(&mut self, nodes: &[usize], weights: &[f64]) -> [[f64; 3]; 3] {
+        let mut c = self.factored_part(nodes, weights);
+        if self.disc == Discontinuous::LocalFields {
+            add(&mut c, &self.ritz_part(nodes, weights), 1.0);
+        }
+        c
+    }
+
+    /// What the cut adds to the compliance of the uncut Ritz model at a load patch:
+    /// `C_cut − Φ_X Φ_Xᵀ` — with local fields `ZᵀZ`, the response to the openings alone.
+    /// Symmetric positive semi-definite (the cut model's space contains the uncut one's); zero
+    /// before any cut. No allocation.
+    pub fn added_compliance(&mut self, nodes: &[usize], weights: &[f64]) -> [[f64; 3]; 3] {
+        let mut c = self.factored_part(nodes, weights);
+        if self.disc == Discontinuous::Bare {
+            add(&mut c, &self.ritz_part(nodes, weights), -1.0);
+        }
+        c
+    }
+
+    /// `Φ_X Φ_Xᵀ` at the patch, from the rows of X̂ (K-orthonormal: the uncut Ritz compliance).
+    fn ritz_part(&self, nodes: &[usize], weights: &[f64]) -> [[f64; 3]; 3] {
+        let nb = self.nb;
+        let mut c = [[0.0; 3]; 3];
+        for (&a, &wa) in nodes.iter().zip(weights) {
+            for (&b, &wb) in nodes.iter().zip(weights) {
+                for (i, ci) in c.iter_mut().enumerate() {
+                    let Some(ea) = DofMap::eq(&self.dofs, 3 * a + i) else { continue };
+                    for (j, cij) in ci.iter_mut().enumerate() {
+                        let Some(eb) = DofMap::eq(&self.dofs, 3 * b + j) else { continue };
+                        let (ra, rb) = (&self.x[ea * nb..(ea + 1) * nb], &self.x[eb * nb..(eb + 1) * nb]);
+                        *cij += wa * wb * ra.iter().zip(rb).map(|(p, q)| p * q).sum::<f64>();
+                    }
+                }
+            }
+        }
+        c
+    }
+
+    /// `ZᵀZ` at the patch: `Z = L⁻¹ [Φ_Xᵀ; 0]` (bare) or `Z = L_S⁻¹ W_pᵀ` (local fields).
+    fn factored_part(&mut self, nodes: &[usize], weights: &[f64]) -> [[f64; 3]; 3] {
+        let (nb, m) = (self.nb, self.enriched_unknowns());
+        let mut c = [[0.0; 3]; 3];
+        let len = match self.disc {
+            Discontinuous::Bare => nb + m,
+            Discontinuous::LocalFields => m,
+        };
+        if len == 0 {
+            return c;
+        }
+        let z = &mut self.scratch[..3 * len];
+        z.fill(0.0);
+        // the right-hand sides, averaged over the patch
+        for (&a, &w) in nodes.iter().zip(weights) {
+            for i in 0..3 {
+                let Some(e) = DofMap::eq(&self.dofs, 3 * a + i) else { continue };
+                match self.disc {
+                    Discontinuous::Bare => {
+                        for (t, v) in self.x[e * nb..(e + 1) * nb].iter().enumerate() {
+                            z[i * len + t] += w * v;
+                        }
+                    }
+                    Discontinuous::LocalFields => {
+                        for (t, col) in self.w.iter().enumerate() {
+                            z[i * len + t] += w * col[e];
+                        }
+                    }
+                }
+            }
+        }
+        self.factor.forward3_in_place(z, len);
+        for i in 0..3 {
+            for j in 0..3 {
+                c[i][j] = z[i * len..(i + 1) * len]
+                    .iter()
+                    .zip(&z[j * len..(j + 1) * len])
+                    .map(|(p, q)| p * q)
+                    .sum::<f64>();
+            }
+        }
+        c
+    }
+}
+
+/// `c += s · d`, entrywise.
+fn add(c: &mut [[f64; 3]; 3], d: &[[f64; 3]; 3], s: f64) {
+    for (ci, di) in c.iter_mut().zip(d) {
+        for (x, y) in ci.iter_mut().zip(di) {
+            *x += s * y;
+        }
     }
 }
 

@@ -44,7 +44,7 @@ use vademecum_proto::shm::{HapticChannel, OpenError};
 
 pub use answers::{AnswerStream, StreamId};
 pub use frames::{Frame, SurfaceGeometry};
-pub use script::{builtin_palpation, tool_at};
+pub use script::{builtin_incisions, builtin_palpation, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
 pub use tick::MAX_COMMANDS_PER_TICK;
 pub use vademecum_bridge::trajectory::Trajectory;
@@ -189,6 +189,7 @@ pub struct Session {
     epoch: Instant,
     config: SessionConfig,
     realtime: Option<RealtimeStatus>,
+    cut: Option<Arc<vademecum_engine::pipeline::cutting::CutStatus>>,
 }
 
 /// What the tick thread receives.
@@ -233,6 +234,7 @@ impl Session {
     ) -> Result<Self, SessionError> {
         let pipeline = Pipeline::for_scene(&scene, &bundles)?;
         let effects = pipeline.effect_names();
+        let cut = pipeline.cut_status();
         let workspace = pipeline.workspace();
         let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
             .into_iter()
@@ -343,6 +345,7 @@ impl Session {
             epoch,
             config,
             realtime,
+            cut,
         })
     }
 
@@ -375,6 +378,11 @@ impl Session {
     /// The effects of the tick pipeline, in order.
     pub fn effects(&self) -> &[&'static str] {
         &self.effects
+    }
+
+    /// What the cut thread has done (cutting scenes).
+    pub fn cut_status(&self) -> Option<&Arc<vademecum_engine::pipeline::cutting::CutStatus>> {
+        self.cut.as_ref()
     }
 
     /// The configuration it runs with.

@@ -1,20 +1,86 @@
 //! Scripted tool paths of headless runs: a [`Trajectory`] sampled at every tick as a probe's
-//! tool state, and the built-in palpation of a scene's organ.
+//! (or, with a blade, a scalpel's) tool state, the built-in palpation of a scene's organ and
+//! the built-in incisions along a cutting scene's pre-planned cuts.
 
-use vademecum_bridge::trajectory::Trajectory;
+use vademecum_bridge::trajectory::{BladeKey, Trajectory};
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pipeline::{ToolInput, ToolKind};
 
-/// The probe state of `trajectory` at `t` seconds after its first keyframe.
+/// The tool state of `trajectory` at `t` seconds after its first keyframe: a probe's, or a
+/// scalpel's if the trajectory has a blade.
 pub fn tool_at(trajectory: &Trajectory, t: f64) -> ToolInput {
     let s = trajectory.at(t);
-    ToolInput {
+    let tool = ToolInput {
         kind: ToolKind::Probe,
         position_m: s.position_m,
         velocity_m_s: s.velocity_m_s,
         closure: s.closure,
         ..ToolInput::default()
+    };
+    match s.blade {
+        None => tool,
+        Some(b) => ToolInput {
+            kind: ToolKind::Scalpel,
+            blade_end_m: b.end_m,
+            orientation: b.orientation,
+            ..tool
+        },
     }
+}
+
+/// The built-in incisions of a cutting scene: the scalpel follows each of `cuts` (the scene's
+/// pre-planned blade positions, tip first then the other end of the edge) in turn — it comes
+/// down along its edge from `lift_m` above the first position in 0.5 s, draws the cut through
+/// every position in `seconds_per_cut`, and leaves the same way. "Above" is along the outward
+/// normal of `b`'s surface nearest the edge's middle; the blade plane contains the edge and the
+/// direction of the cut.
+pub fn builtin_incisions(b: &LoadedBundle, cuts: &[&[[f64; 3]]], lift_m: f64, seconds_per_cut: f64) -> Result<Trajectory, String> {
+    use nalgebra::{UnitQuaternion, Vector3};
+    let surface = vademecum_engine::contact::Surface::new(&b.nodes, b.surface.clone());
+    let mut keys = Vec::new();
+    let mut blades = Vec::new();
+    let mut t = 0.0;
+    for (c, points) in cuts.iter().enumerate() {
+        let n = points.len() / 2;
+        if n < 2 {
+            return Err(format!("cut {} has fewer than two blade positions", c + 1));
+        }
+        let pos = |k: usize| (Vector3::from(points[2 * k + 1]), Vector3::from(points[2 * k]));
+        let (tip0, end0) = pos(0);
+        let (tip1, _) = pos(n - 1);
+        let edge = end0 - tip0;
+        let along = tip1 - tip0;
+        let normal = edge.cross(&along);
+        if edge.norm() == 0.0 || normal.norm() <= 1e-12 * edge.norm() * along.norm() {
+            return Err(format!("cut {}: its blade does not sweep a surface", c + 1));
+        }
+        let q = UnitQuaternion::rotation_between(&Vector3::y(), &normal.normalize())
+            .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        let orientation = [q.w, q.i, q.j, q.k];
+        let middle = (tip0 + end0) * 0.5;
+        let at = surface
+            .nearest(middle.into())
+            .ok_or_else(|| "the organ has no surface to cut".to_string())?;
+        let up = Vector3::from(surface.normal_at(&at)) * lift_m;
+        let mut key = |t: f64, tip: Vector3<f64>, end: Vector3<f64>| {
+            keys.push((t, tip.into(), 0.0));
+            blades.push(BladeKey {
+                end_m: end.into(),
+                orientation,
+            });
+        };
+        key(t, tip0 + up, end0 + up);
+        t += 0.5;
+        for k in 0..n {
+            let (tip, end) = pos(k);
+            key(t + seconds_per_cut * k as f64 / (n - 1) as f64, tip, end);
+        }
+        t += seconds_per_cut + 0.5;
+        let (tip, end) = pos(n - 1);
+        key(t, tip + up, end + up);
+        t += 0.25;
+    }
+    Trajectory::new(keys)?.with_blades(blades)
 }
 
 /// The built-in palpation of an organ: a probe of radius `radius_m` comes down on the

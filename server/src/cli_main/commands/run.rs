@@ -1,6 +1,12 @@
 //! `vademecum run`: a headless session — no network client — playing a scripted tool
 //! trajectory at the tick rate, recording forces as CSV and frames as `.pvd`/`.vtu`, and
 //! printing a summary (tick latency percentiles, deadline misses, peak force).
+//!
+//! A cutting scene plays a scalpel (by default along the scene's pre-planned cuts, one after
+//! the other): the force log gains the blade's force split, the summary the cut (its path,
+//! cells, cracked nodes), and the recording the organ opened by the session's cut — the
+//! full-order XFEM of the cut the session made, under the scene's loads, split along the cut —
+//! as the last step of the organ's `.pvd`, with the blade's swept surface beside it.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -40,6 +46,32 @@ struct Summary {
     dropped_answers: u64,
     frames: usize,
     record: PathBuf,
+    /// The cut the session made (cutting scenes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cut: Option<CutSummary>,
+}
+
+/// What a cutting run cut.
+#[derive(Debug, Serialize)]
+struct CutSummary {
+    /// Length of the blade tip's path while the blade was cutting (m).
+    cut_path_m: f64,
+    cut_cells: u64,
+    enriched_nodes: u64,
+    /// Ticks whose in-plane blade force exceeded the scalpel's cut_force.
+    cutting_ticks: u64,
+    /// Cutting strokes started (EVENT_CUT_STARTED) and cut models swapped into the tick
+    /// (EVENT_CUT_ADVANCED).
+    strokes: u64,
+    advances: u64,
+    /// Steps the cut thread could not take (a piece cut loose), and blade states it missed.
+    refused_steps: u64,
+    missed_blade_states: u64,
+    /// The organ opened by this cut, full-order XFEM under the scene's loads.
+    opened: Option<super::solve::XfemSummary>,
+    /// Files: the opened organ (split mesh) and the blade's swept surface.
+    opened_vtu: Option<PathBuf>,
+    cut_surface_vtu: Option<PathBuf>,
 }
 
 /// Force log row.
@@ -65,15 +97,45 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let record = a.record.clone().unwrap_or_else(|| base.join("run"));
     // a bad trajectory file fails before any build
     let scripted = a.script.as_ref().map(|p| Trajectory::read(p)).transpose()?;
-    if scene.spec.effects.cutting {
+    let cutting = scene.spec.effects.cutting;
+    if let Some(t) = &scripted
+        && !t.has_blade()
+        && cutting
+        && vademecum_engine::pgd::offline::probe_radius(&scene) <= 0.0
+    {
         bail!(
-            "cutting in live sessions is not available yet: `vademecum solve` cuts this scene's pre-planned cuts by the full-order XFEM, and `vademecum bench cut` runs the reduced online model along them (docs/cutting.md)"
+            "the scene cuts and has no probe, but the trajectory has no blade: add the columns bx_m,by_m,bz_m,qw,qx,qy,qz (the other end of the blade's edge and its orientation; see `vademecum run --help`)"
         );
     }
-    let radius = offline_probe_radius(&scene)?;
+    if cutting && a.haptic.is_some() {
+        bail!("haptic runs of cutting scenes are not available yet: run it headless (without --haptic)");
+    }
+    let radius = if cutting || scripted.is_some() {
+        0.0
+    } else {
+        offline_probe_radius(&scene)?
+    };
     let bundles = ensure_bundles(&scene, &bundle_dir)?;
     let (trajectory, source) = match (scripted, &a.script) {
         (Some(t), Some(p)) => (t, p.display().to_string()),
+        _ if cutting => {
+            let cuts = scene.organ_cuts(0).map_err(|e| anyhow::anyhow!("{e}"))?;
+            if cuts.is_empty() {
+                bail!(
+                    "the scene cuts but plans no cut to script: give a scalpel trajectory with --script, or add [[organs.cuts]] blade positions"
+                );
+            }
+            let points: Vec<&[[f64; 3]]> = cuts.iter().map(|c| c.points()).collect();
+            let lift = 0.5 * scene_blade_length(&scene);
+            (
+                crate::session::builtin_incisions(&bundles[0], &points, lift, INCISION_SECONDS)
+                    .map_err(|e| anyhow::anyhow!("cannot script the built-in incisions: {e}"))?,
+                format!(
+                    "built-in incisions along the scene's {} pre-planned cut(s), {INCISION_SECONDS} s each",
+                    cuts.len()
+                ),
+            )
+        }
         _ => (
             crate::session::builtin_palpation(&bundles[0], radius, a.depth, 0.015)
                 .map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?,
@@ -110,12 +172,14 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         },
     )?;
     // the force log, written by its own thread as answers arrive
+    let cut_status = session.cut_status().cloned();
+    let cutting = cut_status.is_some();
     let forces_path = record.join("forces.csv");
     let writer = std::thread::spawn({
         let path = forces_path.clone();
-        move || -> anyhow::Result<(f64, f64, u64)> {
+        move || -> anyhow::Result<(f64, f64, u64, [u64; 3])> {
             let mut w = csv::Writer::from_path(&path).with_context(|| format!("cannot write {}", path.display()))?;
-            w.write_record([
+            let mut header = vec![
                 "tick",
                 "t_s",
                 "x_m",
@@ -128,8 +192,14 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 "depth_m",
                 "events",
                 "latency_us",
-            ])?;
+            ];
+            if cutting {
+                header.extend(["f_perp_n", "f_par_n", "cutting"]);
+            }
+            w.write_record(&header)?;
             let (mut peak, mut peak_t, mut contacts) = (0.0f64, 0.0f64, 0u64);
+            // ticks cutting, strokes started, cuts swapped in
+            let mut cut_counts = [0u64; 3];
             while let Some(a) = rx.blocking_recv() {
                 let row = Row {
                     tick: a.tick,
@@ -145,7 +215,12 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 let c = row.a.state.contact;
                 contacts += u64::from(c.is_some());
                 let p = c.map_or([f64::NAN; 3], |c| c.point_m);
-                w.write_record(&[
+                let ev = row.a.state.events;
+                let blade = row.a.state.blade;
+                cut_counts[0] += u64::from(blade.is_some_and(|b| b.cutting));
+                cut_counts[1] += u64::from(ev.has(Events::CUT_STARTED));
+                cut_counts[2] += u64::from(ev.has(Events::CUT_ADVANCED));
+                let mut record = vec![
                     row.tick.to_string(),
                     format!("{:.6}", row.t_s),
                     format!("{:e}", p[0]),
@@ -158,10 +233,22 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                     format!("{:e}", c.map_or(0.0, |c| c.depth_m)),
                     row.a.state.events.0.to_string(),
                     (row.a.answered_us - row.a.received_us).to_string(),
-                ])?;
+                ];
+                if cutting {
+                    let mag = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                    record.extend(match blade {
+                        Some(b) => [
+                            format!("{:e}", mag(b.perpendicular_n)),
+                            format!("{:e}", mag(b.parallel_n)),
+                            u8::from(b.cutting).to_string(),
+                        ],
+                        None => [String::new(), String::new(), String::new()],
+                    });
+                }
+                w.write_record(&record)?;
             }
             w.flush()?;
-            Ok((peak, peak_t, contacts))
+            Ok((peak, peak_t, contacts, cut_counts))
         }
     });
     // frames: take the latest at the frame rate, write one surface .vtu per organ
@@ -217,7 +304,18 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     }
     bar.finish_and_clear();
     let stats = session.wait();
-    let (peak, peak_t, contacts) = writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    let (peak, peak_t, contacts, cut_counts) = writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    let cut = match &cut_status {
+        Some(status) => Some(record_cut(
+            &scene,
+            status,
+            cut_counts,
+            &record,
+            &mut steps[0],
+            trajectory.duration_s(),
+        )?),
+        None => None,
+    };
     for (k, o) in geometry.organs.iter().enumerate() {
         vtk::write_pvd(&record.join(format!("{}.pvd", o.name)), &steps[k])?;
     }
@@ -240,6 +338,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         dropped_answers: stats.dropped,
         frames: steps.first().map_or(0, |s| s.len()),
         record: record.clone(),
+        cut,
     };
     std::fs::write(record.join("summary.json"), serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("cannot write {}", record.join("summary.json").display()))?;
@@ -275,6 +374,26 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             "  force          peak {:.3} N at {:.3} s; in contact {} of {} ticks",
             s.peak_force_n, s.peak_force_time_s, s.contact_ticks, s.ticks
         )?;
+        if let Some(c) = &s.cut {
+            writeln!(
+                out,
+                "  cut            {:.2} mm of blade path cutting: {} cells, {} cracked nodes; {} strokes, {} cutting ticks, {} cuts swapped into the tick",
+                c.cut_path_m * 1e3,
+                c.cut_cells,
+                c.enriched_nodes,
+                c.strokes,
+                c.cutting_ticks,
+                c.advances
+            )?;
+            if let Some(o) = &c.opened {
+                writeln!(
+                    out,
+                    "  opened         under the scene's loads the cut opens up to {:.3e} m (full-order XFEM, {})",
+                    o.max_opening_m,
+                    c.opened_vtu.as_ref().map_or(String::new(), |p| p.display().to_string())
+                )?;
+            }
+        }
         writeln!(
             out,
             "  recorded       {} (forces.csv, {} frames per organ in *.pvd)",
@@ -290,6 +409,75 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// How long the built-in incisions take to draw each pre-planned cut (s).
+const INCISION_SECONDS: f64 = 2.0;
+
+/// The scene's scalpel's blade length (m; 1 mm if it has none).
+fn scene_blade_length(scene: &vademecum_engine::scene::Scene) -> f64 {
+    use vademecum_engine::scene::schema::ToolSpec;
+    scene
+        .spec
+        .tools
+        .iter()
+        .find_map(|t| match t {
+            ToolSpec::Scalpel { blade_length, .. } => Some(*blade_length),
+            _ => None,
+        })
+        .unwrap_or(1e-3)
+}
+
+/// The cut a session made, recorded: the organ opened by it (full-order XFEM of the same cut
+/// cells under the scene's loads, split along the cut) as the last step of the organ's
+/// `.pvd` (at `end_s`), and the blade's swept surface as its own `.vtu`.
+fn record_cut(
+    scene: &vademecum_engine::scene::Scene,
+    status: &vademecum_engine::pipeline::cutting::CutStatus,
+    counts: [u64; 3],
+    record: &std::path::Path,
+    steps: &mut Vec<(f64, String)>,
+    end_s: f64,
+) -> anyhow::Result<CutSummary> {
+    use std::sync::atomic::Ordering::Relaxed;
+    use vademecum_engine::xfem::Enrichment;
+    let shape = status.shape();
+    let mut summary = CutSummary {
+        cut_path_m: status.path_um.load(Relaxed) as f64 * 1e-6,
+        cut_cells: status.cells.load(Relaxed),
+        enriched_nodes: status.nodes.load(Relaxed),
+        cutting_ticks: counts[0],
+        strokes: counts[1],
+        advances: counts[2],
+        refused_steps: status.refused.load(Relaxed),
+        missed_blade_states: status.overwritten.load(Relaxed),
+        opened: None,
+        opened_vtu: None,
+        cut_surface_vtu: None,
+    };
+    if shape.cells.is_empty() {
+        return Ok(summary);
+    }
+    let model = scene.organ_model(0)?;
+    let name = model.name.clone();
+    let params = scene.spec.fidelity.xfem.params();
+    let enr = Enrichment::from_cut_cells(&model.mesh, &shape.cells, &params)?;
+    let file = record.join("frames").join(format!("{name}_cut.vtu"));
+    let progress = crate::cli_main::progress::Stages::start("recording the cut");
+    let opened = super::solve::solve_enriched(scene, &model, &enr, 1, &file, &progress)?;
+    progress.finish();
+    steps.push((
+        end_s.max(steps.last().map_or(0.0, |s| s.0)) + 1e-3,
+        format!("frames/{name}_cut.vtu"),
+    ));
+    let points: Vec<[f64; 3]> = shape.triangles.iter().flatten().copied().collect();
+    let triangles: Vec<usize> = (0..points.len()).collect();
+    let surface = record.join(format!("{name}_cut_surface.vtu"));
+    vtk::write_surface_vtu(&surface, &points, &triangles, &[])?;
+    summary.opened = opened.xfem;
+    summary.opened_vtu = Some(opened.output);
+    summary.cut_surface_vtu = Some(surface);
+    Ok(summary)
 }
 
 fn offline_probe_radius(scene: &vademecum_engine::scene::Scene) -> anyhow::Result<f64> {

@@ -26,7 +26,7 @@ use crate::cli_main::progress::Stages;
 
 /// The JSON summary of one organ (`--json`, and `summary.json`).
 #[derive(Debug, Serialize)]
-struct OrganSummary {
+pub(crate) struct OrganSummary {
     name: String,
     cell_kind: &'static str,
     nodes: usize,
@@ -52,12 +52,12 @@ struct OrganSummary {
     meshless: Option<MeshlessSummary>,
     /// The full-order XFEM's cut, for linear organs with pre-planned cuts.
     #[serde(skip_serializing_if = "Option::is_none")]
-    xfem: Option<XfemSummary>,
-    output: PathBuf,
+    pub(crate) xfem: Option<XfemSummary>,
+    pub(crate) output: PathBuf,
 }
 
 #[derive(Debug, Serialize)]
-struct XfemSummary {
+pub(crate) struct XfemSummary {
     cuts: usize,
     /// Cells the blade crossed entirely.
     cut_cells: usize,
@@ -69,7 +69,7 @@ struct XfemSummary {
     detached_pieces: usize,
     detached_action: &'static str,
     /// Largest jump between the two lips at a cracked node (m).
-    max_opening_m: f64,
+    pub(crate) max_opening_m: f64,
     /// Strain energy of the same organ uncut (J).
     uncut_strain_energy_j: f64,
 }
@@ -328,6 +328,22 @@ fn solve_xfem(scene: &Scene, model: &OrganModel, cuts: &[Cut], out: &std::path::
             "organ '{name}': the cuts cross no cell entirely (a cut ends on cell boundaries): nothing is cut"
         ));
     }
+    solve_enriched(scene, model, &enr, cuts.len(), &out.join(format!("{name}.vtu")), progress)
+}
+
+/// The full-order XFEM solve of `model` under its loads with the enrichment `enr` (of `cuts`
+/// cuts), written as the mesh split along the cut to `file`.
+pub(crate) fn solve_enriched(
+    scene: &Scene,
+    model: &OrganModel,
+    enr: &Enrichment,
+    cuts: usize,
+    file: &std::path::Path,
+    progress: &Stages,
+) -> anyhow::Result<OrganSummary> {
+    let name = &model.name;
+    let params = scene.spec.fidelity.xfem.params();
+    let enr = enr.clone();
     progress.stage("XFEM: assembly and solve");
     let sol = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, &enr, &params)
         .with_context(|| format!("organ '{name}' could not be solved with its cuts"))?;
@@ -357,7 +373,7 @@ fn solve_xfem(scene: &Scene, model: &OrganModel, cuts: &[Cut], out: &std::path::
             }
         }
     }
-    let file = out.join(format!("{name}.vtu"));
+    let file = file.to_path_buf();
     let side: Vec<f64> = (0..split.mesh.n_nodes()).map(|a| if a < n { 0.0 } else { 1.0 }).collect();
     // cells of detached pieces (the split mesh numbers its nodes as the pieces' copies)
     let mut in_piece = vec![0.0; split.mesh.n_nodes()];
@@ -439,7 +455,7 @@ fn solve_xfem(scene: &Scene, model: &OrganModel, cuts: &[Cut], out: &std::path::
         solver: "fem",
         meshless: None,
         xfem: Some(XfemSummary {
-            cuts: cuts.len(),
+            cuts,
             cut_cells: enr.cut_cells.len(),
             enriched_nodes: enr.len(),
             sliver_nodes: enr.dropped.iter().filter(|d| d.fraction > 0.0).count(),

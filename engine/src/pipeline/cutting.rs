@@ -1,0 +1,361 @@
+//! Cutting in a session (seed 000 chapter 3, §3.4): the scalpel's blade force, the cut
+//! criterion, and the tissue's compliance as the cut grows — with the cut itself computed
+//! beside the tick, never in it.
+//!
+//! # What the tick does
+//! Palpation, the stage before, leaves the contact of the tool's tip with the organ: the
+//! imposed displacement `δ` at the loadable point `s_L`, the share `λ` of the tissue, and the
+//! tissue force `f = λ C(s_L)⁻¹ δ` from the vademecum. Once the organ is cut, the cut adds the
+//! compliance of its openings at the contact ([`CutView::added_compliance`]: with the seed's
+//! local discontinuous fields, `ZᵀZ`, `Z = L_S⁻¹ W_pᵀ`), and the tissue force becomes
+//!
+//! `f = λ (C(s_L) + ΔC_cut(s_L))⁻¹ δ`,
+//!
+//! so the continuous part keeps the vademecum's exact local compliance (an uncut scene's
+//! force is bit-for-bit palpation's) and the cut softens the tissue where it opens.
+//!
+//! For a scalpel (tool state with a blade: its tip `position_m`, the other end of its edge
+//! `blade_end_m`, its orientation; the middle of the edge is where it presses on the tissue,
+//! [`ToolInput::contact_point`]), the force on the blade splits into `F⊥` (normal to the
+//! blade plane) and `F∥ = F_a + F_n` in it ([`Blade::split`]); `|F∥|` above the scalpel's
+//! `cut_force` is the criterion. The tick reports the split, flags `CUT_STARTED` when the
+//! criterion starts to hold, and hands the blade state with its force to the cut thread
+//! through a bounded lock-free queue of [`SAMPLES`] states (no lock, no allocation, no
+//! syscall; if the cut thread falls a whole queue behind, the oldest states are overwritten
+//! and counted in [`CutStatus::overwritten`]), so that the cut follows the blade's whole path.
+//!
+//! # What the cut thread does
+//! It runs [`OnlineCut::step`] on the latest blade state (the surface swept while the
+//! criterion holds, the cells crossed entirely, their nodes cracked and the reduced model's
+//! factor bordered: milliseconds per node, `BENCHMARKS.md`). When cells were cut it takes a
+//! [`CutView`] of the model and offers it to the tick through a one-slot lock-free queue; the
+//! tick swaps it in at its next start (`CUT_ADVANCED`) and returns the old view through a
+//! second queue, so that the old one is freed on the cut thread, not the tick's. At most one
+//! view is ever in flight, so the return queue is never full.
+//!
+//! The tick therefore sees each cut a few milliseconds after the blade made it (the time to
+//! enrich its nodes), which a surgeon cannot feel; the forces of those ticks are the uncut
+//! model's, which is what the tissue was before the cut.
+//!
+//! A cutting scene holds one organ in this version, linear (large deformations and cutting
+//! together are refused by the pipeline).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use crossbeam_queue::ArrayQueue;
+
+use super::{Effect, Events, TickState, ToolInput, ToolKind};
+use crate::mesh::Mesh;
+use crate::pgd::Vademecum;
+use crate::pgd::offline::LoadedBundle;
+use crate::xfem::blade::Blade;
+use crate::xfem::online::OnlineCut;
+use crate::xfem::reduced::CutView;
+
+/// The force on the blade split along it (N): `F⊥` normal to the blade plane, `F∥` in it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct BladeForce {
+    /// `F⊥`, normal to the blade plane (what presses the blade's flat).
+    pub perpendicular_n: [f64; 3],
+    /// `F∥ = F_a + F_n`, in the blade plane (friction below the scalpel's `cut_force`, the
+    /// cut above it).
+    pub parallel_n: [f64; 3],
+    /// Whether `|F∥|` exceeds the scalpel's `cut_force` (the blade cuts).
+    pub cutting: bool,
+}
+
+/// The cut as it stands, for recordings and viewers.
+#[derive(Debug, Clone, Default)]
+pub struct CutShape {
+    /// The cells cut, each with the plane that crossed it.
+    pub cells: Vec<(usize, crate::xfem::Plane)>,
+    /// The triangles of the surface the blade swept while cutting (m, reference frame).
+    pub triangles: Vec<[[f64; 3]; 3]>,
+}
+
+/// What the cut thread publishes for everyone to read: relaxed atomics the tick reads (no
+/// lock), and the cut's shape behind a mutex the tick never touches.
+#[derive(Debug, Default)]
+pub struct CutStatus {
+    /// Cells cut so far.
+    pub cells: AtomicU64,
+    /// Nodes cracked so far.
+    pub nodes: AtomicU64,
+    /// Blade states processed.
+    pub steps: AtomicU64,
+    /// Steps that could not cut (a piece cut loose made the reduced system singular; the
+    /// model stayed at its previous cut).
+    pub refused: AtomicU64,
+    /// Length of the blade path while cutting (µm, summed over strokes).
+    pub path_um: AtomicU64,
+    /// Whether the blade's edge lies in a cut already made.
+    pub in_cut: AtomicBool,
+    /// Blade states the cut thread never saw (it fell more than [`SAMPLES`] ticks behind).
+    pub overwritten: AtomicU64,
+    /// The cut's shape (updated by the cut thread after each cut; never read by the tick).
+    pub shape: std::sync::Mutex<CutShape>,
+}
+
+impl CutStatus {
+    /// A copy of the cut's shape.
+    pub fn shape(&self) -> CutShape {
+        self.shape.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+}
+
+/// The blade state the tick hands to the cut thread.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct BladeSample {
+    a: [f64; 3],
+    b: [f64; 3],
+    orientation: [f64; 4],
+    /// The force the tissue exerts on the blade (N).
+    force: [f64; 3],
+    /// How far the tissue gave way at the contact (m): the imposed displacement.
+    pushed: [f64; 3],
+}
+
+/// How often the cut thread looks for new blade states.
+const POLL: Duration = Duration::from_micros(500);
+
+/// Blade states queued for the cut thread: a second of ticks at 1 kHz.
+pub const SAMPLES: usize = 1024;
+
+/// The cutting effect (module docs).
+pub struct Cutting {
+    organ: usize,
+    bundle: Arc<LoadedBundle>,
+    cut_force: f64,
+    view: Box<CutView>,
+    /// A view the return queue could not take (never, by the one-in-flight protocol; kept
+    /// rather than freed on the tick thread).
+    parked: Option<Box<CutView>>,
+    samples: Arc<ArrayQueue<BladeSample>>,
+    fresh: Arc<ArrayQueue<Box<CutView>>>,
+    spent: Arc<ArrayQueue<Box<CutView>>>,
+    status: Arc<CutStatus>,
+    /// Whether the criterion held at the last scalpel tick.
+    stroke: bool,
+    stop: Arc<AtomicBool>,
+    worker: Option<JoinHandle<()>>,
+}
+
+impl std::fmt::Debug for Cutting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Cutting")
+            .field("organ", &self.organ)
+            .field("cut_force", &self.cut_force)
+            .field("enriched_unknowns", &self.view.enriched_unknowns())
+            .finish_non_exhaustive()
+    }
+}
+
+impl Cutting {
+    /// The effect for organ `organ` (its loaded bundle `bundle`, its mesh `mesh`), cutting
+    /// the reduced model `online` (the scalpel's threshold is `online`'s); starts the cut
+    /// thread.
+    pub fn new(organ: usize, bundle: Arc<LoadedBundle>, mesh: Mesh, online: OnlineCut, cut_force: f64) -> Self {
+        let view = Box::new(online.model().view());
+        let samples = Arc::new(ArrayQueue::new(SAMPLES));
+        let fresh = Arc::new(ArrayQueue::new(1));
+        let spent = Arc::new(ArrayQueue::new(2));
+        let status = Arc::new(CutStatus::default());
+        let stop = Arc::new(AtomicBool::new(false));
+        let worker = CutThread {
+            online,
+            mesh,
+            samples: samples.clone(),
+            fresh: fresh.clone(),
+            spent: spent.clone(),
+            status: status.clone(),
+            stop: stop.clone(),
+        };
+        let worker = std::thread::Builder::new()
+            .name("cut".into())
+            .spawn(move || worker.run())
+            .expect("the OS can start a thread");
+        Self {
+            organ,
+            bundle,
+            cut_force,
+            view,
+            parked: None,
+            samples,
+            fresh,
+            spent,
+            status,
+            stroke: false,
+            stop,
+            worker: Some(worker),
+        }
+    }
+
+    /// What the cut thread has done so far.
+    pub fn status(&self) -> Arc<CutStatus> {
+        self.status.clone()
+    }
+
+    /// Enriched unknowns of the model the tick uses now.
+    pub fn enriched_unknowns(&self) -> usize {
+        self.view.enriched_unknowns()
+    }
+
+    /// Swaps in a model the cut thread finished; returns whether it did.
+    fn take_fresh(&mut self) -> bool {
+        if let Some(old) = self.parked.take()
+            && let Err(old) = self.spent.push(old)
+        {
+            self.parked = Some(old);
+        }
+        let Some(new) = self.fresh.pop() else { return false };
+        let old = std::mem::replace(&mut self.view, new);
+        if let Err(old) = self.spent.push(old) {
+            self.parked = Some(old);
+        }
+        true
+    }
+}
+
+impl Drop for Cutting {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(w) = self.worker.take() {
+            let _ = w.join();
+        }
+    }
+}
+
+impl Effect for Cutting {
+    fn name(&self) -> &'static str {
+        "cutting"
+    }
+
+    fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
+        if self.take_fresh() {
+            state.events.0 |= Events::CUT_ADVANCED;
+        }
+        // the cut's compliance at the contact
+        if self.view.enriched_unknowns() > 0
+            && let Some(c) = &mut state.contact
+            && c.organ == self.organ
+            && c.loadable > 0.0
+            && let Some(cv) = self.bundle.vademecum.compliance(c.nodes, c.weights)
+        {
+            let added = self.view.added_compliance(&c.nodes, &c.weights);
+            let total: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cv[i][j] + added[i][j]));
+            let tissue = Vademecum::contact_force(&total, c.imposed_m).map(|f| c.loadable * f);
+            for k in 0..3 {
+                state.force_n[k] += c.tissue_force_n[k] - tissue[k];
+            }
+            c.tissue_force_n = tissue;
+        }
+        if tool.kind != ToolKind::Scalpel {
+            return;
+        }
+        let Ok(blade) = Blade::new(tool.position_m, tool.blade_end_m, tool.orientation) else {
+            return; // the pipeline refuses such states before any effect sees them
+        };
+        let split = blade.split(state.force_n);
+        let cutting = split.cuts(self.cut_force);
+        if cutting && !self.stroke {
+            state.events.0 |= Events::CUT_STARTED;
+        }
+        self.stroke = cutting;
+        if self.status.in_cut.load(Ordering::Relaxed) {
+            state.events.0 |= Events::BLADE_IN_CUT;
+        }
+        state.blade = Some(BladeForce {
+            perpendicular_n: split.perpendicular,
+            parallel_n: std::array::from_fn(|k| split.axial[k] + split.cutting[k]),
+            cutting,
+        });
+        let sample = BladeSample {
+            a: tool.position_m,
+            b: tool.blade_end_m,
+            orientation: tool.orientation,
+            force: state.force_n,
+            pushed: state.contact.map_or([0.0; 3], |c| c.imposed_m),
+        };
+        if self.samples.force_push(sample).is_some() {
+            self.status.overwritten.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    fn reset(&mut self) {
+        self.stroke = false;
+    }
+}
+
+/// The cut thread's state (module docs).
+struct CutThread {
+    online: OnlineCut,
+    mesh: Mesh,
+    samples: Arc<ArrayQueue<BladeSample>>,
+    fresh: Arc<ArrayQueue<Box<CutView>>>,
+    spent: Arc<ArrayQueue<Box<CutView>>>,
+    status: Arc<CutStatus>,
+    stop: Arc<AtomicBool>,
+}
+
+impl CutThread {
+    fn run(mut self) {
+        let mut out = false; // a view offered and not yet returned
+        let mut pending = false; // cells cut since the last view offered
+        let mut prev: Option<[f64; 3]> = None;
+        let mut path = 0.0;
+        while !self.stop.load(Ordering::Relaxed) {
+            while self.spent.pop().is_some() {
+                out = false;
+            }
+            if pending && !out {
+                let view = Box::new(self.online.model().view());
+                if self.fresh.push(view).is_ok() {
+                    out = true;
+                    pending = false;
+                }
+            }
+            let Some(s) = self.samples.pop() else {
+                std::thread::sleep(POLL);
+                continue;
+            };
+            let Ok(blade) = Blade::new(s.a, s.b, s.orientation) else { continue };
+            self.status.steps.fetch_add(1, Ordering::Relaxed);
+            match self.online.step_in_contact(&self.mesh, &blade, s.force, s.pushed) {
+                Ok(step) => {
+                    self.status.in_cut.store(step.in_cut, Ordering::Relaxed);
+                    if step.cutting {
+                        if let Some(p) = prev {
+                            path += (0..3).map(|k| (s.a[k] - p[k]).powi(2)).sum::<f64>().sqrt();
+                            self.status.path_um.store((path * 1e6) as u64, Ordering::Relaxed);
+                        }
+                        prev = Some(s.a);
+                    } else {
+                        prev = None;
+                    }
+                    if step.new_cells > 0 {
+                        let e = self.online.model().enrichment();
+                        self.status.cells.store(e.cut_cells.len() as u64, Ordering::Relaxed);
+                        self.status.nodes.store(e.len() as u64, Ordering::Relaxed);
+                        let shape = CutShape {
+                            cells: e.cut_cells.clone(),
+                            triangles: self
+                                .online
+                                .cut()
+                                .map(|c| c.facets().iter().map(|f| f.vertices).collect())
+                                .unwrap_or_default(),
+                        };
+                        *self.status.shape.lock().unwrap_or_else(|p| p.into_inner()) = shape;
+                        pending = true;
+                    }
+                }
+                Err(e) => {
+                    self.status.refused.fetch_add(1, Ordering::Relaxed);
+                    tracing::warn!("the cut could not advance: {e}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,189 @@
+//! The cutting effect of a session (seed 000 §3.4) through the whole pipeline: a scalpel
+//! pressed through the patch of §3.5.1 cuts it cell by cell on the cut thread, the tick swaps
+//! the cut model in and the tissue under the blade softens; the flat of the blade, friction and
+//! bad blade states cut nothing; a scene that does not cut carries no cutting effect.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering::Relaxed;
+use std::time::{Duration, Instant};
+
+use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
+use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
+use vademecum_engine::scene::Scene;
+
+/// The scene's vademecum, built and loaded back from a bundle as a session would.
+fn bundle(scene: &Scene) -> Arc<LoadedBundle> {
+    let built = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir.path(), scene, &built).unwrap();
+    Arc::new(offline::load_bundle(dir.path()).unwrap())
+}
+
+fn patch_cut() -> Pipeline {
+    let scene = Scene::builtin("patch_cut").unwrap();
+    let b = bundle(&scene);
+    Pipeline::for_scene(&scene, &[b]).unwrap()
+}
+
+const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
+/// A quarter turn about z: the blade plane's normal is x (the plane x = const).
+const UPRIGHT: [f64; 4] = [H, 0.0, 0.0, -H];
+/// A quarter turn about x: the normal is z (the flat of the blade faces down).
+const FLAT: [f64; 4] = [H, H, 0.0, 0.0];
+
+/// The scalpel with its edge across the patch's depth (y from −0.1 to 1.1) at height `z` in
+/// the plane x = 4, turned by `q`.
+fn blade(z: f64, q: [f64; 4]) -> ToolInput {
+    ToolInput {
+        kind: ToolKind::Scalpel,
+        position_m: [4.0, -0.1, z],
+        blade_end_m: [4.0, 1.1, z],
+        orientation: q,
+        ..ToolInput::default()
+    }
+}
+
+fn norm(f: [f64; 3]) -> f64 {
+    f.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Ticks at `tool` (1 ms apart, as a session would) until `done` or 10 s; the states seen.
+fn hold(p: &mut Pipeline, tool: &ToolInput, mut done: impl FnMut(&TickState) -> bool) -> Vec<TickState> {
+    let start = Instant::now();
+    let mut seen = Vec::new();
+    while start.elapsed() < Duration::from_secs(10) {
+        let s = p.tick(tool);
+        seen.push(s);
+        if done(&s) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    seen
+}
+
+#[test]
+fn a_scalpel_pressed_down_the_patch_cuts_the_top_row_and_the_tissue_there_softens() {
+    let mut p = patch_cut();
+    assert_eq!(p.effect_names(), vec!["palpation", "cutting"]);
+    assert!(p.accepts(ToolKind::Scalpel) && !p.accepts(ToolKind::Probe));
+    let status = p.cut_status().unwrap();
+    // down from above the top (z = 5) to z = 3.9 in 1,200 ticks; the tissue pushes the blade
+    // up, in its plane: the blade cuts
+    let mut events = 0;
+    let mut before = None;
+    for i in 0..=1200 {
+        let z = 5.1 - 1.2 * i as f64 / 1200.0;
+        let s = p.tick(&blade(z, UPRIGHT));
+        if i % 100 == 0 {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        events |= s.events.0;
+        if (z - 4.5).abs() < 5e-4 {
+            before = Some(norm(s.force_n));
+        }
+        if let Some(b) = s.blade {
+            // the split sums back to the force
+            for k in 0..3 {
+                assert!((b.perpendicular_n[k] + b.parallel_n[k] - s.force_n[k]).abs() <= 1e-12 * (1.0 + norm(s.force_n)));
+            }
+        }
+    }
+    assert!(events & Events::CONTACT != 0 && events & Events::CUT_STARTED != 0);
+    // the cut thread crosses the top cell row once the blade passed its bottom: two cells,
+    // four nodes (the pre-planned patch_cut), swapped into the tick
+    let seen = hold(&mut p, &blade(3.9, UPRIGHT), |s| {
+        s.events.has(Events::CUT_ADVANCED) && status.cells.load(Relaxed) >= 2
+    });
+    assert!(seen.iter().any(|s| s.events.has(Events::CUT_ADVANCED)), "no cut reached the tick");
+    assert_eq!(status.cells.load(Relaxed), 2);
+    assert_eq!(status.nodes.load(Relaxed), 4);
+    assert_eq!(status.refused.load(Relaxed), 0);
+    // back at the same depth as before the cut: the opened tissue pushes back less
+    let s = p.tick(&blade(4.5, UPRIGHT));
+    let (before, after) = (before.unwrap(), norm(s.force_n));
+    assert!(after.is_finite() && after > 0.0);
+    assert!(after < 0.99 * before, "force {after} N after the cut, {before} N before");
+    // the blade is in its cut now (the cut thread tells the next ticks)
+    let seen = hold(&mut p, &blade(4.5, UPRIGHT), |s| s.events.has(Events::BLADE_IN_CUT));
+    assert!(seen.last().unwrap().events.has(Events::BLADE_IN_CUT));
+    assert_eq!(status.overwritten.load(Relaxed), 0);
+}
+
+#[test]
+fn the_flat_of_the_blade_and_friction_cut_nothing() {
+    let mut p = patch_cut();
+    let status = p.cut_status().unwrap();
+    // the flat pressed down: the tissue's force is normal to the blade plane
+    for i in 0..=600 {
+        let z = 5.1 - 0.6 * i as f64 / 600.0;
+        let s = p.tick(&blade(z, FLAT));
+        let b = s.blade.unwrap();
+        assert!(!b.cutting && !s.events.has(Events::CUT_STARTED), "tick {i}");
+        assert!(norm(b.parallel_n) <= 0.5 * norm(b.perpendicular_n), "tick {i}: {b:?}");
+    }
+    // upright but barely touching: the force stays below cut_force (1 N), friction
+    let s = p.tick(&blade(5.05, UPRIGHT));
+    assert!(s.events.has(Events::CONTACT) && !s.blade.unwrap().cutting && norm(s.force_n) < 1.0);
+    std::thread::sleep(Duration::from_millis(50));
+    assert_eq!(status.cells.load(Relaxed), 0);
+}
+
+#[test]
+fn bad_blade_states_are_rejected_with_zero_force() {
+    let mut p = patch_cut();
+    let good = blade(4.8, UPRIGHT);
+    assert!(!p.tick(&good).events.has(Events::REJECTED_INPUT));
+    let mut cases = Vec::new();
+    // zero length, NaN end, an edge of three blade lengths, an orientation with no plane
+    // through the edge (the frame's y along the edge), a probe in a scene without one
+    cases.push(ToolInput {
+        blade_end_m: good.position_m,
+        ..good
+    });
+    cases.push(ToolInput {
+        blade_end_m: [f64::NAN, 0.0, 0.0],
+        ..good
+    });
+    cases.push(ToolInput {
+        blade_end_m: [4.0, -0.1 + 3.0 * 1.2, 4.8],
+        ..good
+    });
+    cases.push(ToolInput {
+        orientation: [1.0, 0.0, 0.0, 0.0],
+        ..good
+    });
+    cases.push(ToolInput {
+        kind: ToolKind::Probe,
+        ..good
+    });
+    for (i, t) in cases.iter().enumerate() {
+        let s = p.tick(t);
+        assert!(s.events.has(Events::REJECTED_INPUT), "case {i}");
+        assert_eq!(s.force_n, [0.0; 3], "case {i}");
+        assert!(s.blade.is_none());
+    }
+}
+
+#[test]
+fn a_palpation_scene_carries_no_cutting_and_cutting_scenes_need_a_linear_organ_and_a_scalpel() {
+    let text = format!(
+        "{}\n[[tools]]\nkind = \"probe\"\nname = \"probe\"\nradius = 0.1\n",
+        vademecum_engine::scene::builtin("patch").unwrap()
+    );
+    let scene = Scene::from_toml(&text, "patch.toml").unwrap();
+    let b = bundle(&scene);
+    let mut p = Pipeline::for_scene(&scene, &[b.clone()]).unwrap();
+    assert_eq!(p.effect_names(), vec!["palpation"]);
+    assert!(p.cut_status().is_none() && !p.accepts(ToolKind::Scalpel));
+    // a probe tick leaves no blade split
+    let s = p.tick(&ToolInput {
+        position_m: [2.5, 0.5, 4.9],
+        ..ToolInput::default()
+    });
+    assert!(s.events.has(Events::CONTACT) && s.blade.is_none());
+    // a bundle of another mesh
+    let cornea = Scene::builtin("keratotomy").unwrap();
+    let e = Pipeline::for_scene(&cornea, &[b]).unwrap_err();
+    assert!(e.to_string().contains("another mesh"), "{e}");
+}
