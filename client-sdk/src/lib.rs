@@ -432,6 +432,28 @@ pub fn tool_at(seq: u64, position_m: [f64; 3]) -> pb::ToolState {
     }
 }
 
+/// A scalpel tool state with sequence number `seq`: the blade's cutting edge from its tip
+/// `tip_m` to `end_m` (m), turned by the unit quaternion `orientation` (`[w, x, y, z]`; the tool
+/// frame's y axis turned by it is the normal of the blade's plane). The response's `blade`
+/// splits the force along the blade; the blade cuts when its in-plane part exceeds the
+/// scalpel's `cut_force_n` (`SessionInfo.tools`).
+pub fn scalpel_at(seq: u64, tip_m: [f64; 3], end_m: [f64; 3], orientation: [f64; 4]) -> pb::ToolState {
+    let v = |p: [f64; 3]| pb::Vec3 { x: p[0], y: p[1], z: p[2] };
+    pb::ToolState {
+        seq,
+        kind: pb::ToolKind::Scalpel as i32,
+        position_m: Some(v(tip_m)),
+        blade_end_m: Some(v(end_m)),
+        orientation: Some(pb::Quat {
+            w: orientation[0],
+            x: orientation[1],
+            y: orientation[2],
+            z: orientation[3],
+        }),
+        ..Default::default()
+    }
+}
+
 /// Decodes packed little-endian f32 values (frame positions and displacements).
 pub fn f32s(bytes: &[u8]) -> Vec<f32> {
     bytes

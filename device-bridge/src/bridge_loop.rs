@@ -313,6 +313,17 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         } else {
             0.0
         };
+        // the blade moves with the tip the guard admitted; a non-finite one collapses onto the
+        // tip (a zero-length blade, which the server rejects)
+        let blade_end = reading
+            .blade_end_m
+            .filter(|e| e.iter().chain(&reading.position_m).all(|v| v.is_finite()))
+            .map_or(x_dev, |e| std::array::from_fn(|k| x_dev[k] + e[k] - reading.position_m[k]));
+        let orientation = if reading.orientation.iter().all(|v| v.is_finite()) {
+            reading.orientation
+        } else {
+            [0.0; 4]
+        };
         let state = HapticState {
             seq: tick,
             t_read_ns,
@@ -321,6 +332,8 @@ fn run_inner<D: Device + ?Sized, L: Link>(
             closure,
             tool: p.tool,
             flags: if verdict.adjusted() { STATE_ADJUSTED } else { 0 },
+            orientation,
+            blade_end_m: p.frame.to_organ(blade_end),
         };
         // 3. send it
         if link.send_state(&state).is_err() {

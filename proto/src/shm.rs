@@ -42,6 +42,13 @@ pub struct HapticState {
     pub tool: u32,
     /// [`STATE_ADJUSTED`] when the input guard clamped or held this sample.
     pub flags: u32,
+    /// Tool orientation, unit quaternion `[w, x, y, z]`; all zeros: the identity (a device
+    /// that does not measure it). For a scalpel the tool frame's y axis turned by it is the
+    /// normal of the blade's plane.
+    pub orientation: [f64; 4],
+    /// A scalpel's blade: the other end of its cutting edge in the organ frame (m);
+    /// `position_m` is its tip. Other tools: ignored.
+    pub blade_end_m: [f64; 3],
 }
 
 /// A spherical-tip probe.

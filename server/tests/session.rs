@@ -264,13 +264,11 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
 #[test]
 fn a_scene_asking_for_an_effect_not_simulated_yet_is_refused() {
     let (_, bundles, _dir) = slab();
-    let cutting = format!(
-        "{SCENE}\n[[tools]]\nkind = \"scalpel\"\nname = \"s\"\nblade_length = 0.01\ncut_force = 1.0\n\n[effects]\ncutting = true\n"
-    );
-    let scene = Arc::new(Scene::from_toml(&cutting, "cut.toml").unwrap());
+    let tearing = format!("{SCENE}\n[effects]\ntearing = true\n");
+    let scene = Arc::new(Scene::from_toml(&tearing, "tear.toml").unwrap());
     let e = Session::start("s4".into(), scene, bundles, SessionConfig::default()).unwrap_err();
     assert!(matches!(e, SessionError::Pipeline(PipelineError::Unsupported(_))), "{e}");
-    assert!(e.to_string().contains("cutting"), "{e}");
+    assert!(e.to_string().contains("tearing"), "{e}");
 }
 
 /// Allocations made by the tick thread of a scripted session that runs `ticks` ticks while a

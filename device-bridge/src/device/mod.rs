@@ -41,6 +41,12 @@ pub struct DeviceReading {
     pub velocity_m_s: [f64; 3],
     /// Gripper closure, 0 to 1.
     pub closure: f64,
+    /// Stylus orientation, unit quaternion `[w, x, y, z]` (all zeros: the device does not
+    /// measure it; taken as the identity).
+    pub orientation: [f64; 4],
+    /// A scalpel's blade: the other end of its cutting edge, device frame (m); the position is
+    /// its tip.
+    pub blade_end_m: Option<[f64; 3]>,
 }
 
 /// Why a device failed.

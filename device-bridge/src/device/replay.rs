@@ -74,6 +74,7 @@ impl Device for Replay {
             position_m: [r.x_m, r.y_m, r.z_m],
             velocity_m_s: [0.0; 3],
             closure: r.closure,
+            ..DeviceReading::default()
         })
     }
 

@@ -92,10 +92,16 @@ impl Device for SimStylus {
             }
             self.t_s = t_s;
         }
+        let h = self.hand.at(t_s);
         Ok(DeviceReading {
             position_m: self.x,
             velocity_m_s: self.v,
-            closure: self.hand.at(t_s).closure,
+            closure: h.closure,
+            // the blade rides on the stylus as the hand holds it
+            orientation: h.blade.map_or([0.0; 4], |b| b.orientation),
+            blade_end_m: h
+                .blade
+                .map(|b| std::array::from_fn(|k| self.x[k] + b.end_m[k] - h.position_m[k])),
         })
     }
 

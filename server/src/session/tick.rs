@@ -231,6 +231,11 @@ fn tool_input(s: &HapticState) -> ToolInput {
         position_m: s.position_m,
         velocity_m_s: s.velocity_m_s,
         closure: s.closure,
-        ..ToolInput::default()
+        orientation: if s.orientation == [0.0; 4] {
+            [1.0, 0.0, 0.0, 0.0]
+        } else {
+            s.orientation
+        },
+        blade_end_m: s.blade_end_m,
     }
 }

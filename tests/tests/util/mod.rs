@@ -31,13 +31,15 @@ pub fn vademecum(dir: &Path, args: &[&str]) -> std::process::Output {
     o
 }
 
-/// A folder holding the built-in organ's bundle as `organ/lobe.bundle`, built once per test
-/// run and shared by every test (servers take it as their bundle root).
+/// A folder holding the built-in organ's bundle as `organ/lobe.bundle` and the built-in
+/// `patch_cut` scene's as `patch_cut/patch.bundle`, built once per test run and shared by
+/// every test (servers take it as their bundle root).
 pub fn bundles() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = tempfile::tempdir().expect("temp dir");
         vademecum(dir.path(), &["build", "--out", "organ"]);
+        vademecum(dir.path(), &["build", "--builtin", "patch_cut", "--out", "patch_cut"]);
         dir
     })
     .path()
