@@ -8,7 +8,7 @@ use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
 
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
-use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
+use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 
 /// The scene's vademecum, built and loaded back from a bundle as a session would.
@@ -173,7 +173,7 @@ fn a_palpation_scene_carries_no_cutting_and_cutting_scenes_need_a_linear_organ_a
     );
     let scene = Scene::from_toml(&text, "patch.toml").unwrap();
     let b = bundle(&scene);
-    let mut p = Pipeline::for_scene(&scene, &[b.clone()]).unwrap();
+    let mut p = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
     assert_eq!(p.effect_names(), vec!["palpation"]);
     assert!(p.cut_status().is_none() && !p.accepts(ToolKind::Scalpel));
     // a probe tick leaves no blade split

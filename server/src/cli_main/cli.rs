@@ -412,6 +412,10 @@ pub struct BenchCutArgs {
     /// Ticks timed per figure.
     #[arg(long, default_value_t = 20_000)]
     pub ticks: usize,
+    /// Skip the session part (the cutting pipeline's tick against a palpation scene's, the
+    /// scalpel drawing the scene's cuts at 1 kHz, the forces against the full XFEM).
+    #[arg(long)]
+    pub no_session: bool,
     /// Where to write the error-against-modes plot. Default: `out/<scene>/cut_modes.svg`.
     #[arg(long)]
     pub plot: Option<PathBuf>,

@@ -81,6 +81,9 @@ struct Report {
     modes_sweep: Vec<(usize, Vec<f64>)>,
     ticks: Vec<TickRow>,
     plot: PathBuf,
+    /// The cutting pipeline in a session (`bench_cut_session`), unless `--no-session`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    session: Option<super::bench_cut_session::SessionReport>,
 }
 
 /// Relative L2 error of reduced fields against the full XFEM over every node's both lips, and
@@ -401,6 +404,16 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
     }
     stages.finish();
 
+    // 4. the cutting pipeline of a session
+    let session = if a.no_session {
+        None
+    } else {
+        let stages = Stages::start("session");
+        let r = super::bench_cut_session::run(&scene, &built, a.ticks, &stages)?;
+        stages.finish();
+        Some(r)
+    };
+
     let plot_file = a
         .plot
         .clone()
@@ -420,6 +433,7 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
         modes_sweep,
         ticks,
         plot: plot_file.clone(),
+        session,
     };
     plot(&report, &plot_file)?;
     let mut out = std::io::stdout().lock();
@@ -481,6 +495,31 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
         )?;
         write_stats(&mut out, &t.stats)?;
         writeln!(out)?;
+    }
+    if let Some(s) = &report.session {
+        writeln!(
+            out,
+            "The cutting pipeline of a session (the scene's scalpel drawing its pre-planned cuts at 1 kHz: {} cells, {} cracked nodes, {} cut models swapped into the tick):\n",
+            s.cut_cells, s.enriched_nodes, s.advances
+        )?;
+        write_stats(&mut out, &s.ticks)?;
+        writeln!(
+            out,
+            "\nThe same cut, the contact force where the blade pressed along the first cut: the session (vademecum + the cut's local fields) against the full-order XFEM:\n"
+        )?;
+        writeln!(out, "| point (mm) | session (N) | full XFEM (N) | relative difference |")?;
+        writeln!(out, "|---|---|---|---:|")?;
+        let v = |x: [f64; 3], s: f64| format!("({:.4}, {:.4}, {:.4})", s * x[0], s * x[1], s * x[2]);
+        for f in &s.forces {
+            writeln!(
+                out,
+                "| {} | {} | {} | {:.2e} |",
+                v(f.point_m, 1e3),
+                v(f.session_n, 1.0),
+                v(f.full_n, 1.0),
+                f.relative_difference
+            )?;
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

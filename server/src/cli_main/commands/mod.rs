@@ -4,6 +4,7 @@ mod bench;
 mod bench_anm;
 mod bench_cube;
 mod bench_cut;
+mod bench_cut_session;
 mod bench_efg;
 mod bench_haptic;
 mod bench_pgd;
