@@ -289,12 +289,7 @@ impl Pipeline {
             ToolSpec::Probe { radius, max_force, .. } => Some((*radius, *max_force)),
             _ => None,
         });
-        let scalpel = scene.spec.tools.iter().find_map(|t| match t {
-            ToolSpec::Scalpel {
-                blade_length, cut_force, ..
-            } => Some((*blade_length, *cut_force)),
-            _ => None,
-        });
+        let scalpel = scene.spec.scalpel();
         let large = fx.deformation == DeformationModel::Large;
         if fx.cutting {
             if large {

@@ -371,6 +371,18 @@ pub enum ToolSpec {
     },
 }
 
+impl SceneFile {
+    /// The first scalpel's blade length (m) and cut force (N), if the scene has a scalpel.
+    pub fn scalpel(&self) -> Option<(f64, f64)> {
+        self.tools.iter().find_map(|t| match t {
+            ToolSpec::Scalpel {
+                blade_length, cut_force, ..
+            } => Some((*blade_length, *cut_force)),
+            _ => None,
+        })
+    }
+}
+
 impl ToolSpec {
     /// The tool's name.
     pub fn name(&self) -> &str {

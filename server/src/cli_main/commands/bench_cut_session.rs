@@ -67,15 +67,7 @@ pub(super) fn run(scene: &Scene, built: &Built, n: usize, stages: &crate::cli_ma
     let bundle: Arc<LoadedBundle> = Arc::new(offline::load_bundle(dir.path())?);
     let cuts = scene.organ_cuts(0)?;
     let points: Vec<&[[f64; 3]]> = cuts.iter().map(|c| c.points()).collect();
-    let blade = scene
-        .spec
-        .tools
-        .iter()
-        .find_map(|t| match t {
-            ToolSpec::Scalpel { blade_length, .. } => Some(*blade_length),
-            _ => None,
-        })
-        .context("the scene has no scalpel")?;
+    let (blade, _) = scene.spec.scalpel().context("the scene has no scalpel")?;
     let incisions = crate::session::builtin_incisions(&bundle, &points, 0.5 * blade, 2.0).map_err(anyhow::Error::msg)?;
     let tool = |t: f64| crate::session::tool_at(&incisions, t);
     // where the blade presses while it draws the first cut: its middle position

@@ -107,9 +107,6 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             "the scene cuts and has no probe, but the trajectory has no blade: add the columns bx_m,by_m,bz_m,qw,qx,qy,qz (the other end of the blade's edge and its orientation; see `vademecum run --help`)"
         );
     }
-    if cutting && a.haptic.is_some() {
-        bail!("haptic runs of cutting scenes are not available yet: run it headless (without --haptic)");
-    }
     let radius = if cutting || scripted.is_some() {
         0.0
     } else {
@@ -126,7 +123,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 );
             }
             let points: Vec<&[[f64; 3]]> = cuts.iter().map(|c| c.points()).collect();
-            let lift = 0.5 * scene_blade_length(&scene);
+            // a cutting scene has a scalpel (scene validation)
+            let lift = 0.5 * scene.spec.scalpel().map_or(1e-3, |s| s.0);
             (
                 crate::session::builtin_incisions(&bundles[0], &points, lift, INCISION_SECONDS)
                     .map_err(|e| anyhow::anyhow!("cannot script the built-in incisions: {e}"))?,
@@ -413,20 +411,6 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
 
 /// How long the built-in incisions take to draw each pre-planned cut (s).
 const INCISION_SECONDS: f64 = 2.0;
-
-/// The scene's scalpel's blade length (m; 1 mm if it has none).
-fn scene_blade_length(scene: &vademecum_engine::scene::Scene) -> f64 {
-    use vademecum_engine::scene::schema::ToolSpec;
-    scene
-        .spec
-        .tools
-        .iter()
-        .find_map(|t| match t {
-            ToolSpec::Scalpel { blade_length, .. } => Some(*blade_length),
-            _ => None,
-        })
-        .unwrap_or(1e-3)
-}
 
 /// The cut a session made, recorded: the organ opened by it (full-order XFEM of the same cut
 /// cells under the scene's loads, split along the cut) as the last step of the organ's
