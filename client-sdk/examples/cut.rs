@@ -57,7 +57,10 @@ async fn main() -> Result<(), Box<dyn std::error::Error>> {
         let r = tools.next().await?.ok_or("the server ended the stream")?;
         if r.events & pb::Event::CutStarted as u32 != 0 {
             strokes += 1;
-            println!("t = {:5.3} s  z = {z:.3} m  the blade starts cutting", start.elapsed().as_secs_f64());
+            println!(
+                "t = {:5.3} s  z = {z:.3} m  the blade starts cutting",
+                start.elapsed().as_secs_f64()
+            );
         }
         if r.events & pb::Event::CutAdvanced as u32 != 0 {
             advances += 1;

@@ -331,7 +331,8 @@ mod tests {
 
     #[test]
     fn samples_are_plain_fixed_size_data() {
-        assert_eq!(std::mem::size_of::<HapticState>(), 2 * 8 + 7 * 8 + 2 * 4);
+        // counters and times, position, velocity and closure, tool and flags, orientation, blade end
+        assert_eq!(std::mem::size_of::<HapticState>(), 2 * 8 + 7 * 8 + 2 * 4 + 4 * 8 + 3 * 8);
         // counters and times, force and depth, events and reserved, the server's wait times
         assert_eq!(std::mem::size_of::<HapticCommand>(), 4 * 8 + 4 * 8 + 2 * 4 + 3 * 8);
         assert_eq!(std::mem::size_of::<BridgeReport>(), 15 * 8);

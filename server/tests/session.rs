@@ -264,9 +264,8 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
 #[test]
 fn a_scene_asking_for_an_effect_not_simulated_yet_is_refused() {
     let (_, bundles, _dir) = slab();
-    let tearing = format!(
-        "{SCENE}\n[[tools]]\nkind = \"grasper\"\nname = \"g\"\njaw_width = 0.01\nmax_force = 5.0\n\n[effects]\ntearing = true\n"
-    );
+    let tearing =
+        format!("{SCENE}\n[[tools]]\nkind = \"grasper\"\nname = \"g\"\njaw_width = 0.01\nmax_force = 5.0\n\n[effects]\ntearing = true\n");
     let scene = Arc::new(Scene::from_toml(&tearing, "tear.toml").unwrap());
     let e = Session::start("s4".into(), scene, bundles, SessionConfig::default()).unwrap_err();
     assert!(matches!(e, SessionError::Pipeline(PipelineError::Unsupported(_))), "{e}");

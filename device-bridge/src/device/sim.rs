@@ -99,9 +99,7 @@ impl Device for SimStylus {
             closure: h.closure,
             // the blade rides on the stylus as the hand holds it
             orientation: h.blade.map_or([0.0; 4], |b| b.orientation),
-            blade_end_m: h
-                .blade
-                .map(|b| std::array::from_fn(|k| self.x[k] + b.end_m[k] - h.position_m[k])),
+            blade_end_m: h.blade.map(|b| std::array::from_fn(|k| self.x[k] + b.end_m[k] - h.position_m[k])),
         })
     }
 

@@ -97,7 +97,10 @@ pub(super) fn run(scene: &Scene, built: &Built, n: usize, stages: &crate::cli_ma
     let status = cut.cut_status().context("a cutting pipeline")?;
     cut.tick(&pressed);
     rows.push(stat(
-        &format!("cutting scene ({}): scalpel tick, pressed, before any cut", cut.effect_names().join(" → ")),
+        &format!(
+            "cutting scene ({}): scalpel tick, pressed, before any cut",
+            cut.effect_names().join(" → ")
+        ),
         time_n(n, || cut.tick(&pressed).force_n[2]),
     ));
     cut.reset();
@@ -155,7 +158,9 @@ pub(super) fn run(scene: &Scene, built: &Built, n: usize, stages: &crate::cli_ma
             cut.tick(&tool(ms as f64 * 1e-3));
         }
         let s = cut.tick(&input);
-        let Some(c) = s.contact.filter(|c| (1.0 - c.loadable).abs() < 1e-9) else { continue };
+        let Some(c) = s.contact.filter(|c| (1.0 - c.loadable).abs() < 1e-9) else {
+            continue;
+        };
         // the full XFEM's compliance at the same patch: three solves with the patch loaded
         let mut comp = [[0.0; 3]; 3];
         for j in 0..3 {
