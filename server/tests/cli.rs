@@ -201,6 +201,8 @@ fn run_cuts_the_patch_with_a_scalpel_and_records_the_opening() {
         "72 nodes and 4 copies"
     );
     assert!(rec.join("patch_cut_surface.vtu").is_file());
+    let svg = std::fs::read_to_string(rec.join("blade_force.svg")).unwrap();
+    assert!(svg.contains("cut_force") && svg.contains("<polyline"), "the blade force plot");
     // the written trajectory plays again as a script: the same cut
     let o = vademecum(
         &[

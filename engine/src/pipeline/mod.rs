@@ -443,7 +443,7 @@ impl Pipeline {
 /// scene, checked against the bundle, the reduced model on the bundle's modes.
 fn cutting_effect(scene: &Scene, bundle: &Arc<LoadedBundle>, cut_force: f64) -> Result<Cutting, PipelineError> {
     use crate::xfem::online::OnlineCut;
-    use crate::xfem::reduced::ReducedCut;
+    use crate::xfem::reduced::{Discontinuous, ReducedCut};
     let fail = |message: String| PipelineError::Cutting { organ: 0, message };
     let model = scene.organ_model(0).map_err(|e| fail(e.to_string()))?;
     let same = model.mesh.nodes.len() == bundle.nodes.len()
@@ -459,13 +459,19 @@ fn cutting_effect(scene: &Scene, bundle: &Arc<LoadedBundle>, cut_force: f64) -> 
     let fx = &scene.spec.fidelity.xfem;
     let params = fx.params();
     let v = &bundle.vademecum;
+    // with local fields the tick adds the cut's compliance to the vademecum's own, and the
+    // Ritz basis is not needed (ReducedCut::new)
+    let n_modes = match fx.discontinuous {
+        Discontinuous::LocalFields => 0,
+        Discontinuous::Bare => v.modes(),
+    };
     let reduced = ReducedCut::new(
         &model.mesh,
         &model.materials,
         model.locking,
         &model.problem,
-        v.f_raw(),
-        v.modes(),
+        &v.f_raw()[..n_modes * 3 * model.mesh.n_nodes()],
+        n_modes,
         fx.basis,
         fx.discontinuous,
         &params,

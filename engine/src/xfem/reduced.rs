@@ -187,6 +187,12 @@ impl ReducedCut {
     /// The model with no cut yet, from the spatial modes `modes` (mode-major over all `3n`
     /// degrees of freedom, `n_modes` of them) of a vademecum of the same mesh, supports and
     /// material.
+    ///
+    /// With local fields the modes may be left out (`n_modes = 0`): the model then carries the
+    /// cut's part alone — [`CutView::added_compliance`] is all it answers, what a session
+    /// adds to the vademecum's own contact compliance — and costs one factorization of the
+    /// uncut stiffness instead of the K-orthonormalisation of the basis (`O(n_b² n)` and a
+    /// dense eigenproblem of the basis's size: minutes for thousands of modes).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         mesh: &Mesh,
@@ -240,6 +246,28 @@ impl ReducedCut {
             .map_err(XfemError::from)?;
         assembly::add_springs(&mut k, &dofs, &problem.springs);
         let nc = columns.len();
+        if nc == 0 && disc == Discontinuous::LocalFields {
+            return Ok(Self {
+                basis,
+                chol: Some(crate::solve::Cholesky::factor(&k)?),
+                n_nodes: mesh.n_nodes(),
+                online: CutView {
+                    disc,
+                    w: Vec::new(),
+                    dofs: std::sync::Arc::new(dofs),
+                    x: Vec::new().into(),
+                    nb: 0,
+                    factor: Bordered::new(0),
+                    scratch: Vec::new(),
+                },
+                enr: Enrichment::none(mesh),
+                enriched_eqs: 0,
+                materials: materials.clone(),
+                locking,
+                problem: problem.clone(),
+                params: *params,
+            });
+        }
         let mut kx = vec![0.0; nf];
         let mut gram = DMatrix::<f64>::zeros(nc, nc);
         for j in 0..nc {

@@ -175,7 +175,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let forces_path = record.join("forces.csv");
     let writer = std::thread::spawn({
         let path = forces_path.clone();
-        move || -> anyhow::Result<(f64, f64, u64, [u64; 3])> {
+        move || -> anyhow::Result<(f64, f64, u64, [u64; 3], Vec<BladeRow>)> {
             let mut w = csv::Writer::from_path(&path).with_context(|| format!("cannot write {}", path.display()))?;
             let mut header = vec![
                 "tick",
@@ -198,6 +198,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             let (mut peak, mut peak_t, mut contacts) = (0.0f64, 0.0f64, 0u64);
             // ticks cutting, strokes started, cuts swapped in
             let mut cut_counts = [0u64; 3];
+            let mut blade_rows = Vec::new();
             while let Some(a) = rx.blocking_recv() {
                 let row = Row {
                     tick: a.tick,
@@ -218,6 +219,15 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 cut_counts[0] += u64::from(blade.is_some_and(|b| b.cutting));
                 cut_counts[1] += u64::from(ev.has(Events::CUT_STARTED));
                 cut_counts[2] += u64::from(ev.has(Events::CUT_ADVANCED));
+                if let Some(b) = blade {
+                    let mag = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                    blade_rows.push(BladeRow {
+                        t_s: row.t_s,
+                        parallel_n: mag(b.parallel_n),
+                        perpendicular_n: mag(b.perpendicular_n),
+                        advanced: ev.has(Events::CUT_ADVANCED),
+                    });
+                }
                 let mut record = vec![
                     row.tick.to_string(),
                     format!("{:.6}", row.t_s),
@@ -246,7 +256,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 w.write_record(&record)?;
             }
             w.flush()?;
-            Ok((peak, peak_t, contacts, cut_counts))
+            Ok((peak, peak_t, contacts, cut_counts, blade_rows))
         }
     });
     // frames: take the latest at the frame rate, write one surface .vtu per organ
@@ -302,7 +312,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     }
     bar.finish_and_clear();
     let stats = session.wait();
-    let (peak, peak_t, contacts, cut_counts) = writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    let (peak, peak_t, contacts, cut_counts, blade_rows) = writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    if let Some((_, cut_force)) = scene.spec.scalpel().filter(|_| cutting) {
+        plot_blade(&record.join("blade_force.svg"), &scene.spec.scene.name, &blade_rows, cut_force)?;
+    }
     let cut = match &cut_status {
         Some(status) => Some(record_cut(
             &scene,
@@ -394,9 +407,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         }
         writeln!(
             out,
-            "  recorded       {} (forces.csv, {} frames per organ in *.pvd)",
+            "  recorded       {} (forces.csv, {} frames per organ in *.pvd{})",
             s.record.display(),
-            s.frames
+            s.frames,
+            if s.cut.is_some() { "; blade_force.svg" } else { "" }
         )?;
     }
     if summary.dropped_answers > 0 {
@@ -407,6 +421,66 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::from(1));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The force on the blade at one scalpel tick, for the plot.
+struct BladeRow {
+    t_s: f64,
+    parallel_n: f64,
+    perpendicular_n: f64,
+    /// A new cut reached the tick.
+    advanced: bool,
+}
+
+/// `blade_force.svg`: `|F∥|` and `|F⊥|` on the blade against time, the scalpel's `cut_force`,
+/// and the ticks where a new cut reached the tick.
+fn plot_blade(file: &std::path::Path, scene: &str, rows: &[BladeRow], cut_force: f64) -> anyhow::Result<()> {
+    use plotters::prelude::*;
+    let t_max = rows.last().map_or(1.0, |r| r.t_s).max(1e-3);
+    let f_max = rows.iter().map(|r| r.parallel_n.max(r.perpendicular_n)).fold(cut_force, f64::max) * 1.1;
+    let root = SVGBackend::new(file, (900, 500)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{scene}: the force on the blade"), ("sans-serif", 18))
+        .margin(14)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..t_max, 0.0..f_max)?;
+    chart.configure_mesh().x_desc("time (s)").y_desc("force (N)").draw()?;
+    let palette = super::bench_anm::PALETTE;
+    chart
+        .draw_series(LineSeries::new(
+            rows.iter().map(|r| (r.t_s, r.parallel_n)),
+            palette[0].stroke_width(2),
+        ))?
+        .label("|F∥|, in the blade's plane")
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], palette[0].stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(
+            rows.iter().map(|r| (r.t_s, r.perpendicular_n)),
+            palette[1].stroke_width(2),
+        ))?
+        .label("|F⊥|, on the blade's flat")
+        .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], palette[1].stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new([(0.0, cut_force), (t_max, cut_force)], BLACK.stroke_width(1)))?
+        .label("cut_force")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 18, y)], BLACK.stroke_width(1)));
+    chart
+        .draw_series(
+            rows.iter()
+                .filter(|r| r.advanced)
+                .map(|r| Circle::new((r.t_s, r.parallel_n), 4, palette[2].filled())),
+        )?
+        .label("a new cut reaches the tick")
+        .legend(move |(x, y)| Circle::new((x + 9, y), 4, palette[2].filled()));
+    chart
+        .configure_series_labels()
+        .border_style(BLACK)
+        .background_style(WHITE.mix(0.9))
+        .draw()?;
+    root.present()?;
+    Ok(())
 }
 
 /// How long the built-in incisions take to draw each pre-planned cut (s).
