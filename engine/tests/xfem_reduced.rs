@@ -348,3 +348,37 @@ fn on_the_organ_cutting_adds_no_error_to_the_local_fields_model() {
     assert!(e_cut <= 1.5 * e_uncut + 1e-9, "uncut {e_uncut:.3e}, cut {e_cut:.3e}");
     assert!(e_cut < 0.05, "{e_cut:.3e}");
 }
+
+#[test]
+fn without_modes_the_local_fields_model_adds_the_same_compliance_and_bare_needs_them() {
+    // what a session builds (the cut's part alone) against the model on the modes: the same
+    // added compliance at every top node of the patch, cut down x = 4 through the top row
+    let scene = Scene::builtin("patch").unwrap();
+    let b = built(&scene, 1e-4);
+    let m = &b.model;
+    let params = XfemParams::default();
+    let mut full = reduced(&b, RitzBasis::Srb, Discontinuous::LocalFields);
+    let new = |disc| ReducedCut::new(&m.mesh, &m.materials, m.locking, &m.problem, &[], 0, RitzBasis::Srb, disc, &params);
+    let mut bare = new(Discontinuous::LocalFields).unwrap();
+    assert_eq!(bare.basis_size(), 0);
+    assert!(matches!(new(Discontinuous::Bare), Err(ReducedError::EmptyBasis)));
+    let cut = Cut::swept(&[([4.0, -0.1, 5.1], [4.0, 1.1, 5.1]), ([4.0, -0.1, 3.95], [4.0, 1.1, 3.95])]).unwrap();
+    let cells = Enrichment::cut_cells(&m.mesh, &cut, &params).unwrap();
+    full.cut(&m.mesh, &cells).unwrap();
+    bare.cut(&m.mesh, &cells).unwrap();
+    let (mut fv, mut bv) = (full.view(), bare.view());
+    let mut largest = 0.0f64;
+    for a in (0..m.mesh.n_nodes()).filter(|&a| m.mesh.nodes[a][2] == 5.0) {
+        let (x, y) = (fv.added_compliance(&[a], &[1.0]), bv.added_compliance(&[a], &[1.0]));
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!(
+                    (x[i][j] - y[i][j]).abs() <= 1e-12 * x[i][i].abs().max(1e-30),
+                    "node {a}: {x:?} {y:?}"
+                );
+                largest = largest.max(x[i][j].abs());
+            }
+        }
+    }
+    assert!(largest > 0.0, "the cut adds compliance at the top");
+}

@@ -239,63 +239,16 @@ impl ReducedCut {
                 })
                 .collect(),
         };
-        // K-orthonormalise: G = XᵀKX = Q Λ Qᵀ, X̂ = X Q Λ^{-1/2}
         let pattern = std::sync::Arc::new(SymmetricPattern::for_locking(mesh, &dofs, locking));
         let mut rhs = vec![0.0; nf];
         let mut k = assembly::assemble_stiffness(mesh, materials, locking, &dofs, pattern, &problem.prescribed, &mut rhs)
             .map_err(XfemError::from)?;
         assembly::add_springs(&mut k, &dofs, &problem.springs);
-        let nc = columns.len();
-        if nc == 0 && disc == Discontinuous::LocalFields {
-            return Ok(Self {
-                basis,
-                chol: Some(crate::solve::Cholesky::factor(&k)?),
-                n_nodes: mesh.n_nodes(),
-                online: CutView {
-                    disc,
-                    w: Vec::new(),
-                    dofs: std::sync::Arc::new(dofs),
-                    x: Vec::new().into(),
-                    nb: 0,
-                    factor: Bordered::new(0),
-                    scratch: Vec::new(),
-                },
-                enr: Enrichment::none(mesh),
-                enriched_eqs: 0,
-                materials: materials.clone(),
-                locking,
-                problem: problem.clone(),
-                params: *params,
-            });
-        }
-        let mut kx = vec![0.0; nf];
-        let mut gram = DMatrix::<f64>::zeros(nc, nc);
-        for j in 0..nc {
-            k.mul_vec(&columns[j], &mut kx);
-            for i in 0..nc {
-                gram[(i, j)] = columns[i].iter().zip(&kx).map(|(a, b)| a * b).sum();
-            }
-        }
-        let gram = (&gram + gram.transpose()) * 0.5;
-        let eig = gram.symmetric_eigen();
-        let top = eig.eigenvalues.iter().fold(0.0f64, |m, v| m.max(*v));
-        let keep: Vec<usize> = (0..nc).filter(|&i| eig.eigenvalues[i] > 1e-12 * top && top > 0.0).collect();
-        let nb = keep.len();
-        if nb == 0 {
-            return Err(ReducedError::EmptyBasis);
-        }
-        let mut x = vec![0.0; nf * nb];
-        for (b, &i) in keep.iter().enumerate() {
-            let s = eig.eigenvalues[i].sqrt().recip();
-            for (j, col) in columns.iter().enumerate() {
-                let w = eig.eigenvectors[(j, i)] * s;
-                if w != 0.0 {
-                    for r in 0..nf {
-                        x[r * nb + b] += w * col[r];
-                    }
-                }
-            }
-        }
+        let (x, nb) = if columns.is_empty() && disc == Discontinuous::LocalFields {
+            (Vec::new(), 0) // the cut's part alone (see above)
+        } else {
+            k_orthonormal(&k, &columns)?
+        };
         let chol = match disc {
             Discontinuous::Bare => None,
             Discontinuous::LocalFields => Some(crate::solve::Cholesky::factor(&k)?),
@@ -666,6 +619,46 @@ impl CutView {
         }
         c
     }
+}
+
+/// The K-orthonormal basis of the span of `columns` (each `n_free` long), row-major
+/// `n_free × nb`, and `nb`: `G = XᵀKX = Q Λ Qᵀ`, `X̂ = X Q Λ^{-1/2}`, dropping the directions
+/// below 10⁻¹² of the largest.
+fn k_orthonormal(k: &assembly::SymmetricMatrix, columns: &[Vec<f64>]) -> Result<(Vec<f64>, usize), ReducedError> {
+    let nc = columns.len();
+    if nc == 0 {
+        return Err(ReducedError::EmptyBasis);
+    }
+    let nf = columns[0].len();
+    let mut kx = vec![0.0; nf];
+    let mut gram = DMatrix::<f64>::zeros(nc, nc);
+    for j in 0..nc {
+        k.mul_vec(&columns[j], &mut kx);
+        for i in 0..nc {
+            gram[(i, j)] = columns[i].iter().zip(&kx).map(|(a, b)| a * b).sum();
+        }
+    }
+    let gram = (&gram + gram.transpose()) * 0.5;
+    let eig = gram.symmetric_eigen();
+    let top = eig.eigenvalues.iter().fold(0.0f64, |m, v| m.max(*v));
+    let keep: Vec<usize> = (0..nc).filter(|&i| eig.eigenvalues[i] > 1e-12 * top && top > 0.0).collect();
+    let nb = keep.len();
+    if nb == 0 {
+        return Err(ReducedError::EmptyBasis);
+    }
+    let mut x = vec![0.0; nf * nb];
+    for (b, &i) in keep.iter().enumerate() {
+        let s = eig.eigenvalues[i].sqrt().recip();
+        for (j, col) in columns.iter().enumerate() {
+            let w = eig.eigenvectors[(j, i)] * s;
+            if w != 0.0 {
+                for r in 0..nf {
+                    x[r * nb + b] += w * col[r];
+                }
+            }
+        }
+    }
+    Ok((x, nb))
 }
 
 /// `c += s · d`, entrywise.
