@@ -5,14 +5,16 @@
 //! vademecums; each [`Effect`] owns its state and its preallocated workspace, so a tick
 //! allocates nothing, and a scene that names only palpation carries no cutting state, no
 //! damage arrays and does no extra work per tick. Large deformations scale the palpation
-//! force by the organ's ANM-POD lattice; later effects (cutting, tearing) implement [`Effect`]
-//! and are added in [`Pipeline::for_scene`] without touching the others.
+//! force by the organ's ANM-POD lattice; cutting follows palpation as its own [`Effect`], and
+//! later effects (tearing) are added in [`Pipeline::for_scene`] the same way.
 //!
 //! # Layout
 //! - [`Effect`], [`ToolInput`], [`TickState`], [`Events`]: the contract between the tick
 //!   driver (the server's tick thread) and the effects.
 //! - [`palpation`]: the linear PGD deformation effect (a spherical tip tracked on the
 //!   organ's surface by a proxy, force `f = C(s)⁻¹δ` from the vademecum).
+//! - [`cutting`]: the scalpel (seed 000 §3.4): the cut's compliance added at the contact, the
+//!   blade force split and cut criterion, and the cut thread that grows the cut beside the tick.
 
 pub mod cutting;
 pub mod palpation;
