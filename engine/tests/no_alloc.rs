@@ -184,7 +184,7 @@ fn a_cutting_tick_allocates_and_frees_nothing_while_the_cut_grows() {
     COUNT.with(|n| n.set(0));
     FREES.with(|n| n.set(0));
     COUNTING.with(|c| c.set(true));
-    for (i, t) in tools.iter().enumerate() {
+    for t in &tools {
         seen |= p.tick(t).events.0;
         seen |= p.tick(&bad).events.0;
         // a tick a millisecond, as a session ticks (the cut thread's queue holds a second)
