@@ -454,6 +454,14 @@ pub fn scalpel_at(seq: u64, tip_m: [f64; 3], end_m: [f64; 3], orientation: [f64;
     }
 }
 
+/// Decodes packed little-endian u32 values (triangles of frames and cut walls).
+pub fn u32s(bytes: &[u8]) -> Vec<u32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
 /// Decodes packed little-endian f32 values (frame positions and displacements).
 pub fn f32s(bytes: &[u8]) -> Vec<f32> {
     bytes

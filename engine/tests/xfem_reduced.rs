@@ -382,3 +382,79 @@ fn without_modes_the_local_fields_model_adds_the_same_compliance_and_bare_needs_
     }
     assert!(largest > 0.0, "the cut adds compliance at the top");
 }
+
+#[test]
+fn the_walls_a_viewer_draws_part_as_the_full_xfem_opens() {
+    // the patch cut down x = 4 through the top row (a cut on cell faces), 1 N down on a top
+    // node beside it: the picture's walls — the uncut response plus what the cut adds, and the
+    // opening on the copies — are the full XFEM's split mesh, to solver precision (the local
+    // fields are exact given the uncut response)
+    use vademecum_engine::pipeline::cutting::CutPicture;
+    let scene = Scene::builtin("patch").unwrap();
+    let b = built(&scene, 1e-4);
+    let m = &b.model;
+    let params = XfemParams::default();
+    let mut model = ReducedCut::new(
+        &m.mesh,
+        &m.materials,
+        m.locking,
+        &m.problem,
+        &[],
+        0,
+        RitzBasis::Srb,
+        Discontinuous::LocalFields,
+        &params,
+    )
+    .unwrap();
+    let cut = Cut::swept(&[([4.0, -0.1, 5.1], [4.0, 1.1, 5.1]), ([4.0, -0.1, 3.95], [4.0, 1.1, 3.95])]).unwrap();
+    let cells = Enrichment::cut_cells(&m.mesh, &cut, &params).unwrap();
+    model.cut(&m.mesh, &cells).unwrap();
+    let picture = CutPicture::new(0, 1, &m.mesh, &model);
+    let enr = model.enrichment().clone();
+    let walls = &picture.walls;
+    assert!(!walls.is_empty());
+    assert!(walls.vertices.iter().any(|v| v.copy.is_some()) && walls.vertices.iter().any(|v| v.copy.is_none()));
+    assert!(walls.triangles.iter().flatten().all(|&t| (t as usize) < walls.vertices.len()));
+    // the two walls of the face x = 4 of the top row, each two triangles, and the wedges of
+    // the crack front below it
+    let on_plane = walls.vertices.iter().all(|v| m.mesh.nodes[v.node][0] == 4.0);
+    assert!(on_plane, "every wall vertex lies in the cut's plane");
+    let a = (0..m.mesh.n_nodes()).find(|&a| m.mesh.nodes[a] == [3.0, 0.0, 5.0]).unwrap();
+    let force = [0.0, 0.0, -1.0];
+    let mut problem = m.problem.clone();
+    problem.forces.fill(0.0);
+    problem.forces[3 * a + 2] = -1.0;
+    let uncut = system::solve(&m.mesh, &m.materials, m.locking, &problem, &Enrichment::none(&m.mesh), &params).unwrap();
+    let full = system::solve(&m.mesh, &m.materials, m.locking, &problem, &enr, &params).unwrap();
+    let mut coeffs = vec![0.0; picture.view.dim()];
+    picture.view.added_response(&[a], &[1.0], force, &mut coeffs);
+    let u0: Vec<f64> = picture
+        .wall_nodes
+        .iter()
+        .flat_map(|&n| uncut.u[3 * n..3 * n + 3].to_vec())
+        .collect();
+    let mut drawn = Vec::new();
+    picture.wall_displacements(&coeffs, &u0, &mut drawn);
+    let scale = full.u.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+    let mut opening = 0.0f64;
+    for (v, d) in walls.vertices.iter().zip(drawn.chunks_exact(3)) {
+        let positive = match (enr.index(v.node), v.copy) {
+            (Some(k), None) => enr.own_positive[k],
+            (Some(k), Some(_)) => !enr.own_positive[k],
+            (None, _) => true,
+        };
+        let f = full.side_displacement(&enr, v.node, positive);
+        for i in 0..3 {
+            assert!(
+                (f64::from(d[i]) - f[i]).abs() <= 1e-6 * scale,
+                "node {} {:?}: {d:?} vs {f:?}",
+                v.node,
+                v.copy
+            );
+        }
+        if let Some(k) = enr.index(v.node) {
+            opening = opening.max((0..3).map(|i| full.q[3 * k + i].powi(2)).sum::<f64>().sqrt());
+        }
+    }
+    assert!(opening > 1e-3 * scale, "the load opens the cut: {opening} against {scale}");
+}

@@ -110,8 +110,17 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
         organs: f
             .displacements_m
             .iter()
-            .map(|d| pb::OrganDisplacement {
+            .zip(&f.cuts)
+            .map(|(d, cut)| pb::OrganDisplacement {
                 displacements: f32_bytes(d.iter().copied()),
+                cut: cut.as_ref().map(|c| pb::CutWalls {
+                    revision: c.revision,
+                    vertex_count: c.side.len() as u32,
+                    positions: f32_bytes(c.positions_m.iter().copied()),
+                    triangles: c.triangles.iter().flat_map(|t| t.to_le_bytes()).collect(),
+                    side: c.side.to_vec(),
+                    displacements: f32_bytes(c.displacements_m.iter().copied()),
+                }),
             })
             .collect(),
         force_n: Some(pb_vec3(f.force_n)),

@@ -498,6 +498,25 @@ impl ReducedCut {
         }
     }
 
+    /// For each enriched node (in [`Enrichment::nodes`] order), the index among the enriched
+    /// unknowns of each component of its opening `q` (`None` where the degree of freedom is
+    /// held): the order [`fields`](Self::fields) reads them in.
+    pub fn opening_unknowns(&self) -> Vec<[Option<usize>; 3]> {
+        let mut e = 0;
+        self.enr
+            .nodes
+            .iter()
+            .map(|&a| {
+                std::array::from_fn(|i| {
+                    DofMap::eq(&self.online.dofs, 3 * a + i).map(|_| {
+                        e += 1;
+                        e - 1
+                    })
+                })
+            })
+            .collect()
+    }
+
     /// The 3×3 compliance of the cut organ at a load patch ([`CutView::contact_compliance`]).
     pub fn contact_compliance(&mut self, nodes: &[usize], weights: &[f64]) -> [[f64; 3]; 3] {
         self.online.contact_compliance(nodes, weights)
@@ -555,6 +574,62 @@ impl CutView {
             add(&mut c, &self.ritz_part(nodes, weights), -1.0);
         }
         c
+    }
+
+    /// What the cut adds to the uncut Ritz model's response to a force `f` (N) spread over a
+    /// load patch (`nodes` with `weights` summing to one), as coefficients `[β − β₀; q]`
+    /// (`out.len() = dim`), `β₀ = X_pᵀ f` the uncut answer: bare, the bordered solve minus
+    /// `β₀`; with local fields `β = β₀` and only the openings `q = S⁻¹ W_pᵀ f` remain.
+    /// The displacement it adds is [`added_displacement`](Self::added_displacement) on each
+    /// node's own side, plus `s q` on the other side of an enriched node. The frame thread's
+    /// picture of the opening; no allocation.
+    pub fn added_response(&self, nodes: &[usize], weights: &[f64], f: [f64; 3], out: &mut [f64]) {
+        let nb = self.nb;
+        out.fill(0.0);
+        let rhs = |out: &mut [f64], sign: f64, ritz: bool, local: bool| {
+            for (&a, &w) in nodes.iter().zip(weights) {
+                for (i, fi) in f.iter().enumerate() {
+                    let Some(e) = DofMap::eq(&self.dofs, 3 * a + i) else { continue };
+                    let fi = sign * w * fi;
+                    if ritz {
+                        for (o, xv) in out[..nb].iter_mut().zip(&self.x[e * nb..(e + 1) * nb]) {
+                            *o += fi * xv;
+                        }
+                    }
+                    if local {
+                        for (o, col) in out[nb..].iter_mut().zip(&self.w) {
+                            *o += fi * col[e];
+                        }
+                    }
+                }
+            }
+        };
+        match self.disc {
+            Discontinuous::Bare => {
+                rhs(out, 1.0, true, false);
+                self.factor.solve_in_place(out);
+                rhs(out, -1.0, true, false);
+            }
+            Discontinuous::LocalFields => {
+                rhs(out, 1.0, false, true);
+                self.factor.solve_in_place(&mut out[nb..]);
+            }
+        }
+    }
+
+    /// The displacement (m) the cut adds at node `a` on its own side, for coefficients from
+    /// [`added_response`](Self::added_response): `X_a (β − β₀) + W_a q` (the second term with
+    /// local fields only; zero at a held degree of freedom).
+    pub fn added_displacement(&self, coeffs: &[f64], a: usize) -> [f64; 3] {
+        let nb = self.nb;
+        std::array::from_fn(|i| {
+            let Some(e) = DofMap::eq(&self.dofs, 3 * a + i) else { return 0.0 };
+            let mut u: f64 = self.x[e * nb..(e + 1) * nb].iter().zip(&coeffs[..nb]).map(|(p, q)| p * q).sum();
+            if self.disc == Discontinuous::LocalFields {
+                u += self.w.iter().zip(&coeffs[nb..]).map(|(col, q)| col[e] * q).sum::<f64>();
+            }
+            u
+        })
     }
 
     /// `Φ_X Φ_Xᵀ` at the patch, from the rows of X̂ (K-orthonormal: the uncut Ritz compliance).

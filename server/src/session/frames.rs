@@ -11,6 +11,7 @@ use vademecum_engine::contact::Bounds;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pgd::vademecum::NodeMajorField;
 use vademecum_engine::pipeline::Contact;
+use vademecum_engine::pipeline::cutting::{CutPicture, CutStatus};
 use vademecum_engine::scene::Scene;
 
 use super::stats::TickStats;
@@ -92,6 +93,24 @@ pub struct Frame {
     /// Per organ, the displacement (m) of its surface nodes, 3 per node, in
     /// [`OrganSurface::nodes`] order.
     pub displacements_m: Vec<Vec<f32>>,
+    /// Per organ, the walls of its cut with their displacements (`None`: not cut).
+    pub cuts: Vec<Option<CutFrame>>,
+}
+
+/// The walls of an organ's cut in one frame ([`CutWalls`](vademecum_engine::xfem::view::CutWalls)):
+/// both sides of every opening, each vertex a node on one side.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CutFrame {
+    /// The cut's revision (changes when the cut grows, and with it the walls).
+    pub revision: u64,
+    /// Reference position of every vertex (m), 3 per vertex.
+    pub positions_m: Arc<[f32]>,
+    /// Triangles, 3 vertex indices each, facing into the opening.
+    pub triangles: Arc<[u32]>,
+    /// Per vertex, 0 for its node's own side, 1 for the other side (the copy).
+    pub side: Arc<[u8]>,
+    /// Displacement of every vertex (m), 3 per vertex.
+    pub displacements_m: Vec<f32>,
 }
 
 impl Frame {
@@ -104,12 +123,35 @@ impl Frame {
             force_n: [0.0; 3],
             contact: None,
             displacements_m: g.organs.iter().map(|o| vec![0.0; 3 * o.nodes.len()]).collect(),
+            cuts: vec![None; g.organs.len()],
+        }
+    }
+}
+
+/// The geometry of the walls of one revision of a cut (kept between frames).
+struct WallGeometry {
+    revision: u64,
+    positions_m: Arc<[f32]>,
+    triangles: Arc<[u32]>,
+    side: Arc<[u8]>,
+}
+
+impl WallGeometry {
+    fn of(p: &CutPicture, nodes: &[[f64; 3]]) -> Self {
+        let v = &p.walls.vertices;
+        Self {
+            revision: p.revision,
+            positions_m: v.iter().flat_map(|w| nodes[w.node].map(|x| x as f32)).collect(),
+            triangles: p.walls.triangles.iter().flatten().copied().collect(),
+            side: v.iter().map(|w| u8::from(w.copy.is_some())).collect(),
         }
     }
 }
 
 pub(super) struct FrameProducer {
     bundles: Vec<Arc<LoadedBundle>>,
+    cut: Option<Arc<CutStatus>>,
+    walls: Option<WallGeometry>,
     fields: Vec<NodeMajorField>,
     geometry: Arc<SurfaceGeometry>,
     latest: triple_buffer::Output<Latest>,
@@ -131,6 +173,7 @@ impl FrameProducer {
         stop: Arc<AtomicBool>,
         rate_hz: f64,
         period: Duration,
+        cut: Option<Arc<CutStatus>>,
     ) -> Self {
         let fields = bundles
             .iter()
@@ -140,6 +183,8 @@ impl FrameProducer {
         let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
         Self {
             bundles,
+            cut,
+            walls: None,
             fields,
             geometry,
             latest,
@@ -156,6 +201,7 @@ impl FrameProducer {
         let mut seq = 0u64;
         let mut coeffs: Vec<Vec<f64>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
         let mut c32: Vec<Vec<f32>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
+        let (mut cut_coeffs, mut uncut) = (Vec::new(), Vec::new());
         let mut next = Instant::now();
         while !self.stop.load(Ordering::Relaxed) {
             let now = Instant::now();
@@ -179,6 +225,7 @@ impl FrameProducer {
             frame.time_s = l.time_us as f64 * 1e-6;
             frame.force_n = l.state.force_n;
             frame.contact = l.state.contact;
+            let mut loaded = None;
             if let Some(c) = l.state.contact {
                 let v = &self.bundles[c.organ].vademecum;
                 // the deformable tissue's part of the load (the rest goes into the support)
@@ -187,10 +234,50 @@ impl FrameProducer {
                         *a = *b as f32;
                     }
                     self.fields[c.organ].eval(&c32[c.organ], &mut frame.displacements_m[c.organ]);
+                    loaded = Some(c);
                 }
+            }
+            if let Some(p) = self.cut.as_ref().and_then(|s| s.picture()) {
+                self.draw_cut(&p, loaded, &coeffs, &mut cut_coeffs, &mut uncut, &mut frame);
             }
             self.tx.send_replace(Arc::new(frame));
             self.stats.frames.fetch_add(1, Ordering::Relaxed);
         }
+    }
+
+    /// Adds the cut of picture `p` to `frame`: what it moves the organ's surface by, and its
+    /// walls, displaced, under the contact `loaded` (the vademecum's coefficients `coeffs`).
+    fn draw_cut(
+        &mut self,
+        p: &CutPicture,
+        loaded: Option<Contact>,
+        coeffs: &[Vec<f64>],
+        cut_coeffs: &mut Vec<f64>,
+        uncut: &mut Vec<f64>,
+        frame: &mut Frame,
+    ) {
+        let o = p.organ;
+        if o >= self.bundles.len() {
+            return;
+        }
+        if self.walls.as_ref().is_none_or(|w| w.revision != p.revision) {
+            self.walls = Some(WallGeometry::of(p, &self.bundles[o].nodes));
+        }
+        let Some(w) = &self.walls else { return };
+        let mut displacements_m = vec![0.0; w.positions_m.len()];
+        if let Some(c) = loaded.filter(|c| c.organ == o) {
+            uncut.resize(3 * p.wall_nodes.len(), 0.0);
+            self.bundles[o].vademecum.field_at(&coeffs[o], &p.wall_nodes, uncut);
+            p.response(&c, cut_coeffs);
+            p.add_to(cut_coeffs, &self.geometry.organs[o].nodes, &mut frame.displacements_m[o]);
+            p.wall_displacements(cut_coeffs, uncut, &mut displacements_m);
+        }
+        frame.cuts[o] = Some(CutFrame {
+            revision: w.revision,
+            positions_m: w.positions_m.clone(),
+            triangles: w.triangles.clone(),
+            side: w.side.clone(),
+            displacements_m,
+        });
     }
 }

@@ -323,6 +323,7 @@ impl Session {
             stop.clone(),
             config.frame_rate_hz,
             config.period,
+            cut.clone(),
         );
         let frame_thread = std::thread::Builder::new()
             .name(format!("frames-{id}"))
