@@ -26,7 +26,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use hdrhistogram::Histogram;
-use vademecum_proto::shm::{self, BridgeReport, HapticCommand, HapticState, STATE_ADJUSTED, TOOL_PROBE};
+use vademecum_proto::shm::{self, BridgeReport, HapticCommand, HapticState, STATE_ADJUSTED, TOOL_PROBE, TOOL_SCALPEL};
 
 use crate::device::{Device, DeviceError};
 use crate::guard::{ForceGuard, InputGuard, watchdog_scale};
@@ -68,8 +68,9 @@ pub struct BridgeParams {
     pub profile: DeviceProfile,
     /// Device frame → organ frame.
     pub frame: FrameMap,
-    /// Tool kind sent ([`TOOL_PROBE`] …).
-    pub tool: u32,
+    /// Tool kind sent ([`TOOL_PROBE`] …); `None`: a scalpel while the device reports a blade,
+    /// else a probe.
+    pub tool: Option<u32>,
     /// Before the loop starts (its buffers allocated): touch the stack and lock the
     /// process's memory in RAM ([`timing::lock_memory`]), so no tick takes a page fault.
     pub lock_memory: bool,
@@ -91,7 +92,7 @@ impl Default for BridgeParams {
             report_every: 250,
             profile: DeviceProfile::SIM,
             frame: FrameMap::default(),
-            tool: TOOL_PROBE,
+            tool: None,
             lock_memory: true,
             hold_wake_latency: true,
         }
@@ -330,7 +331,9 @@ fn run_inner<D: Device + ?Sized, L: Link>(
             position_m: p.frame.to_organ(x_dev),
             velocity_m_s: velocity,
             closure,
-            tool: p.tool,
+            tool: p
+                .tool
+                .unwrap_or(if reading.blade_end_m.is_some() { TOOL_SCALPEL } else { TOOL_PROBE }),
             flags: if verdict.adjusted() { STATE_ADJUSTED } else { 0 },
             orientation,
             blade_end_m: p.frame.to_organ(blade_end),

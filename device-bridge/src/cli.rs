@@ -50,6 +50,12 @@ struct Args {
     /// `out/<scene>/run/trajectory.csv`.
     #[arg(long, value_name = "CSV")]
     script: Option<PathBuf>,
+    /// The tool sent to the session: `auto` (a scalpel while the device reports a blade — a
+    /// script with the blade columns bx_m,by_m,bz_m,qw,qx,qy,qz — else a probe), `probe`,
+    /// `scalpel` or `grasper`. The session clamps the force to the tool's own `max_force`
+    /// (SessionInfo.tools), then the bridge to the device profile's limit.
+    #[arg(long, value_enum, default_value_t = ToolArg::Auto)]
+    tool: ToolArg,
     /// Device profile: its force limit, force-rate limit, speed limit and workspace
     /// (sim, falcon, touch, omega3).
     #[arg(long, default_value = "sim", value_parser = profile_name)]
@@ -64,11 +70,11 @@ struct Args {
     #[arg(long, allow_negative_numbers = true, value_name = "M_PER_S")]
     max_speed: Option<f64>,
     /// Override the profile's workspace, device frame (m): `xmin,ymin,zmin,xmax,ymax,zmax`.
-    #[arg(long, value_name = "BOX", value_delimiter = ',', num_args = 6)]
-    workspace: Option<Vec<f64>>,
+    #[arg(long, value_name = "BOX", allow_hyphen_values = true, value_parser = numbers::<6>)]
+    workspace: Option<[f64; 6]>,
     /// Where the device origin lies in the organ frame (m): `x,y,z`.
-    #[arg(long, value_name = "XYZ", value_delimiter = ',', num_args = 3, default_values_t = [0.0, 0.0, 0.0])]
-    origin: Vec<f64>,
+    #[arg(long, value_name = "XYZ", allow_hyphen_values = true, value_parser = numbers::<3>, default_value = "0,0,0")]
+    origin: [f64; 3],
     /// Motion scaling, organ metres per device metre.
     #[arg(long, default_value_t = 1.0)]
     scale: f64,
@@ -124,10 +130,42 @@ struct Args {
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ToolArg {
+    Auto,
+    Probe,
+    Scalpel,
+    Grasper,
+}
+
+impl ToolArg {
+    /// The shared-memory tool kind (`None`: decided by the device's blade).
+    fn kind(self) -> Option<u32> {
+        match self {
+            ToolArg::Auto => None,
+            ToolArg::Probe => Some(shm::TOOL_PROBE),
+            ToolArg::Scalpel => Some(shm::TOOL_SCALPEL),
+            ToolArg::Grasper => Some(shm::TOOL_GRASPER),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum DeviceKind {
     Sim,
     Replay,
     Null,
+}
+
+/// `N` comma-separated finite numbers (`--origin x,y,z`, `--workspace xmin,…,zmax`).
+fn numbers<const N: usize>(s: &str) -> Result<[f64; N], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != N || !v.iter().all(|x| x.is_finite()) {
+        return Err(format!("expected {N} finite numbers separated by commas, got {s:?}"));
+    }
+    Ok(std::array::from_fn(|k| v[k]))
 }
 
 fn profile_name(s: &str) -> Result<String, String> {
@@ -276,11 +314,12 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
         trace_limit: if a.record.is_some() { a.record_limit } else { 0 },
         profile: profile.clone(),
         frame: FrameMap {
-            origin_m: [a.origin[0], a.origin[1], a.origin[2]],
+            origin_m: a.origin,
             scale: a.scale,
             force_scale: a.force_scale,
         },
         hold_wake_latency: !a.no_wake_latency,
+        tool: a.tool.kind(),
         ..BridgeParams::default()
     };
     eprintln!(
@@ -414,5 +453,31 @@ mod tests {
         assert!(e.to_string().contains("falcon"), "{e}");
         let a = Args::try_parse_from(["b", "--session", "x", "--device", "null", "--max-force=-1"]).unwrap();
         assert!(profile_of(&a).unwrap_err().to_string().contains("force limit"));
+    }
+
+    #[test]
+    fn origin_and_workspace_take_comma_separated_numbers_negative_ones_too() {
+        let a = Args::try_parse_from([
+            "b",
+            "--session",
+            "x",
+            "--origin",
+            "-0.1,0.2,-3",
+            "--workspace",
+            "-20,-20,-20,20,20,20",
+        ])
+        .unwrap();
+        assert_eq!(a.origin, [-0.1, 0.2, -3.0]);
+        let p = profile_of(&a).unwrap();
+        assert_eq!((p.workspace.min_m, p.workspace.max_m), ([-20.0; 3], [20.0; 3]));
+        assert_eq!(Args::try_parse_from(["b", "--session", "x"]).unwrap().origin, [0.0; 3]);
+        for bad in ["1,2", "1,2,3,4", "1,x,3", "1,NaN,3"] {
+            let e = Args::try_parse_from(["b", "--session", "x", "--origin", bad]).unwrap_err();
+            assert!(
+                e.to_string().contains("3 finite numbers") || e.to_string().contains("not a number"),
+                "{e}"
+            );
+        }
+        assert!(Args::try_parse_from(["b", "--session", "x", "--workspace", "0,0,0,1,1"]).is_err());
     }
 }

@@ -196,3 +196,30 @@ fn a_palpation_scene_carries_no_cutting_and_cutting_scenes_need_a_linear_organ_a
     let e = Pipeline::for_scene(&cornea, &[b]).unwrap_err();
     assert!(e.to_string().contains("another mesh"), "{e}");
 }
+
+#[test]
+fn the_scalpels_force_is_clamped_to_its_max_force() {
+    // the patch_cut scene with a scalpel that renders at most 0.5 N: pressed 0.6 m into the
+    // top (a force of several newtons on this soft patch), the force keeps its direction,
+    // its magnitude is the limit and the tick is flagged
+    let text = Scene::builtin("patch_cut")
+        .unwrap()
+        .source
+        .replace("cut_force = 1.0", "cut_force = 1.0\nmax_force = 0.5");
+    assert!(text.contains("max_force = 0.5"));
+    let scene = Scene::from_toml(&text, "patch_cut_limited.toml").unwrap();
+    let mut limited = Pipeline::for_scene(&scene, &[bundle(&scene)]).unwrap();
+    let mut free = patch_cut();
+    let (mut a, mut b) = (TickState::default(), TickState::default());
+    for i in 0..=70 {
+        let tool = blade(5.1 - 0.01 * f64::from(i), FLAT);
+        (a, b) = (limited.tick(&tool), free.tick(&tool));
+    }
+    assert!(norm(b.force_n) > 1.0, "the unclamped force: {:?}", b.force_n);
+    assert!((norm(a.force_n) - 0.5).abs() < 1e-12, "{:?}", a.force_n);
+    assert!(a.events.0 & Events::FORCE_SATURATED != 0 && b.events.0 & Events::FORCE_SATURATED == 0);
+    let cos = (0..3).map(|k| a.force_n[k] * b.force_n[k]).sum::<f64>() / (norm(a.force_n) * norm(b.force_n));
+    assert!((cos - 1.0).abs() < 1e-12);
+    // and the scene says so
+    assert!(Scene::from_toml(&text.replace("max_force = 0.5", "max_force = 500.0"), "x.toml").is_err());
+}

@@ -176,10 +176,11 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
 /// What a client needs to know of a scene's tool.
 fn tool_info(t: &ToolSpec) -> pb::ToolInfo {
     use vademecum_engine::pipeline::SCALPEL_TIP_FRACTION;
-    use vademecum_engine::scene::schema::GLOBAL_FORCE_LIMIT_N;
     let (kind, radius_m, max_force_n) = match t {
         ToolSpec::Probe { radius, max_force, .. } => (pb::ToolKind::Probe, *radius, *max_force),
-        ToolSpec::Scalpel { blade_length, .. } => (pb::ToolKind::Scalpel, SCALPEL_TIP_FRACTION * blade_length, GLOBAL_FORCE_LIMIT_N),
+        ToolSpec::Scalpel {
+            blade_length, max_force, ..
+        } => (pb::ToolKind::Scalpel, SCALPEL_TIP_FRACTION * blade_length, *max_force),
         ToolSpec::Grasper { max_force, .. } => (pb::ToolKind::Grasper, 0.0, *max_force),
     };
     let (blade_length_m, cut_force_n) = match t {

@@ -225,6 +225,49 @@ fn bad_device_samples_are_clamped_counted_and_never_become_a_force_spike() {
     assert!(assert_forces_match_engine(&rows, 0..rows.len(), &mut engine) > 500);
 }
 
+#[test]
+fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
+    // `vademecum run --haptic` on patch_cut writes its scripted incision (with the blade's
+    // columns) as the hand script; the bridge's simulated stylus plays it: the blade state
+    // crosses shared memory, the session cuts, and every force the device renders stays
+    // within the scalpel's and the device's limits
+    let dir = tempfile::tempdir().unwrap();
+    let ch = channel("scalpel");
+    let record = dir.path().join("run");
+    let mut server = HapticRun::start_with("patch_cut", &ch, &record, &["--builtin", "patch_cut", "--duration", "12"]);
+    let script = std::fs::read_to_string(record.join("trajectory.csv")).unwrap();
+    assert!(script.lines().next().unwrap().contains("bx_m"), "the hand script carries the blade");
+    let trace = dir.path().join("trace.csv");
+    // the patch is metres wide: the device's workspace and hand speed widened to it
+    let out = Command::new(bridge_bin())
+        .args(["--session", &ch, "--device", "sim", "--no-realtime", "--json", "--max-speed", "50"])
+        .args(["--workspace=-20,-20,-20,20,20,20", "--script"])
+        .arg(record.join("trajectory.csv"))
+        .arg("--record")
+        .arg(&trace)
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", out.status);
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["end"], "end of script", "{s}");
+    let status = server.child.wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(record.join("summary.json")).unwrap()).unwrap();
+    let cut = &summary["cut"];
+    assert!(cut["cells"].as_u64().unwrap() >= 1, "the blade cut the patch: {summary}");
+    assert!(
+        cut["cracked_nodes"].as_u64().unwrap() >= 4 && cut["path_mm"].as_f64().unwrap() > 0.0,
+        "{summary}"
+    );
+    assert_eq!(summary["rejected_inputs"], 0, "every blade state was a blade: {summary}");
+    let rows = read_trace(&trace);
+    assert!(rows.iter().filter(|r| r.fresh).count() > 1000);
+    // the scalpel's limit (the scene's default, 50 N) and the sim device's (10 N)
+    assert!(rows.iter().all(|r| norm(r.output_n) <= 10.0 + 1e-9));
+    assert!(rows.iter().any(|r| norm(r.received_n) > 0.05), "the blade pressed on the tissue");
+}
+
 /// Scrapes `GET /metrics` from `addr`.
 fn scrape(addr: &str) -> String {
     use std::io::{Read, Write};

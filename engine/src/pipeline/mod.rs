@@ -241,6 +241,8 @@ pub struct Pipeline {
     /// The force limit (N): the probe's `max_force`, or the global limit in a scene without
     /// a probe.
     max_force_n: f64,
+    /// The scalpel's force limit (N): its `max_force`.
+    scalpel_max_force_n: f64,
     /// Where tool positions are accepted: the organs' bounding box grown by
     /// [`WORKSPACE_MARGIN_M`].
     workspace: crate::contact::Bounds,
@@ -339,6 +341,10 @@ impl Pipeline {
         Ok(Self {
             effects,
             max_force_n: probe.map_or(GLOBAL_FORCE_LIMIT_N, |p| p.1).clamp(0.0, GLOBAL_FORCE_LIMIT_N),
+            scalpel_max_force_n: scene
+                .spec
+                .scalpel_max_force()
+                .map_or(GLOBAL_FORCE_LIMIT_N, |f| f.clamp(0.0, GLOBAL_FORCE_LIMIT_N)),
             workspace,
             probe: probe.is_some(),
             blade_length_m: scalpel.filter(|_| fx.cutting).map(|s| s.0),
@@ -399,7 +405,7 @@ impl Pipeline {
     /// [`ToolInput::is_valid`]; a position outside [`Pipeline::workspace`]), or a tool kind
     /// the scene does not simulate, gives zero force and the `REJECTED_INPUT` event, and
     /// no effect sees it (the contact carried from the last tick is kept). A force larger
-    /// than the probe's `max_force` is scaled down to it (direction kept) and flagged
+    /// than the tool's `max_force` (probe or scalpel) is scaled down to it (direction kept) and flagged
     /// `FORCE_SATURATED`; a non-finite one becomes zero. A scalpel state whose blade is not
     /// one (zero length, longer than [`MAX_BLADE_EDGE`] blade lengths, no plane) is rejected
     /// the same way.
@@ -421,7 +427,7 @@ impl Pipeline {
         }
         let norm = state.force_n.iter().map(|x| x * x).sum::<f64>().sqrt();
         let limit = if tool.kind == ToolKind::Scalpel {
-            GLOBAL_FORCE_LIMIT_N
+            self.scalpel_max_force_n
         } else {
             self.max_force_n
         };

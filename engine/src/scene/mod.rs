@@ -236,14 +236,17 @@ impl Scene {
                     positive(*radius) && positive(*max_force) && *max_force <= schema::GLOBAL_FORCE_LIMIT_N
                 }
                 ToolSpec::Scalpel {
-                    blade_length, cut_force, ..
-                } => positive(*blade_length) && positive(*cut_force),
+                    blade_length,
+                    cut_force,
+                    max_force,
+                    ..
+                } => positive(*blade_length) && positive(*cut_force) && positive(*max_force) && *max_force <= schema::GLOBAL_FORCE_LIMIT_N,
                 ToolSpec::Grasper { jaw_width, max_force, .. } => positive(*jaw_width) && positive(*max_force),
             };
             if !ok {
                 return Err(self.error_at(
                     &at,
-                    "tool dimensions and forces must be positive numbers (a probe's max_force at most 100 N)",
+                    "tool dimensions and forces must be positive numbers (a probe's or a scalpel's max_force at most 100 N)",
                 ));
             }
         }

@@ -359,6 +359,11 @@ pub enum ToolSpec {
         blade_length: f64,
         /// Force on the blade plane above which tissue is cut (N).
         cut_force: f64,
+        /// Largest force the scalpel renders (N), as a probe's `max_force`: the session
+        /// clamps the force's magnitude to it and flags the tick `FORCE_SATURATED`; the
+        /// device bridge then applies its device's own limit. At most [`GLOBAL_FORCE_LIMIT_N`].
+        #[serde(default = "default_probe_max_force")]
+        max_force: f64,
     },
     /// A grasper.
     Grasper {
@@ -372,6 +377,14 @@ pub enum ToolSpec {
 }
 
 impl SceneFile {
+    /// The first scalpel's force limit (N), if the scene has a scalpel.
+    pub fn scalpel_max_force(&self) -> Option<f64> {
+        self.tools.iter().find_map(|t| match t {
+            ToolSpec::Scalpel { max_force, .. } => Some(*max_force),
+            _ => None,
+        })
+    }
+
     /// The first scalpel's blade length (m) and cut force (N), if the scene has a scalpel.
     pub fn scalpel(&self) -> Option<(f64, f64)> {
         self.tools.iter().find_map(|t| match t {

@@ -142,10 +142,17 @@ pub struct HapticRun {
 }
 
 impl HapticRun {
-    /// Starts it and waits (at most 120 s) for its "haptic channel … open" line.
+    /// Starts it on the built-in organ and waits (at most 120 s) for its "haptic channel …
+    /// open" line.
     pub fn start(channel: &str, record: &Path, extra: &[&str]) -> Self {
+        Self::start_with("organ", channel, record, extra)
+    }
+
+    /// [`start`](Self::start) with the bundles of folder `bundles` (of [`bundles`]; `extra`
+    /// names the scene when it is not the organ).
+    pub fn start_with(bundles_dir: &str, channel: &str, record: &Path, extra: &[&str]) -> Self {
         let mut child = Command::new(vademecum_bin())
-            .args(["run", "--bundles", "organ", "--haptic", channel, "--record"])
+            .args(["run", "--bundles", bundles_dir, "--haptic", channel, "--record"])
             .arg(record)
             .args(extra)
             .current_dir(bundles())

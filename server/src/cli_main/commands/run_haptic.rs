@@ -33,6 +33,19 @@ struct Summary {
     tick_work_us: Percentiles,
     read_to_answer_us: Percentiles,
     bridge: Option<BridgeSnapshot>,
+    /// What the scalpel cut (cutting scenes).
+    cut: Option<HapticCut>,
+}
+
+/// What the cut thread of a cutting session did.
+#[derive(Debug, Serialize)]
+struct HapticCut {
+    cells: u64,
+    cracked_nodes: u64,
+    blade_states: u64,
+    refused: u64,
+    overwritten: u64,
+    path_mm: f64,
 }
 
 pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, record: &Path) -> anyhow::Result<ExitCode> {
@@ -82,6 +95,14 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
         }
         seen = n;
     }
+    let cut = session.cut_status().map(|c| HapticCut {
+        cells: c.cells.load(Ordering::Relaxed),
+        cracked_nodes: c.nodes.load(Ordering::Relaxed),
+        blade_states: c.steps.load(Ordering::Relaxed),
+        refused: c.refused.load(Ordering::Relaxed),
+        overwritten: c.overwritten.load(Ordering::Relaxed),
+        path_mm: c.path_um.load(Ordering::Relaxed) as f64 * 1e-3,
+    });
     let stats = session.close();
     let s = Summary {
         scene: scene.spec.scene.name.clone(),
@@ -96,6 +117,7 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
         tick_work_us: stats.work_us,
         read_to_answer_us: stats.haptic_us,
         bridge: stats.bridge,
+        cut,
     };
     std::fs::write(record.join("summary.json"), serde_json::to_string_pretty(&s)?)
         .with_context(|| format!("cannot write {}", record.join("summary.json").display()))?;
@@ -122,6 +144,13 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
     )?;
     writeln!(out, "  device read -> force published   {}", p(&s.read_to_answer_us))?;
     writeln!(out, "  tick work                        {}", p(&s.tick_work_us))?;
+    if let Some(c) = &s.cut {
+        writeln!(
+            out,
+            "  cut: {} cells, {} cracked nodes, blade path {:.1} mm while cutting ({} blade states, {} refused)",
+            c.cells, c.cracked_nodes, c.path_mm, c.blade_states, c.refused
+        )?;
+    }
     match &s.bridge {
         Some(b) => writeln!(
             out,
