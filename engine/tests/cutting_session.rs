@@ -223,3 +223,56 @@ fn the_scalpels_force_is_clamped_to_its_max_force() {
     // and the scene says so
     assert!(Scene::from_toml(&text.replace("max_force = 0.5", "max_force = 500.0"), "x.toml").is_err());
 }
+
+#[test]
+fn a_bundle_stores_the_basis_bare_enrichment_needs_and_old_bundles_still_load() {
+    use vademecum_engine::bundle;
+    // bare enrichment needs the K-orthonormal Ritz basis: the build stores it (bundle
+    // version 2), the session takes it from there, and the model is the one computed from
+    // the modes
+    let text = Scene::builtin("patch_cut").unwrap().source.replace(
+        "[fidelity]\nlocking = \"none\"",
+        "[fidelity]\nlocking = \"none\"\n\n[fidelity.xfem]\ndiscontinuous = \"bare\"\nbasis = \"prb\"",
+    );
+    assert!(text.contains("\"bare\""));
+    let scene = Scene::from_toml(&text, "patch_cut_bare.toml").unwrap();
+    let built = offline::build_organ(&scene, 0, &BuildOptions::for_scene(&scene, true), &mut |_| {}).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = offline::write_bundle(dir.path(), &scene, &built).unwrap();
+    assert_eq!(manifest.version, bundle::VERSION);
+    assert_eq!(manifest.info["cut"]["discontinuous"], "bare");
+    let size = manifest.info["cut"]["basis_size"].as_u64().unwrap() as usize;
+    assert!(size > 0 && size <= built.vademecum.modes());
+    let loaded = offline::load_bundle(dir.path()).unwrap();
+    let stored = loaded.cut_basis.clone().expect("the bundle holds the basis");
+    assert_eq!((stored.size, stored.x.len() % size), (size, 0));
+    assert_eq!(stored.x, built.cut_basis.as_ref().unwrap().x, "stored exactly (f64)");
+    // a session on it cuts (the basis from the bundle)
+    let mut p = Pipeline::for_scene(&scene, &[Arc::new(loaded)]).unwrap();
+    let status = p.cut_status().unwrap();
+    let down = |z: f64| blade(z, UPRIGHT);
+    for i in 0..=120 {
+        p.tick(&down(5.1 - 0.01 * f64::from(i)));
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let seen = hold(&mut p, &down(3.9), |_| status.cells.load(Relaxed) > 0);
+    assert!(status.cells.load(Relaxed) > 0 && seen.iter().all(|s| s.force_n.iter().all(|f| f.is_finite())));
+
+    // the palpation scene's bundle has no cutting section; rewritten as version 1 (what
+    // earlier builds wrote) it still loads; a version from the future is refused, saying so
+    let palp = Scene::builtin("patch").unwrap();
+    let b = offline::build_organ(&palp, 0, &BuildOptions::for_scene(&palp, true), &mut |_| {}).unwrap();
+    assert!(b.report.cut.is_none() && b.cut_basis.is_none());
+    let old = tempfile::tempdir().unwrap();
+    offline::write_bundle(old.path(), &palp, &b).unwrap();
+    let path = old.path().join(bundle::MANIFEST);
+    let m = std::fs::read_to_string(&path).unwrap();
+    let v2 = format!("\"version\": {}", bundle::VERSION);
+    assert!(m.contains(&v2), "{m}");
+    std::fs::write(&path, m.replace(&v2, "\"version\": 1")).unwrap();
+    let l = offline::load_bundle(old.path()).unwrap();
+    assert!(l.cut_basis.is_none() && l.manifest.version == 1);
+    std::fs::write(&path, m.replace(&v2, "\"version\": 99")).unwrap();
+    let e = offline::load_bundle(old.path()).unwrap_err().to_string();
+    assert!(e.contains("version 99") && e.contains("rebuild"), "{e}");
+}

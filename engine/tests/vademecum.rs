@@ -186,7 +186,11 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
     // another format version
     let m = dir.join("manifest.json");
     let text = std::fs::read_to_string(&m).unwrap();
-    std::fs::write(&m, text.replacen("\"version\": 1", "\"version\": 99", 1)).unwrap();
+    std::fs::write(
+        &m,
+        text.replacen(&format!("\"version\": {}", vademecum_engine::bundle::VERSION), "\"version\": 99", 1),
+    )
+    .unwrap();
     let e = offline::load_bundle(&dir).unwrap_err();
     assert!(matches!(e, BundleError::Version { found: 99, .. }), "{e}");
     // not a bundle at all

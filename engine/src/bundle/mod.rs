@@ -21,8 +21,15 @@ use sha2::{Digest, Sha256};
 
 /// The `format` field of every manifest.
 pub const FORMAT: &str = "vademecum-bundle";
-/// The manifest version this build writes and reads.
-pub const VERSION: u32 = 1;
+/// The manifest version this build writes.
+///
+/// - 1: the vademecum (modes, load patches, local compliances, the large-deformation
+///   lattice).
+/// - 2: adds what a cutting session needs that the modes do not give (`cut_basis`, for bare
+///   enrichment). Version 1 bundles still load: they have none of it.
+pub const VERSION: u32 = 2;
+/// The oldest manifest version this build reads.
+pub const OLDEST_VERSION: u32 = 1;
 /// The manifest's file name.
 pub const MANIFEST: &str = "manifest.json";
 
@@ -52,7 +59,7 @@ pub enum BundleError {
         why: String,
     },
     /// The bundle was written by another format version.
-    #[error("{path}: bundle format version {found}, this build reads version {supported}; rebuild it with `vademecum build`")]
+    #[error("{path}: bundle format version {found}, this build reads versions 1 to {supported}; rebuild it with `vademecum build`")]
     Version {
         /// The manifest.
         path: PathBuf,
@@ -265,7 +272,7 @@ pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
         });
     }
     let found = raw.get("version").and_then(|v| v.as_u64()).unwrap_or(0) as u32;
-    if found != VERSION {
+    if !(OLDEST_VERSION..=VERSION).contains(&found) {
         return Err(BundleError::Version {
             path,
             found,

@@ -21,6 +21,7 @@ use crate::rom::study::StudyError;
 use crate::scene::schema::DeformationModel;
 use crate::scene::{OrganModel, Scene, SceneError};
 use crate::solve::{self, Cholesky, SolveError};
+use crate::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
 
 /// The bundle kind written here.
 pub const KIND: &str = "pgd-linear";
@@ -92,6 +93,8 @@ pub enum BuildStage {
     Exact(usize, usize),
     /// Large-deformation lattice positions done out of total.
     Lattice(usize, usize),
+    /// The Ritz basis of a cutting session.
+    CutBasis,
 }
 
 /// Why a build failed.
@@ -119,6 +122,9 @@ pub enum BuildError {
     /// The large-deformation lattice could not be built.
     #[error("large-deformation lattice: {0}")]
     Large(#[from] StudyError),
+    /// The cutting session's Ritz basis could not be built.
+    #[error("cutting: {0}")]
+    Cutting(String),
 }
 
 /// What a build did (also stored in the bundle's manifest).
@@ -180,6 +186,36 @@ pub struct BuildReport {
     pub anm_positions: usize,
     /// Seconds spent on it.
     pub anm_s: f64,
+    /// What was built for a cutting session (scenes with `effects.cutting`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cut: Option<CutReport>,
+}
+
+/// What a build stored for a cutting session.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CutReport {
+    /// What carries the discontinuous part (`fidelity.xfem.discontinuous`).
+    pub discontinuous: Discontinuous,
+    /// The Ritz basis (`fidelity.xfem.basis`).
+    pub basis: RitzBasis,
+    /// Directions of the K-orthonormal basis stored (0: none needed — with local fields a
+    /// session adds the cut's compliance to the vademecum's own and needs no basis).
+    pub basis_size: usize,
+    /// Seconds spent on it.
+    pub seconds: f64,
+}
+
+/// The K-orthonormal Ritz basis of a cutting session with bare enrichment
+/// ([`ReducedCut::orthonormal_basis`]), stored so the session does not compute it (minutes
+/// for thousands of modes).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CutBasis {
+    /// Which basis.
+    pub basis: RitzBasis,
+    /// Row-major `n_free × size`.
+    pub x: Vec<f64>,
+    /// Its directions.
+    pub size: usize,
 }
 
 /// Everything a build produced.
@@ -193,6 +229,8 @@ pub struct Built {
     pub model: OrganModel,
     /// The large-deformation lattice, when the scene asks for it.
     pub anm: Option<AnmLattice>,
+    /// The cutting session's Ritz basis, when the scene cuts with bare enrichment.
+    pub cut_basis: Option<CutBasis>,
 }
 
 /// Load nodes of an organ: accessible surface nodes with at least one free component.
@@ -457,6 +495,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         full_bytes: 8 * mesh.n_dofs() * load_eqs.len(),
         anm_positions: 0,
         anm_s: 0.0,
+        cut: None,
     };
     let anm = match &opts.large {
         None => None,
@@ -473,11 +512,37 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
             Some(lattice)
         }
     };
+    let mut cut_basis = None;
+    if scene.spec.effects.cutting && index == 0 {
+        let fx = &scene.spec.fidelity.xfem;
+        let clock = Instant::now();
+        if fx.discontinuous == Discontinuous::Bare {
+            on(BuildStage::CutBasis);
+            let (x, size) = ReducedCut::orthonormal_basis(
+                &model.mesh,
+                &model.materials,
+                model.locking,
+                &model.problem,
+                vademecum.f_raw(),
+                vademecum.modes(),
+                fx.basis,
+            )
+            .map_err(|e| BuildError::Cutting(e.to_string()))?;
+            cut_basis = Some(CutBasis { basis: fx.basis, x, size });
+        }
+        report.cut = Some(CutReport {
+            discontinuous: fx.discontinuous,
+            basis: fx.basis,
+            basis_size: cut_basis.as_ref().map_or(0, |b| b.size),
+            seconds: clock.elapsed().as_secs_f64(),
+        });
+    }
     Ok(Built {
         vademecum,
         report,
         model,
         anm,
+        cut_basis,
     })
 }
 
@@ -553,6 +618,10 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
             ("anm_step_data", len(&a.step_data), ArrayData::F64(&a.step_data)),
         ]);
     }
+    if let Some(c) = &built.cut_basis {
+        let n_free = (c.x.len() / c.size.max(1)) as u64;
+        arrays.push(("cut_basis", vec![n_free, c.size as u64], ArrayData::F64(&c.x)));
+    }
     bundle::write(dir, manifest, &scene.source, &arrays)
 }
 
@@ -569,6 +638,9 @@ pub struct LoadedBundle {
     pub surface: Vec<[usize; 3]>,
     /// The large-deformation lattice, when the bundle has one.
     pub anm: Option<AnmLattice>,
+    /// The cutting session's Ritz basis, when the bundle has one (version 2, a scene cutting
+    /// with bare enrichment).
+    pub cut_basis: Option<CutBasis>,
 }
 
 /// Loads and verifies a bundle (format, version, kind, checksums, shapes, consistency).
@@ -655,8 +727,28 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
     } else {
         None
     };
+    let cut_basis = if manifest.arrays.contains_key("cut_basis") {
+        let (shape, x) = bundle::read_f64(dir, &manifest, "cut_basis")?;
+        let basis = manifest
+            .info
+            .get("cut")
+            .and_then(|c| c.get("basis"))
+            .and_then(|b| serde_json::from_value::<RitzBasis>(b.clone()).ok())
+            .ok_or_else(|| bad("cut_basis without its basis kind in info.cut.basis".into()))?;
+        if shape.len() != 2 || shape[1] == 0 {
+            return Err(bad(format!("cut_basis has shape {shape:?}, not [free dofs, directions]")));
+        }
+        Some(CutBasis {
+            basis,
+            x,
+            size: shape[1] as usize,
+        })
+    } else {
+        None
+    };
     Ok(LoadedBundle {
         anm,
+        cut_basis,
         manifest,
         vademecum,
         nodes: nodes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),

@@ -467,23 +467,46 @@ fn cutting_effect(scene: &Scene, bundle: &Arc<LoadedBundle>, cut_force: f64) -> 
     let fx = &scene.spec.fidelity.xfem;
     let params = fx.params();
     let v = &bundle.vademecum;
-    // with local fields the tick adds the cut's compliance to the vademecum's own, and the
-    // Ritz basis is not needed (ReducedCut::new)
-    let n_modes = match fx.discontinuous {
-        Discontinuous::LocalFields => 0,
-        Discontinuous::Bare => v.modes(),
-    };
-    let reduced = ReducedCut::new(
-        &model.mesh,
-        &model.materials,
-        model.locking,
-        &model.problem,
-        &v.f_raw()[..n_modes * 3 * model.mesh.n_nodes()],
-        n_modes,
-        fx.basis,
-        fx.discontinuous,
-        &params,
-    )
+    let stored = bundle.cut_basis.as_ref().filter(|b| b.basis == fx.basis);
+    let reduced = match (fx.discontinuous, stored) {
+        // the basis the build stored (bundle version 2)
+        (Discontinuous::Bare, Some(b)) => ReducedCut::from_basis(
+            &model.mesh,
+            &model.materials,
+            model.locking,
+            &model.problem,
+            b.basis,
+            b.x.clone(),
+            b.size,
+            Discontinuous::Bare,
+            &params,
+        ),
+        (disc, _) => {
+            // with local fields the tick adds the cut's compliance to the vademecum's own,
+            // and the Ritz basis is not needed (ReducedCut::new); bare without a stored basis
+            // (a version 1 bundle) computes it now
+            let n_modes = match disc {
+                Discontinuous::LocalFields => 0,
+                Discontinuous::Bare => {
+                    tracing::warn!(
+                        "the bundle holds no Ritz basis for bare enrichment (built before bundle version 2): computing it now, which takes minutes for thousands of modes; rebuild the bundle to store it"
+                    );
+                    v.modes()
+                }
+            };
+            ReducedCut::new(
+                &model.mesh,
+                &model.materials,
+                model.locking,
+                &model.problem,
+                &v.f_raw()[..n_modes * 3 * model.mesh.n_nodes()],
+                n_modes,
+                fx.basis,
+                disc,
+                &params,
+            )
+        }
+    }
     .map_err(|e| fail(e.to_string()))?;
     let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(fail)?;
     Ok(Cutting::new(0, bundle.clone(), model.mesh, online, cut_force))

@@ -205,50 +205,80 @@ impl ReducedCut {
         disc: Discontinuous,
         params: &XfemParams,
     ) -> Result<Self, ReducedError> {
-        let n_dofs = mesh.n_dofs();
-        if modes.len() != n_modes * n_dofs {
-            return Err(ReducedError::Modes {
-                got: modes.len(),
-                modes: n_modes,
-                dofs: n_dofs,
-            });
-        }
         let dofs = DofMap::new(&problem.constrained);
-        let nf = dofs.n_free();
-        // the raw columns
-        let columns: Vec<Vec<f64>> = match basis {
-            RitzBasis::Prb => (0..n_modes)
-                .map(|k| {
-                    let mut c = vec![0.0; nf];
-                    dofs.restrict(&modes[k * n_dofs..(k + 1) * n_dofs], &mut c);
-                    c
-                })
-                .collect(),
-            RitzBasis::Srb => (0..n_modes)
-                .flat_map(|k| (0..3).map(move |comp| (k, comp)))
-                .map(|(k, comp)| {
-                    let mut full = modes[k * n_dofs..(k + 1) * n_dofs].to_vec();
-                    for (d, v) in full.iter_mut().enumerate() {
-                        if d % 3 != comp {
-                            *v = 0.0;
-                        }
-                    }
-                    let mut c = vec![0.0; nf];
-                    dofs.restrict(&full, &mut c);
-                    c
-                })
-                .collect(),
-        };
-        let pattern = std::sync::Arc::new(SymmetricPattern::for_locking(mesh, &dofs, locking));
-        let mut rhs = vec![0.0; nf];
-        let mut k = assembly::assemble_stiffness(mesh, materials, locking, &dofs, pattern, &problem.prescribed, &mut rhs)
-            .map_err(XfemError::from)?;
-        assembly::add_springs(&mut k, &dofs, &problem.springs);
-        let (x, nb) = if columns.is_empty() && disc == Discontinuous::LocalFields {
+        let k = stiffness(mesh, materials, locking, problem, &dofs)?;
+        let (x, nb) = if n_modes == 0 && disc == Discontinuous::LocalFields {
+            if !modes.is_empty() {
+                return Err(ReducedError::Modes {
+                    got: modes.len(),
+                    modes: 0,
+                    dofs: mesh.n_dofs(),
+                });
+            }
             (Vec::new(), 0) // the cut's part alone (see above)
         } else {
-            k_orthonormal(&k, &columns)?
+            k_orthonormal(&k, &ritz_columns(mesh.n_dofs(), &dofs, modes, n_modes, basis)?)?
         };
+        Self::assemble(mesh, materials, locking, problem, dofs, k, basis, (x, nb), disc, params)
+    }
+
+    /// The K-orthonormal Ritz basis [`new`](Self::new) builds from the modes (row-major
+    /// `n_free × nb`, and `nb`): what a bundle stores so that a session with bare
+    /// enrichment does not compute it again ([`from_basis`](Self::from_basis)).
+    pub fn orthonormal_basis(
+        mesh: &Mesh,
+        materials: &MaterialMap,
+        locking: Locking,
+        problem: &StaticProblem,
+        modes: &[f64],
+        n_modes: usize,
+        basis: RitzBasis,
+    ) -> Result<(Vec<f64>, usize), ReducedError> {
+        let dofs = DofMap::new(&problem.constrained);
+        let k = stiffness(mesh, materials, locking, problem, &dofs)?;
+        k_orthonormal(&k, &ritz_columns(mesh.n_dofs(), &dofs, modes, n_modes, basis)?)
+    }
+
+    /// [`new`](Self::new) on a K-orthonormal basis computed before
+    /// ([`orthonormal_basis`](Self::orthonormal_basis), stored in a bundle): `x` row-major
+    /// `n_free × nb`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_basis(
+        mesh: &Mesh,
+        materials: &MaterialMap,
+        locking: Locking,
+        problem: &StaticProblem,
+        basis: RitzBasis,
+        x: Vec<f64>,
+        nb: usize,
+        disc: Discontinuous,
+        params: &XfemParams,
+    ) -> Result<Self, ReducedError> {
+        let dofs = DofMap::new(&problem.constrained);
+        if x.len() != nb * dofs.n_free() || (nb == 0 && disc == Discontinuous::Bare) {
+            return Err(ReducedError::Modes {
+                got: x.len(),
+                modes: nb,
+                dofs: dofs.n_free(),
+            });
+        }
+        let k = stiffness(mesh, materials, locking, problem, &dofs)?;
+        Self::assemble(mesh, materials, locking, problem, dofs, k, basis, (x, nb), disc, params)
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        mesh: &Mesh,
+        materials: &MaterialMap,
+        locking: Locking,
+        problem: &StaticProblem,
+        dofs: DofMap,
+        k: assembly::SymmetricMatrix,
+        basis: RitzBasis,
+        (x, nb): (Vec<f64>, usize),
+        disc: Discontinuous,
+        params: &XfemParams,
+    ) -> Result<Self, ReducedError> {
         let chol = match disc {
             Discontinuous::Bare => None,
             Discontinuous::LocalFields => Some(crate::solve::Cholesky::factor(&k)?),
@@ -734,6 +764,58 @@ fn k_orthonormal(k: &assembly::SymmetricMatrix, columns: &[Vec<f64>]) -> Result<
         }
     }
     Ok((x, nb))
+}
+
+/// The uncut stiffness on the free degrees of freedom `dofs` (with the problem's springs).
+fn stiffness(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    locking: Locking,
+    problem: &StaticProblem,
+    dofs: &DofMap,
+) -> Result<assembly::SymmetricMatrix, ReducedError> {
+    let pattern = std::sync::Arc::new(SymmetricPattern::for_locking(mesh, dofs, locking));
+    let mut rhs = vec![0.0; dofs.n_free()];
+    let mut k =
+        assembly::assemble_stiffness(mesh, materials, locking, dofs, pattern, &problem.prescribed, &mut rhs).map_err(XfemError::from)?;
+    assembly::add_springs(&mut k, dofs, &problem.springs);
+    Ok(k)
+}
+
+/// The raw Ritz columns on the free degrees of freedom: the modes (PRB) or their component
+/// fields (SRB), from `n_modes` mode-major modes over `n_dofs`.
+fn ritz_columns(n_dofs: usize, dofs: &DofMap, modes: &[f64], n_modes: usize, basis: RitzBasis) -> Result<Vec<Vec<f64>>, ReducedError> {
+    if modes.len() != n_modes * n_dofs {
+        return Err(ReducedError::Modes {
+            got: modes.len(),
+            modes: n_modes,
+            dofs: n_dofs,
+        });
+    }
+    let nf = dofs.n_free();
+    Ok(match basis {
+        RitzBasis::Prb => (0..n_modes)
+            .map(|k| {
+                let mut c = vec![0.0; nf];
+                dofs.restrict(&modes[k * n_dofs..(k + 1) * n_dofs], &mut c);
+                c
+            })
+            .collect(),
+        RitzBasis::Srb => (0..n_modes)
+            .flat_map(|k| (0..3).map(move |comp| (k, comp)))
+            .map(|(k, comp)| {
+                let mut full = modes[k * n_dofs..(k + 1) * n_dofs].to_vec();
+                for (d, v) in full.iter_mut().enumerate() {
+                    if d % 3 != comp {
+                        *v = 0.0;
+                    }
+                }
+                let mut c = vec![0.0; nf];
+                dofs.restrict(&full, &mut c);
+                c
+            })
+            .collect(),
+    })
 }
 
 /// `c += s · d`, entrywise.

@@ -39,6 +39,7 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
         BuildStage::Lattice(done, total) => bar.stage(&format!(
             "large deformations: full Newton, POD and ANM at lattice position {done}/{total}"
         )),
+        BuildStage::CutBasis => bar.stage("cutting: the K-orthonormal Ritz basis for bare enrichment"),
     })
     .with_context(|| format!("cannot build organ '{name}'"))?;
     Ok((built, bar))
