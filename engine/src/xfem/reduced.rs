@@ -205,21 +205,12 @@ impl ReducedCut {
         disc: Discontinuous,
         params: &XfemParams,
     ) -> Result<Self, ReducedError> {
-        let dofs = DofMap::new(&problem.constrained);
-        let k = stiffness(mesh, materials, locking, problem, &dofs)?;
-        let (x, nb) = if n_modes == 0 && disc == Discontinuous::LocalFields {
-            if !modes.is_empty() {
-                return Err(ReducedError::Modes {
-                    got: modes.len(),
-                    modes: 0,
-                    dofs: mesh.n_dofs(),
-                });
-            }
-            (Vec::new(), 0) // the cut's part alone (see above)
-        } else {
-            k_orthonormal(&k, &ritz_columns(mesh.n_dofs(), &dofs, modes, n_modes, basis)?)?
-        };
-        Self::assemble(mesh, materials, locking, problem, dofs, k, basis, (x, nb), disc, params)
+        if n_modes == 0 && disc == Discontinuous::LocalFields && modes.is_empty() {
+            // the cut's part alone (see above)
+            return Self::from_basis(mesh, materials, locking, problem, basis, Vec::new(), 0, disc, params);
+        }
+        let (x, nb) = Self::orthonormal_basis(mesh, materials, locking, problem, modes, n_modes, basis)?;
+        Self::from_basis(mesh, materials, locking, problem, basis, x, nb, disc, params)
     }
 
     /// The K-orthonormal Ritz basis [`new`](Self::new) builds from the modes (row-major
