@@ -176,6 +176,18 @@ impl Trajectory {
         self.blades.is_some()
     }
 
+    /// The keyframe with the longest blade edge (tip to other end): its time (s) and the
+    /// length (m); `None` without a blade.
+    pub fn longest_blade(&self) -> Option<(f64, f64)> {
+        let blades = self.blades.as_ref()?;
+        self.times
+            .iter()
+            .zip(&self.positions)
+            .zip(blades)
+            .map(|((&t, p), b)| (t, (0..3).map(|k| (b.end_m[k] - p[k]).powi(2)).sum::<f64>().sqrt()))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// Reads a CSV trajectory.
     pub fn read(path: &Path) -> Result<Self, ScriptError> {
         let bad = |message: String| ScriptError::Invalid {

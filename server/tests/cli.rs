@@ -225,6 +225,16 @@ fn run_cuts_the_patch_with_a_scalpel_and_records_the_opening() {
     let o = vademecum(&["run", "--builtin", "patch_cut", "--script", "t.csv"], dir.path());
     assert_ne!(o.status.code(), Some(0));
     assert!(stderr(&o).contains("bx_m"), "{}", stderr(&o));
+    // an edge longer than a session accepts (two blade lengths, 2.4 m here) is refused up
+    // front, saying what to change, instead of every tick being rejected
+    std::fs::write(
+        dir.path().join("long.csv"),
+        "t_s,x_m,y_m,z_m,bx_m,by_m,bz_m,qw,qx,qy,qz\n0,4,-1,5.2,4,2,5.2,0.7071,0,0,-0.7071\n1,4,-1,4.5,4,2,4.5,0.7071,0,0,-0.7071\n",
+    )
+    .unwrap();
+    let o = vademecum(&["run", "--builtin", "patch_cut", "--script", "long.csv"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("blade_length is 1200.0 mm"), "{}", stderr(&o));
 }
 
 #[test]

@@ -19,7 +19,7 @@ use crate::session::{Answer, Script, Session, SessionConfig, Trajectory};
 use anyhow::{Context, bail};
 use serde::Serialize;
 use vademecum_engine::mesh::vtk::{self, Field};
-use vademecum_engine::pipeline::Events;
+use vademecum_engine::pipeline::{Events, MAX_BLADE_EDGE};
 
 use crate::cli_main::cli::RunArgs;
 use crate::cli_main::commands::build::ensure_bundles;
@@ -144,6 +144,17 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             ),
         ),
     };
+    // a blade the session would reject at every tick fails here, with what to change
+    if let (Some((blade_length, _)), Some((t, edge))) = (scene.spec.scalpel(), trajectory.longest_blade())
+        && cutting
+        && edge > MAX_BLADE_EDGE * blade_length
+    {
+        bail!(
+            "the blade's edge is {:.1} mm long at t = {t:.3} s ({source}), but the scalpel's blade_length is {:.1} mm and a session accepts edges up to {MAX_BLADE_EDGE} blade lengths: lengthen the scalpel's blade_length or shorten the edge",
+            edge * 1e3,
+            blade_length * 1e3
+        );
+    }
     let frames_dir = record.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("cannot create {}", frames_dir.display()))?;
     trajectory
