@@ -235,6 +235,16 @@ fn run_cuts_the_patch_with_a_scalpel_and_records_the_opening() {
     let o = vademecum(&["run", "--builtin", "patch_cut", "--script", "long.csv"], dir.path());
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("blade_length is 1200.0 mm"), "{}", stderr(&o));
+    // the same for a scene's pre-planned cut, before any build
+    let text = vademecum_engine::scene::Scene::builtin("patch_cut")
+        .unwrap()
+        .source
+        .replace("blade_length = 1.2", "blade_length = 0.5");
+    std::fs::write(dir.path().join("short_blade.toml"), text).unwrap();
+    let o = vademecum(&["run", "short_blade.toml", "--bundles", "nowhere"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("pre-planned cut 0"), "{}", stderr(&o));
+    assert!(!dir.path().join("nowhere").exists(), "refused before building");
 }
 
 #[test]

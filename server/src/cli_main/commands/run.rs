@@ -107,6 +107,34 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             "the scene cuts and has no probe, but the trajectory has no blade: add the columns bx_m,by_m,bz_m,qw,qx,qy,qz (the other end of the blade's edge and its orientation; see `vademecum run --help`)"
         );
     }
+    // a blade edge the session would reject at every tick fails before any build, saying
+    // what to change
+    if cutting && let Some((blade_length, _)) = scene.spec.scalpel() {
+        let longest = match &scripted {
+            Some(t) => t.longest_blade().map(|(t, e)| (format!("at t = {t:.3} s of the script"), e)),
+            None => scene
+                .organ_cuts(0)
+                .map_err(|e| anyhow::anyhow!("{e}"))?
+                .iter()
+                .enumerate()
+                .flat_map(|(c, cut)| {
+                    cut.points()
+                        .chunks_exact(2)
+                        .map(move |ab| (c, (0..3).map(|k| (ab[1][k] - ab[0][k]).powi(2)).sum::<f64>().sqrt()))
+                })
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|(c, e)| (format!("in the scene's pre-planned cut {c}"), e)),
+        };
+        if let Some((at, edge)) = longest
+            && edge > MAX_BLADE_EDGE * blade_length
+        {
+            bail!(
+                "the blade's edge is {:.1} mm long {at}, but the scalpel's blade_length is {:.1} mm and a session accepts edges up to {MAX_BLADE_EDGE} blade lengths: lengthen the scalpel's blade_length or shorten the edge",
+                edge * 1e3,
+                blade_length * 1e3
+            );
+        }
+    }
     let radius = if cutting || scripted.is_some() {
         0.0
     } else {
@@ -144,17 +172,6 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             ),
         ),
     };
-    // a blade the session would reject at every tick fails here, with what to change
-    if let (Some((blade_length, _)), Some((t, edge))) = (scene.spec.scalpel(), trajectory.longest_blade())
-        && cutting
-        && edge > MAX_BLADE_EDGE * blade_length
-    {
-        bail!(
-            "the blade's edge is {:.1} mm long at t = {t:.3} s ({source}), but the scalpel's blade_length is {:.1} mm and a session accepts edges up to {MAX_BLADE_EDGE} blade lengths: lengthen the scalpel's blade_length or shorten the edge",
-            edge * 1e3,
-            blade_length * 1e3
-        );
-    }
     let frames_dir = record.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("cannot create {}", frames_dir.display()))?;
     trajectory
