@@ -212,8 +212,8 @@ pub struct CutReport {
 pub struct CutBasis {
     /// Which basis.
     pub basis: RitzBasis,
-    /// Row-major `n_free × size`.
-    pub x: Vec<f64>,
+    /// Row-major `n_free × size` (shared with the sessions that use it).
+    pub x: Arc<[f64]>,
     /// Its directions.
     pub size: usize,
 }
@@ -528,7 +528,11 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
                 fx.basis,
             )
             .map_err(|e| BuildError::Cutting(e.to_string()))?;
-            cut_basis = Some(CutBasis { basis: fx.basis, x, size });
+            cut_basis = Some(CutBasis {
+                basis: fx.basis,
+                x: x.into(),
+                size,
+            });
         }
         report.cut = Some(CutReport {
             discontinuous: fx.discontinuous,
@@ -740,7 +744,7 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
         }
         Some(CutBasis {
             basis,
-            x,
+            x: x.into(),
             size: shape[1] as usize,
         })
     } else {

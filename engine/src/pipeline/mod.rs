@@ -476,7 +476,7 @@ fn cutting_effect(scene: &Scene, bundle: &Arc<LoadedBundle>, cut_force: f64) -> 
             model.locking,
             &model.problem,
             b.basis,
-            b.x.clone(),
+            b.x.clone(), // shared, not copied
             b.size,
             Discontinuous::Bare,
             &params,

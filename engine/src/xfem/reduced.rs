@@ -207,10 +207,10 @@ impl ReducedCut {
     ) -> Result<Self, ReducedError> {
         if n_modes == 0 && disc == Discontinuous::LocalFields && modes.is_empty() {
             // the cut's part alone (see above)
-            return Self::from_basis(mesh, materials, locking, problem, basis, Vec::new(), 0, disc, params);
+            return Self::from_basis(mesh, materials, locking, problem, basis, Vec::new().into(), 0, disc, params);
         }
         let (x, nb) = Self::orthonormal_basis(mesh, materials, locking, problem, modes, n_modes, basis)?;
-        Self::from_basis(mesh, materials, locking, problem, basis, x, nb, disc, params)
+        Self::from_basis(mesh, materials, locking, problem, basis, x.into(), nb, disc, params)
     }
 
     /// The K-orthonormal Ritz basis [`new`](Self::new) builds from the modes (row-major
@@ -232,7 +232,7 @@ impl ReducedCut {
 
     /// [`new`](Self::new) on a K-orthonormal basis computed before
     /// ([`orthonormal_basis`](Self::orthonormal_basis), stored in a bundle): `x` row-major
-    /// `n_free × nb`.
+    /// `n_free × nb`, shared (the sessions of one bundle hold one copy).
     #[allow(clippy::too_many_arguments)]
     pub fn from_basis(
         mesh: &Mesh,
@@ -240,7 +240,7 @@ impl ReducedCut {
         locking: Locking,
         problem: &StaticProblem,
         basis: RitzBasis,
-        x: Vec<f64>,
+        x: std::sync::Arc<[f64]>,
         nb: usize,
         disc: Discontinuous,
         params: &XfemParams,
@@ -266,7 +266,7 @@ impl ReducedCut {
         dofs: DofMap,
         k: assembly::SymmetricMatrix,
         basis: RitzBasis,
-        (x, nb): (Vec<f64>, usize),
+        (x, nb): (std::sync::Arc<[f64]>, usize),
         disc: Discontinuous,
         params: &XfemParams,
     ) -> Result<Self, ReducedError> {
@@ -282,7 +282,7 @@ impl ReducedCut {
                 disc,
                 w: Vec::new(),
                 dofs: std::sync::Arc::new(dofs),
-                x: x.into(),
+                x,
                 nb,
                 factor: Bordered::new(if disc == Discontinuous::Bare { nb } else { 0 }),
                 scratch: vec![0.0; 3 * nb],
@@ -506,15 +506,9 @@ impl ReducedCut {
                 }
             }
         }
-        q.fill(0.0);
-        let mut e = 0;
-        for k in 0..self.enr.len() {
-            let a = self.enr.nodes[k];
-            for i in 0..3 {
-                if DofMap::eq(&self.online.dofs, 3 * a + i).is_some() {
-                    q[3 * k + i] = coeffs[nb + e];
-                    e += 1;
-                }
+        for (qk, slots) in q.chunks_exact_mut(3).zip(self.opening_unknowns()) {
+            for (qi, slot) in qk.iter_mut().zip(slots) {
+                *qi = slot.map_or(0.0, |e| coeffs[nb + e]);
             }
         }
     }

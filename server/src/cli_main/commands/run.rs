@@ -476,20 +476,16 @@ fn plot_blade(file: &std::path::Path, scene: &str, rows: &[BladeRow], cut_force:
         .build_cartesian_2d(0.0..t_max, 0.0..f_max)?;
     chart.configure_mesh().x_desc("time (s)").y_desc("force (N)").draw()?;
     let palette = super::bench_anm::PALETTE;
-    chart
-        .draw_series(LineSeries::new(
-            rows.iter().map(|r| (r.t_s, r.parallel_n)),
-            palette[0].stroke_width(2),
-        ))?
-        .label("|F∥|, in the blade's plane")
-        .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], palette[0].stroke_width(2)));
-    chart
-        .draw_series(LineSeries::new(
-            rows.iter().map(|r| (r.t_s, r.perpendicular_n)),
-            palette[1].stroke_width(2),
-        ))?
-        .label("|F⊥|, on the blade's flat")
-        .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], palette[1].stroke_width(2)));
+    let series: [(&str, fn(&BladeRow) -> f64); 2] = [
+        ("|F∥|, in the blade's plane", |r| r.parallel_n),
+        ("|F⊥|, on the blade's flat", |r| r.perpendicular_n),
+    ];
+    for ((label, value), colour) in series.into_iter().zip(palette) {
+        chart
+            .draw_series(LineSeries::new(rows.iter().map(|r| (r.t_s, value(r))), colour.stroke_width(2)))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], colour.stroke_width(2)));
+    }
     chart
         .draw_series(LineSeries::new([(0.0, cut_force), (t_max, cut_force)], BLACK.stroke_width(1)))?
         .label("cut_force")
