@@ -2,6 +2,8 @@
 //!
 //! # Layout
 //! - [`contact`]: a spherical tool tip against an organ's surface, tracked by a proxy.
+//! - [`damage`]: tearing by continuum damage (seed 000 ch. 4): laws, the full-order reference,
+//!   the POD–PGD integrator.
 //! - [`mesh`]: volume meshes (tet4, hex8), Gmsh and VTK readers, `.vtu`/`.pvd` writers,
 //!   boundary surfaces, selections, quality, procedural meshes.
 //! - [`material`]: constitutive laws.
@@ -25,6 +27,7 @@
 
 pub mod bundle;
 pub mod contact;
+pub mod damage;
 pub mod dense;
 pub mod fem;
 pub mod material;

@@ -1,0 +1,120 @@
+//! A tearing problem: an organ's mesh and supports, its integration points with their damage
+//! laws, and the load (or prescribed displacement) increment each pseudo-time step applies
+//! (seed 000 §4.3: "for each ∆t, the algorithm has to translate the force exerted by the
+//! user to a value of ∆f").
+
+use std::sync::Arc;
+
+use super::law::{DEFAULT_TORN, PointState};
+use super::points::{MaterialPoints, Sym};
+use crate::fem::assembly::{DofMap, SymmetricMatrix, SymmetricPattern, add_springs};
+use crate::mesh::Mesh;
+
+/// A tearing problem, ready for the full-order reference ([`super::reference`]) or the
+/// offline build of the POD–PGD integrator ([`super::vademecum`]).
+#[derive(Debug, Clone)]
+pub struct TearModel {
+    /// The mesh (m).
+    pub mesh: Mesh,
+    /// Free and constrained degrees of freedom.
+    pub dofs: DofMap,
+    /// Pattern of the stiffness over the free dofs.
+    pub pattern: Arc<SymmetricPattern>,
+    /// Integration points with their laws.
+    pub points: MaterialPoints,
+    /// Springs to the ground (N/m per dof, full length; elastic foundations).
+    pub springs: Vec<f64>,
+    /// The force increment of a unit step (N, full length).
+    pub load: Vec<f64>,
+    /// The prescribed displacement increment of a unit step (m, full length; read on
+    /// constrained dofs only).
+    pub prescribed: Vec<f64>,
+    /// The multiplier of `load` and `prescribed` at each step (the schedule).
+    pub schedule: Vec<f64>,
+    /// Damage past which a cell is torn (not rendered).
+    pub torn: f64,
+}
+
+impl TearModel {
+    /// A model with the given points, constraints and unit increments; `schedule` defaults
+    /// to nothing (set it before running).
+    pub fn new(mesh: Mesh, points: MaterialPoints, constrained: &[bool], load: Vec<f64>, prescribed: Vec<f64>) -> Self {
+        let dofs = DofMap::new(constrained);
+        let pattern = Arc::new(SymmetricPattern::build(&mesh, &dofs));
+        let springs = vec![0.0; 3 * mesh.n_nodes()];
+        Self {
+            mesh,
+            dofs,
+            pattern,
+            points,
+            springs,
+            load,
+            prescribed,
+            schedule: Vec::new(),
+            torn: DEFAULT_TORN,
+        }
+    }
+
+    /// The virgin state of every point.
+    pub fn virgin(&self) -> Vec<PointState> {
+        vec![PointState::VIRGIN; self.points.len()]
+    }
+
+    /// The stiffness `Σ_p w_p B̄ᵀ(g_p C⁰ − [tangent] (h_p/r_p) σ⁰_p⊗σ⁰_p)B̄ + springs`, and
+    /// `−K_fc ū` of the prescribed values `ub` (full length, `None`: zero) added to `rhs`.
+    /// With `tangent`, `sigma0[p]` is the undamaged stress of the points that loaded.
+    pub fn stiffness(&self, state: &[PointState], tangent: Option<&[Sym]>, ub: Option<&[f64]>, rhs: &mut [f64]) -> SymmetricMatrix {
+        let mut k = self.points.assemble(
+            &self.mesh,
+            &self.dofs,
+            self.pattern.clone(),
+            |p| state[p].g,
+            |p| {
+                let s = &state[p];
+                match tangent {
+                    Some(sig) if s.h > 0.0 && s.r > 0.0 => Some((s.h / s.r, sig[p])),
+                    _ => None,
+                }
+            },
+            ub,
+            rhs,
+        );
+        add_springs(&mut k, &self.dofs, &self.springs);
+        k
+    }
+
+    /// The equivalent strain and undamaged stress of every point at `u`.
+    pub fn strains(&self, u: &[f64], phi: &mut [f64], sigma0: &mut [Sym]) {
+        for p in 0..self.points.len() {
+            let (f, s) = self.points.phi(&self.mesh, p, u);
+            phi[p] = f;
+            sigma0[p] = s;
+        }
+    }
+
+    /// Updates the damage of every tearable point from `phi` (Alg. 4.1 lines 12–19); returns the
+    /// energy dissipated (J) and the largest damage increment.
+    pub fn update_damage(&self, state: &mut [PointState], phi: &[f64]) -> (f64, f64) {
+        let (mut diss, mut dmax) = (0.0, 0.0f64);
+        for &p in &self.points.tearable {
+            let law = self.points.law[p].as_ref().expect("tearable points have a law");
+            let g0 = state[p].g;
+            diss += self.points.weight[p] * state[p].update(law, phi[p]);
+            dmax = dmax.max(g0 - state[p].g);
+        }
+        (diss, dmax)
+    }
+
+    /// `g` of the tearable points (a damage snapshot).
+    pub fn damage_field(&self, state: &[PointState]) -> Vec<f64> {
+        self.points.tearable.iter().map(|&p| state[p].g).collect()
+    }
+
+    /// Each cell's damage (weighted mean of its points) and how many cells are torn.
+    pub fn cell_damage(&self, state: &[PointState]) -> (Vec<f64>, usize) {
+        let mut d = vec![0.0; self.mesh.n_cells()];
+        self.points.cell_damage(state, &mut d);
+        let torn = d.iter().filter(|&&x| x >= self.torn).count();
+        (d, torn)
+    }
+}

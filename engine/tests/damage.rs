@@ -1,0 +1,180 @@
+//! Tearing by continuum damage (seed 000 ch. 4): the laws against their closed forms, the
+//! consistent tangent against finite differences, the explicit scheme against equilibrium,
+//! and the regularised softening's dissipation at three mesh sizes.
+
+use vademecum_engine::damage::law::{DamageLaw, PointState};
+use vademecum_engine::damage::model::TearModel;
+use vademecum_engine::damage::points::MaterialPoints;
+use vademecum_engine::damage::reference::{self, RunSettings, Scheme, Tangent};
+use vademecum_engine::fem::assembly::MaterialMap;
+use vademecum_engine::material::LinearElastic;
+use vademecum_engine::mesh::{Mesh, procedural};
+
+const E: f64 = 5.0;
+const NU: f64 = 0.3;
+
+/// A block of `n` hexahedra of size `size` from the origin, with damage law `law(cell, size)`.
+fn block(size: [f64; 3], n: [usize; 3], e: f64, nu: f64, law: impl Fn(usize, f64) -> Option<DamageLaw>) -> (Mesh, MaterialPoints) {
+    let mesh = procedural::block_hex([0.0; 3], size, n);
+    let mat = MaterialMap::uniform(LinearElastic::new(e, nu).unwrap(), 1.0, mesh.n_cells());
+    let pts = MaterialPoints::new(&mesh, &mat, |c, l| Ok::<_, ()>(law(c, l))).unwrap();
+    (mesh, pts)
+}
+
+/// The unit cube held on its three symmetry planes x = 0, y = 0, z = 0 (rollers), its top
+/// pulled by a prescribed `uz` increment of `1` per unit step; `lateral` also holds x = 1 and
+/// y = 1 (uniaxial strain) instead of leaving them free (uniaxial stress).
+fn pulled_cube(law: DamageLaw, lateral: bool, schedule: Vec<f64>) -> TearModel {
+    let (mesh, pts) = block([1.0; 3], [1, 1, 1], E, NU, |_, _| Some(law));
+    let mut constrained = vec![false; 3 * mesh.n_nodes()];
+    let mut prescribed = vec![0.0; 3 * mesh.n_nodes()];
+    for (a, x) in mesh.nodes.iter().enumerate() {
+        for i in 0..3 {
+            if x[i] == 0.0 || (lateral && i < 2 && x[i] == 1.0) {
+                constrained[3 * a + i] = true;
+            }
+        }
+        if x[2] == 1.0 {
+            constrained[3 * a + 2] = true;
+            prescribed[3 * a + 2] = 1.0;
+        }
+    }
+    let load = vec![0.0; 3 * mesh.n_nodes()];
+    let mut m = TearModel::new(mesh, pts, &constrained, load, prescribed);
+    m.schedule = schedule;
+    m
+}
+
+/// The top face's total reaction (N) in a run's step.
+fn top_reaction(m: &TearModel, u: &[f64], state: &[PointState]) -> f64 {
+    let mut f = vec![0.0; u.len()];
+    m.points.internal_forces(&m.mesh, state, u, &mut f);
+    m.mesh
+        .nodes
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| x[2] == 1.0)
+        .map(|(a, _)| f[3 * a + 2])
+        .sum()
+}
+
+/// The state of every point given its `g` (all points tearable here) and the law's `r`.
+fn states(g: &[f64], r: f64) -> Vec<PointState> {
+    g.iter().map(|&g| PointState { r, g, h: 0.0 }).collect()
+}
+
+/// Strain path: up to 3 units, back to 1, up to 5 (unload–reload), in steps of `d`.
+fn cycle(d: f64) -> Vec<f64> {
+    let mut s = vec![d; (3.0 / d).round() as usize];
+    s.extend(vec![-d; (2.0 / d).round() as usize]);
+    s.extend(vec![d; (4.0 / d).round() as usize]);
+    s
+}
+
+/// Runs the cube and checks stress and damage at every step against the closed form
+/// `σ = g(r) M ε`, `Φ = √M |ε|`, `r = max Φ`, with `M` the modulus of the path.
+fn check_closed_form(law: DamageLaw, lateral: bool, strain_unit: f64, scheme: Scheme) -> (f64, f64) {
+    let modulus = if lateral {
+        let l = LinearElastic::new(E, NU).unwrap();
+        l.lambda() + 2.0 * l.shear()
+    } else {
+        E
+    };
+    let mut m = pulled_cube(law, lateral, cycle(0.05));
+    for v in m.prescribed.iter_mut() {
+        *v *= strain_unit;
+    }
+    let run = reference::run(&m, RunSettings::seed(scheme), |_, _| {}).unwrap();
+    let (mut r, mut peak) = (0.0f64, 0.0f64);
+    for s in &run.steps {
+        let eps = s.load_factor * strain_unit;
+        let phi = modulus.sqrt() * eps.abs();
+        r = r.max(phi);
+        let g = law.g(r);
+        let sigma = g * modulus * eps;
+        let got = top_reaction(&m, &s.u, &states(&s.g, r));
+        assert!(
+            (got - sigma).abs() <= 1e-9 * sigma.abs().max(1e-12),
+            "{scheme:?} ε {eps}: σ {got} vs closed form {sigma}"
+        );
+        for &gp in &s.g {
+            assert!((gp - g).abs() < 1e-9, "{scheme:?} ε {eps}: g {gp} vs {g}");
+        }
+        peak = peak.max(sigma);
+    }
+    (peak, law.g(r))
+}
+
+#[test]
+fn the_seeds_law_follows_its_closed_form_under_uniaxial_strain_and_stress_and_never_heals() {
+    let law = DamageLaw::simo(0.4, 0.0, 1e-6).unwrap();
+    for lateral in [true, false] {
+        for scheme in [Scheme::Explicit(Tangent::Secant), Scheme::Newton] {
+            let (peak, _) = check_closed_form(law, lateral, 0.5, scheme);
+            // no peak: with β = 0 the stress saturates at α·√M and never exceeds it
+            let modulus = if lateral { 6.730769230769231 } else { E };
+            assert!(peak < 0.4 * f64::sqrt(modulus), "{peak}");
+        }
+    }
+}
+
+#[test]
+fn the_softening_law_passes_its_peak_and_unloads_on_the_secant() {
+    // strength 1 Pa, G_f such that A = 2 on the unit cell
+    let r0: f64 = 1.0 / E.sqrt();
+    let gf = r0 * r0 * (0.5 + 0.5);
+    let law = DamageLaw::softening(E, 1.0, gf, 1.0, 1e-6).unwrap();
+    // uniaxial stress: the peak is the strength, at ε₀ = f_t/E = 0.2
+    let (peak, g_end) = check_closed_form(law, false, 0.2, Scheme::Newton);
+    assert!((peak - 1.0).abs() < 1e-9, "peak {peak}");
+    assert!(g_end < 0.2, "softened to g = {g_end}");
+    // uniaxial strain, explicit scheme (every dof prescribed, so it is exact too)
+    check_closed_form(law, true, 0.2, Scheme::Explicit(Tangent::Consistent));
+}
+
+#[test]
+fn the_consistent_tangent_is_the_derivative_of_the_stress() {
+    for law in [
+        DamageLaw::simo(0.4, 0.1, 1e-6).unwrap(),
+        DamageLaw::softening(E, 0.05, 0.05, 0.5, 1e-6).unwrap(),
+    ] {
+        let (mesh, pts) = block([1.0, 0.8, 0.6], [2, 1, 1], E, NU, |_, _| Some(law));
+        let n = 3 * mesh.n_nodes();
+        let m = TearModel::new(mesh, pts, &vec![false; n], vec![0.0; n], vec![0.0; n]);
+        let u: Vec<f64> = (0..n).map(|i| 0.05 * (((i * 37) % 11) as f64 / 11.0 - 0.4)).collect();
+        let du: Vec<f64> = (0..n).map(|i| ((i * 53) % 7) as f64 / 7.0 - 0.5).collect();
+        // σ(u) with the history of a virgin point: every point loads
+        let forces = |u: &[f64]| {
+            let np = m.points.len();
+            let (mut phi, mut sig) = (vec![0.0; np], vec![[0.0; 6]; np]);
+            m.strains(u, &mut phi, &mut sig);
+            let mut st = m.virgin();
+            m.update_damage(&mut st, &phi);
+            let mut f = vec![0.0; n];
+            m.points.internal_forces(&m.mesh, &st, u, &mut f);
+            (f, st, sig)
+        };
+        let (_, st, sig) = forces(&u);
+        assert!(st.iter().all(|s| s.h > 0.0), "every point loads");
+        let mut rhs = vec![0.0; n];
+        let k = m.stiffness(&st, Some(&sig), None, &mut rhs);
+        let mut kdu = vec![0.0; n];
+        k.mul_vec(&du, &mut kdu);
+        let e = 1e-6;
+        let up: Vec<f64> = u.iter().zip(&du).map(|(a, b)| a + e * b).collect();
+        let um: Vec<f64> = u.iter().zip(&du).map(|(a, b)| a - e * b).collect();
+        let (fp, _, _) = forces(&up);
+        let (fm, _, _) = forces(&um);
+        let scale = kdu.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+        for i in 0..n {
+            let fd = (fp[i] - fm[i]) / (2.0 * e);
+            assert!((fd - kdu[i]).abs() < 1e-6 * scale, "{law:?} dof {i}: fd {fd} vs K du {}", kdu[i]);
+        }
+        // the seed's printed form (+h σ⁰⊗σ⁰, Alg. 4.1 line 5) is not the derivative
+        let k_secant = m.stiffness(&st, None, None, &mut rhs);
+        let mut ks = vec![0.0; n];
+        k_secant.mul_vec(&du, &mut ks);
+        let miss = (0..n).map(|i| ((fp[i] - fm[i]) / (2.0 * e) - ks[i]).abs()).fold(0.0, f64::max);
+        assert!(miss > 1e-3 * scale, "the tangent term matters here");
+    }
+}
