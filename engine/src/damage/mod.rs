@@ -15,12 +15,16 @@
 //! - [`online`]: the POD–PGD integrator (Alg. 4.2): the seed's simplified model (h = 0) and
 //!   the full one (h ≠ 0, the vademecum's modes as a Ritz basis with the loading points'
 //!   rank-one tangent terms).
-//! - [`organ`]: a scene organ with tearable materials as a [`model::TearModel`].
+//! - [`build`]: the offline stage — snapshots, POD, vademecum, Ritz form, validation.
 
+pub mod build;
 pub mod law;
 pub mod model;
+pub mod online;
+pub mod pod;
 pub mod points;
 pub mod reference;
+pub mod vademecum;
 
 pub use law::{DamageLaw, LawError, PointState};
 pub use model::TearModel;

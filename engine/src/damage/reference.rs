@@ -29,6 +29,11 @@ use crate::solve::{Cholesky, SolveError};
 /// How often a step may be halved.
 pub const MAX_SPLITS: u32 = 8;
 
+/// Newton iterations without a new smallest residual after which a step is split instead of
+/// iterated further (it is not converging: typically the step crosses the onset of
+/// localisation).
+const STALL: usize = 8;
+
 /// The stiffness of an explicit step.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -232,16 +237,16 @@ impl Runner<'_> {
     /// and the Newton iterations made.
     fn step(&mut self, step: usize, ds: f64, depth: u32) -> Result<(u32, usize), RunError> {
         let saved = (self.state.clone(), self.u.clone(), self.dissipated, self.work, self.forces.clone());
-        let (dmax, iterations) = match self.s.scheme {
-            Scheme::Explicit(t) => (self.explicit(step, ds, t)?, 0),
+        let (dmax, iterations, failed) = match self.s.scheme {
+            Scheme::Explicit(t) => (self.explicit(step, ds, t)?, 0, false),
             Scheme::Newton => match self.newton(step, ds) {
-                Ok(v) => v,
+                Ok((d, it)) => (d, it, false),
                 Err(e @ RunError::NoEquilibrium { .. }) if depth >= MAX_SPLITS => return Err(e),
-                Err(RunError::NoEquilibrium { .. }) => (f64::INFINITY, 0),
+                Err(RunError::NoEquilibrium { .. }) => (f64::INFINITY, 0, true),
                 Err(e) => return Err(e),
             },
         };
-        if dmax > self.s.max_damage_increment && depth < MAX_SPLITS {
+        if failed || (dmax > self.s.max_damage_increment && depth < MAX_SPLITS) {
             (self.state, self.u, self.dissipated, self.work, self.forces) = saved;
             let (a, ia) = self.step(step, 0.5 * ds, depth + 1)?;
             let (b, ib) = self.step(step, 0.5 * ds, depth + 1)?;
@@ -323,6 +328,7 @@ impl Runner<'_> {
         let mut fint = vec![0.0; self.u.len()];
         let mut trial = start.clone();
         let mut last = f64::INFINITY;
+        let mut best = (f64::INFINITY, 0);
         let mut scale = fscale;
         for it in 1..=self.s.max_iterations {
             // trial state from the converged one
@@ -350,6 +356,11 @@ impl Runner<'_> {
                 scale = fscale.max(react).max(norm).max(f64::MIN_POSITIVE);
             }
             last = norm / scale;
+            if last < best.0 {
+                best = (last, it);
+            } else if it - best.1 >= STALL {
+                break;
+            }
             if last <= self.s.tolerance {
                 let (diss, dmax) = {
                     let mut st = start.clone();

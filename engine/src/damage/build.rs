@@ -1,0 +1,167 @@
+//! The offline stage of the POD–PGD integrator: full-order runs for the damage snapshots, their
+//! POD basis, the vademecum over its coefficients, the Ritz form, and the vademecum's error
+//! against exact solves at the snapshots' coefficients (what every reduced model reports).
+
+use std::time::Instant;
+
+use super::model::TearModel;
+use super::online::{RitzOperator, TearOffline};
+use super::pod::DamageBasis;
+use super::reference::{self, RunError, RunSettings, Scheme, Tangent, TearRun};
+use super::vademecum::{self, AffineSystem, VademecumError, VademecumSettings};
+use crate::rom::pod::{PodCriterion, PodError};
+
+/// Settings of the offline stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TearSettings {
+    /// How many POD vectors (energy fraction and cap).
+    pub pod: PodCriterion,
+    /// Margin around the snapshots' coefficient box (fraction of each range).
+    pub margin: f64,
+    /// The vademecum builder.
+    pub vademecum: VademecumSettings,
+}
+
+impl Default for TearSettings {
+    /// POD to `1 − 10⁻⁸` of the snapshots' energy with at most 10 vectors (the seed: "not
+    /// higher than ten"), a 10 % margin, the default vademecum settings.
+    fn default() -> Self {
+        Self {
+            pod: PodCriterion {
+                energy: 1.0 - 1e-8,
+                max_modes: 10,
+            },
+            margin: 0.1,
+            vademecum: VademecumSettings::default(),
+        }
+    }
+}
+
+/// What the offline stage did and how accurate its vademecum is.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TearBuildReport {
+    /// Snapshots taken.
+    pub snapshots: usize,
+    /// POD vectors kept.
+    pub pod_vectors: usize,
+    /// Energy fraction they capture.
+    pub captured: f64,
+    /// The coefficient box.
+    pub lo: Vec<f64>,
+    /// The coefficient box.
+    pub hi: Vec<f64>,
+    /// The smallest `g` the POD reconstruction takes over the box.
+    pub min_g_over_box: f64,
+    /// PGD modes.
+    pub pgd_modes: usize,
+    /// Size of the Ritz basis.
+    pub ritz_size: usize,
+    /// Largest relative error of the vademecum's increment against the exact `K(ξ)⁻¹b(ξ)`
+    /// at the snapshots' coefficients.
+    pub vademecum_error: f64,
+    /// Time of the full-order runs (s).
+    pub reference_seconds: f64,
+    /// Time of POD + vademecum + Ritz (s).
+    pub build_seconds: f64,
+    /// The vademecum builder's own report.
+    pub vademecum: vademecum::VademecumReport,
+}
+
+/// The offline stage failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TearBuildError {
+    /// A full-order run failed.
+    #[error("full-order reference: {0}")]
+    Reference(#[from] RunError),
+    /// No POD basis.
+    #[error("POD of the damage snapshots: {0}")]
+    Pod(#[from] PodError),
+    /// No vademecum.
+    #[error("vademecum: {0}")]
+    Vademecum(#[from] VademecumError),
+    /// The problem damages nothing.
+    #[error("the model has no tearable material: mark a material with damage = {{ … }}")]
+    NothingTearable,
+}
+
+/// Runs the offline stage; `progress(stage, fraction)` as it goes. Returns the offline data,
+/// the report, and the two explicit reference runs (h = 0, then h ≠ 0) it took snapshots from.
+pub fn build(
+    model: TearModel,
+    settings: &TearSettings,
+    mut progress: impl FnMut(&str, f64),
+) -> Result<(TearOffline, TearBuildReport, [TearRun; 2]), TearBuildError> {
+    if model.points.tearable.is_empty() {
+        return Err(TearBuildError::NothingTearable);
+    }
+    let t0 = Instant::now();
+    let mut runs = Vec::new();
+    for tangent in [Tangent::Secant, Tangent::Consistent] {
+        let label = if tangent == Tangent::Secant {
+            "reference h = 0"
+        } else {
+            "reference h ≠ 0"
+        };
+        runs.push(reference::run(&model, RunSettings::seed(Scheme::Explicit(tangent)), |k, n| {
+            progress(label, k as f64 / n as f64)
+        })?);
+    }
+    let reference_seconds = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    // the virgin state once (every online run starts there), then every step of both runs
+    let snapshots: Vec<Vec<f64>> = std::iter::once(runs[0].steps[0].g.clone())
+        .chain(runs.iter().flat_map(|r| r.steps.iter().skip(1).map(|s| s.g.clone())))
+        .collect();
+    let basis = DamageBasis::from_snapshots(&snapshots, settings.pod, settings.margin)?;
+    let sys = AffineSystem::of(&model, &basis);
+    let vad = vademecum::build(&sys, &basis.lo, &basis.hi, &settings.vademecum, |m, ratio| {
+        progress(
+            "vademecum",
+            (m as f64 / settings.vademecum.max_modes as f64)
+                .max(1.0 - ratio.max(1e-12).log10().abs() / 12.0)
+                .min(1.0),
+        )
+    })?;
+    let ritz = RitzOperator::new(&vad, &sys);
+    let build_seconds = t1.elapsed().as_secs_f64();
+    // the vademecum against exact solves at the snapshots' coefficients
+    let (mut xi, mut a) = (vec![0.0; basis.len()], vec![0.0; vad.n_modes]);
+    let mut du = vec![0.0; vad.n_free];
+    let mut worst: f64 = 0.0;
+    for (k, s) in snapshots.iter().enumerate() {
+        progress("validation", k as f64 / snapshots.len() as f64);
+        basis.project(s, &mut xi);
+        vad.coefficients(&xi, &mut a);
+        vad.combine(&a, &mut du);
+        if let Ok(exact) = sys.solve(&xi) {
+            let (e, _) = reference::l2_error(&du, &exact);
+            let n = exact.iter().map(|v| v * v).sum::<f64>().sqrt();
+            worst = worst.max(if n > 0.0 { e / n } else { e });
+        }
+    }
+    let report = TearBuildReport {
+        snapshots: snapshots.len(),
+        pod_vectors: basis.len(),
+        captured: basis.pod.captured,
+        lo: basis.lo.clone(),
+        hi: basis.hi.clone(),
+        min_g_over_box: basis.min_over_box(),
+        pgd_modes: vad.n_modes,
+        ritz_size: ritz.m,
+        vademecum_error: worst,
+        reference_seconds,
+        build_seconds,
+        vademecum: vad.report.clone(),
+    };
+    let runs: [TearRun; 2] = runs.try_into().expect("two runs");
+    Ok((
+        TearOffline {
+            model,
+            basis,
+            vademecum: vad,
+            ritz,
+        },
+        report,
+        runs,
+    ))
+}
