@@ -9,18 +9,20 @@
 //! - [`points`]: the integration points of a mesh (B̄ on hexahedra), their strains, stresses,
 //!   forces and stiffness with a damage field.
 //! - [`model`]: a tearing problem — mesh, supports, points, load increment, schedule.
-//! - [`reference`]: the full-order runs: explicit (h = 0 or the consistent tangent) and Newton.
+//! - [`reference`](mod@reference): the full-order runs: explicit (h = 0 or the consistent tangent) and Newton.
 //! - [`pod`]: the POD basis of damage snapshots and the projection `ξ = υᵀg`.
 //! - [`vademecum`]: the PGD vademecum `∆u(ξ₁ … ξ_q)` over the POD coefficients (§4.5.4).
 //! - [`online`]: the POD–PGD integrator (Alg. 4.2): the seed's simplified model (h = 0) and
 //!   the full one (h ≠ 0, the vademecum's modes as a Ritz basis with the loading points'
 //!   rank-one tangent terms).
+//! - [`organ`]: a scene's tearable organ as a [`model::TearModel`], and its settings.
 //! - [`build`]: the offline stage — snapshots, POD, vademecum, Ritz form, validation.
 
 pub mod build;
 pub mod law;
 pub mod model;
 pub mod online;
+pub mod organ;
 pub mod pod;
 pub mod points;
 pub mod reference;

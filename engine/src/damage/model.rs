@@ -31,17 +31,18 @@ pub struct TearModel {
     pub prescribed: Vec<f64>,
     /// The multiplier of `load` and `prescribed` at each step (the schedule).
     pub schedule: Vec<f64>,
-    /// Damage past which a cell is torn (not rendered).
-    pub torn: f64,
+    /// Damage past which each cell is torn (not rendered; `∞` for cells that never tear).
+    pub torn: Vec<f64>,
 }
 
 impl TearModel {
     /// A model with the given points, constraints and unit increments; `schedule` defaults
-    /// to nothing (set it before running).
+    /// to nothing (set it before running), every cell torn at [`DEFAULT_TORN`].
     pub fn new(mesh: Mesh, points: MaterialPoints, constrained: &[bool], load: Vec<f64>, prescribed: Vec<f64>) -> Self {
         let dofs = DofMap::new(constrained);
         let pattern = Arc::new(SymmetricPattern::build(&mesh, &dofs));
         let springs = vec![0.0; 3 * mesh.n_nodes()];
+        let torn = vec![DEFAULT_TORN; mesh.n_cells()];
         Self {
             mesh,
             dofs,
@@ -51,7 +52,7 @@ impl TearModel {
             load,
             prescribed,
             schedule: Vec::new(),
-            torn: DEFAULT_TORN,
+            torn,
         }
     }
 
@@ -114,7 +115,7 @@ impl TearModel {
     pub fn cell_damage(&self, state: &[PointState]) -> (Vec<f64>, usize) {
         let mut d = vec![0.0; self.mesh.n_cells()];
         self.points.cell_damage(state, &mut d);
-        let torn = d.iter().filter(|&&x| x >= self.torn).count();
+        let torn = d.iter().zip(&self.torn).filter(|(x, t)| x >= t).count();
         (d, torn)
     }
 }

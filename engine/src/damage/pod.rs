@@ -24,7 +24,10 @@ impl DamageBasis {
     /// The basis of `snapshots` (`g` of the tearable points, one per step) under `criterion`,
     /// with the coefficient box of the snapshots widened by `margin` (a fraction of each
     /// range, and at least `margin` times the largest range, so that a coefficient the
-    /// snapshots never vary still has a box).
+    /// snapshots never vary still has a box) — less where the box would reach damage fields
+    /// softer than half the softest snapshot (the stiffness must stay positive over the
+    /// whole box: it is a tensor product, whose corners combine extremes the snapshots never
+    /// reach together).
     pub fn from_snapshots(snapshots: &[Vec<f64>], criterion: PodCriterion, margin: f64) -> Result<Self, PodError> {
         let pod = Pod::from_snapshots(snapshots, criterion)?;
         let q = pod.modes;
@@ -36,12 +39,42 @@ impl DamageBasis {
             }
         }
         let widest = lo.iter().zip(&hi).map(|(a, b)| b - a).fold(0.0, f64::max).max(1e-12);
-        for k in 0..q {
-            let pad = margin * (hi[k] - lo[k]).max(widest);
-            lo[k] -= pad;
-            hi[k] += pad;
+        let pad: Vec<f64> = (0..q).map(|k| margin * (hi[k] - lo[k]).max(widest)).collect();
+        let centre: Vec<f64> = (0..q).map(|k| 0.5 * (lo[k] + hi[k])).collect();
+        let half: Vec<f64> = (0..q).map(|k| 0.5 * (hi[k] - lo[k])).collect();
+        // the box must not hold damage fields softer than half the softest snapshot: its
+        // stiffness would lose positivity where the tensor-product box combines extremes
+        let floor = 0.5 * snapshots.iter().flatten().fold(1.0f64, |a, &b| a.min(b)).max(0.0);
+        let mut b = Self { pod, lo, hi };
+        let set = |b: &mut Self, shrink: f64, t: f64| {
+            for k in 0..q {
+                b.lo[k] = centre[k] - shrink * half[k] - t * pad[k];
+                b.hi[k] = centre[k] + shrink * half[k] + t * pad[k];
+            }
+        };
+        set(&mut b, 1.0, 1.0);
+        if b.min_over_box() < floor {
+            // the largest margin that keeps the floor, else the snapshots' box shrunk about
+            // its centre (coefficients outside it are then clamped online, and reported)
+            let stage = |b: &mut Self, f: &dyn Fn(f64) -> (f64, f64)| {
+                let (mut ok, mut bad) = (0.0, 1.0);
+                for _ in 0..40 {
+                    let mid = 0.5 * (ok + bad);
+                    let (s, t) = f(mid);
+                    set(b, s, t);
+                    if b.min_over_box() >= floor { ok = mid } else { bad = mid }
+                }
+                let (s, t) = f(ok);
+                set(b, s, t);
+            };
+            set(&mut b, 1.0, 0.0);
+            if b.min_over_box() >= floor {
+                stage(&mut b, &|t| (1.0, t));
+            } else {
+                stage(&mut b, &|s| (s, 0.0));
+            }
         }
-        Ok(Self { pod, lo, hi })
+        Ok(b)
     }
 
     /// Number of coefficients `q`.

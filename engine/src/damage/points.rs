@@ -56,13 +56,15 @@ pub struct MaterialPoints {
 }
 
 impl MaterialPoints {
-    /// The points of `mesh` with the moduli of `materials`; `law_of(cell, size)` gives the
+    /// The points of `mesh` with the moduli of `materials`, with B̄ on hexahedra when `bbar`
+    /// (else full integration of the volumetric part); `law_of(cell, size)` gives the
     /// damage law of a tearable cell, where `size` is its characteristic length (m; the
     /// cube root of its volume for a hexahedron, the edge of the regular tetrahedron of its
     /// volume for a tetrahedron).
     pub fn new<E>(
         mesh: &Mesh,
         materials: &MaterialMap,
+        bbar: bool,
         mut law_of: impl FnMut(usize, f64) -> Result<Option<DamageLaw>, E>,
     ) -> Result<Self, PointsError<E>> {
         let n = mesh.kind.nodes_per_cell();
@@ -126,7 +128,7 @@ impl MaterialPoints {
                 pts.cell.push(c);
                 pts.weight.push(w);
                 pts.grad.push(g);
-                pts.vgrad.push(gbar);
+                pts.vgrad.push(if bbar { gbar } else { g });
                 pts.kappa.push(mat.bulk());
                 pts.mu.push(mat.shear());
                 pts.law.push(law);
@@ -348,7 +350,7 @@ mod tests {
             CellKind::Tet4 => procedural::block_tet([0.0; 3], [1.0, 0.7, 0.5], [2, 2, 1]),
         };
         let mat = MaterialMap::uniform(LinearElastic::new(1000.0, 0.3).unwrap(), 1.0, mesh.n_cells());
-        let pts = MaterialPoints::new(&mesh, &mat, |_, _| Ok::<_, ()>(None)).unwrap();
+        let pts = MaterialPoints::new(&mesh, &mat, true, |_, _| Ok::<_, ()>(None)).unwrap();
         (mesh, mat, pts)
     }
 

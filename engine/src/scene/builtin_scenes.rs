@@ -1,7 +1,18 @@
 //! Scenes compiled into the binary, so defaults need no files.
 
 /// Names of the built-in scenes; the first is the default.
-pub const BUILTIN_NAMES: [&str; 7] = ["organ", "patch", "cantilever", "cornea", "stretch", "patch_cut", "keratotomy"];
+pub const BUILTIN_NAMES: [&str; 10] = [
+    "organ",
+    "patch",
+    "cantilever",
+    "cornea",
+    "stretch",
+    "patch_cut",
+    "keratotomy",
+    "cube_tear",
+    "cube_shear",
+    "gallbladder_fat",
+];
 
 /// The TOML text of a built-in scene.
 pub fn builtin(name: &str) -> Option<&'static str> {
@@ -13,6 +24,9 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "stretch" => STRETCH,
         "patch_cut" => PATCH_CUT,
         "keratotomy" => KERATOTOMY,
+        "cube_tear" => CUBE_TEAR,
+        "cube_shear" => CUBE_SHEAR,
+        "gallbladder_fat" => GALLBLADDER_FAT,
         _ => return None,
     })
 }
@@ -354,3 +368,178 @@ cutting = true
 locking = "bbar"
 "#
 );
+
+/// The unit cube of seed 000 §4.6.1 (one hexahedron, E = 5 Pa, ν = 0.3), with the damage
+/// parameters `$alpha`, `$beta`.
+macro_rules! unit_cube {
+    ($alpha:literal, $beta:literal) => {
+        concat!(
+            r#"[[organs]]
+name = "cube"
+density = 1.0
+
+[organs.mesh]
+builtin = "block"
+origin = [0.0, 0.0, 0.0]
+size = [1.0, 1.0, 1.0]
+divisions = [1, 1, 1]
+cell = "hex8"
+
+[[organs.materials]]
+model = "linear"
+young = 5.0                          # Pa
+poisson = 0.3
+damage = { alpha = "#,
+            $alpha,
+            ", beta = ",
+            $beta,
+            r#" }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }
+
+"#
+        )
+    };
+}
+
+/// The grasper, effects and fidelity of the two seed cubes, up to `[fidelity.tearing]`.
+macro_rules! cube_tool_and_fidelity {
+    () => {
+        r#"[[tools]]
+kind = "grasper"
+name = "grasper"
+jaw_width = 0.2                      # m
+max_force = 1.0                      # N
+
+[effects]
+tearing = true
+
+[fidelity]
+locking = "none"                     # the seed's standard hexahedron
+
+[fidelity.tearing]
+"#
+    };
+}
+
+const CUBE_TEAR: &str = concat!(
+    r#"# Seed 000, section 4.6.1.1: a unit cube pulled at an upper corner until it damages.
+[scene]
+name = "cube_tear"
+description = "The unit cube of seed 000, section 4.6.1.1: one hexahedron, E = 5 Pa, nu = 0.3, Simo damage with alpha = beta = 0.4; one base node fixed, the other base nodes sliding in the base plane, and the base node at (1, 0, 0) also held in y (the least constraint that removes the free rotation about z, which the seed leaves); the upper corner (1, 1, 1) pulled up by 0.05 N per step for 10 steps; 3 POD vectors."
+
+"#,
+    unit_cube!("0.4", "0.4"),
+    r#"[organs.fixed]                       # the fully fixed base node
+sphere = { center = [0.0, 0.0, 0.0], radius = 0.01 }
+
+[[organs.loads]]                     # the base slides in its plane
+kind = "displacement"
+name = "base"
+region = { box = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 0.0] } }
+z = 0.0
+
+[[organs.loads]]                     # stops the rotation about z
+kind = "displacement"
+name = "anchor"
+region = { sphere = { center = [1.0, 0.0, 0.0], radius = 0.01 } }
+y = 0.0
+
+[[organs.loads]]                     # per pseudo-time step
+kind = "point"
+at = [1.0, 1.0, 1.0]
+force = [0.0, 0.0, 0.05]             # N
+
+"#,
+    cube_tool_and_fidelity!(),
+    r#"schedule = [{ steps = 10, scale = 1.0 }]
+pod_vectors = 3
+"#
+);
+
+const CUBE_SHEAR: &str = concat!(
+    r#"# Seed 000, section 4.6.1.2: a unit cube in cyclic shear.
+[scene]
+name = "cube_shear"
+description = "The unit cube of seed 000, section 4.6.1.2: one hexahedron, E = 5 Pa, nu = 0.3, Simo damage with alpha = 0.4, beta = 0.1; base fixed; the four upper nodes pushed along x by 0.004 N each per step, in the seed's cyclic schedule of 200 steps (25 steps up, 25 back, with increments 0.004, 0.008, 0.012, 0.016 N)."
+
+"#,
+    unit_cube!("0.4", "0.1"),
+    r#"[organs.fixed]                       # the base
+box = { min = [0.0, 0.0, 0.0], max = [1.0, 1.0, 0.0] }
+
+[[organs.loads]]                     # 0.004 N on each upper node per unit step
+kind = "force"
+region = { box = { min = [0.0, 0.0, 1.0], max = [1.0, 1.0, 1.0] } }
+force = [0.016, 0.0, 0.0]            # N, shared equally by the four nodes
+
+"#,
+    cube_tool_and_fidelity!(),
+    r#"schedule = [
+  { steps = 25, scale = 1.0 }, { steps = 25, scale = -1.0 },
+  { steps = 25, scale = 2.0 }, { steps = 25, scale = -2.0 },
+  { steps = 25, scale = 3.0 }, { steps = 25, scale = -3.0 },
+  { steps = 25, scale = 4.0 }, { steps = 25, scale = -4.0 },
+]
+"#
+);
+
+const GALLBLADDER_FAT: &str = r#"# Seed 000, section 4.6.2: tearing the fat off a gallbladder.
+[scene]
+name = "gallbladder_fat"
+description = "Seed 000, section 4.6.2 on the sofa_env gallbladder (tetrahedra, 866 nodes; the seed's hexahedral Calot's-triangle model is not available): a 9 mm layer of fat on its upper side (274 tetrahedra; E = 0.5 MPa, nu = 0.495, Simo damage with beta = 0 as the seed, alpha = 300 sqrt(Pa) where the seed prints alpha = 1 without units, see docs/tearing.md), the gallbladder itself E = 1.15 kPa, nu = 0.48 and never damaged; its underside (where it lies on the liver) and the two ends of the fat (where it joins the connective tissue) fixed; grasped at the middle of the fat and pulled up by 1/3 N per step for 15 steps: the fat under the jaws passes the 0.8 damage threshold at step 14. Reads ../shared/data (run from the repository's folder or below it)."
+
+[[organs]]
+name = "gallbladder"
+density = 1000.0
+
+[organs.mesh]
+file = "../shared/data/meshes/derived/sofa_env_gallbladder_tet_h5.msh"
+scale = 0.001                        # mm -> m
+
+[[organs.materials]]                 # the gallbladder wall and bile
+model = "linear"
+young = 1150.0                       # Pa
+poisson = 0.48
+
+[[organs.materials]]                 # the fat: every cell above z = -9.1 mm
+within = { half_space = { point = [0.0, 0.0, -0.0091], normal = [0.0, 0.0, 1.0] } }
+model = "linear"
+young = 0.5e6                        # Pa
+poisson = 0.495
+damage = { alpha = 300.0, beta = 0.0 }   # alpha in sqrt(Pa), like the equivalent strain
+
+[[organs.fixed]]                     # the underside, on the liver
+name = "liver"
+region = { half_space = { point = [0.0, 0.0, -0.0275], normal = [0.0, 0.0, -1.0] } }
+
+[[organs.fixed]]                     # the fat's end towards the fundus
+name = "fundus_end"
+region = { box = { min = [-1.0, -1.0, -0.0091], max = [-0.051, 1.0, 1.0] } }
+
+[[organs.fixed]]                     # the fat's end towards the cystic duct
+name = "duct_end"
+region = { box = { min = [-0.015, -1.0, -0.0091], max = [1.0, 1.0, 1.0] } }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, -0.0091], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]                     # the grasp: 1/3 N up per step, shared by the nodes under the jaws
+kind = "force"
+region = { sphere = { center = [-0.03302, -0.00284, -0.00012], radius = 0.003 } }
+force = [0.0, 0.0, 0.3333333333333333]   # N
+
+[[tools]]
+kind = "grasper"
+name = "grasper"
+jaw_width = 0.006                    # m
+max_force = 6.0                      # N
+
+[effects]
+tearing = true
+
+[fidelity.tearing]
+schedule = [{ steps = 15, scale = 1.0 }]
+pod_vectors = 3                      # as the seed
+"#;

@@ -15,6 +15,7 @@ pub mod locate;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use crate::damage::law::{DamageLaw, LawError};
 use crate::fem::assembly::MaterialMap;
 use crate::fem::hyperelastic::LawMap;
 use crate::fem::linear_static::StaticProblem;
@@ -262,6 +263,7 @@ impl Scene {
                 "tearing is enabled but the scene has no grasper tool; add a [[tools]] entry with kind = \"grasper\"",
             ));
         }
+        self.validate_tearing()?;
         let p = &s.fidelity.pgd;
         let pgd = [Seg::Key("fidelity"), Seg::Key("pgd")];
         let in_unit = |t: f64| t > 0.0 && t < 1.0;
@@ -272,6 +274,71 @@ impl Scene {
             return Err(self.error_at(&pgd, "max_modes, max_iterations and block must be at least 1"));
         }
         self.validate_meshless()
+    }
+
+    /// Tearable materials against `effects.tearing`, and `[fidelity.tearing]`.
+    fn validate_tearing(&self) -> Result<(), SceneError> {
+        let s = &self.spec;
+        let tearable = s.organs.iter().any(|o| o.materials.iter().any(|m| m.damage.is_some()));
+        if s.effects.tearing && !tearable {
+            return Err(self.error_at(
+                &[Seg::Key("effects"), Seg::Key("tearing")],
+                "tearing is enabled but no material can tear; mark one with damage = { alpha = …, beta = … } (or law = \"softening\", strength, fracture_energy)",
+            ));
+        }
+        if !s.effects.tearing
+            && let Some((i, m)) = s
+                .organs
+                .iter()
+                .enumerate()
+                .find_map(|(i, o)| o.materials.iter().position(|m| m.damage.is_some()).map(|m| (i, m)))
+        {
+            return Err(self.error_at(
+                &[
+                    Seg::Key("organs"),
+                    Seg::Index(i),
+                    Seg::Key("materials"),
+                    Seg::Index(m),
+                    Seg::Key("damage"),
+                ],
+                "this material can tear but effects.tearing is false: set [effects] tearing = true, or remove `damage`",
+            ));
+        }
+        let t = &s.fidelity.tearing;
+        let key = |k: &'static str| [Seg::Key("fidelity"), Seg::Key("tearing"), Seg::Key(k)];
+        let steps = t
+            .schedule
+            .iter()
+            .try_fold(0usize, |n, b| n.checked_add(b.steps))
+            .unwrap_or(usize::MAX);
+        if t.schedule.iter().any(|b| !b.scale.is_finite()) || steps == 0 || steps > 100_000 {
+            return Err(self.error_at(&key("schedule"), "the schedule needs 1 to 100000 steps in all, with finite scales"));
+        }
+        if t.pod_vectors.is_some_and(|n| n == 0 || n > 20) {
+            return Err(self.error_at(&key("pod_vectors"), "pod_vectors must be between 1 and 20"));
+        }
+        if !(t.pod_energy > 0.0 && t.pod_energy <= 1.0) {
+            return Err(self.error_at(&key("pod_energy"), "pod_energy must lie in (0, 1]"));
+        }
+        if !(t.margin >= 0.0 && t.margin <= 10.0) {
+            return Err(self.error_at(&key("margin"), "margin must lie in [0, 10]"));
+        }
+        if !(2..=100_000).contains(&t.grid) {
+            return Err(self.error_at(&key("grid"), "grid must be between 2 and 100000 nodes"));
+        }
+        if !(t.tolerance > 0.0 && t.tolerance < 1.0) {
+            return Err(self.error_at(&key("tolerance"), "tolerance must lie in (0, 1)"));
+        }
+        if !(1..=1000).contains(&t.max_modes) {
+            return Err(self.error_at(&key("max_modes"), "max_modes must be between 1 and 1000"));
+        }
+        if !(t.max_damage_increment > 0.0 && t.max_damage_increment <= 1.0) {
+            return Err(self.error_at(&key("max_damage_increment"), "max_damage_increment must lie in (0, 1]"));
+        }
+        if !(1..=64).contains(&t.max_substeps) || !t.max_substeps.is_power_of_two() {
+            return Err(self.error_at(&key("max_substeps"), "max_substeps must be a power of two from 1 to 64"));
+        }
+        Ok(())
     }
 
     /// `[fidelity.meshless]` and the organs' cuts.
@@ -468,6 +535,9 @@ impl Scene {
                 "`volumetric` chooses U(J) of neo_hookean and mooney_rivlin; linear and stvk materials have none",
             ));
         }
+        if let Some(d) = &m.damage {
+            self.validate_damage(m, d, &key("damage"))?;
+        }
         match m.model {
             MaterialModel::Linear | MaterialModel::Stvk | MaterialModel::NeoHookean => {
                 let young = m.young.ok_or_else(|| self.error_at(at, "this model needs `young` (Pa)"))?;
@@ -499,6 +569,65 @@ impl Scene {
                     return Err(self.error_at(at, "mooney_rivlin needs c10 + c01 > 0 and bulk > 0"));
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// A material's `damage = { … }`: the keys of its form, in range.
+    fn validate_damage(&self, m: &MaterialSpec, d: &DamageSpec, at: &[Seg<'_>]) -> Result<(), SceneError> {
+        let key = |k: &'static str| -> Vec<Seg<'_>> {
+            let mut v = at.to_vec();
+            v.push(Seg::Key(k));
+            v
+        };
+        if m.model != MaterialModel::Linear {
+            return Err(self.error_at(
+                at,
+                "damage applies to model = \"linear\" materials (seed 000 chapter 4 is small-strain)",
+            ));
+        }
+        let (needs, foreign): (&[(&str, Option<f64>)], &[(&str, Option<f64>)]) = match d.law {
+            DamageForm::Simo => (
+                &[("alpha", d.alpha), ("beta", d.beta)],
+                &[("strength", d.strength), ("fracture_energy", d.fracture_energy)],
+            ),
+            DamageForm::Softening => (
+                &[("strength", d.strength), ("fracture_energy", d.fracture_energy)],
+                &[("alpha", d.alpha), ("beta", d.beta)],
+            ),
+        };
+        let form = if d.law == DamageForm::Simo { "simo" } else { "softening" };
+        if let Some((k, _)) = needs.iter().find(|(_, v)| v.is_none()) {
+            return Err(self.error_at(at, format!("law = \"{form}\" needs `{k}`")));
+        }
+        if let Some((k, _)) = foreign.iter().find(|(_, v)| v.is_some()) {
+            return Err(self.error_at(&key(k), format!("`{k}` does not apply to law = \"{form}\"")));
+        }
+        let checked = match d.law {
+            DamageForm::Simo => DamageLaw::simo(d.alpha.unwrap_or(0.0), d.beta.unwrap_or(0.0), d.residual).map(|_| ()),
+            // the cell-size limit is checked per cell when the model is built
+            DamageForm::Softening => DamageLaw::softening(
+                m.young.unwrap_or(1.0),
+                d.strength.unwrap_or(0.0),
+                d.fracture_energy.unwrap_or(0.0),
+                0.0,
+                d.residual,
+            )
+            .map(|_| ())
+            .or_else(|e| {
+                if matches!(e, LawError::CellTooLarge { .. }) {
+                    Ok(())
+                } else {
+                    Err(e)
+                }
+            }),
+        };
+        if let Err(LawError::Range { key: k, .. }) = &checked {
+            let k: &'static str = k;
+            return Err(self.error_at(&key(k), checked.unwrap_err().to_string()));
+        }
+        if !(d.torn > 0.0 && d.torn <= 1.0) {
+            return Err(self.error_at(&key("torn"), format!("torn = {} must lie in (0, 1]", d.torn)));
         }
         Ok(())
     }
@@ -537,7 +666,9 @@ impl Scene {
         })
     }
 
-    /// Resolves a mesh path relative to the scene file's folder.
+    /// Resolves a mesh path relative to the scene file's folder. A built-in scene's relative
+    /// path is looked up from the working folder, then from each folder above it (so that
+    /// `../shared/data/…` is found from the repository or any folder inside it).
     pub fn resolve_path(&self, p: &str) -> PathBuf {
         let p = Path::new(p);
         if p.is_absolute() {
@@ -545,7 +676,10 @@ impl Scene {
         }
         match self.origin.parent() {
             Some(dir) if !self.origin.to_string_lossy().starts_with("<builtin") => dir.join(p),
-            _ => p.to_path_buf(),
+            _ => std::env::current_dir()
+                .ok()
+                .and_then(|cwd| cwd.ancestors().map(|d| d.join(p)).find(|c| c.exists()))
+                .unwrap_or_else(|| p.to_path_buf()),
         }
     }
 
@@ -691,8 +825,31 @@ impl Scene {
             table.push(mat);
             let idx = (table.len() - 1) as u16;
             let all = matches!(&spec.region, GroupRef::Name(n) if n == "all");
+            let inside: Option<Vec<bool>> = match &spec.within {
+                None => None,
+                Some(r) => {
+                    let nodes = r
+                        .nodes(&mesh)
+                        .map_err(|e| self.error_at(&[at.clone(), vec![Seg::Key("within")]].concat(), e.to_string()))?;
+                    let mut node_in = vec![false; mesh.n_nodes()];
+                    nodes.iter().for_each(|&n| node_in[n] = true);
+                    let cells: Vec<bool> = mesh.cells_iter().map(|c| c.iter().all(|&n| node_in[n])).collect();
+                    if !cells.iter().any(|&b| b) {
+                        return Err(self.error_at(
+                            &[at.clone(), vec![Seg::Key("within")]].concat(),
+                            "no cell has all its nodes in this region, so the material covers nothing",
+                        ));
+                    }
+                    Some(cells)
+                }
+            };
+            let covers = |c: usize| inside.as_ref().is_none_or(|v| v[c]);
             if all {
-                of_cell.iter_mut().for_each(|c| *c = Some(idx));
+                of_cell
+                    .iter_mut()
+                    .enumerate()
+                    .filter(|(c, _)| covers(*c))
+                    .for_each(|(_, m)| *m = Some(idx));
             } else {
                 let key = match &spec.region {
                     GroupRef::Tag(t) => t.to_string(),
@@ -705,7 +862,7 @@ impl Scene {
                     )
                 })?;
                 for (c, r) in mesh.cell_region.iter().enumerate() {
-                    if *r == tag {
+                    if *r == tag && covers(c) {
                         of_cell[c] = Some(idx);
                     }
                 }

@@ -241,6 +241,10 @@ pub struct MaterialSpec {
     /// `"all"` (default) or a physical group name or tag.
     #[serde(default = "all_region")]
     pub region: GroupRef,
+    /// Only the cells (of `region`) whose nodes all lie in this geometric region, e.g. a
+    /// layer of a mesh that has no physical groups: `within = { half_space = { … } }`.
+    #[serde(default)]
+    pub within: Option<Region>,
     /// The constitutive model.
     pub model: MaterialModel,
     /// Young's modulus E (Pa).
@@ -257,6 +261,53 @@ pub struct MaterialSpec {
     /// (`K/2 (J − 1)²`, the default), `ln_j` (`K/2 (ln J)²`, SOFA's) or `simo_taylor`
     /// (`K/4 (J² − 1 − 2 ln J)`).
     pub volumetric: Option<crate::material::hyperelastic::VolumetricLaw>,
+    /// Marks the material tearable (needs `effects.tearing = true` and `model = "linear"`):
+    /// isotropic damage at its integration points (seed 000 §4.2; `docs/tearing.md`).
+    #[serde(default)]
+    pub damage: Option<DamageSpec>,
+}
+
+/// The form of a damage law.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DamageForm {
+    /// The seed's exponential potential (Eq. 4.3), `alpha` and `beta`: no threshold, no peak.
+    #[default]
+    Simo,
+    /// A threshold and exponential softening, `strength` and `fracture_energy`, regularised
+    /// by the cell size.
+    Softening,
+}
+
+/// `damage = { … }` of a material.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DamageSpec {
+    /// `simo` (default) or `softening`.
+    #[serde(default)]
+    pub law: DamageForm,
+    /// `simo`: α (√Pa), > 0.
+    pub alpha: Option<f64>,
+    /// `simo`: β in [0, 1].
+    pub beta: Option<f64>,
+    /// `softening`: tensile strength f_t (Pa).
+    pub strength: Option<f64>,
+    /// `softening`: fracture energy G_f (J/m²).
+    pub fracture_energy: Option<f64>,
+    /// Stiffness fraction a fully damaged point keeps (default 10⁻⁴).
+    #[serde(default = "default_residual")]
+    pub residual: f64,
+    /// Damage at which a cell is torn: no longer rendered, and it releases a grasp (default
+    /// 0.8, the seed's).
+    #[serde(default = "default_torn")]
+    pub torn: f64,
+}
+
+fn default_residual() -> f64 {
+    crate::damage::law::DEFAULT_RESIDUAL
+}
+fn default_torn() -> f64 {
+    crate::damage::law::DEFAULT_TORN
 }
 
 fn all_region() -> GroupRef {
@@ -432,7 +483,7 @@ pub struct Effects {
 }
 
 /// `[fidelity]`: accuracy against cost.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Fidelity {
     /// Volumetric-locking treatment: `none`, `sri`, `bbar` (hexahedra; on tetrahedra these
@@ -456,6 +507,109 @@ pub struct Fidelity {
     /// Settings of cutting by XFEM (linear organs).
     #[serde(default)]
     pub xfem: XfemFidelity,
+    /// Settings of tearing (the damage reference, its POD and vademecum).
+    #[serde(default)]
+    pub tearing: TearingFidelity,
+}
+
+/// One block of a tearing schedule: `steps` pseudo-time steps of `scale` times the organ's
+/// loads (forces and prescribed displacements are per-step increments).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScheduleBlock {
+    /// Number of steps.
+    pub steps: usize,
+    /// Multiplier of the loads at each of them (negative unloads).
+    pub scale: f64,
+}
+
+/// `[fidelity.tearing]`: the offline stage of tearing (seed 000 §4.5) and the online step.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TearingFidelity {
+    /// The pseudo-time steps of the full-order reference whose damage fields are the POD's
+    /// snapshots (default ten steps of the loads, as the seed's cube).
+    #[serde(default = "default_schedule")]
+    pub schedule: Vec<ScheduleBlock>,
+    /// A fixed number of POD vectors (default: as many as `pod_energy` needs, at most 10).
+    #[serde(default)]
+    pub pod_vectors: Option<usize>,
+    /// Energy fraction of the snapshots the POD basis keeps.
+    #[serde(default = "default_pod_energy")]
+    pub pod_energy: f64,
+    /// Margin around the snapshots' coefficient box (fraction of each range).
+    #[serde(default = "default_margin")]
+    pub margin: f64,
+    /// Grid nodes along each POD coefficient's range.
+    #[serde(default = "default_grid")]
+    pub grid: usize,
+    /// The vademecum stops adding modes below this amplitude relative to the first.
+    #[serde(default = "default_tear_tolerance")]
+    pub tolerance: f64,
+    /// Most vademecum modes.
+    #[serde(default = "default_tear_modes")]
+    pub max_modes: usize,
+    /// The online integrator: `full` (h ≠ 0, default) or `simplified` (h = 0, the seed's).
+    #[serde(default = "default_variant")]
+    pub variant: crate::damage::online::Variant,
+    /// Largest damage increment of an online step before it is split into sub-steps.
+    #[serde(default = "default_max_dd")]
+    pub max_damage_increment: f64,
+    /// Most sub-steps of an online step (a power of two).
+    #[serde(default = "default_max_substeps")]
+    pub max_substeps: u32,
+}
+
+fn default_schedule() -> Vec<ScheduleBlock> {
+    vec![ScheduleBlock { steps: 10, scale: 1.0 }]
+}
+fn default_pod_energy() -> f64 {
+    1.0 - 1e-8
+}
+fn default_margin() -> f64 {
+    0.1
+}
+fn default_grid() -> usize {
+    201
+}
+fn default_tear_tolerance() -> f64 {
+    1e-6
+}
+fn default_tear_modes() -> usize {
+    60
+}
+fn default_variant() -> crate::damage::online::Variant {
+    crate::damage::online::Variant::Full
+}
+fn default_max_dd() -> f64 {
+    0.1
+}
+fn default_max_substeps() -> u32 {
+    8
+}
+
+impl Default for TearingFidelity {
+    fn default() -> Self {
+        Self {
+            schedule: default_schedule(),
+            pod_vectors: None,
+            pod_energy: default_pod_energy(),
+            margin: default_margin(),
+            grid: default_grid(),
+            tolerance: default_tear_tolerance(),
+            max_modes: default_tear_modes(),
+            variant: default_variant(),
+            max_damage_increment: default_max_dd(),
+            max_substeps: default_max_substeps(),
+        }
+    }
+}
+
+impl TearingFidelity {
+    /// The multiplier of every step.
+    pub fn steps(&self) -> Vec<f64> {
+        self.schedule.iter().flat_map(|b| std::iter::repeat_n(b.scale, b.steps)).collect()
+    }
 }
 
 /// `[fidelity.xfem]`: cutting by XFEM with cracking nodes (seed 000 chapter 3; `docs/cutting.md`).
