@@ -205,3 +205,36 @@ fn a_cutting_tick_allocates_and_frees_nothing_while_the_cut_grows() {
     assert_eq!(COUNT.with(|n| n.get()), 0, "the cutting tick allocated");
     assert_eq!(FREES.with(|n| n.get()), 0, "the cutting tick freed memory");
 }
+
+#[test]
+fn a_tearing_step_allocates_nothing() {
+    use vademecum_engine::damage::online::{OnlineTear, StepLimits, Variant};
+    use vademecum_engine::damage::{build, organ};
+    // the seed's cube: steps, steps split into sub-steps (a fast pull), and rebuilding the
+    // whole displacement field
+    let scene = Scene::builtin("cube_tear").unwrap();
+    let (model, _) = organ::tear_model(&scene, 0).unwrap();
+    let (settings, _) = organ::settings(&scene);
+    let (off, _, _) = build::build(model, &settings, |_, _| {}).unwrap();
+    let off = Arc::new(off);
+    let limits = StepLimits {
+        max_damage_increment: 0.01,
+        max_substeps: 8,
+    };
+    for variant in [Variant::Simplified, Variant::Full] {
+        let mut online = OnlineTear::new(off.clone(), variant, limits);
+        let mut u = vec![0.0; 3 * off.model.mesh.n_nodes()];
+        let mut split = 0;
+        COUNT.with(|n| n.set(0));
+        COUNTING.with(|c| c.set(true));
+        for k in 0..30 {
+            let s = online.step(if k < 20 { 1.0 } else { -1.0 });
+            split += (s.substeps > 1) as u32;
+            online.displacement(&mut u);
+        }
+        COUNTING.with(|c| c.set(false));
+        assert!(split > 0, "{variant:?}: some step was split");
+        assert!(u.iter().all(|x| x.is_finite()));
+        assert_eq!(COUNT.with(|n| n.get()), 0, "{variant:?}: a tearing step allocated");
+    }
+}

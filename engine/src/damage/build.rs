@@ -154,14 +154,5 @@ pub fn build(
         vademecum: vad.report.clone(),
     };
     let runs: [TearRun; 2] = runs.try_into().expect("two runs");
-    Ok((
-        TearOffline {
-            model,
-            basis,
-            vademecum: vad,
-            ritz,
-        },
-        report,
-        runs,
-    ))
+    Ok((TearOffline::new(model, basis, vad, ritz), report, runs))
 }

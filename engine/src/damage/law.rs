@@ -59,6 +59,9 @@ pub enum DamageLaw {
         beta: f64,
         /// Floor on `g`.
         residual: f64,
+        /// The `r` past which `g` sits on its floor (`∞` when it never does), set by
+        /// [`DamageLaw::simo`].
+        r_floor: f64,
     },
     /// Threshold and exponential softening: `g = (r₀/r) e^{A(1 − r/r₀)}` above `r₀`.
     Softening {
@@ -68,6 +71,8 @@ pub enum DamageLaw {
         a: f64,
         /// Floor on `g`.
         residual: f64,
+        /// The `r` past which `g` sits on its floor, set by [`DamageLaw::softening`].
+        r_floor: f64,
     },
 }
 
@@ -114,7 +119,13 @@ impl DamageLaw {
         check("alpha", alpha, alpha > 0.0, "must be > 0 (√Pa)")?;
         check("beta", beta, (0.0..=1.0).contains(&beta), "must be in [0, 1]")?;
         check("residual", residual, residual > 0.0 && residual < 1.0, "must be in (0, 1)")?;
-        Ok(Self::Simo { alpha, beta, residual })
+        Ok(Self::Simo {
+            alpha,
+            beta,
+            residual,
+            r_floor: f64::INFINITY,
+        }
+        .with_floor())
     }
 
     /// The softening law for a material of Young's modulus `young`, tensile strength
@@ -139,7 +150,9 @@ impl DamageLaw {
             r0,
             a: 1.0 / inv_a,
             residual,
-        })
+            r_floor: f64::INFINITY,
+        }
+        .with_floor())
     }
 
     /// The floor on `g`.
@@ -197,7 +210,9 @@ impl DamageLaw {
         if to <= from {
             return 0.0;
         }
-        let cap = self.floor_r();
+        let cap = match *self {
+            Self::Simo { r_floor, .. } | Self::Softening { r_floor, .. } => r_floor,
+        };
         let (a, b) = (from.min(cap), to.min(cap));
         self.primitive(b) - self.primitive(a)
     }
@@ -219,7 +234,17 @@ impl DamageLaw {
         }
     }
 
-    /// The `r` past which `g` sits on the residual floor (`∞` when it never does).
+    /// The law with its `r_floor` computed.
+    fn with_floor(mut self) -> Self {
+        let r = self.floor_r();
+        match &mut self {
+            Self::Simo { r_floor, .. } | Self::Softening { r_floor, .. } => *r_floor = r,
+        }
+        self
+    }
+
+    /// The `r` past which `g` sits on the residual floor (`∞` when it never does), by
+    /// bisection (once, at construction).
     fn floor_r(&self) -> f64 {
         let res = self.residual();
         if self.raw(1e300).0 >= res {

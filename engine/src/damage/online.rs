@@ -15,6 +15,13 @@
 //!   it leaves the box, where the basis was not trained. If the bordered matrix is not
 //!   positive definite (past a stress peak), the step uses the secant part alone (reported).
 //!
+//! # Only the tearable region each step
+//! Damage needs the displacement at the tearable points' nodes only. A step therefore
+//! updates the displacement on those dofs (the [`LocalDofs`], restricted copies of the modes)
+//! and accumulates the step's modal amplitudes; [`OnlineTear::displacement`] rebuilds the whole
+//! field from them when it is asked for (a frame, a recording, a test), exactly the sum of the
+//! steps' increments. On the gallbladder this is 2,598 dofs against ~500.
+//!
 //! # Fast pulls
 //! A step that raises some point's damage by more than `max_damage_increment` is redone in
 //! 2, 4, … sub-steps, up to `max_substeps`; beyond that it is accepted and reported as too
@@ -114,6 +121,66 @@ impl RitzOperator {
     }
 }
 
+/// The dofs of the tearable points' nodes, with the vademecum's and the Ritz basis' rows there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LocalDofs {
+    /// Full dof index of each local dof (sorted).
+    pub dofs: Vec<usize>,
+    /// Its equation (free) or `None` (constrained, prescribed).
+    pub eqs: Vec<Option<usize>>,
+    /// `F_i` restricted, row-major `n_modes × n_local`.
+    pub modes: Vec<f64>,
+    /// `V` restricted, row-major `n_local × m`.
+    pub v: Vec<f64>,
+}
+
+impl LocalDofs {
+    /// The local dofs of `model`'s tearable points.
+    pub fn new(model: &TearModel, vad: &DamageVademecum, ritz: &RitzOperator) -> Self {
+        let mut dofs: Vec<usize> = model
+            .points
+            .tearable
+            .iter()
+            .flat_map(|&p| {
+                model
+                    .mesh
+                    .cell(model.points.cell[p])
+                    .iter()
+                    .flat_map(|&a| (0..3).map(move |i| 3 * a + i))
+            })
+            .collect();
+        dofs.sort_unstable();
+        dofs.dedup();
+        let eqs: Vec<Option<usize>> = dofs.iter().map(|&d| model.dofs.eq(d)).collect();
+        let n = dofs.len();
+        let mut modes = vec![0.0; vad.n_modes * n];
+        for i in 0..vad.n_modes {
+            let f = vad.mode(i);
+            for (l, e) in eqs.iter().enumerate() {
+                modes[i * n + l] = e.map_or(0.0, |e| f[e]);
+            }
+        }
+        let r = ritz.m;
+        let mut v = vec![0.0; n * r];
+        for (l, e) in eqs.iter().enumerate() {
+            if let Some(e) = e {
+                v[l * r..(l + 1) * r].copy_from_slice(&ritz.v[e * r..(e + 1) * r]);
+            }
+        }
+        Self { dofs, eqs, modes, v }
+    }
+
+    /// Number of local dofs.
+    pub fn len(&self) -> usize {
+        self.dofs.len()
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.dofs.is_empty()
+    }
+}
+
 fn norm(a: &[f64]) -> f64 {
     a.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -130,6 +197,38 @@ pub struct TearOffline {
     pub vademecum: DamageVademecum,
     /// The vademecum's modes as a Ritz basis.
     pub ritz: RitzOperator,
+    /// The dofs a step updates.
+    pub local: LocalDofs,
+}
+
+impl TearOffline {
+    /// Bytes of the modes, factors, Ritz operator and local rows (shared by sessions; the
+    /// model's mesh and points not counted).
+    pub fn memory_bytes(&self) -> usize {
+        let v = &self.vademecum;
+        let r = &self.ritz;
+        let l = &self.local;
+        8 * (v.spatial.len()
+            + v.factors.len()
+            + r.v.len()
+            + r.k.iter().map(Vec::len).sum::<usize>()
+            + r.b.iter().map(Vec::len).sum::<usize>()
+            + l.modes.len()
+            + l.v.len()
+            + self.basis.pod.modes * self.model.points.tearable.len())
+    }
+
+    /// Assembles the offline data (computes the local dofs).
+    pub fn new(model: TearModel, basis: DamageBasis, vademecum: DamageVademecum, ritz: RitzOperator) -> Self {
+        let local = LocalDofs::new(&model, &vademecum, &ritz);
+        Self {
+            model,
+            basis,
+            vademecum,
+            ritz,
+            local,
+        }
+    }
 }
 
 /// Limits on how fast the damage may grow in one step.
@@ -170,6 +269,23 @@ pub struct OnlineStep {
     pub max_damage_increment: f64,
 }
 
+/// Accumulated modal amplitudes: `u = Σ_i vad_i F_i + V ritz + load·ū` (free dofs, then the
+/// prescribed ones).
+#[derive(Debug, Clone, PartialEq, Default)]
+struct Amplitudes {
+    vad: Vec<f64>,
+    ritz: Vec<f64>,
+    load: f64,
+}
+
+impl Amplitudes {
+    fn copy_from(&mut self, o: &Self) {
+        self.vad.copy_from_slice(&o.vad);
+        self.ritz.copy_from_slice(&o.ritz);
+        self.load = o.load;
+    }
+}
+
 /// The POD–PGD integrator's state.
 #[derive(Debug, Clone)]
 pub struct OnlineTear {
@@ -178,17 +294,19 @@ pub struct OnlineTear {
     limits: StepLimits,
     /// The damage state of every point.
     pub state: Vec<PointState>,
-    /// The displacement (m, full length).
-    pub u: Vec<f64>,
+    /// The displacement, full length but current on the local dofs only.
+    u: Vec<f64>,
+    /// `Σ ds·a` of the vademecum's modes, of the Ritz basis, and `Σ ds` (the prescribed part).
+    amplitudes: Amplitudes,
     sigma0: Vec<Sym>,
     saved_state: Vec<PointState>,
     saved_u: Vec<f64>,
+    saved_amplitudes: Amplitudes,
     saved_sigma0: Vec<Sym>,
     g: Vec<f64>,
     xi: Vec<f64>,
     a: Vec<f64>,
     du: Vec<f64>,
-    du_full: Vec<f64>,
     mat: Vec<f64>,
     rhs: Vec<f64>,
     y: Vec<f64>,
@@ -207,6 +325,11 @@ impl OnlineTear {
         let q = off.basis.len();
         let r = off.ritz.m;
         let nodal = 3 * m.points.nodes_per_cell;
+        let amplitudes = Amplitudes {
+            vad: vec![0.0; off.vademecum.n_modes],
+            ritz: vec![0.0; r],
+            load: 0.0,
+        };
         Self {
             variant,
             limits,
@@ -215,12 +338,13 @@ impl OnlineTear {
             sigma0: vec![[0.0; 6]; np],
             saved_state: m.virgin(),
             saved_u: vec![0.0; nd],
+            saved_amplitudes: amplitudes.clone(),
+            amplitudes,
             saved_sigma0: vec![[0.0; 6]; np],
             g: vec![1.0; m.points.tearable.len()],
             xi: vec![0.0; q],
             a: vec![0.0; off.vademecum.n_modes.max(r)],
-            du: vec![0.0; nf],
-            du_full: vec![0.0; nd],
+            du: vec![0.0; nf.max(off.local.len())],
             mat: vec![0.0; r * r],
             rhs: vec![0.0; r],
             y: vec![0.0; r],
@@ -236,6 +360,62 @@ impl OnlineTear {
         &self.off
     }
 
+    /// The whole displacement field (m) into `out` (length `3 × nodes`): the sum of the
+    /// steps' increments, rebuilt from the accumulated modal amplitudes (no allocation).
+    pub fn displacement(&self, out: &mut [f64]) {
+        let m = &self.off.model;
+        let (vad, ritz) = (&self.off.vademecum, &self.off.ritz);
+        let r = ritz.m;
+        let with_ritz = self.amplitudes.ritz.iter().any(|&a| a != 0.0);
+        for (d, o) in out.iter_mut().enumerate() {
+            *o = match m.dofs.eq(d) {
+                Some(_) if !with_ritz => 0.0,
+                Some(e) => {
+                    let row = &ritz.v[e * r..(e + 1) * r];
+                    row.iter().zip(&self.amplitudes.ritz).map(|(v, a)| v * a).sum()
+                }
+                None => self.amplitudes.load * m.prescribed[d],
+            };
+        }
+        // the vademecum's modes one at a time (each contiguous)
+        for (i, &a) in self.amplitudes.vad.iter().enumerate() {
+            if a == 0.0 {
+                continue;
+            }
+            let f = vad.mode(i);
+            for (d, o) in out.iter_mut().enumerate() {
+                if let Some(e) = m.dofs.eq(d) {
+                    *o += a * f[e];
+                }
+            }
+        }
+    }
+
+    /// Bytes of this integrator's own buffers (per session; the offline data is shared).
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let f = size_of::<f64>();
+        let states = 2 * self.state.len() * size_of::<PointState>() + 2 * self.sigma0.len() * size_of::<Sym>();
+        let vectors = 2 * self.u.len()
+            + 2 * (self.amplitudes.vad.len() + self.amplitudes.ritz.len())
+            + self.g.len()
+            + self.xi.len()
+            + self.a.len()
+            + self.du.len()
+            + self.mat.len()
+            + self.rhs.len()
+            + self.y.len()
+            + self.bv.len();
+        states + f * vectors + self.eqs.len() * size_of::<Option<usize>>()
+    }
+
+    /// [`Self::displacement`] into a new vector.
+    pub fn displacement_vec(&self) -> Vec<f64> {
+        let mut u = vec![0.0; 3 * self.off.model.mesh.n_nodes()];
+        self.displacement(&mut u);
+        u
+    }
+
     /// The last POD coefficients.
     pub fn xi(&self) -> &[f64] {
         &self.xi
@@ -246,6 +426,7 @@ impl OnlineTear {
     pub fn step(&mut self, ds: f64) -> OnlineStep {
         self.saved_state.copy_from_slice(&self.state);
         self.saved_u.copy_from_slice(&self.u);
+        self.saved_amplitudes.copy_from(&self.amplitudes);
         self.saved_sigma0.copy_from_slice(&self.sigma0);
         let mut n = 1u32;
         loop {
@@ -272,6 +453,7 @@ impl OnlineTear {
             }
             self.state.copy_from_slice(&self.saved_state);
             self.u.copy_from_slice(&self.saved_u);
+            self.amplitudes.copy_from(&self.saved_amplitudes);
             self.sigma0.copy_from_slice(&self.saved_sigma0);
             n *= 2;
         }
@@ -285,32 +467,49 @@ impl OnlineTear {
             *gi = self.state[p].g;
         }
         out.outside = off.basis.project(&self.g, &mut self.xi);
-        match self.variant {
-            Variant::Simplified => {
-                let nm = off.vademecum.n_modes;
-                out.clamped = off.vademecum.coefficients(&self.xi, &mut self.a[..nm]);
-                off.vademecum.combine(&self.a[..nm], &mut self.du);
+        let local = &off.local;
+        let nl = local.len();
+        let vademecum = |this: &mut Self, out: &mut OnlineStep| {
+            let nm = off.vademecum.n_modes;
+            out.clamped = off.vademecum.coefficients(&this.xi, &mut this.a[..nm]);
+            // ∆u on the local dofs, Σ_i a_i F_i
+            this.du[..nl].fill(0.0);
+            for (i, &ai) in this.a[..nm].iter().enumerate() {
+                this.amplitudes.vad[i] += ds * ai;
+                for (o, f) in this.du[..nl].iter_mut().zip(&local.modes[i * nl..(i + 1) * nl]) {
+                    *o += ai * f;
+                }
             }
+        };
+        match self.variant {
+            Variant::Simplified => vademecum(self, &mut out),
             Variant::Full => {
-                if !self.ritz_solve(&off, true) {
+                let solved = self.ritz_solve(&off, true) || {
                     out.secant_fallback = true;
-                    if !self.ritz_solve(&off, false) {
-                        // not even the secant part is positive on the basis: the vademecum
-                        let nm = off.vademecum.n_modes;
-                        out.clamped = off.vademecum.coefficients(&self.xi, &mut self.a[..nm]);
-                        off.vademecum.combine(&self.a[..nm], &mut self.du);
+                    self.ritz_solve(&off, false)
+                };
+                if solved {
+                    // ∆u on the local dofs, V a
+                    let r = off.ritz.m;
+                    for (l, o) in self.du[..nl].iter_mut().enumerate() {
+                        let row = &local.v[l * r..(l + 1) * r];
+                        *o = row.iter().zip(&self.a[..r]).map(|(v, a)| v * a).sum();
                     }
+                    for (acc, a) in self.amplitudes.ritz.iter_mut().zip(&self.a[..r]) {
+                        *acc += ds * a;
+                    }
+                } else {
+                    // not even the secant part is positive on the basis: the vademecum
+                    vademecum(self, &mut out);
                 }
             }
         }
-        for (d, v) in self.du_full.iter_mut().enumerate() {
-            *v = match m.dofs.eq(d) {
-                Some(e) => ds * self.du[e],
+        self.amplitudes.load += ds;
+        for (l, &d) in local.dofs.iter().enumerate() {
+            self.u[d] += match local.eqs[l] {
+                Some(_) => ds * self.du[l],
                 None => ds * m.prescribed[d],
             };
-        }
-        for (u, d) in self.u.iter_mut().zip(&self.du_full) {
-            *u += d;
         }
         for &p in &m.points.tearable {
             let (phi, s) = m.points.phi(&m.mesh, p, &self.u);
@@ -323,7 +522,7 @@ impl OnlineTear {
         out
     }
 
-    /// The Ritz solve into `du`, with the loading points' rank-one terms when `tangent`.
+    /// The Ritz solve into `a[..m]`, with the loading points' rank-one terms when `tangent`.
     /// Returns whether the reduced matrix was positive definite.
     fn ritz_solve(&mut self, off: &TearOffline, tangent: bool) -> bool {
         let (ritz, m) = (&off.ritz, &off.model);
@@ -372,11 +571,7 @@ impl OnlineTear {
             return false;
         }
         dense::cholesky_solve(&self.mat, r, &mut self.rhs);
-        self.du.fill(0.0);
-        for (e, d) in self.du.iter_mut().enumerate() {
-            let row = &ritz.v[e * r..(e + 1) * r];
-            *d = row.iter().zip(&self.rhs).map(|(a, b)| a * b).sum();
-        }
+        self.a[..r].copy_from_slice(&self.rhs);
         true
     }
 }

@@ -387,6 +387,39 @@ the opening. At the final cut: the error against the number of modes (--modes; a
 tick cost (the cut organ's contact compliance) at --enriched nodes, cut along planes through the \
 organ, beside a null loop, with the time to enrich one node and the memory.")]
     Cut(BenchCutArgs),
+    /// Tearing by continuum damage (seed 000 ch. 4): the POD–PGD integrator against the
+    /// full-order references, per step; dissipated energy; online step cost.
+    #[command(long_about = "Tearing by continuum damage (seed 000, chapter 4) on a scene with a damage \
+material and [fidelity.tearing]: the offline stage (the explicit full-order references with h = 0 and \
+with the consistent tangent, POD of their damage fields, the PGD vademecum over the POD coefficients), \
+a Newton reference (equilibrium at every step), then both online integrators (the seed's simplified \
+h = 0 and the full h != 0) over the scene's schedule. Prints per step the relative L2 error of each \
+integrator against its reference and the explicit scheme's distance from Newton, the damage and the torn \
+cells; the energy dissipated by each; the online step cost p50/p99 (and rebuilding the whole \
+displacement field, as a frame does) beside a null loop; memory. Writes two SVG plots: the error per \
+step, and the load against the load-weighted displacement (for cube_shear: the shear stress-strain \
+curve).\n\n\
+Default scene: the built-in cube_tear; also --builtin cube_shear and --builtin gallbladder_fat.")]
+    Tear(BenchTearArgs),
+}
+
+/// Arguments of `vademecum bench tear`.
+#[derive(Debug, Args)]
+pub struct BenchTearArgs {
+    /// Scene file (TOML) with a tearable material. Default: the built-in scene named by --builtin.
+    pub scene: Option<PathBuf>,
+    /// Built-in scene to use when no SCENE is given.
+    #[arg(long, default_value = "cube_tear", conflicts_with = "scene")]
+    pub builtin: String,
+    /// Passes over the schedule when timing the online step.
+    #[arg(long, default_value_t = 200)]
+    pub passes: usize,
+    /// Folder of the plots. Default: `out/<scene>/`.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print the results as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum bench cut`.

@@ -9,6 +9,7 @@ mod bench_efg;
 mod bench_haptic;
 mod bench_pgd;
 mod bench_session;
+mod bench_tear;
 mod build;
 mod inspect;
 mod mesh_info;
@@ -40,5 +41,6 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Anm(a)) => bench_anm::run(a),
         Command::Bench(BenchCommand::Efg(a)) => bench_efg::run(a),
         Command::Bench(BenchCommand::Cut(a)) => bench_cut::run(a),
+        Command::Bench(BenchCommand::Tear(a)) => bench_tear::run(a),
     }
 }

@@ -1,0 +1,391 @@
+//! `vademecum bench tear`: tearing by continuum damage (seed 000 ch. 4) on a scene — the
+//! offline stage (full-order references, POD, vademecum), the POD–PGD integrator's error per
+//! step against the references (both variants), what the explicit scheme costs against
+//! Newton, the dissipated energy, the online step cost beside a null loop, and memory.
+
+use std::hint::black_box;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{Context, bail};
+use plotters::prelude::*;
+use serde::Serialize;
+use vademecum_engine::damage::build::{self, TearBuildReport};
+use vademecum_engine::damage::model::TearModel;
+use vademecum_engine::damage::online::{OnlineTear, TearOffline, Variant};
+use vademecum_engine::damage::organ;
+use vademecum_engine::damage::reference::{self, RunSettings, Scheme, TearRun};
+use vademecum_engine::scene::Scene;
+
+use super::bench_pgd::{Stat, stat, time_n, write_stats};
+use crate::cli_main::cli::BenchTearArgs;
+use crate::cli_main::progress::Stages;
+
+/// One pseudo-time step of the comparison.
+#[derive(Debug, Serialize)]
+struct StepRow {
+    step: usize,
+    load_factor: f64,
+    /// Relative L2 error of the simplified integrator against the explicit h = 0 reference.
+    simplified_error: f64,
+    /// Relative L2 error of the full integrator against the explicit h ≠ 0 reference.
+    full_error: f64,
+    /// L2 distance of the explicit h = 0 reference from Newton (the scheme's drift), relative
+    /// to Newton's largest displacement over the run (a cyclic load returns to zero).
+    explicit_drift: f64,
+    max_damage_reference: f64,
+    max_damage_simplified: f64,
+    torn_cells_reference: usize,
+    /// The load's resultant (N) and the load-weighted mean displacement along it (m).
+    load_n: f64,
+    displacement_reference_m: f64,
+    displacement_simplified_m: f64,
+    displacement_full_m: f64,
+    displacement_newton_m: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Report {
+    scene: String,
+    nodes: usize,
+    points: usize,
+    tearable_points: usize,
+    local_dofs: usize,
+    build: TearBuildReport,
+    warnings: Vec<String>,
+    newton_seconds: f64,
+    steps: Vec<StepRow>,
+    /// Energy dissipated at the end (J): explicit h = 0, explicit h ≠ 0, Newton, and the two
+    /// integrators.
+    dissipated_j: [f64; 5],
+    /// Steps on which the coefficients left the box / were clamped / sub-stepped.
+    simplified_flags: [usize; 3],
+    full_flags: [usize; 3],
+    timing: Vec<Stat>,
+    offline_bytes: usize,
+    session_bytes: usize,
+}
+
+/// `(load · u) / |load|₁`-like measures: the resultant of the unit load and the displacement
+/// along it, weighted by the load (for the shear cube: stress and strain).
+fn measure(model: &TearModel) -> (f64, impl Fn(&[f64]) -> f64 + '_) {
+    let total: f64 = model.load.iter().map(|f| f.abs()).sum();
+    let prescribed: f64 = model.prescribed.iter().map(|f| f.abs()).sum();
+    let (w, norm) = if total > 0.0 {
+        (&model.load, total)
+    } else {
+        (&model.prescribed, prescribed.max(f64::MIN_POSITIVE))
+    };
+    let resultant = (0..3).map(|i| w.iter().skip(i).step_by(3).sum::<f64>().powi(2)).sum::<f64>().sqrt();
+    (resultant, move |u: &[f64]| u.iter().zip(w).map(|(u, f)| u * f).sum::<f64>() / norm)
+}
+
+fn run_online(
+    off: &Arc<TearOffline>,
+    variant: Variant,
+    limits: vademecum_engine::damage::online::StepLimits,
+) -> (Vec<Vec<f64>>, Vec<f64>, [usize; 3], f64) {
+    let mut online = OnlineTear::new(off.clone(), variant, limits);
+    let (mut us, mut dmax, mut flags) = (Vec::new(), Vec::new(), [0; 3]);
+    for &ds in &off.model.schedule {
+        let s = online.step(ds);
+        flags[0] += s.outside as usize;
+        flags[1] += s.clamped as usize;
+        flags[2] += (s.substeps > 1) as usize;
+        us.push(online.displacement_vec());
+        dmax.push(online.state.iter().map(|p| 1.0 - p.g).fold(0.0, f64::max));
+    }
+    (us, dmax, flags, online.dissipated)
+}
+
+pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
+    if a.passes == 0 {
+        bail!("--passes must be at least 1");
+    }
+    let scene = match &a.scene {
+        Some(p) => Scene::load(p)?,
+        None => Scene::builtin(&a.builtin)?,
+    };
+    let name = scene.spec.scene.name.clone();
+    let i = organ::tearable_organ(&scene).with_context(|| format!("scene '{name}'"))?;
+    let (model, warnings) = organ::tear_model(&scene, i)?;
+    let (settings, limits) = organ::settings(&scene);
+    let stages = Stages::start("vademecum");
+    for w in &warnings {
+        stages.warn(w);
+    }
+    let (off, report, runs) =
+        build::build(model, &settings, |what, f| stages.stage(&format!("{what} {:.0} %", 100.0 * f))).context("the offline stage")?;
+    stages.stage("Newton reference");
+    let t = Instant::now();
+    let newton: TearRun = reference::run(&off.model, RunSettings::seed(Scheme::Newton), |_, _| {})?;
+    let newton_seconds = t.elapsed().as_secs_f64();
+    let off = Arc::new(off);
+    stages.stage("online integrators");
+    let (us_s, dmax_s, flags_s, diss_s) = run_online(&off, Variant::Simplified, limits);
+    let (us_f, _, flags_f, diss_f) = run_online(&off, Variant::Full, limits);
+    let (resultant, along) = measure(&off.model);
+    let peak = newton
+        .steps
+        .iter()
+        .map(|s| s.u.iter().map(|x| x * x).sum::<f64>().sqrt())
+        .fold(f64::MIN_POSITIVE, f64::max);
+    let mut steps = Vec::new();
+    for k in 0..off.model.schedule.len() {
+        let (r0, r1, rn) = (&runs[0].steps[k + 1], &runs[1].steps[k + 1], &newton.steps[k + 1]);
+        steps.push(StepRow {
+            step: k + 1,
+            load_factor: r0.load_factor,
+            simplified_error: reference::l2_error(&us_s[k], &r0.u).1,
+            full_error: reference::l2_error(&us_f[k], &r1.u).1,
+            explicit_drift: reference::l2_error(&r0.u, &rn.u).0 / peak,
+            max_damage_reference: r0.max_damage,
+            max_damage_simplified: dmax_s[k],
+            torn_cells_reference: r0.torn_cells,
+            load_n: r0.load_factor * resultant,
+            displacement_reference_m: along(&r0.u),
+            displacement_simplified_m: along(&us_s[k]),
+            displacement_full_m: along(&us_f[k]),
+            displacement_newton_m: along(&rn.u),
+        });
+    }
+    let last = |r: &TearRun| r.steps.last().map_or(0.0, |s| s.dissipated);
+
+    // the online step's cost: the whole schedule, --passes times, each step timed
+    let mut timing = Vec::new();
+    let n_steps = off.model.schedule.len() * a.passes;
+    timing.push(stat("null loop", time_n(n_steps, || black_box(0.0))));
+    let mut session_bytes = 0;
+    for variant in [Variant::Simplified, Variant::Full] {
+        stages.stage(&format!("timing {}", variant.label()));
+        let mut samples = Vec::with_capacity(n_steps);
+        let mut frame = Vec::with_capacity(n_steps);
+        let mut u = vec![0.0; 3 * off.model.mesh.n_nodes()];
+        for _ in 0..a.passes {
+            let mut online = OnlineTear::new(off.clone(), variant, limits);
+            session_bytes = online.memory_bytes();
+            for &ds in &off.model.schedule {
+                let t = Instant::now();
+                black_box(online.step(ds));
+                samples.push(t.elapsed().as_secs_f64() * 1e6);
+                let t = Instant::now();
+                online.displacement(&mut u);
+                black_box(&u);
+                frame.push(t.elapsed().as_secs_f64() * 1e6);
+            }
+        }
+        timing.push(stat(&format!("online step, {}", variant.label()), samples));
+        timing.push(stat(&format!("whole displacement field (a frame), {}", variant.label()), frame));
+    }
+    stages.finish();
+
+    let report = Report {
+        scene: name.clone(),
+        nodes: off.model.mesh.n_nodes(),
+        points: off.model.points.len(),
+        tearable_points: off.model.points.tearable.len(),
+        local_dofs: off.local.len(),
+        build: report,
+        warnings,
+        newton_seconds,
+        steps,
+        dissipated_j: [last(&runs[0]), last(&runs[1]), last(&newton), diss_s, diss_f],
+        simplified_flags: flags_s,
+        full_flags: flags_f,
+        timing,
+        offline_bytes: off.memory_bytes(),
+        session_bytes,
+    };
+    let dir = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&name));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    plot_errors(&report, &dir.join("tear_error.svg"))?;
+    plot_curve(&report, &dir.join("tear_curve.svg"))?;
+    let mut out = std::io::stdout().lock();
+    if a.json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+    } else {
+        print_text(&mut out, &report)?;
+    }
+    writeln!(
+        out,
+        "plots: {} (error per step), {} (load against displacement)",
+        dir.join("tear_error.svg").display(),
+        dir.join("tear_curve.svg").display()
+    )?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_text(out: &mut impl Write, r: &Report) -> std::io::Result<()> {
+    let b = &r.build;
+    writeln!(
+        out,
+        "{}: {} nodes, {} integration points, {} tearable, {} dofs updated per step",
+        r.scene, r.nodes, r.points, r.tearable_points, r.local_dofs
+    )?;
+    writeln!(
+        out,
+        "offline: {} snapshots, {} POD vectors (1 - captured = {:.1e}), {} PGD modes, Ritz basis {}, \
+vademecum error {:.2e} at the snapshots; references {:.2} s, POD + vademecum {:.2} s, Newton {:.2} s",
+        b.snapshots,
+        b.pod_vectors,
+        1.0 - b.captured,
+        b.pgd_modes,
+        b.ritz_size,
+        b.vademecum_error,
+        b.reference_seconds,
+        b.build_seconds,
+        r.newton_seconds
+    )?;
+    writeln!(
+        out,
+        "\n| step | load factor | error h = 0 | error h ≠ 0 | explicit vs Newton | max D (ref) | max D (h = 0) | torn cells (ref) |"
+    )?;
+    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+    for s in &r.steps {
+        writeln!(
+            out,
+            "| {} | {:.3} | {:.2e} | {:.2e} | {:.2e} | {:.3} | {:.3} | {} |",
+            s.step,
+            s.load_factor,
+            s.simplified_error,
+            s.full_error,
+            s.explicit_drift,
+            s.max_damage_reference,
+            s.max_damage_simplified,
+            s.torn_cells_reference
+        )?;
+    }
+    let worst = |f: fn(&StepRow) -> f64| r.steps.iter().map(f).fold(0.0, f64::max);
+    writeln!(
+        out,
+        "\nworst relative L2 error: h = 0 {:.2e}, h ≠ 0 {:.2e}; explicit against Newton at the end {:.2e}",
+        worst(|s| s.simplified_error),
+        worst(|s| s.full_error),
+        r.steps.last().map_or(0.0, |s| s.explicit_drift)
+    )?;
+    let d = r.dissipated_j;
+    writeln!(
+        out,
+        "dissipated (J): explicit h = 0 {:.4e}, explicit h ≠ 0 {:.4e}, Newton {:.4e}; POD–PGD h = 0 {:.4e}, h ≠ 0 {:.4e}",
+        d[0], d[1], d[2], d[3], d[4]
+    )?;
+    writeln!(
+        out,
+        "steps outside the box / clamped / sub-stepped: h = 0 {:?}, h ≠ 0 {:?}",
+        r.simplified_flags, r.full_flags
+    )?;
+    writeln!(out)?;
+    write_stats(out, &r.timing)?;
+    writeln!(
+        out,
+        "memory: {:.1} KiB shared offline data, {:.1} KiB per session",
+        r.offline_bytes as f64 / 1024.0,
+        r.session_bytes as f64 / 1024.0
+    )
+}
+
+fn plot_errors(r: &Report, file: &Path) -> anyhow::Result<()> {
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let series: [(&str, fn(&StepRow) -> f64); 3] = [
+        ("POD–PGD h = 0 vs explicit h = 0", |s| s.simplified_error),
+        ("POD–PGD h ≠ 0 vs explicit h ≠ 0", |s| s.full_error),
+        ("explicit h = 0 vs Newton (drift)", |s| s.explicit_drift),
+    ];
+    let all: Vec<f64> = r
+        .steps
+        .iter()
+        .flat_map(|s| series.iter().map(move |(_, f)| f(s)))
+        .filter(|e| *e > 0.0 && e.is_finite())
+        .collect();
+    let lo = all.iter().copied().fold(1.0, f64::min).max(1e-16) * 0.5;
+    let hi = all.iter().copied().fold(1e-12, f64::max) * 2.0;
+    let n = r.steps.len() as f64;
+    let b = &r.build;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{}: {} POD vectors, {} PGD modes", r.scene, b.pod_vectors, b.pgd_modes),
+            ("sans-serif", 18),
+        )
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..n + 1.0, (lo..hi).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("pseudo-time step")
+        .y_desc("relative L2 error of the displacement")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    for (k, (label, f)) in series.iter().enumerate() {
+        let color = super::bench_anm::PALETTE[k];
+        let pts: Vec<(f64, f64)> = r
+            .steps
+            .iter()
+            .map(|s| (s.step as f64, f(s)))
+            .filter(|p| p.1 > 0.0 && p.1.is_finite())
+            .collect();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))?
+            .label(*label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+fn plot_curve(r: &Report, file: &Path) -> anyhow::Result<()> {
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let series: [(&str, fn(&StepRow) -> f64); 4] = [
+        ("explicit h = 0 (reference)", |s| s.displacement_reference_m),
+        ("Newton", |s| s.displacement_newton_m),
+        ("POD–PGD h = 0", |s| s.displacement_simplified_m),
+        ("POD–PGD h ≠ 0", |s| s.displacement_full_m),
+    ];
+    let xs: Vec<f64> = r.steps.iter().flat_map(|s| series.iter().map(move |(_, f)| f(s))).collect();
+    let (x0, x1) = xs.iter().fold((0.0f64, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    let (y0, y1) = r
+        .steps
+        .iter()
+        .fold((0.0f64, 0.0f64), |(a, b), s| (a.min(s.load_n), b.max(s.load_n)));
+    let pad = |a: f64, b: f64| ((b - a).abs() * 0.05).max(1e-12);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("{}: load against displacement", r.scene), ("sans-serif", 18))
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0 - pad(x0, x1)..x1 + pad(x0, x1), y0 - pad(y0, y1)..y1 + pad(y0, y1))?;
+    chart
+        .configure_mesh()
+        .x_desc("load-weighted displacement along the load (m)")
+        .y_desc("load resultant (N)")
+        .draw()?;
+    for (k, (label, f)) in series.iter().enumerate() {
+        let color = super::bench_anm::PALETTE[k];
+        let pts: Vec<(f64, f64)> = std::iter::once((0.0, 0.0))
+            .chain(r.steps.iter().map(|s| (f(s), s.load_n)))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(pts, color.stroke_width(if k < 2 { 3 } else { 1 })))?
+            .label(*label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
