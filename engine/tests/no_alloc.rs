@@ -238,3 +238,39 @@ fn a_tearing_step_allocates_nothing() {
         assert_eq!(COUNT.with(|n| n.get()), 0, "{variant:?}: a tearing step allocated");
     }
 }
+
+#[test]
+fn a_grasper_tick_allocates_nothing() {
+    use vademecum_engine::pipeline::ToolKind;
+    // the seed's cube, softened (alpha = 0.1, beta = 0) so that it tears: grasp, pull until
+    // the grasp is lost, the fade, a failed re-grasp, a release; counted on the tick's thread
+    let text = Scene::builtin("cube_tear")
+        .unwrap()
+        .source
+        .replace("alpha = 0.4, beta = 0.4", "alpha = 0.1, beta = 0.0")
+        .replace("max_force = 1.0 ", "max_force = 5.0 ");
+    let scene = Scene::from_toml(&text, "cube.toml").unwrap();
+    let mut p = pipeline(&scene);
+    let jaws = |dz: f64, closure: f64| ToolInput {
+        kind: ToolKind::Grasper,
+        position_m: [1.0, 1.0, 1.0 + dz],
+        closure,
+        ..ToolInput::default()
+    };
+    let mut seen = 0u32;
+    COUNT.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    for k in 0..4000 {
+        seen |= p.tick(&jaws(0.8 * k as f64 / 4000.0, 1.0)).events.0;
+    }
+    for _ in 0..50 {
+        seen |= p.tick(&jaws(0.0, 0.0)).events.0;
+        seen |= p.tick(&jaws(0.0, 1.0)).events.0;
+        seen |= p.tick(&jaws(f64::NAN, 1.0)).events.0;
+    }
+    COUNTING.with(|c| c.set(false));
+    for e in [Events::GRASPED, Events::TEARING, Events::TISSUE_TORN, Events::REJECTED_INPUT] {
+        assert!(seen & e != 0, "event {e} never happened");
+    }
+    assert_eq!(COUNT.with(|n| n.get()), 0, "the grasper's tick allocated");
+}

@@ -111,8 +111,16 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
             .displacements_m
             .iter()
             .zip(&f.cuts)
-            .map(|(d, cut)| pb::OrganDisplacement {
+            .zip(&f.damage)
+            .map(|((d, cut), damage)| pb::OrganDisplacement {
                 displacements: f32_bytes(d.iter().copied()),
+                damage: damage.as_ref().map(|t| pb::TissueDamage {
+                    cell_damage: f32_bytes(t.cell_damage.iter().copied()),
+                    triangle_damage: f32_bytes(t.triangle_damage.iter().copied()),
+                    torn: t.torn,
+                    grasped: t.grasped,
+                    dissipated_j: t.dissipated_j,
+                }),
                 cut: cut.as_ref().map(|c| pb::CutWalls {
                     revision: c.revision,
                     vertex_count: c.side.len() as u32,

@@ -408,3 +408,36 @@ fn solve_cuts_the_built_in_cutting_scenes_by_xfem() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("meshless"), "{}", stderr(&o));
 }
+
+#[test]
+fn run_grasps_and_pulls_a_tearable_cube_until_it_tears_and_records_the_damage() {
+    let dir = tempfile::tempdir().unwrap();
+    // the seed's cube softened so that it tears (alpha = 0.1, beta = 0: the stiffness goes to 0)
+    let o = vademecum(&["scene", "show", "cube_tear"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let text = stdout(&o).replace("alpha = 0.4, beta = 0.4", "alpha = 0.1, beta = 0.0");
+    std::fs::write(dir.path().join("cube.toml"), text).unwrap();
+    let o = vademecum(&["run", "cube.toml", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    assert_eq!(s["effects"], serde_json::json!(["tearing"]));
+    let t = &s["tear"];
+    let (grasped, torn) = (t["grasped_at_s"].as_f64().unwrap(), t["torn_at_s"].as_f64().unwrap());
+    assert!(grasped < torn, "{s}");
+    assert!(t["tearing_ticks"].as_u64().unwrap() > 100, "{s}");
+    assert!(t["force_at_tear_n"].as_f64().unwrap() > 0.0, "{s}");
+    assert_eq!(t["torn_cells"], 1, "{s}");
+    let rec = dir.path().join("out/cube_tear/run");
+    let forces = std::fs::read_to_string(rec.join("forces.csv")).unwrap();
+    assert!(forces.lines().next().unwrap().ends_with(",closure"), "the jaw column");
+    // the frames: damage as cell data while the cube holds, its triangles gone once torn
+    let pvd = std::fs::read_to_string(rec.join("cube.pvd")).unwrap();
+    let files: Vec<&str> = pvd.split("file=\"").skip(1).map(|f| f.split('"').next().unwrap()).collect();
+    let first = std::fs::read_to_string(rec.join(files[0])).unwrap();
+    let last = std::fs::read_to_string(rec.join(files[files.len() - 1])).unwrap();
+    assert!(
+        first.contains("Name=\"damage\"") && first.contains("NumberOfCells=\"12\""),
+        "{first}"
+    );
+    assert!(last.contains("NumberOfCells=\"0\""), "the torn cube is not drawn: {last}");
+}

@@ -262,14 +262,13 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
 }
 
 #[test]
-fn a_scene_asking_for_an_effect_not_simulated_yet_is_refused() {
+fn a_tearing_scene_without_its_tearing_vademecum_is_refused_saying_how_to_build_it() {
+    // a bundle built for a palpation scene holds no tearing vademecum
     let (_, bundles, _dir) = slab();
-    let tearing =
-        format!("{SCENE}\n[[tools]]\nkind = \"grasper\"\nname = \"g\"\njaw_width = 0.01\nmax_force = 5.0\n\n[effects]\ntearing = true\n");
-    let scene = Arc::new(Scene::from_toml(&tearing, "tear.toml").unwrap());
+    let scene = Arc::new(Scene::builtin("cube_tear").unwrap());
     let e = Session::start("s4".into(), scene, bundles, SessionConfig::default()).unwrap_err();
-    assert!(matches!(e, SessionError::Pipeline(PipelineError::Unsupported(_))), "{e}");
-    assert!(e.to_string().contains("tearing"), "{e}");
+    assert!(matches!(e, SessionError::Pipeline(PipelineError::Tearing { .. })), "{e}");
+    assert!(e.to_string().contains("vademecum build"), "{e}");
 }
 
 /// Allocations made by the tick thread of a scripted session that runs `ticks` ticks while a

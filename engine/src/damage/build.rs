@@ -89,7 +89,7 @@ pub enum TearBuildError {
 pub fn build(
     model: TearModel,
     settings: &TearSettings,
-    mut progress: impl FnMut(&str, f64),
+    mut progress: impl FnMut(&'static str, f64),
 ) -> Result<(TearOffline, TearBuildReport, [TearRun; 2]), TearBuildError> {
     if model.points.tearable.is_empty() {
         return Err(TearBuildError::NothingTearable);

@@ -17,6 +17,7 @@
 //!   rank-one tangent terms).
 //! - [`organ`]: a scene's tearable organ as a [`model::TearModel`], and its settings.
 //! - [`build`]: the offline stage — snapshots, POD, vademecum, Ritz form, validation.
+//! - [`store`]: the offline stage's arrays, as a bundle stores them.
 
 pub mod build;
 pub mod law;
@@ -26,6 +27,7 @@ pub mod organ;
 pub mod pod;
 pub mod points;
 pub mod reference;
+pub mod store;
 pub mod vademecum;
 
 pub use law::{DamageLaw, LawError, PointState};

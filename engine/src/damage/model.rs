@@ -118,4 +118,24 @@ impl TearModel {
         let torn = d.iter().zip(&self.torn).filter(|(x, t)| x >= t).count();
         (d, torn)
     }
+
+    /// The grasp of a session (`crate::pipeline::tearing`): the loaded nodes, their centre and
+    /// the unit load's resultant (N per unit step). `None` when nothing is loaded.
+    pub fn grasp(&self) -> Option<(Vec<usize>, [f64; 3], [f64; 3])> {
+        let mut nodes: Vec<usize> = (0..self.load.len()).filter(|&d| self.load[d] != 0.0).map(|d| d / 3).collect();
+        nodes.dedup();
+        if nodes.is_empty() {
+            return None;
+        }
+        let (mut r, mut centre) = ([0.0; 3], [0.0; 3]);
+        for (d, f) in self.load.iter().enumerate() {
+            r[d % 3] += f;
+        }
+        for &n in &nodes {
+            for k in 0..3 {
+                centre[k] += self.mesh.nodes[n][k] / nodes.len() as f64;
+            }
+        }
+        Some((nodes, centre, r))
+    }
 }

@@ -121,7 +121,8 @@ impl RitzOperator {
     }
 }
 
-/// The dofs of the tearable points' nodes, with the vademecum's and the Ritz basis' rows there.
+/// The dofs of the tearable points' nodes and the loaded dofs, with the vademecum's and the
+/// Ritz basis' rows there.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LocalDofs {
     /// Full dof index of each local dof (sorted).
@@ -202,6 +203,37 @@ pub struct TearOffline {
 }
 
 impl TearOffline {
+    /// The whole displacement field (m) into `out` (length `3 × nodes`) for the accumulated
+    /// amplitudes `amp` (no allocation).
+    pub fn displacement(&self, amp: &TearAmplitudes, out: &mut [f64]) {
+        let m = &self.model;
+        let (vad, ritz) = (&self.vademecum, &self.ritz);
+        let r = ritz.m;
+        let with_ritz = amp.ritz.iter().any(|&a| a != 0.0);
+        for (d, o) in out.iter_mut().enumerate() {
+            *o = match m.dofs.eq(d) {
+                Some(_) if !with_ritz => 0.0,
+                Some(e) => {
+                    let row = &ritz.v[e * r..(e + 1) * r];
+                    row.iter().zip(&amp.ritz).map(|(v, a)| v * a).sum()
+                }
+                None => amp.load * m.prescribed[d],
+            };
+        }
+        // the vademecum's modes one at a time (each contiguous)
+        for (i, &a) in amp.vad.iter().enumerate() {
+            if a == 0.0 {
+                continue;
+            }
+            let f = vad.mode(i);
+            for (d, o) in out.iter_mut().enumerate() {
+                if let Some(e) = m.dofs.eq(d) {
+                    *o += a * f[e];
+                }
+            }
+        }
+    }
+
     /// Bytes of the modes, factors, Ritz operator and local rows (shared by sessions; the
     /// model's mesh and points not counted).
     pub fn memory_bytes(&self) -> usize {
@@ -269,17 +301,30 @@ pub struct OnlineStep {
     pub max_damage_increment: f64,
 }
 
-/// Accumulated modal amplitudes: `u = Σ_i vad_i F_i + V ritz + load·ū` (free dofs, then the
-/// prescribed ones).
+/// Accumulated modal amplitudes, from which the whole displacement is rebuilt:
+/// `u = Σ_i vad_i F_i + V ritz` on the free dofs, `load · ū` on the prescribed ones.
 #[derive(Debug, Clone, PartialEq, Default)]
-struct Amplitudes {
-    vad: Vec<f64>,
-    ritz: Vec<f64>,
-    load: f64,
+pub struct TearAmplitudes {
+    /// `Σ ds·a_i` of the vademecum's modes.
+    pub vad: Vec<f64>,
+    /// `Σ ds·a` of the Ritz basis.
+    pub ritz: Vec<f64>,
+    /// `Σ ds`: the load factor reached.
+    pub load: f64,
 }
 
-impl Amplitudes {
-    fn copy_from(&mut self, o: &Self) {
+impl TearAmplitudes {
+    /// Zero amplitudes for `off`.
+    pub fn zero(off: &TearOffline) -> Self {
+        Self {
+            vad: vec![0.0; off.vademecum.n_modes],
+            ritz: vec![0.0; off.ritz.m],
+            load: 0.0,
+        }
+    }
+
+    /// Copies `o` (same sizes) without allocating.
+    pub fn copy_from(&mut self, o: &Self) {
         self.vad.copy_from_slice(&o.vad);
         self.ritz.copy_from_slice(&o.ritz);
         self.load = o.load;
@@ -297,11 +342,11 @@ pub struct OnlineTear {
     /// The displacement, full length but current on the local dofs only.
     u: Vec<f64>,
     /// `Σ ds·a` of the vademecum's modes, of the Ritz basis, and `Σ ds` (the prescribed part).
-    amplitudes: Amplitudes,
+    amplitudes: TearAmplitudes,
     sigma0: Vec<Sym>,
     saved_state: Vec<PointState>,
     saved_u: Vec<f64>,
-    saved_amplitudes: Amplitudes,
+    saved_amplitudes: TearAmplitudes,
     saved_sigma0: Vec<Sym>,
     g: Vec<f64>,
     xi: Vec<f64>,
@@ -325,11 +370,7 @@ impl OnlineTear {
         let q = off.basis.len();
         let r = off.ritz.m;
         let nodal = 3 * m.points.nodes_per_cell;
-        let amplitudes = Amplitudes {
-            vad: vec![0.0; off.vademecum.n_modes],
-            ritz: vec![0.0; r],
-            load: 0.0,
-        };
+        let amplitudes = TearAmplitudes::zero(&off);
         Self {
             variant,
             limits,
@@ -363,32 +404,18 @@ impl OnlineTear {
     /// The whole displacement field (m) into `out` (length `3 × nodes`): the sum of the
     /// steps' increments, rebuilt from the accumulated modal amplitudes (no allocation).
     pub fn displacement(&self, out: &mut [f64]) {
-        let m = &self.off.model;
-        let (vad, ritz) = (&self.off.vademecum, &self.off.ritz);
-        let r = ritz.m;
-        let with_ritz = self.amplitudes.ritz.iter().any(|&a| a != 0.0);
-        for (d, o) in out.iter_mut().enumerate() {
-            *o = match m.dofs.eq(d) {
-                Some(_) if !with_ritz => 0.0,
-                Some(e) => {
-                    let row = &ritz.v[e * r..(e + 1) * r];
-                    row.iter().zip(&self.amplitudes.ritz).map(|(v, a)| v * a).sum()
-                }
-                None => self.amplitudes.load * m.prescribed[d],
-            };
-        }
-        // the vademecum's modes one at a time (each contiguous)
-        for (i, &a) in self.amplitudes.vad.iter().enumerate() {
-            if a == 0.0 {
-                continue;
-            }
-            let f = vad.mode(i);
-            for (d, o) in out.iter_mut().enumerate() {
-                if let Some(e) = m.dofs.eq(d) {
-                    *o += a * f[e];
-                }
-            }
-        }
+        self.off.displacement(&self.amplitudes, out);
+    }
+
+    /// The accumulated modal amplitudes (what a frame needs to rebuild the field).
+    pub fn amplitudes(&self) -> &TearAmplitudes {
+        &self.amplitudes
+    }
+
+    /// The current displacement of dof `d`, exact on the [`LocalDofs`] (the tearable region
+    /// and the loaded dofs); elsewhere, see [`Self::displacement`].
+    pub fn local_u(&self, d: usize) -> f64 {
+        self.u[d]
     }
 
     /// Bytes of this integrator's own buffers (per session; the offline data is shared).

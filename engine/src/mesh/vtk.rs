@@ -248,13 +248,19 @@ pub fn write_vtu(path: &Path, mesh: &Mesh, point_data: &[Field<'_>], cell_data: 
     )
 }
 
-/// Writes a triangulated surface as an ASCII `.vtu` (VTK triangles) with point data:
-/// `positions` (m) and `triangles` (3 node indices each).
-pub fn write_surface_vtu(path: &Path, positions: &[[f64; 3]], triangles: &[usize], point_data: &[Field<'_>]) -> Result<(), MeshError> {
+/// Writes a triangulated surface as an ASCII `.vtu` (VTK triangles) with point and cell
+/// (per triangle) data: `positions` (m) and `triangles` (3 node indices each).
+pub fn write_surface_vtu(
+    path: &Path,
+    positions: &[[f64; 3]],
+    triangles: &[usize],
+    point_data: &[Field<'_>],
+    cell_data: &[Field<'_>],
+) -> Result<(), MeshError> {
     if !triangles.len().is_multiple_of(3) || triangles.iter().any(|&n| n >= positions.len()) {
         return Err(MeshError::Invalid("surface triangles must be triples of valid node indices".into()));
     }
-    write_unstructured(path, positions, triangles, 3, 5, None, point_data, &[])
+    write_unstructured(path, positions, triangles, 3, 5, None, point_data, cell_data)
 }
 
 /// Writes a cloud of points as an ASCII `.vtu` (one VTK vertex per point) with point data —

@@ -12,6 +12,7 @@ use super::build::{self, PgdInfo, PgdParams};
 use super::vademecum::{LocalCompliance, Vademecum};
 use super::{brute, compress};
 use crate::bundle::{self, ArrayData, BundleError, Manifest};
+use crate::damage::store::TearArrays;
 use crate::fem::assembly::{self, AssemblyError, DofMap, SymmetricMatrix, SymmetricPattern};
 use crate::fem::hyperelastic::LawMap;
 use crate::material::hyperelastic::Hyperelastic;
@@ -95,6 +96,8 @@ pub enum BuildStage {
     Lattice(usize, usize),
     /// The Ritz basis of a cutting session.
     CutBasis,
+    /// Tearing's offline stage (references, POD, vademecum): what, and the fraction done.
+    Tearing(&'static str, f64),
 }
 
 /// Why a build failed.
@@ -125,6 +128,9 @@ pub enum BuildError {
     /// The cutting session's Ritz basis could not be built.
     #[error("cutting: {0}")]
     Cutting(String),
+    /// Tearing's offline stage failed.
+    #[error("tearing: {0}")]
+    Tearing(String),
 }
 
 /// What a build did (also stored in the bundle's manifest).
@@ -189,6 +195,9 @@ pub struct BuildReport {
     /// What was built for a cutting session (scenes with `effects.cutting`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cut: Option<CutReport>,
+    /// What was built for tearing (the tearable organ of a scene with `effects.tearing`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tear: Option<crate::damage::build::TearBuildReport>,
 }
 
 /// What a build stored for a cutting session.
@@ -231,6 +240,8 @@ pub struct Built {
     pub anm: Option<AnmLattice>,
     /// The cutting session's Ritz basis, when the scene cuts with bare enrichment.
     pub cut_basis: Option<CutBasis>,
+    /// Tearing's offline arrays, for the tearable organ of a tearing scene.
+    pub tear: Option<TearArrays>,
 }
 
 /// Load nodes of an organ: accessible surface nodes with at least one free component.
@@ -496,6 +507,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         anm_positions: 0,
         anm_s: 0.0,
         cut: None,
+        tear: None,
     };
     let anm = match &opts.large {
         None => None,
@@ -541,12 +553,22 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
             seconds: clock.elapsed().as_secs_f64(),
         });
     }
+    let mut tear = None;
+    if scene.spec.effects.tearing && crate::damage::organ::tearable_organ(scene) == Some(index) {
+        let (tear_model, _) = crate::damage::organ::tear_model(scene, index).map_err(|e| BuildError::Tearing(e.to_string()))?;
+        let (settings, _) = crate::damage::organ::settings(scene);
+        let (off, tear_report, _) = crate::damage::build::build(tear_model, &settings, |what, f| on(BuildStage::Tearing(what, f)))
+            .map_err(|e| BuildError::Tearing(e.to_string()))?;
+        report.tear = Some(tear_report);
+        tear = Some(off.to_arrays());
+    }
     Ok(Built {
         vademecum,
         report,
         model,
         anm,
         cut_basis,
+        tear,
     })
 }
 
@@ -626,6 +648,32 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         let n_free = (c.x.len() / c.size.max(1)) as u64;
         arrays.push(("cut_basis", vec![n_free, c.size as u64], ArrayData::F64(&c.x)));
     }
+    let tear_meta;
+    if let Some(t) = &built.tear {
+        let (q, nm, m) = (t.lo.len() as u64, t.n_modes as u64, t.m as u64);
+        tear_meta = [t.captured, t.grid as f64];
+        let len = |v: &[f64]| vec![v.len() as u64];
+        arrays.extend([
+            ("tear_meta", vec![2], ArrayData::F64(&tear_meta)),
+            (
+                "tear_pod_basis",
+                vec![q, t.pod_basis.len() as u64 / q.max(1)],
+                ArrayData::F64(&t.pod_basis),
+            ),
+            ("tear_singular_values", len(&t.singular_values), ArrayData::F64(&t.singular_values)),
+            ("tear_lo", vec![q], ArrayData::F64(&t.lo)),
+            ("tear_hi", vec![q], ArrayData::F64(&t.hi)),
+            (
+                "tear_spatial",
+                vec![nm, t.spatial.len() as u64 / nm.max(1)],
+                ArrayData::F64(&t.spatial),
+            ),
+            ("tear_factors", vec![nm, q, t.grid as u64], ArrayData::F64(&t.factors)),
+            ("tear_ritz_v", vec![t.ritz_v.len() as u64 / m.max(1), m], ArrayData::F64(&t.ritz_v)),
+            ("tear_ritz_k", vec![q + 1, m, m], ArrayData::F64(&t.ritz_k)),
+            ("tear_ritz_b", vec![q + 1, m], ArrayData::F64(&t.ritz_b)),
+        ]);
+    }
     bundle::write(dir, manifest, &scene.source, &arrays)
 }
 
@@ -645,6 +693,9 @@ pub struct LoadedBundle {
     /// The cutting session's Ritz basis, when the bundle has one (version 2, a scene cutting
     /// with bare enrichment).
     pub cut_basis: Option<CutBasis>,
+    /// Tearing's offline arrays, when the bundle has them (the tearable organ of a tearing
+    /// scene); checked against the scene's model when a session starts.
+    pub tear: Option<Arc<TearArrays>>,
 }
 
 /// Loads and verifies a bundle (format, version, kind, checksums, shapes, consistency).
@@ -750,9 +801,39 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
     } else {
         None
     };
+    let tear = if manifest.arrays.contains_key("tear_meta") {
+        let f = |name: &str| bundle::read_f64(dir, &manifest, name);
+        let (_, meta) = f("tear_meta")?;
+        let (ks, ritz_k) = f("tear_ritz_k")?;
+        let (fs, factors) = f("tear_factors")?;
+        if meta.len() != 2 || ks.len() != 3 || fs.len() != 3 || !(meta[1] >= 2.0 && meta[1] <= 1e6) {
+            return Err(bad(format!(
+                "tearing arrays have the wrong shapes: tear_meta {}, tear_ritz_k {ks:?}, tear_factors {fs:?}",
+                meta.len()
+            )));
+        }
+        Some(Arc::new(TearArrays {
+            pod_basis: f("tear_pod_basis")?.1,
+            singular_values: f("tear_singular_values")?.1,
+            captured: meta[0],
+            lo: f("tear_lo")?.1,
+            hi: f("tear_hi")?.1,
+            grid: meta[1] as usize,
+            spatial: f("tear_spatial")?.1,
+            factors,
+            ritz_v: f("tear_ritz_v")?.1,
+            ritz_k,
+            ritz_b: f("tear_ritz_b")?.1,
+            n_modes: fs[0] as usize,
+            m: ks[1] as usize,
+        }))
+    } else {
+        None
+    };
     Ok(LoadedBundle {
         anm,
         cut_basis,
+        tear,
         manifest,
         vademecum,
         nodes: nodes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),

@@ -6,7 +6,7 @@
 //! allocates nothing, and a scene that names only palpation carries no cutting state, no
 //! damage arrays and does no extra work per tick. Large deformations scale the palpation
 //! force by the organ's ANM-POD lattice; cutting follows palpation as its own [`Effect`], and
-//! later effects (tearing) are added in [`Pipeline::for_scene`] the same way.
+//! tearing (the grasper) the same way.
 //!
 //! # Layout
 //! - [`Effect`], [`ToolInput`], [`TickState`], [`Events`]: the contract between the tick
@@ -15,9 +15,12 @@
 //!   organ's surface by a proxy, force `f = C(s)⁻¹δ` from the vademecum).
 //! - [`cutting`]: the scalpel (seed 000 §3.4): the cut's compliance added at the contact, the
 //!   blade force split and cut criterion, and the cut thread that grows the cut beside the tick.
+//! - [`tearing`]: the grasper (seed 000 §4.6.2): grasp, pull, one POD–PGD damage step per
+//!   tick, the grasp lost when the tissue tears.
 
 pub mod cutting;
 pub mod palpation;
+pub mod tearing;
 
 use std::sync::Arc;
 
@@ -27,6 +30,7 @@ use crate::scene::schema::{DeformationModel, GLOBAL_FORCE_LIMIT_N, ToolSpec};
 
 pub use cutting::{BladeForce, Cutting};
 pub use palpation::Palpation;
+pub use tearing::{TearPicture, TearPictures, Tearing};
 
 /// The kind of tool a tool state describes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -122,7 +126,8 @@ impl Events {
     pub const REJECTED_INPUT: u32 = 2;
     /// A cut advanced (cutting effect).
     pub const CUT_ADVANCED: u32 = 4;
-    /// Tissue tore (tearing effect).
+    /// The tissue holding the grasp tore: the grasp is lost and the force fades (tearing
+    /// effect).
     pub const TISSUE_TORN: u32 = 8;
     /// The contact is deeper than the model's precomputed range (the large-deformation
     /// lattice's paths): the force continues along the last computed stiffness.
@@ -134,6 +139,12 @@ impl Events {
     pub const CUT_STARTED: u32 = 64;
     /// The blade's edge lies in a cut already made (cutting effect).
     pub const BLADE_IN_CUT: u32 = 128;
+    /// The grasper's jaws took hold of the tissue (tearing effect).
+    pub const GRASPED: u32 = 256;
+    /// The pull raised the tissue's damage this tick (tearing effect).
+    pub const TEARING: u32 = 512;
+    /// The jaws opened on held tissue; the force fades (tearing effect).
+    pub const RELEASED: u32 = 1024;
 
     /// Whether flag `f` is set.
     pub fn has(self, f: u32) -> bool {
@@ -225,6 +236,17 @@ pub enum PipelineError {
     /// A cutting scene has no scalpel.
     #[error("the scene asks for cutting but has no scalpel; add a [[tools]] entry with kind = \"scalpel\"")]
     NoScalpel,
+    /// A tearing scene has no grasper.
+    #[error("the scene asks for tearing but has no grasper; add a [[tools]] entry with kind = \"grasper\"")]
+    NoGrasper,
+    /// The tearing model could not be prepared.
+    #[error("cannot prepare the tearing model of organ {organ}: {message}")]
+    Tearing {
+        /// The organ.
+        organ: usize,
+        /// What went wrong.
+        message: String,
+    },
     /// The cutting model of an organ could not be prepared.
     #[error("cannot prepare the cutting model of organ {organ}: {message}")]
     Cutting {
@@ -252,6 +274,12 @@ pub struct Pipeline {
     blade_length_m: Option<f64>,
     /// What the cut thread has done (cutting scenes).
     cut_status: Option<Arc<cutting::CutStatus>>,
+    /// The grasper's force limit (N), in a tearing scene.
+    grasper_max_force_n: Option<f64>,
+    /// The frame thread's end of the tearing pictures (taken once, by the session).
+    tear_pictures: Option<TearPictures>,
+    /// The tearing organ's offline data (tearing scenes).
+    tear_offline: Option<Arc<crate::damage::online::TearOffline>>,
 }
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
@@ -280,9 +308,6 @@ impl Pipeline {
     /// on a large organ: call it off any async runtime), and starts the cut thread.
     pub fn for_scene(scene: &Scene, bundles: &[Arc<LoadedBundle>]) -> Result<Self, PipelineError> {
         let fx = &scene.spec.effects;
-        if fx.tearing {
-            return Err(PipelineError::Unsupported("tearing (effects.tearing = true)"));
-        }
         if bundles.len() != scene.spec.organs.len() {
             return Err(PipelineError::BundleCount {
                 organs: scene.spec.organs.len(),
@@ -294,7 +319,21 @@ impl Pipeline {
             _ => None,
         });
         let scalpel = scene.spec.scalpel();
+        let grasper = scene.spec.tools.iter().find_map(|t| match t {
+            ToolSpec::Grasper { jaw_width, max_force, .. } => Some((*jaw_width, *max_force)),
+            _ => None,
+        });
         let large = fx.deformation == DeformationModel::Large;
+        if fx.tearing {
+            if grasper.is_none() {
+                return Err(PipelineError::NoGrasper);
+            }
+            if large || fx.cutting {
+                return Err(PipelineError::Unsupported(
+                    "tearing together with large deformations or cutting (one effect beside palpation)",
+                ));
+            }
+        }
         if fx.cutting {
             if large {
                 return Err(PipelineError::Unsupported(
@@ -307,18 +346,31 @@ impl Pipeline {
             if bundles.len() != 1 {
                 return Err(PipelineError::Unsupported("cutting in a scene of more than one organ"));
             }
-        } else if probe.is_none() {
+        } else if probe.is_none() && !fx.tearing {
             return Err(PipelineError::NoProbe);
         }
         if large && let Some(i) = bundles.iter().position(|b| b.anm.is_none()) {
             return Err(PipelineError::NoLattice { organ: i });
         }
         let radius = match (probe, scalpel) {
-            (Some((r, _)), _) => r,
-            (None, Some((blade, _))) => SCALPEL_TIP_FRACTION * blade,
-            (None, None) => unreachable!("checked above"),
+            (Some((r, _)), _) => Some(r),
+            (None, Some((blade, _))) if fx.cutting => Some(SCALPEL_TIP_FRACTION * blade),
+            _ => None,
         };
-        let mut effects: Vec<Box<dyn Effect>> = vec![Box::new(Palpation::new(bundles.to_vec(), radius, large))];
+        // a tearing scene without a probe palpates nothing: the grasper is its only tool
+        let mut effects: Vec<Box<dyn Effect>> = match radius {
+            Some(r) => vec![Box::new(Palpation::new(bundles.to_vec(), r, large))],
+            None => Vec::new(),
+        };
+        let (mut tear_pictures, mut tear_offline) = (None, None);
+        if fx.tearing
+            && let Some((jaw_width, max_force)) = grasper
+        {
+            let (t, pictures, off) = tearing_effect(scene, bundles, jaw_width, max_force)?;
+            tear_pictures = Some(pictures);
+            tear_offline = Some(off);
+            effects.push(Box::new(t));
+        }
         let mut cut_status = None;
         if fx.cutting
             && let Some((_, cut_force)) = scalpel
@@ -349,7 +401,21 @@ impl Pipeline {
             probe: probe.is_some(),
             blade_length_m: scalpel.filter(|_| fx.cutting).map(|s| s.0),
             cut_status,
+            grasper_max_force_n: grasper.filter(|_| fx.tearing).map(|g| g.1.clamp(0.0, GLOBAL_FORCE_LIMIT_N)),
+            tear_pictures,
+            tear_offline,
         })
+    }
+
+    /// The frame thread's end of the tearing pictures (tearing scenes; `None` once taken).
+    pub fn take_tear_pictures(&mut self) -> Option<TearPictures> {
+        self.tear_pictures.take()
+    }
+
+    /// The tearing organ's offline data (tearing scenes), to rebuild displacements from a
+    /// [`TearPicture`].
+    pub fn tear_offline(&self) -> Option<&Arc<crate::damage::online::TearOffline>> {
+        self.tear_offline.as_ref()
     }
 
     /// What the cut thread has done so far (cutting scenes).
@@ -368,7 +434,8 @@ impl Pipeline {
         match kind {
             ToolKind::Probe => self.probe,
             ToolKind::Scalpel => self.blade_length_m.is_some(),
-            _ => false,
+            ToolKind::Grasper => self.grasper_max_force_n.is_some(),
+            ToolKind::Other => false,
         }
     }
 
@@ -426,10 +493,10 @@ impl Pipeline {
             state.force_n = [0.0; 3];
         }
         let norm = state.force_n.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let limit = if tool.kind == ToolKind::Scalpel {
-            self.scalpel_max_force_n
-        } else {
-            self.max_force_n
+        let limit = match tool.kind {
+            ToolKind::Scalpel => self.scalpel_max_force_n,
+            ToolKind::Grasper => self.grasper_max_force_n.unwrap_or(self.max_force_n),
+            _ => self.max_force_n,
         };
         if norm > limit {
             let scale = limit / norm;
@@ -445,6 +512,37 @@ impl Pipeline {
         }
         state
     }
+}
+
+/// The tearing effect of `scene`'s tearable organ: its model from the scene, the offline
+/// arrays from its bundle (checked against the model), the scene's variant and limits.
+fn tearing_effect(
+    scene: &Scene,
+    bundles: &[Arc<LoadedBundle>],
+    jaw_width: f64,
+    max_force: f64,
+) -> Result<(Tearing, TearPictures, Arc<crate::damage::online::TearOffline>), PipelineError> {
+    use crate::damage::online::TearOffline;
+    use crate::damage::organ;
+    let Some(i) = organ::tearable_organ(scene) else {
+        return Err(PipelineError::Tearing {
+            organ: 0,
+            message: "no organ has a material with damage".into(),
+        });
+    };
+    let fail = |message: String| PipelineError::Tearing { organ: i, message };
+    let arrays = bundles[i].tear.as_ref().ok_or_else(|| {
+        fail(
+            "its bundle holds no tearing vademecum (built before tearing existed, or for another scene); rebuild it with `vademecum build`"
+                .into(),
+        )
+    })?;
+    let (model, _) = organ::tear_model(scene, i).map_err(|e| fail(e.to_string()))?;
+    let off = Arc::new(TearOffline::from_arrays(model, (**arrays).clone()).map_err(fail)?);
+    let (_, limits) = organ::settings(scene);
+    let variant = scene.spec.fidelity.tearing.variant;
+    let (t, pictures) = Tearing::new(i, off.clone(), variant, limits, jaw_width, max_force).map_err(|e| fail(e.to_string()))?;
+    Ok((t, pictures, off))
 }
 
 /// The cutting effect of organ 0 of `scene` (module [`cutting`]): its mesh and model from the

@@ -136,6 +136,10 @@ impl Effect for Palpation {
     }
 
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
+        if tool.kind == super::ToolKind::Grasper {
+            // the grasper's effect is tearing's; it does not palpate
+            return;
+        }
         let mut best: Option<(usize, Touch)> = None;
         for (i, o) in self.organs.iter_mut().enumerate() {
             if let Some(t) = o.proxy.update(&o.surface, &o.bounds, tool.contact_point(), self.radius_m)

@@ -549,7 +549,9 @@ pub struct TearingFidelity {
     /// Most vademecum modes.
     #[serde(default = "default_tear_modes")]
     pub max_modes: usize,
-    /// The online integrator: `full` (h ≠ 0, default) or `simplified` (h = 0, the seed's).
+    /// The online integrator: `simplified` (h = 0, the seed's; default: 40 µs a step on the
+    /// gallbladder) or `full` (h ≠ 0: follows the consistent-tangent scheme, which is closer
+    /// to equilibrium, at ~8× the cost; `BENCHMARKS.md`).
     #[serde(default = "default_variant")]
     pub variant: crate::damage::online::Variant,
     /// Largest damage increment of an online step before it is split into sub-steps.
@@ -579,7 +581,7 @@ fn default_tear_modes() -> usize {
     60
 }
 fn default_variant() -> crate::damage::online::Variant {
-    crate::damage::online::Variant::Full
+    crate::damage::online::Variant::Simplified
 }
 fn default_max_dd() -> f64 {
     0.1

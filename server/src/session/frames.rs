@@ -8,10 +8,12 @@ use std::time::{Duration, Instant};
 
 use tokio::sync::watch;
 use vademecum_engine::contact::Bounds;
+use vademecum_engine::damage::online::TearOffline;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pgd::vademecum::NodeMajorField;
 use vademecum_engine::pipeline::Contact;
 use vademecum_engine::pipeline::cutting::{CutPicture, CutStatus};
+use vademecum_engine::pipeline::{TearPicture, TearPictures};
 use vademecum_engine::scene::Scene;
 
 use super::stats::TickStats;
@@ -95,6 +97,23 @@ pub struct Frame {
     pub displacements_m: Vec<Vec<f32>>,
     /// Per organ, the walls of its cut with their displacements (`None`: not cut).
     pub cuts: Vec<Option<CutFrame>>,
+    /// Per organ, its damage (`None`: it does not tear).
+    pub damage: Vec<Option<DamageFrame>>,
+}
+
+/// The damage of a tearing organ in one frame (see [`TearPicture`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DamageFrame {
+    /// Damage of every mesh cell.
+    pub cell_damage: Vec<f32>,
+    /// Damage of the cell each surface triangle bounds, in [`OrganSurface::triangles`] order.
+    pub triangle_damage: Vec<f32>,
+    /// The torn threshold.
+    pub torn: f32,
+    /// Whether the grasper holds the tissue.
+    pub grasped: bool,
+    /// Energy dissipated so far (J).
+    pub dissipated_j: f64,
 }
 
 /// The walls of an organ's cut in one frame ([`CutWalls`](vademecum_engine::xfem::view::CutWalls)):
@@ -124,6 +143,7 @@ impl Frame {
             contact: None,
             displacements_m: g.organs.iter().map(|o| vec![0.0; 3 * o.nodes.len()]).collect(),
             cuts: vec![None; g.organs.len()],
+            damage: vec![None; g.organs.len()],
         }
     }
 }
@@ -148,9 +168,74 @@ impl WallGeometry {
     }
 }
 
+/// What the frame thread keeps to draw a tearing organ.
+pub(super) struct TearView {
+    pictures: TearPictures,
+    offline: Arc<TearOffline>,
+    /// The cell each surface triangle bounds.
+    triangle_cell: Vec<usize>,
+    /// The whole displacement, rebuilt per frame.
+    u: Vec<f64>,
+}
+
+impl TearView {
+    /// The view of `offline`'s organ, whose surface is `surface`.
+    pub fn new(pictures: TearPictures, offline: Arc<TearOffline>, surface: &OrganSurface) -> Self {
+        let mesh = &offline.model.mesh;
+        let mut cells_of: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
+        for c in 0..mesh.n_cells() {
+            for &a in mesh.cell(c) {
+                cells_of[a].push(c);
+            }
+        }
+        let triangle_cell = surface
+            .triangles
+            .chunks_exact(3)
+            .map(|t| {
+                let [a, b, c] = [0, 1, 2].map(|k| surface.nodes[t[k] as usize]);
+                cells_of[a]
+                    .iter()
+                    .copied()
+                    .find(|&cell| mesh.cell(cell).contains(&b) && mesh.cell(cell).contains(&c))
+                    .unwrap_or(0)
+            })
+            .collect();
+        let u = vec![0.0; 3 * mesh.n_nodes()];
+        Self {
+            pictures,
+            offline,
+            triangle_cell,
+            u,
+        }
+    }
+
+    /// Draws the latest picture into `frame`: the organ's surface displacement and damage.
+    fn draw(&mut self, nodes: &[usize], frame: &mut Frame) {
+        let p: &TearPicture = self.pictures.read();
+        let o = p.organ;
+        if o >= frame.displacements_m.len() {
+            return;
+        }
+        self.offline.displacement(&p.amplitudes, &mut self.u);
+        for (j, &n) in nodes.iter().enumerate() {
+            for k in 0..3 {
+                frame.displacements_m[o][3 * j + k] += self.u[3 * n + k] as f32;
+            }
+        }
+        frame.damage[o] = Some(DamageFrame {
+            triangle_damage: self.triangle_cell.iter().map(|&c| p.cell_damage[c]).collect(),
+            cell_damage: p.cell_damage.clone(),
+            torn: p.torn,
+            grasped: p.grasped,
+            dissipated_j: p.dissipated_j,
+        });
+    }
+}
+
 pub(super) struct FrameProducer {
     bundles: Vec<Arc<LoadedBundle>>,
     cut: Option<Arc<CutStatus>>,
+    tear: Option<TearView>,
     walls: Option<WallGeometry>,
     fields: Vec<NodeMajorField>,
     geometry: Arc<SurfaceGeometry>,
@@ -174,6 +259,7 @@ impl FrameProducer {
         rate_hz: f64,
         period: Duration,
         cut: Option<Arc<CutStatus>>,
+        tear: Option<TearView>,
     ) -> Self {
         let fields = bundles
             .iter()
@@ -184,6 +270,7 @@ impl FrameProducer {
         Self {
             bundles,
             cut,
+            tear,
             walls: None,
             fields,
             geometry,
@@ -239,6 +326,12 @@ impl FrameProducer {
             }
             if let Some(p) = self.cut.as_ref().and_then(|s| s.picture()) {
                 self.draw_cut(&p, loaded, &coeffs, &mut cut_coeffs, &mut uncut, &mut frame);
+            }
+            if let Some(t) = &mut self.tear {
+                let o = t.pictures.peek_output_buffer().organ;
+                if let Some(surface) = self.geometry.organs.get(o) {
+                    t.draw(&surface.nodes, &mut frame);
+                }
             }
             self.tx.send_replace(Arc::new(frame));
             self.stats.frames.fetch_add(1, Ordering::Relaxed);

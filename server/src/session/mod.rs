@@ -44,7 +44,7 @@ use vademecum_proto::shm::{HapticChannel, OpenError};
 
 pub use answers::{AnswerStream, StreamId};
 pub use frames::{Frame, SurfaceGeometry};
-pub use script::{builtin_incisions, builtin_palpation, tool_at};
+pub use script::{builtin_grasp, builtin_incisions, builtin_palpation, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
 pub use tick::MAX_COMMANDS_PER_TICK;
 pub use vademecum_bridge::trajectory::Trajectory;
@@ -232,8 +232,10 @@ impl Session {
         config: SessionConfig,
         script: Option<Script>,
     ) -> Result<Self, SessionError> {
-        let pipeline = Pipeline::for_scene(&scene, &bundles)?;
+        let mut pipeline = Pipeline::for_scene(&scene, &bundles)?;
         let effects = pipeline.effect_names();
+        let tear_pictures = pipeline.take_tear_pictures();
+        let tear_offline = pipeline.tear_offline().cloned();
         let cut = pipeline.cut_status();
         let workspace = pipeline.workspace();
         let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
@@ -314,6 +316,16 @@ impl Session {
             }
             Err(_) => panic!("the tick thread ended before opening its haptic channel"),
         };
+        let tear = match (tear_pictures, tear_offline) {
+            (Some(pictures), Some(offline)) => {
+                let o = pictures.peek_output_buffer().organ;
+                geometry
+                    .organs
+                    .get(o)
+                    .map(|surface| frames::TearView::new(pictures, offline, surface))
+            }
+            _ => None,
+        };
         let producer = frames::FrameProducer::new(
             bundles.clone(),
             geometry.clone(),
@@ -324,6 +336,7 @@ impl Session {
             config.frame_rate_hz,
             config.period,
             cut.clone(),
+            tear,
         );
         let frame_thread = std::thread::Builder::new()
             .name(format!("frames-{id}"))

@@ -83,6 +83,27 @@ pub fn builtin_incisions(b: &LoadedBundle, cuts: &[&[[f64; 3]]], lift_m: f64, se
     Trajectory::new(keys)?.with_blades(blades)
 }
 
+/// The built-in grasp of a tearing scene: the jaws, open, come to `centre` (the grasp: the
+/// nodes the scene's load acts on) in 0.3 s, close in 0.2 s, pull along `direction` (the
+/// load's) by `pull_m` in `seconds`, hold 0.5 s, open in 0.2 s and wait 0.5 s.
+pub fn builtin_grasp(centre: [f64; 3], direction: [f64; 3], pull_m: f64, seconds: f64) -> Result<Trajectory, String> {
+    let len = direction.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if !(len > 0.0 && len.is_finite()) {
+        return Err("the scene's load has no direction to pull along".into());
+    }
+    let at = |d: f64| [0, 1, 2].map(|k| centre[k] + d * direction[k] / len);
+    let t1 = 0.5 + seconds;
+    Trajectory::new(vec![
+        (0.0, at(0.0), 0.0),
+        (0.3, at(0.0), 0.0),
+        (0.5, at(0.0), 1.0),
+        (t1, at(pull_m), 1.0),
+        (t1 + 0.5, at(pull_m), 1.0),
+        (t1 + 0.7, at(pull_m), 0.0),
+        (t1 + 1.2, at(pull_m), 0.0),
+    ])
+}
+
 /// The built-in palpation of an organ: a probe of radius `radius_m` comes down on the
 /// middle of the accessible surface along its normal, presses `depth_m` deep, holds,
 /// slides `slide_m` along the surface, and lifts off — five seconds in all.

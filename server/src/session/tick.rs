@@ -137,7 +137,11 @@ impl TickLoop {
                 if t > script.trajectory.duration_s() + 0.5 * period.as_secs_f64() {
                     break 'ticks;
                 }
-                let input = super::tool_at(&script.trajectory, t);
+                let mut input = super::tool_at(&script.trajectory, t);
+                // a scene whose only tool is a grasper plays its trajectory (and closure) with it
+                if input.kind == ToolKind::Probe && !self.pipeline.accepts(ToolKind::Probe) && self.pipeline.accepts(ToolKind::Grasper) {
+                    input.kind = ToolKind::Grasper;
+                }
                 let a = self.answer(tick, &input, tick, self.micros(start), start);
                 Histograms::record(&mut local.response, (a.answered_us - a.received_us) * 1000);
                 // counted before it leaves, so a reader that has the answer sees it counted

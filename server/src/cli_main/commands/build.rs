@@ -40,6 +40,7 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
             "large deformations: full Newton, POD and ANM at lattice position {done}/{total}"
         )),
         BuildStage::CutBasis => bar.stage("cutting: the K-orthonormal Ritz basis for bare enrichment"),
+        BuildStage::Tearing(what, f) => bar.stage(&format!("tearing: {what} {:.0} %", 100.0 * f)),
     })
     .with_context(|| format!("cannot build organ '{name}'"))?;
     Ok((built, bar))

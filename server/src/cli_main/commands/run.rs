@@ -49,6 +49,25 @@ struct Summary {
     /// The cut the session made (cutting scenes).
     #[serde(skip_serializing_if = "Option::is_none")]
     cut: Option<CutSummary>,
+    /// What the grasper did (tearing scenes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tear: Option<TearSummary>,
+}
+
+/// What a tearing run did: when the jaws took hold, when the tissue tore, when they let go.
+#[derive(Debug, Default, Serialize)]
+struct TearSummary {
+    grasped_at_s: Option<f64>,
+    torn_at_s: Option<f64>,
+    /// The force on the tool just before the tear (N).
+    force_at_tear_n: Option<f64>,
+    released_at_s: Option<f64>,
+    /// Ticks in which the damage grew.
+    tearing_ticks: u64,
+    /// At the last frame: the largest cell damage, the torn cells, the energy dissipated.
+    max_damage: f64,
+    torn_cells: usize,
+    dissipated_j: f64,
 }
 
 /// What a cutting run cut.
@@ -135,7 +154,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             );
         }
     }
-    let radius = if cutting || scripted.is_some() {
+    let tearing = scene.spec.effects.tearing;
+    let radius = if cutting || tearing || scripted.is_some() {
         0.0
     } else {
         offline_probe_radius(&scene)?
@@ -162,6 +182,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 ),
             )
         }
+        _ if tearing => builtin_grasp(&scene)?,
         _ => (
             crate::session::builtin_palpation(&bundles[0], radius, a.depth, 0.015)
                 .map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?,
@@ -200,10 +221,11 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     // the force log, written by its own thread as answers arrive
     let cut_status = session.cut_status().cloned();
     let cutting = cut_status.is_some();
+    let jaws = tearing.then(|| trajectory.clone());
     let forces_path = record.join("forces.csv");
     let writer = std::thread::spawn({
         let path = forces_path.clone();
-        move || -> anyhow::Result<(f64, f64, u64, [u64; 3], Vec<BladeRow>)> {
+        move || -> anyhow::Result<(f64, f64, u64, [u64; 3], Vec<BladeRow>, TearSummary)> {
             let mut w = csv::Writer::from_path(&path).with_context(|| format!("cannot write {}", path.display()))?;
             let mut header = vec![
                 "tick",
@@ -222,7 +244,12 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             if cutting {
                 header.extend(["f_perp_n", "f_par_n", "cutting"]);
             }
+            if jaws.is_some() {
+                header.push("closure");
+            }
             w.write_record(&header)?;
+            let mut tear = TearSummary::default();
+            let mut last_force = 0.0;
             let (mut peak, mut peak_t, mut contacts) = (0.0f64, 0.0f64, 0u64);
             // ticks cutting, strokes started, cuts swapped in
             let mut cut_counts = [0u64; 3];
@@ -240,10 +267,23 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                     peak_t = row.t_s;
                 }
                 let c = row.a.state.contact;
-                contacts += u64::from(c.is_some());
+                contacts += u64::from(c.is_some() || row.a.state.events.has(Events::CONTACT));
                 let p = c.map_or([f64::NAN; 3], |c| c.point_m);
                 let ev = row.a.state.events;
                 let blade = row.a.state.blade;
+                let first = |at: &mut Option<f64>, flag: u32| {
+                    if at.is_none() && ev.has(flag) {
+                        *at = Some(row.t_s);
+                    }
+                };
+                first(&mut tear.grasped_at_s, Events::GRASPED);
+                first(&mut tear.released_at_s, Events::RELEASED);
+                if tear.torn_at_s.is_none() && ev.has(Events::TISSUE_TORN) {
+                    tear.torn_at_s = Some(row.t_s);
+                    tear.force_at_tear_n = Some(last_force);
+                }
+                tear.tearing_ticks += u64::from(ev.has(Events::TEARING));
+                last_force = mag;
                 cut_counts[0] += u64::from(blade.is_some_and(|b| b.cutting));
                 cut_counts[1] += u64::from(ev.has(Events::CUT_STARTED));
                 cut_counts[2] += u64::from(ev.has(Events::CUT_ADVANCED));
@@ -281,10 +321,13 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                         None => [String::new(), String::new(), String::new()],
                     });
                 }
+                if let Some(t) = &jaws {
+                    record.push(format!("{}", t.at(row.t_s).closure));
+                }
                 w.write_record(&record)?;
             }
             w.flush()?;
-            Ok((peak, peak_t, contacts, cut_counts, blade_rows))
+            Ok((peak, peak_t, contacts, cut_counts, blade_rows, tear))
         }
     });
     // frames: take the latest at the frame rate, write one surface .vtu per organ
@@ -315,6 +358,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         .iter()
         .map(|o| o.triangles.iter().map(|&i| i as usize).collect())
         .collect();
+    // the damage at the last frame: largest, torn cells, energy dissipated
+    let mut last_damage: Option<(f64, usize, f64)> = None;
     while !session.finished() {
         std::thread::sleep(interval);
         bar.set_position((clock.elapsed().as_secs_f64() * 1000.0) as u64);
@@ -325,22 +370,42 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         for (k, o) in geometry.organs.iter().enumerate() {
             let file = format!("{}_{:05}.vtu", o.name, frame.seq);
             let u: Vec<f64> = frame.displacements_m[k].iter().map(|&x| x as f64).collect();
-            vtk::write_surface_vtu(
-                &frames_dir.join(&file),
-                &positions[k],
-                &triangles[k],
-                &[Field {
-                    name: "displacement",
-                    components: 3,
-                    values: &u,
-                }],
-            )?;
+            let point_data = [Field {
+                name: "displacement",
+                components: 3,
+                values: &u,
+            }];
+            match &frame.damage[k] {
+                None => vtk::write_surface_vtu(&frames_dir.join(&file), &positions[k], &triangles[k], &point_data, &[])?,
+                Some(d) => {
+                    // torn cells are not drawn: their surface triangles are left out
+                    let kept: Vec<usize> = (0..d.triangle_damage.len()).filter(|&t| d.triangle_damage[t] < d.torn).collect();
+                    let tris: Vec<usize> = kept.iter().flat_map(|&t| triangles[k][3 * t..3 * t + 3].iter().copied()).collect();
+                    let damage: Vec<f64> = kept.iter().map(|&t| f64::from(d.triangle_damage[t])).collect();
+                    let cells = [Field {
+                        name: "damage",
+                        components: 1,
+                        values: &damage,
+                    }];
+                    vtk::write_surface_vtu(&frames_dir.join(&file), &positions[k], &tris, &point_data, &cells)?;
+                    last_damage = Some((
+                        d.cell_damage.iter().copied().fold(0.0f32, f32::max).into(),
+                        d.cell_damage.iter().filter(|&&x| x >= d.torn).count(),
+                        d.dissipated_j,
+                    ));
+                }
+            }
             steps[k].push((frame.time_s, format!("frames/{file}")));
         }
     }
     bar.finish_and_clear();
     let stats = session.wait();
-    let (peak, peak_t, contacts, cut_counts, blade_rows) = writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    let (peak, peak_t, contacts, cut_counts, blade_rows, mut tear) =
+        writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    if let Some((max_damage, torn_cells, dissipated_j)) = last_damage {
+        (tear.max_damage, tear.torn_cells, tear.dissipated_j) = (max_damage, torn_cells, dissipated_j);
+    }
+    let tear = tearing.then_some(tear);
     if let Some((_, cut_force)) = scene.spec.scalpel().filter(|_| cutting) {
         plot_blade(&record.join("blade_force.svg"), &scene.spec.scene.name, &blade_rows, cut_force)?;
     }
@@ -378,6 +443,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         frames: steps.first().map_or(0, |s| s.len()),
         record: record.clone(),
         cut,
+        tear,
     };
     std::fs::write(record.join("summary.json"), serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("cannot write {}", record.join("summary.json").display()))?;
@@ -432,6 +498,28 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                     c.opened_vtu.as_ref().map_or(String::new(), |p| p.display().to_string())
                 )?;
             }
+        }
+        if let Some(t) = &s.tear {
+            let at = |x: Option<f64>| x.map_or("never".to_string(), |t| format!("at {t:.3} s"));
+            writeln!(
+                out,
+                "  grasp          taken {}, released {}",
+                at(t.grasped_at_s),
+                at(t.released_at_s)
+            )?;
+            match t.torn_at_s {
+                Some(ts) => writeln!(
+                    out,
+                    "  TORN           the tissue under the jaws tore at {ts:.3} s under {:.3} N: the grasp was lost",
+                    t.force_at_tear_n.unwrap_or(0.0)
+                )?,
+                None => writeln!(out, "  torn           no: the tissue held")?,
+            }
+            writeln!(
+                out,
+                "  damage         grew in {} ticks; at the end largest {:.3}, {} cells torn, {:.3e} J dissipated",
+                t.tearing_ticks, t.max_damage, t.torn_cells, t.dissipated_j
+            )?;
         }
         writeln!(
             out,
@@ -555,11 +643,42 @@ fn record_cut(
     let points: Vec<[f64; 3]> = shape.triangles.iter().flatten().copied().collect();
     let triangles: Vec<usize> = (0..points.len()).collect();
     let surface = record.join(format!("{name}_cut_surface.vtu"));
-    vtk::write_surface_vtu(&surface, &points, &triangles, &[])?;
+    vtk::write_surface_vtu(&surface, &points, &triangles, &[], &[])?;
     summary.opened = opened.xfem;
     summary.opened_vtu = Some(opened.output);
     summary.cut_surface_vtu = Some(surface);
     Ok(summary)
+}
+
+/// The built-in grasp of a tearing scene (its trajectory and description): the jaws close on
+/// the scene's grasp and pull along its load by 1.5 times what the explicit reference's
+/// schedule moves the grasp, in 3 s.
+fn builtin_grasp(scene: &vademecum_engine::scene::Scene) -> anyhow::Result<(crate::session::Trajectory, String)> {
+    use vademecum_engine::damage::{organ, reference};
+    let i = organ::tearable_organ(scene).ok_or_else(|| anyhow::anyhow!("the scene tears but no material has damage"))?;
+    let (model, _) = organ::tear_model(scene, i)?;
+    let (_, centre, r) = model
+        .grasp()
+        .ok_or_else(|| anyhow::anyhow!("the tearable organ has no load to grasp by: add an [[organs.loads]] entry"))?;
+    let run = reference::run(
+        &model,
+        reference::RunSettings::seed(reference::Scheme::Explicit(reference::Tangent::Secant)),
+        |_, _| {},
+    )?;
+    let rn = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+    let last = run.steps.last().map(|s| s.u.clone()).unwrap_or_default();
+    let w = model.load.iter().zip(&last).map(|(f, u)| f * u).sum::<f64>() / rn;
+    // within the session's workspace (the organ's box grown by WORKSPACE_MARGIN_M)
+    let pull = (1.5 * w.abs().max(1e-4)).min(0.8 * vademecum_engine::pipeline::WORKSPACE_MARGIN_M);
+    let t = crate::session::builtin_grasp(centre, r, pull, 3.0).map_err(|e| anyhow::anyhow!("cannot script the built-in grasp: {e}"))?;
+    Ok((
+        t,
+        format!(
+            "built-in grasp of '{}': close on its grasp, pull {:.1} mm along its load in 3 s, hold, open",
+            scene.spec.organs[i].name,
+            pull * 1e3
+        ),
+    ))
 }
 
 fn offline_probe_radius(scene: &vademecum_engine::scene::Scene) -> anyhow::Result<f64> {

@@ -1,0 +1,139 @@
+//! The offline stage of tearing as a bundle stores it: the arrays of [`TearOffline`] that do
+//! not come from the scene (the POD basis of the damage and its coefficient box, the
+//! vademecum's spatial modes and one-dimensional factors, the Ritz operator). The model
+//! (mesh, integration points, supports, loads) is rebuilt from the scene when a session
+//! starts, and checked against the arrays' sizes.
+
+use super::model::TearModel;
+use super::online::{RitzOperator, TearOffline};
+use super::pod::DamageBasis;
+use super::vademecum::{DamageVademecum, VademecumReport};
+use crate::rom::pod::Pod;
+
+/// The stored arrays (row-major, shapes in the field docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TearArrays {
+    /// POD vectors of the damage at the tearable points, `q × n_tearable`.
+    pub pod_basis: Vec<f64>,
+    /// Singular values of the snapshots (all of them, decreasing).
+    pub singular_values: Vec<f64>,
+    /// Energy fraction the kept vectors capture.
+    pub captured: f64,
+    /// The coefficient box, `q` each.
+    pub lo: Vec<f64>,
+    /// The coefficient box.
+    pub hi: Vec<f64>,
+    /// Grid nodes per coefficient.
+    pub grid: usize,
+    /// The vademecum's spatial modes, `n_modes × n_free`.
+    pub spatial: Vec<f64>,
+    /// Its factors, `n_modes × q × grid`.
+    pub factors: Vec<f64>,
+    /// The Ritz basis `V`, `n_free × m`.
+    pub ritz_v: Vec<f64>,
+    /// `VᵀK_jV`, `(q + 1) × m × m`.
+    pub ritz_k: Vec<f64>,
+    /// `Vᵀb_j`, `(q + 1) × m`.
+    pub ritz_b: Vec<f64>,
+    /// Modes `n_modes`.
+    pub n_modes: usize,
+    /// Ritz size `m`.
+    pub m: usize,
+}
+
+impl TearOffline {
+    /// The arrays a bundle stores.
+    pub fn to_arrays(&self) -> TearArrays {
+        let (b, v, r) = (&self.basis, &self.vademecum, &self.ritz);
+        TearArrays {
+            pod_basis: b.pod.basis.clone(),
+            singular_values: b.pod.singular_values.clone(),
+            captured: b.pod.captured,
+            lo: b.lo.clone(),
+            hi: b.hi.clone(),
+            grid: v.grid,
+            spatial: v.spatial.clone(),
+            factors: v.factors.clone(),
+            ritz_v: r.v.clone(),
+            ritz_k: r.k.concat(),
+            ritz_b: r.b.concat(),
+            n_modes: v.n_modes,
+            m: r.m,
+        }
+    }
+
+    /// The offline data of `model` from stored arrays; an error says which array does not
+    /// fit the model (a bundle built for another scene or mesh).
+    pub fn from_arrays(model: TearModel, a: TearArrays) -> Result<Self, String> {
+        let q = a.lo.len();
+        let (nt, nf) = (model.points.tearable.len(), model.dofs.n_free());
+        let check = |name: &str, len: usize, want: usize| {
+            if len == want {
+                Ok(())
+            } else {
+                Err(format!(
+                    "tearing array {name} holds {len} values where the scene's model needs {want}; rebuild the bundle with `vademecum build`"
+                ))
+            }
+        };
+        if q == 0 || a.grid < 2 || a.n_modes == 0 || a.m == 0 {
+            return Err("tearing arrays are empty (no POD vector, grid or mode)".into());
+        }
+        check("hi", a.hi.len(), q)?;
+        check("pod_basis", a.pod_basis.len(), q * nt)?;
+        check("spatial", a.spatial.len(), a.n_modes * nf)?;
+        check("factors", a.factors.len(), a.n_modes * q * a.grid)?;
+        check("ritz_v", a.ritz_v.len(), nf * a.m)?;
+        check("ritz_k", a.ritz_k.len(), (q + 1) * a.m * a.m)?;
+        check("ritz_b", a.ritz_b.len(), (q + 1) * a.m)?;
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        if !(finite(&a.pod_basis)
+            && finite(&a.lo)
+            && finite(&a.hi)
+            && finite(&a.spatial)
+            && finite(&a.factors)
+            && finite(&a.ritz_v)
+            && finite(&a.ritz_k)
+            && finite(&a.ritz_b))
+            || a.lo.iter().zip(&a.hi).any(|(l, h)| l >= h)
+        {
+            return Err("tearing arrays hold non-finite values or an empty coefficient range".into());
+        }
+        let basis = DamageBasis {
+            pod: Pod {
+                n: nt,
+                modes: q,
+                basis: a.pod_basis,
+                singular_values: a.singular_values,
+                captured: a.captured,
+            },
+            lo: a.lo.clone(),
+            hi: a.hi.clone(),
+        };
+        let vademecum = DamageVademecum {
+            n_free: nf,
+            q,
+            grid: a.grid,
+            lo: a.lo,
+            hi: a.hi,
+            n_modes: a.n_modes,
+            spatial: a.spatial,
+            factors: a.factors,
+            report: VademecumReport {
+                modes: a.n_modes,
+                amplitudes: Vec::new(),
+                iterations: Vec::new(),
+                nonpositive: false,
+                seconds: 0.0,
+            },
+        };
+        let mm = a.m * a.m;
+        let ritz = RitzOperator {
+            m: a.m,
+            v: a.ritz_v,
+            k: a.ritz_k.chunks_exact(mm).map(<[f64]>::to_vec).collect(),
+            b: a.ritz_b.chunks_exact(a.m).map(<[f64]>::to_vec).collect(),
+        };
+        Ok(Self::new(model, basis, vademecum, ritz))
+    }
+}
