@@ -441,3 +441,22 @@ fn run_grasps_and_pulls_a_tearable_cube_until_it_tears_and_records_the_damage() 
     );
     assert!(last.contains("NumberOfCells=\"0\""), "the torn cube is not drawn: {last}");
 }
+
+#[test]
+fn bench_tear_closed_form_matches_both_damage_laws_through_an_unload_reload_cycle() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["bench", "tear", "--closed-form", "c.svg"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let text = stdout(&o);
+    let rows: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("| Simó") || l.starts_with("| softening"))
+        .collect();
+    assert_eq!(rows.len(), 2, "{text}");
+    for r in rows {
+        let cells: Vec<f64> = r.split('|').filter_map(|c| c.trim().parse().ok()).collect();
+        // steps, stress error (Pa), damage error: round-off on one hexahedron
+        assert!(cells[1] < 1e-9 && cells[2] < 1e-9, "{r}");
+    }
+    assert!(std::fs::read_to_string(dir.path().join("c.svg")).unwrap().contains("<svg"));
+}

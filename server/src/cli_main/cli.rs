@@ -417,6 +417,11 @@ pub struct BenchTearArgs {
     /// Folder of the plots. Default: `out/<scene>/`.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Instead of a scene: the homogeneous unit cube in uniaxial strain, loaded, unloaded
+    /// and reloaded, by Newton against the closed-form curves of both damage laws (the
+    /// seed's Simó law and the threshold/softening form through its peak); writes this SVG.
+    #[arg(long, value_name = "SVG", conflicts_with = "scene")]
+    pub closed_form: Option<PathBuf>,
     /// Print the results as JSON.
     #[arg(long)]
     pub json: bool,

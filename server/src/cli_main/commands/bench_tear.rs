@@ -13,6 +13,7 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use plotters::prelude::*;
 use serde::Serialize;
+use vademecum_engine::damage::DamageLaw;
 use vademecum_engine::damage::build::{self, TearBuildReport};
 use vademecum_engine::damage::model::TearModel;
 use vademecum_engine::damage::online::{OnlineTear, TearOffline, Variant};
@@ -102,6 +103,9 @@ fn run_online(
 }
 
 pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
+    if let Some(file) = &a.closed_form {
+        return closed_form(file);
+    }
     if a.passes == 0 {
         bail!("--passes must be at least 1");
     }
@@ -386,6 +390,139 @@ fn plot_curve(r: &Report, file: &Path) -> anyhow::Result<()> {
         .background_style(WHITE.mix(0.9))
         .border_style(BLACK)
         .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// One law's curve: strain, FE stress and damage, closed-form stress and damage.
+struct Curve {
+    name: &'static str,
+    points: Vec<[f64; 5]>,
+}
+
+/// The unit hexahedron (E = 5 Pa, ν = 0.3) on its three symmetry planes, x = 1 and y = 1 held
+/// too (uniaxial strain), its top pulled by a prescribed `uz` of 1 per unit step.
+fn strained_cube(law: DamageLaw) -> anyhow::Result<TearModel> {
+    use vademecum_engine::damage::points::MaterialPoints;
+    use vademecum_engine::fem::assembly::MaterialMap;
+    use vademecum_engine::material::LinearElastic;
+    let mesh = vademecum_engine::mesh::procedural::block_hex([0.0; 3], [1.0; 3], [1, 1, 1]);
+    let mat = MaterialMap::uniform(LinearElastic::new(5.0, 0.3)?, 1.0, 1);
+    let pts = MaterialPoints::new(&mesh, &mat, false, |_, _| Ok::<_, String>(Some(law))).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let nd = 3 * mesh.n_nodes();
+    let (mut constrained, mut prescribed) = (vec![false; nd], vec![0.0; nd]);
+    for (a, x) in mesh.nodes.iter().enumerate() {
+        for i in 0..3 {
+            constrained[3 * a + i] |= x[i] == 0.0 || (i < 2 && x[i] == 1.0);
+        }
+        if x[2] == 1.0 {
+            constrained[3 * a + 2] = true;
+            prescribed[3 * a + 2] = 1.0;
+        }
+    }
+    Ok(TearModel::new(mesh, pts, &constrained, vec![0.0; nd], prescribed))
+}
+
+/// `--closed-form`: both laws on the strained cube, Newton against `σ = g(r) M ε`.
+fn closed_form(file: &Path) -> anyhow::Result<ExitCode> {
+    use vademecum_engine::damage::law::PointState;
+    let m = {
+        let l = vademecum_engine::material::LinearElastic::new(5.0, 0.3)?;
+        l.lambda() + 2.0 * l.shear()
+    };
+    // strain path: to 3 units, back to 1, on to 5 (unload–reload), in steps of `unit / 20`
+    let path = |unit: f64| -> Vec<f64> {
+        let d = unit / 20.0;
+        [vec![d; 60], vec![-d; 40], vec![d; 80]].concat()
+    };
+    let laws = [
+        ("Simó (seed Eq. 4.3), α = 0.4, β = 0.1", DamageLaw::simo(0.4, 0.1, 1e-6)?, 0.2),
+        (
+            "softening, f_t = 0.5 Pa, G_f = 0.5 J/m²",
+            DamageLaw::softening(5.0, 0.5, 0.5, 1.0, 1e-6)?,
+            0.1,
+        ),
+    ];
+    let mut curves = Vec::new();
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "| law | steps | worst stress error (Pa) | worst damage error |")?;
+    writeln!(out, "|---|---:|---:|---:|")?;
+    for (name, law, unit) in laws {
+        let mut model = strained_cube(law)?;
+        model.schedule = path(unit);
+        let run = reference::run(&model, RunSettings::seed(Scheme::Newton), |_, _| {})?;
+        let (mut r_max, mut points) = (0.0f64, Vec::new());
+        let (mut es, mut ed) = (0.0f64, 0.0f64);
+        let mut f = vec![0.0; 24];
+        for s in &run.steps {
+            let eps = s.load_factor;
+            r_max = r_max.max(m.sqrt() * eps.abs());
+            let g = law.g(r_max);
+            let state: Vec<PointState> = s.g.iter().map(|&g| PointState { r: r_max, g, h: 0.0 }).collect();
+            model.points.internal_forces(&model.mesh, &state, &s.u, &mut f);
+            let sigma: f64 = model
+                .mesh
+                .nodes
+                .iter()
+                .enumerate()
+                .filter(|(_, x)| x[2] == 1.0)
+                .map(|(a, _)| f[3 * a + 2])
+                .sum();
+            let d_fe = 1.0 - s.g.iter().sum::<f64>() / s.g.len() as f64;
+            es = es.max((sigma - g * m * eps).abs());
+            ed = ed.max((d_fe - (1.0 - g)).abs());
+            points.push([eps, sigma, d_fe, g * m * eps, 1.0 - g]);
+        }
+        writeln!(out, "| {name} | {} | {es:.2e} | {ed:.2e} |", run.steps.len() - 1)?;
+        curves.push(Curve { name, points });
+    }
+    plot_closed_form(&curves, file)?;
+    writeln!(out, "plot: {}", file.display())?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn plot_closed_form(curves: &[Curve], file: &Path) -> anyhow::Result<()> {
+    let root = SVGBackend::new(file, (1100, 480)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let panels = root.split_evenly((1, curves.len()));
+    for (c, area) in curves.iter().zip(&panels) {
+        let x1 = c.points.iter().map(|p| p[0]).fold(0.0, f64::max) * 1.05;
+        let y1 = c.points.iter().map(|p| p[1].max(p[3])).fold(0.0, f64::max) * 1.15;
+        let mut chart = ChartBuilder::on(area)
+            .caption(c.name, ("sans-serif", 15))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .right_y_label_area_size(48)
+            .build_cartesian_2d(0.0..x1, 0.0..y1)?
+            .set_secondary_coord(0.0..x1, 0.0..1.0);
+        chart.configure_mesh().x_desc("strain ε").y_desc("stress σ (Pa)").draw()?;
+        chart.configure_secondary_axes().y_desc("damage D").draw()?;
+        let blue = super::bench_anm::PALETTE[0];
+        let red = super::bench_anm::PALETTE[1];
+        chart
+            .draw_series(LineSeries::new(c.points.iter().map(|p| (p[0], p[3])), blue.stroke_width(2)))?
+            .label("σ, closed form")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], blue.stroke_width(2)));
+        chart
+            .draw_series(c.points.iter().step_by(4).map(|p| Circle::new((p[0], p[1]), 3, blue.filled())))?
+            .label("σ, finite element (Newton)")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, blue.filled()));
+        chart
+            .draw_secondary_series(LineSeries::new(c.points.iter().map(|p| (p[0], p[4])), red.stroke_width(2)))?
+            .label("D, closed form")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], red.stroke_width(2)));
+        chart
+            .draw_secondary_series(c.points.iter().step_by(4).map(|p| Circle::new((p[0], p[2]), 3, red.filled())))?
+            .label("D, finite element")
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, red.filled()));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .draw()?;
+    }
     root.present()?;
     Ok(())
 }
