@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
-use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput};
+use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_server::session::{Answer, Script, Session, SessionConfig, SessionError, ToolCommand, Trajectory};
 
@@ -259,6 +259,65 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
     }
     assert!(seen >= 5, "only {seen} frames in 1.5 s");
     assert!(moved, "frames in contact show the surface displaced");
+}
+
+/// A scalpel at height `z` in the plane x = 4 of the patch_cut scene, its edge across the
+/// patch's depth.
+fn blade(z: f64) -> ToolInput {
+    const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
+    ToolInput {
+        kind: ToolKind::Scalpel,
+        position_m: [4.0, -0.1, z],
+        blade_end_m: [4.0, 1.1, z],
+        orientation: [H, 0.0, 0.0, -H],
+        ..ToolInput::default()
+    }
+}
+
+#[test]
+fn happenings_of_ticks_that_answer_no_one_come_with_the_next_answer() {
+    // a client sending one state every 20 ms leaves 19 ticks of 20 unanswered: the cut swapped
+    // in by one of them must still reach it
+    let scene = Scene::builtin("patch_cut").unwrap();
+    let built = offline::build_organ(&scene, 0, &BuildOptions::for_scene(&scene, true), &mut |_| {}).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir.path(), &scene, &built).unwrap();
+    let bundles = vec![Arc::new(offline::load_bundle(dir.path()).unwrap())];
+    let session = Session::start("s5".into(), Arc::new(scene), bundles, SessionConfig::default()).unwrap();
+    let mut rx = session.open_answers(16).unwrap();
+    let mut events = 0;
+    let mut seq = 0;
+    let mut send = |input: ToolInput| {
+        session
+            .submit(ToolCommand {
+                input,
+                seq,
+                client_time_us: 0,
+                received: Instant::now(),
+                reply: rx.id(),
+            })
+            .unwrap();
+        seq += 1;
+        let a = recv(&mut rx);
+        std::thread::sleep(Duration::from_millis(20));
+        a.state.events.0
+    };
+    for i in 0..=60 {
+        events |= send(blade(5.1 - 1.2 * i as f64 / 60.0));
+    }
+    assert!(events & Events::CUT_STARTED != 0, "events {events}");
+    let start = Instant::now();
+    while events & Events::CUT_ADVANCED == 0 && start.elapsed() < Duration::from_secs(20) {
+        events |= send(blade(3.9));
+    }
+    assert!(
+        events & Events::CUT_ADVANCED != 0,
+        "the cut never reached the client: events {events}"
+    );
+    // a happening is reported once, not latched: the blade held still advances nothing more
+    let later = (0..5).fold(u32::MAX, |all, _| all & send(blade(3.9)));
+    assert!(later & Events::CUT_ADVANCED == 0 && later & Events::CONTACT != 0, "events {later}");
+    session.close();
 }
 
 #[test]

@@ -146,6 +146,13 @@ impl Events {
     /// The jaws opened on held tissue; the force fades (tearing effect).
     pub const RELEASED: u32 = 1024;
 
+    /// The flags that mark a happening rather than a state (a cut advanced, a stroke started,
+    /// the tissue tore, the jaws took or let go): a tick that answers no client still
+    /// happened, so a session keeps these and reports them with its next answer. The others
+    /// (contact, saturation, the blade in a cut, beyond range) describe the tick they come
+    /// with and are never carried over.
+    pub const ONE_SHOT: u32 = Self::CUT_ADVANCED | Self::TISSUE_TORN | Self::CUT_STARTED | Self::GRASPED | Self::TEARING | Self::RELEASED;
+
     /// Whether flag `f` is set.
     pub fn has(self, f: u32) -> bool {
         self.0 & f != 0

@@ -273,6 +273,7 @@ impl Session {
             period: config.period,
             epoch,
             script,
+            owed: 0,
         };
         // the haptic peer's ports belong to the thread that uses them: the tick thread opens
         // them before its loop and says whether it could

@@ -52,6 +52,9 @@ pub(super) struct TickLoop {
     pub period: Duration,
     pub epoch: Instant,
     pub script: Option<ScriptRun>,
+    /// One-shot events ([`Events::ONE_SHOT`]) of ticks that answered no one, owed to the next
+    /// answer.
+    pub owed: u32,
 }
 
 impl TickLoop {
@@ -59,8 +62,16 @@ impl TickLoop {
         t.saturating_duration_since(self.epoch).as_micros() as u64
     }
 
+    /// One pipeline tick that answers someone: it carries the happenings owed by the ticks
+    /// that answered no one.
+    fn tick_answered(&mut self, input: &ToolInput) -> TickState {
+        let mut state = self.pipeline.tick(input);
+        state.events.0 |= std::mem::take(&mut self.owed);
+        state
+    }
+
     fn answer(&mut self, tick: u64, input: &ToolInput, seq: u64, client_time_us: u64, received: Instant) -> Answer {
-        let state = self.pipeline.tick(input);
+        let state = self.tick_answered(input);
         if state.events.has(Events::REJECTED_INPUT) {
             self.stats.rejected.fetch_add(1, Ordering::Relaxed);
         }
@@ -78,7 +89,7 @@ impl TickLoop {
     /// Answers a state from the haptic channel at once.
     fn answer_haptic(&mut self, peer: &mut HapticPeer, s: &HapticState, local: &mut Histograms) -> (ToolInput, TickState) {
         let input = tool_input(s);
-        let state = self.pipeline.tick(&input);
+        let state = self.tick_answered(&input);
         if state.events.has(Events::REJECTED_INPUT) {
             self.stats.rejected.fetch_add(1, Ordering::Relaxed);
         }
@@ -179,7 +190,10 @@ impl TickLoop {
             if state.is_none()
                 && let Some(input) = last_input
             {
-                state = Some(self.pipeline.tick(&input));
+                // time goes on for the tissue; what happened is owed to the next answer
+                let st = self.pipeline.tick(&input);
+                self.owed |= st.events.0 & Events::ONE_SHOT;
+                state = Some(st);
             }
             if let Some(state) = state {
                 self.latest.write(Latest {
