@@ -432,6 +432,18 @@ pub fn tool_at(seq: u64, position_m: [f64; 3]) -> pb::ToolState {
     }
 }
 
+/// A grasper tool state at `position_m` (m) with its jaws at `closure` (0 open, 1 closed) and
+/// sequence number `seq`. The jaws take hold when they close (closure ≥ 0.5) within the
+/// grasper's `jaw_width_m` of one of its `grasp_sites` (`SessionInfo.tools`); the tissue then
+/// follows the tool's motion along the site's `pull_direction`.
+pub fn grasper_at(seq: u64, position_m: [f64; 3], closure: f64) -> pb::ToolState {
+    pb::ToolState {
+        kind: pb::ToolKind::Grasper as i32,
+        closure,
+        ..tool_at(seq, position_m)
+    }
+}
+
 /// A scalpel tool state with sequence number `seq`: the blade's cutting edge from its tip
 /// `tip_m` to `end_m` (m), turned by the unit quaternion `orientation` (`[w, x, y, z]`; the tool
 /// frame's y axis turned by it is the normal of the blade's plane). The response's `blade`

@@ -1,7 +1,7 @@
 //! Every conversion between the wire contract (`vademecum.v1`) and engine/session types,
 //! and the validation that goes with it.
 
-use vademecum_engine::pipeline::{ToolInput, ToolKind};
+use vademecum_engine::pipeline::{GraspSite, ToolInput, ToolKind};
 use vademecum_engine::scene::schema::ToolSpec;
 use vademecum_proto::v1 as pb;
 
@@ -162,7 +162,7 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
         tick_rate_hz: 1.0 / s.config().period.as_secs_f64(),
         stats: Some(session_stats(e)),
         haptic_channel: s.config().haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
-        tools: s.scene().spec.tools.iter().map(tool_info).collect(),
+        tools: s.scene().spec.tools.iter().map(|t| tool_info(t, s.grasp_site())).collect(),
         organ_info: s
             .geometry()
             .organs
@@ -181,8 +181,8 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
     }
 }
 
-/// What a client needs to know of a scene's tool.
-fn tool_info(t: &ToolSpec) -> pb::ToolInfo {
+/// What a client needs to know of a scene's tool; a grasper's sites are the session's `grasp`.
+fn tool_info(t: &ToolSpec, grasp: Option<GraspSite>) -> pb::ToolInfo {
     use vademecum_engine::pipeline::SCALPEL_TIP_FRACTION;
     let (kind, radius_m, max_force_n) = match t {
         ToolSpec::Probe { radius, max_force, .. } => (pb::ToolKind::Probe, *radius, *max_force),
@@ -197,6 +197,20 @@ fn tool_info(t: &ToolSpec) -> pb::ToolInfo {
         } => (*blade_length, *cut_force),
         _ => (0.0, 0.0),
     };
+    let (jaw_width_m, grasp_sites) = match t {
+        ToolSpec::Grasper { jaw_width, .. } => (
+            *jaw_width,
+            grasp
+                .iter()
+                .map(|g| pb::GraspSite {
+                    organ: g.organ as u32,
+                    centre_m: Some(pb_vec3(g.centre_m)),
+                    pull_direction: Some(pb_vec3(g.pull_direction)),
+                })
+                .collect(),
+        ),
+        _ => (0.0, Vec::new()),
+    };
     pb::ToolInfo {
         name: t.name().to_string(),
         kind: kind as i32,
@@ -204,6 +218,8 @@ fn tool_info(t: &ToolSpec) -> pb::ToolInfo {
         max_force_n,
         blade_length_m,
         cut_force_n,
+        jaw_width_m,
+        grasp_sites,
     }
 }
 

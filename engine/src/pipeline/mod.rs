@@ -30,7 +30,7 @@ use crate::scene::schema::{DeformationModel, GLOBAL_FORCE_LIMIT_N, ToolSpec};
 
 pub use cutting::{BladeForce, Cutting};
 pub use palpation::Palpation;
-pub use tearing::{TearPicture, TearPictures, Tearing};
+pub use tearing::{GraspSite, TearPicture, TearPictures, Tearing};
 
 /// The kind of tool a tool state describes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -287,6 +287,8 @@ pub struct Pipeline {
     tear_pictures: Option<TearPictures>,
     /// The tearing organ's offline data (tearing scenes).
     tear_offline: Option<Arc<crate::damage::online::TearOffline>>,
+    /// Where the grasper takes hold (tearing scenes).
+    grasp_site: Option<GraspSite>,
 }
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
@@ -369,13 +371,14 @@ impl Pipeline {
             Some(r) => vec![Box::new(Palpation::new(bundles.to_vec(), r, large))],
             None => Vec::new(),
         };
-        let (mut tear_pictures, mut tear_offline) = (None, None);
+        let (mut tear_pictures, mut tear_offline, mut grasp_site) = (None, None, None);
         if fx.tearing
             && let Some((jaw_width, max_force)) = grasper
         {
             let (t, pictures, off) = tearing_effect(scene, bundles, jaw_width, max_force)?;
             tear_pictures = Some(pictures);
             tear_offline = Some(off);
+            grasp_site = Some(t.site());
             effects.push(Box::new(t));
         }
         let mut cut_status = None;
@@ -411,7 +414,13 @@ impl Pipeline {
             grasper_max_force_n: grasper.filter(|_| fx.tearing).map(|g| g.1.clamp(0.0, GLOBAL_FORCE_LIMIT_N)),
             tear_pictures,
             tear_offline,
+            grasp_site,
         })
+    }
+
+    /// Where the grasper takes hold and which way it pulls (tearing scenes).
+    pub fn grasp_site(&self) -> Option<GraspSite> {
+        self.grasp_site
     }
 
     /// The frame thread's end of the tearing pictures (tearing scenes; `None` once taken).

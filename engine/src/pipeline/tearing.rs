@@ -71,6 +71,19 @@ pub struct TearPicture {
     pub dissipated_j: f64,
 }
 
+/// Where the grasper can take hold of an organ, and which way the tissue is pulled: what a
+/// client needs to know to grasp (sessions publish it in the grasper's tool description).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GraspSite {
+    /// Organ index in the scene.
+    pub organ: usize,
+    /// The grasp's centre (m): the load-weighted mean of the grasped nodes. The jaws take hold
+    /// when they close within the grasper's `jaw_width` of it.
+    pub centre_m: [f64; 3],
+    /// The pull's direction `n̂` (unit): the device's motion counts along it.
+    pub pull_direction: [f64; 3],
+}
+
 /// The frame thread's end of the pictures.
 pub type TearPictures = triple_buffer::Output<TearPicture>;
 
@@ -193,6 +206,15 @@ impl Tearing {
             },
             output,
         ))
+    }
+
+    /// Where the jaws take hold and which way they pull.
+    pub fn site(&self) -> GraspSite {
+        GraspSite {
+            organ: self.organ,
+            centre_m: self.centre,
+            pull_direction: self.direction,
+        }
     }
 
     /// The grasp's displacement along the pull, `w = (L·u)/|R|` (m).

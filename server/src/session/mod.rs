@@ -38,7 +38,7 @@ use vademecum_bridge::peer::HapticPeer;
 use vademecum_bridge::timing::{RealtimeStatus, WaitStrategy};
 use vademecum_engine::contact::Bounds;
 use vademecum_engine::pgd::offline::LoadedBundle;
-use vademecum_engine::pipeline::{Pipeline, PipelineError, TickState, ToolInput, ToolKind};
+use vademecum_engine::pipeline::{GraspSite, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
 
@@ -178,6 +178,7 @@ pub struct Session {
     bundles: Vec<Arc<LoadedBundle>>,
     effects: Vec<&'static str>,
     workspace: Bounds,
+    grasp_site: Option<GraspSite>,
     tool_kinds: Vec<ToolKind>,
     commands: SyncSender<Command>,
     router: Arc<answers::Router>,
@@ -238,6 +239,7 @@ impl Session {
         let tear_offline = pipeline.tear_offline().cloned();
         let cut = pipeline.cut_status();
         let workspace = pipeline.workspace();
+        let grasp_site = pipeline.grasp_site();
         let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
             .into_iter()
             .filter(|&k| pipeline.accepts(k))
@@ -349,6 +351,7 @@ impl Session {
             bundles,
             effects,
             workspace,
+            grasp_site,
             tool_kinds,
             commands,
             router,
@@ -382,6 +385,11 @@ impl Session {
     /// Where tool positions are accepted (the organs' box grown by a margin).
     pub fn workspace(&self) -> Bounds {
         self.workspace
+    }
+
+    /// Where the grasper takes hold and which way it pulls (tearing scenes).
+    pub fn grasp_site(&self) -> Option<GraspSite> {
+        self.grasp_site
     }
 
     /// The tool kinds the pipeline simulates; a state of another kind is answered with zero

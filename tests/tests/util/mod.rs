@@ -32,7 +32,8 @@ pub fn vademecum(dir: &Path, args: &[&str]) -> std::process::Output {
 }
 
 /// A folder holding the built-in organ's bundle as `organ/lobe.bundle` and the built-in
-/// `patch_cut` scene's as `patch_cut/patch.bundle`, built once per test run and shared by
+/// `patch_cut` scene's as `patch_cut/patch.bundle` and the built-in `cube_tear` scene's as
+/// `cube_tear/cube.bundle`, built once per test run and shared by
 /// every test (servers take it as their bundle root).
 pub fn bundles() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
@@ -40,6 +41,7 @@ pub fn bundles() -> &'static Path {
         let dir = tempfile::tempdir().expect("temp dir");
         vademecum(dir.path(), &["build", "--out", "organ"]);
         vademecum(dir.path(), &["build", "--builtin", "patch_cut", "--out", "patch_cut"]);
+        vademecum(dir.path(), &["build", "--builtin", "cube_tear", "--out", "cube_tear"]);
         dir
     })
     .path()
