@@ -149,6 +149,12 @@ impl LocalDofs {
                     .iter()
                     .flat_map(|&a| (0..3).map(move |i| 3 * a + i))
             })
+            // every dof of the loaded nodes: the grasp's displacement
+            .chain(
+                (0..model.load.len())
+                    .filter(|&d| model.load[d] != 0.0)
+                    .flat_map(|d| (0..3).map(move |i| 3 * (d / 3) + i)),
+            )
             .collect();
         dofs.sort_unstable();
         dofs.dedup();

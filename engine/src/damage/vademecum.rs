@@ -209,6 +209,39 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// The one-dimensional inner products `⟨S_k, T_k⟩` of every parameter `k`, plain and
+/// weighted by `ξ_k`, from which the builder's products of Eq. 4.20 and §4.5.4.2 are taken
+/// (kept up to date as each `S_k` changes, instead of recomputed for every product).
+struct Inners {
+    plain: Vec<f64>,
+    weighted: Vec<f64>,
+}
+
+impl Inners {
+    /// `f(k, weighted)` for every parameter.
+    fn of(q: usize, f: impl Fn(usize, bool) -> f64) -> Self {
+        Self {
+            plain: (0..q).map(|k| f(k, false)).collect(),
+            weighted: (0..q).map(|k| f(k, true)).collect(),
+        }
+    }
+
+    /// Parameter `k`'s pair again.
+    fn set(&mut self, k: usize, f: impl Fn(bool) -> f64) {
+        self.plain[k] = f(false);
+        self.weighted[k] = f(true);
+    }
+
+    /// `Π_{k ≠ skip} ⟨S_k, T_k⟩`, the `k = j − 1` factor weighted by `ξ_k` (the term of
+    /// operator `K_j`; `j = 0` weights none).
+    fn product(&self, j: usize, skip: Option<usize>) -> f64 {
+        (0..self.plain.len())
+            .filter(|&k| Some(k) != skip)
+            .map(|k| if k + 1 == j { self.weighted[k] } else { self.plain[k] })
+            .product()
+    }
+}
+
 /// Builds the vademecum of `sys` over the box `lo..hi`; `progress(mode, amplitude ratio)`
 /// after each mode.
 pub fn build(
@@ -254,9 +287,13 @@ pub fn build(
         let mut its = 0;
         loop {
             its += 1;
+            // the one-dimensional inner products of the S_k with themselves, with 1 and with
+            // the earlier modes' factors, unweighted and weighted by ξ_k
+            let mut with_s = Inners::of(q, |k, xi| inner(k, &sk[k], &sk[k], xi));
+            let mut with_1 = Inners::of(q, |k, xi| inner(k, &sk[k], &ones, xi));
+            let mut with_g: Vec<Inners> = factors.iter().map(|g| Inners::of(q, |k, xi| inner(k, &sk[k], &g[k], xi))).collect();
             // R-step (Eq. 4.20)
-            let prod = |j: usize, t: &dyn Fn(usize) -> Vec<f64>| -> f64 { (0..q).map(|k| inner(k, &sk[k], &t(k), k + 1 == j)).product() };
-            let c: Vec<f64> = (0..=q).map(|j| prod(j, &|k| sk[k].clone())).collect();
+            let c: Vec<f64> = (0..=q).map(|j| with_s.product(j, None)).collect();
             a.values.iter_mut().for_each(|v| *v = 0.0);
             for (j, cj) in c.iter().enumerate() {
                 for (v, o) in a.values.iter_mut().zip(&sys.ops[j].values) {
@@ -265,12 +302,12 @@ pub fn build(
             }
             let mut rhs = vec![0.0; nf];
             for j in 0..=q {
-                let e = prod(j, &|_| ones.clone());
+                let e = with_1.product(j, None);
                 for (v, b) in rhs.iter_mut().zip(&sys.rhs[j]) {
                     *v += e * b;
                 }
-                for (i, g) in factors.iter().enumerate() {
-                    let d = prod(j, &|k| g[k].clone());
+                for (i, wg) in with_g.iter().enumerate() {
+                    let d = wg.product(j, None);
                     for (v, f) in rhs.iter_mut().zip(&kf[i][j]) {
                         *v -= d * f;
                     }
@@ -297,12 +334,9 @@ pub fn build(
             let rkf: Vec<Vec<f64>> = kf.iter().map(|kfi| kfi.iter().map(|v| dot(&r, v)).collect()).collect();
             for da in 0..q {
                 // Π_{k≠a} ⟨S_k, T_k⟩ with ξ_j weighting parameter j − 1
-                let p = |j: usize, t: &dyn Fn(usize) -> Vec<f64>| -> f64 {
-                    (0..q).filter(|&k| k != da).map(|k| inner(k, &sk[k], &t(k), k + 1 == j)).product()
-                };
                 let (mut l0, mut l1, mut b0, mut b1) = (0.0, 0.0, 0.0, 0.0);
                 for j in 0..=q {
-                    let (pl, pb) = (rkr[j] * p(j, &|k| sk[k].clone()), rb[j] * p(j, &|_| ones.clone()));
+                    let (pl, pb) = (rkr[j] * with_s.product(j, Some(da)), rb[j] * with_1.product(j, Some(da)));
                     if j == da + 1 {
                         l1 += pl;
                         b1 += pb;
@@ -313,9 +347,9 @@ pub fn build(
                 }
                 let mut g0 = vec![0.0; factors.len()];
                 let mut g1 = vec![0.0; factors.len()];
-                for (i, g) in factors.iter().enumerate() {
+                for (i, wg) in with_g.iter().enumerate() {
                     for j in 0..=q {
-                        let v = rkf[i][j] * p(j, &|k| g[k].clone());
+                        let v = rkf[i][j] * wg.product(j, Some(da));
                         if j == da + 1 {
                             g1[i] += v;
                         } else {
@@ -341,6 +375,12 @@ pub fn build(
                 if n > 0.0 {
                     new.iter_mut().for_each(|v| *v /= n);
                     sk[da] = new;
+                    // the inner products along parameter da follow the new S_da
+                    with_s.set(da, |xi| inner(da, &sk[da], &sk[da], xi));
+                    with_1.set(da, |xi| inner(da, &sk[da], &ones, xi));
+                    for (wg, g) in with_g.iter_mut().zip(&factors) {
+                        wg.set(da, |xi| inner(da, &sk[da], &g[da], xi));
+                    }
                 }
             }
         }

@@ -152,6 +152,20 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                     r.anm_positions, l.max_force, steps, r.anm_s
                 )?;
             }
+            if let Some(t) = &r.tear {
+                writeln!(
+                    stdout,
+                    "  tearing          {} damage snapshots, {} POD vectors ({:.6} of the energy), {} PGD modes, Ritz basis {}; vademecum error {:.2e} at the snapshots; references {:.1} s, POD + vademecum {:.1} s",
+                    t.snapshots,
+                    t.pod_vectors,
+                    t.captured,
+                    t.pgd_modes,
+                    t.ritz_size,
+                    t.vademecum_error,
+                    t.reference_seconds,
+                    t.build_seconds
+                )?;
+            }
             writeln!(
                 stdout,
                 "  size             {:.2} MB of modes (f32) vs {:.2} MB for the full parametric solution (f64)",
