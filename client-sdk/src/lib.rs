@@ -435,7 +435,7 @@ pub fn tool_at(seq: u64, position_m: [f64; 3]) -> pb::ToolState {
 /// A grasper tool state at `position_m` (m) with its jaws at `closure` (0 open, 1 closed) and
 /// sequence number `seq`. The jaws take hold when they close (closure ≥ 0.5) within the
 /// grasper's `jaw_width_m` of one of its `grasp_sites` (`SessionInfo.tools`); the tissue then
-/// follows the tool's motion along the site's `pull_direction`.
+/// follows the tool's motion (pushing back along the site's `pull_direction` does nothing).
 pub fn grasper_at(seq: u64, position_m: [f64; 3], closure: f64) -> pb::ToolState {
     pb::ToolState {
         kind: pb::ToolKind::Grasper as i32,

@@ -91,7 +91,10 @@ fn the_grasper_takes_hold_pulls_and_lets_go_smoothly() {
     for k in 1..=500 {
         let s = p.tick(&jaws(up(0.05 * k as f64 / 500.0), 1.0));
         assert!(fz(&s) <= last + 1e-12, "tick {k}: the reaction grows with the pull");
-        assert!(s.force_n[0].abs() < 1e-12 && s.force_n[1].abs() < 1e-12);
+        // the jaws hold the corner across the pull too (pulled up, it would slide sideways):
+        // a lateral reaction, smaller than the vertical one
+        let lateral = s.force_n[0].hypot(s.force_n[1]);
+        assert!(lateral <= 0.5 * fz(&s).abs() + 1e-12, "tick {k}: {:?}", s.force_n);
         last = fz(&s);
         tearing += s.events.has(Events::TEARING) as u32;
         assert!(!s.events.has(Events::TISSUE_TORN), "beta = 0.4 never reaches D = 0.8");
@@ -171,7 +174,41 @@ fn the_pull_saturates_at_the_graspers_max_force() {
         s = p.tick(&jaws(up(0.9 * k as f64 / 1000.0), 1.0));
     }
     assert!(s.events.has(Events::FORCE_SATURATED));
-    assert!((-fz(&s) - 0.3).abs() < 1e-9, "{} N", -fz(&s));
+    assert!((norm(s.force_n) - 0.3).abs() < 1e-9 && fz(&s) < 0.0, "{:?} N", s.force_n);
+}
+
+fn norm(f: [f64; 3]) -> f64 {
+    f.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+#[test]
+fn the_tissue_follows_the_jaws_in_every_direction() {
+    let scene = cube(0.4, 0.4, 1.0);
+    let b = bundle(&scene);
+    // pulled across (x, then −y) and obliquely: the reaction points back against the motion
+    for dir in [[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.6, 0.0, 0.8]] {
+        let mut p = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+        assert!(p.tick(&jaws(up(0.0), 1.0)).events.has(Events::GRASPED));
+        let (mut s, mut tearing, mut last) = (TickState::default(), 0, 0.0);
+        for k in 1..=500 {
+            let d = 0.05 * k as f64 / 500.0;
+            s = p.tick(&jaws([1.0 + d * dir[0], 1.0 + d * dir[1], 1.0 + d * dir[2]], 1.0));
+            let along = s.force_n.iter().zip(&dir).map(|(f, t)| f * t).sum::<f64>();
+            assert!(along <= last + 1e-12, "{dir:?}, tick {k}: the reaction grows against the pull");
+            last = along;
+            tearing += u32::from(s.events.has(Events::TEARING));
+        }
+        let along = -last;
+        // the jaws hold the grasp still across the motion too: the reaction is mostly, not
+        // only, against it (the work f·d of an elastic body is positive)
+        assert!(along > 0.0 && along >= 0.5 * norm(s.force_n), "{dir:?}: reaction {:?} N", s.force_n);
+        assert!(tearing > 100, "{dir:?}: {tearing} ticks of growing damage");
+        // opening: the force fades to zero
+        for _ in 0..=FADE_TICKS {
+            s = p.tick(&jaws(up(0.05), 0.0));
+        }
+        assert!(norm(s.force_n) < 1e-12, "{dir:?}: {:?} N after the release", s.force_n);
+    }
 }
 
 #[test]

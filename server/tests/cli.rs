@@ -460,3 +460,20 @@ fn bench_tear_closed_form_matches_both_damage_laws_through_an_unload_reload_cycl
     }
     assert!(std::fs::read_to_string(dir.path().join("c.svg")).unwrap().contains("<svg"));
 }
+
+#[test]
+fn bench_tear_json_is_json_and_measures_the_pulls_across_the_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["bench", "tear", "--builtin", "cube_tear", "--passes", "1", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is one JSON document");
+    assert_eq!(r["build"]["pattern_modes"].as_array().unwrap().len(), 3, "{r}");
+    let pulls = r["other_pulls"].as_array().unwrap();
+    assert_eq!(pulls.len(), 3, "{r}");
+    for p in pulls {
+        // ([along, across, across], worst relative L2 error): finite, below the whole field
+        let e = p[1].as_f64().unwrap();
+        assert!(e.is_finite() && e < 0.5, "{p}");
+    }
+    assert!(stderr(&o).contains("plots:"), "the plots' paths go to stderr");
+}

@@ -8,7 +8,7 @@ use super::model::TearModel;
 use super::online::{RitzOperator, TearOffline};
 use super::pod::DamageBasis;
 use super::reference::{self, RunError, RunSettings, Scheme, Tangent, TearRun};
-use super::vademecum::{self, AffineSystem, VademecumError, VademecumSettings};
+use super::vademecum::{self, AffineSystem, DamageVademecum, VademecumError, VademecumSettings};
 use crate::rom::pod::{PodCriterion, PodError};
 
 /// Settings of the offline stage.
@@ -20,6 +20,9 @@ pub struct TearSettings {
     pub margin: f64,
     /// The vademecum builder.
     pub vademecum: VademecumSettings,
+    /// Also build the vademecums of the two pulls across the scene's load (the grasper then
+    /// follows the device in every direction; [`TearModel::pull_load`]).
+    pub cross_pulls: bool,
 }
 
 impl Default for TearSettings {
@@ -33,6 +36,7 @@ impl Default for TearSettings {
             },
             margin: 0.1,
             vademecum: VademecumSettings::default(),
+            cross_pulls: true,
         }
     }
 }
@@ -52,13 +56,17 @@ pub struct TearBuildReport {
     pub hi: Vec<f64>,
     /// The smallest `g` the POD reconstruction takes over the box.
     pub min_g_over_box: f64,
-    /// PGD modes.
+    /// PGD modes (all pull patterns).
     pub pgd_modes: usize,
+    /// PGD modes of each pull pattern: along the scene's load, then across it.
+    pub pattern_modes: Vec<usize>,
     /// Size of the Ritz basis.
     pub ritz_size: usize,
     /// Largest relative error of the vademecum's increment against the exact `K(ξ)⁻¹b(ξ)`
-    /// at the snapshots' coefficients.
+    /// at the snapshots' coefficients (the scene's load).
     pub vademecum_error: f64,
+    /// The same for the pulls across the load (0 without them).
+    pub cross_vademecum_error: f64,
     /// Time of the full-order runs (s).
     pub reference_seconds: f64,
     /// Time of POD + vademecum + Ritz (s).
@@ -106,6 +114,7 @@ pub fn build(
             progress(label, k as f64 / n as f64)
         })?);
     }
+    let cross_pulls = settings.cross_pulls && model.pull_frame().is_some();
     let reference_seconds = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     // the virgin state once (every online run starts there), then every step of both runs
@@ -114,29 +123,57 @@ pub fn build(
         .collect();
     let basis = DamageBasis::from_snapshots(&snapshots, settings.pod, settings.margin)?;
     let sys = AffineSystem::of(&model, &basis);
-    let vad = vademecum::build(&sys, &basis.lo, &basis.hi, &settings.vademecum, |m, ratio| {
+    let settle = |label: &'static str, progress: &mut dyn FnMut(&'static str, f64), m: usize, ratio: f64| {
         progress(
-            "vademecum",
+            label,
             (m as f64 / settings.vademecum.max_modes as f64)
                 .max(1.0 - ratio.max(1e-12).log10().abs() / 12.0)
                 .min(1.0),
         )
-    })?;
+    };
+    let mut parts = vec![vademecum::build(&sys, &basis.lo, &basis.hi, &settings.vademecum, |m, ratio| {
+        settle("vademecum", &mut progress, m, ratio)
+    })?];
+    // the pulls across the load: the same operators, a force-only right-hand side
+    let cross: Vec<AffineSystem> = if cross_pulls {
+        (1..=2)
+            .map(|p| {
+                let mut b = vec![0.0; model.dofs.n_free()];
+                model.dofs.restrict(&model.pull_load(p), &mut b);
+                let mut rhs = vec![vec![0.0; b.len()]; sys.rhs.len()];
+                rhs[0] = b;
+                AffineSystem { ops: sys.ops.clone(), rhs }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    for c in &cross {
+        parts.push(vademecum::build(c, &basis.lo, &basis.hi, &settings.vademecum, |m, ratio| {
+            settle("vademecum across the pull", &mut progress, m, ratio)
+        })?);
+    }
+    let vad = DamageVademecum::merge(parts);
     let ritz = RitzOperator::new(&vad, &sys);
     let build_seconds = t1.elapsed().as_secs_f64();
-    // the vademecum against exact solves at the snapshots' coefficients
+    // each pattern's vademecum against exact solves at the snapshots' coefficients
     let (mut xi, mut a) = (vec![0.0; basis.len()], vec![0.0; vad.n_modes]);
     let mut du = vec![0.0; vad.n_free];
-    let mut worst: f64 = 0.0;
+    let mut worst = [0.0f64; 2];
+    let patterns = vad.mode_patterns();
     for (k, s) in snapshots.iter().enumerate() {
         progress("validation", k as f64 / snapshots.len() as f64);
         basis.project(s, &mut xi);
         vad.coefficients(&xi, &mut a);
-        vad.combine(&a, &mut du);
-        if let Ok(exact) = sys.solve(&xi) {
-            let (e, _) = reference::l2_error(&du, &exact);
-            let n = exact.iter().map(|v| v * v).sum::<f64>().sqrt();
-            worst = worst.max(if n > 0.0 { e / n } else { e });
+        for (p, system) in std::iter::once(&sys).chain(&cross).enumerate() {
+            let only: Vec<f64> = a.iter().zip(&patterns).map(|(x, &q)| if q == p { *x } else { 0.0 }).collect();
+            vad.combine(&only, &mut du);
+            if let Ok(exact) = system.solve(&xi) {
+                let (e, _) = reference::l2_error(&du, &exact);
+                let n = exact.iter().map(|v| v * v).sum::<f64>().sqrt();
+                let w = &mut worst[p.min(1)];
+                *w = w.max(if n > 0.0 { e / n } else { e });
+            }
         }
     }
     let report = TearBuildReport {
@@ -147,12 +184,48 @@ pub fn build(
         hi: basis.hi.clone(),
         min_g_over_box: basis.min_over_box(),
         pgd_modes: vad.n_modes,
+        pattern_modes: vad.patterns.clone(),
         ritz_size: ritz.m,
-        vademecum_error: worst,
+        vademecum_error: worst[0],
+        cross_vademecum_error: worst[1],
         reference_seconds,
         build_seconds,
         vademecum: vad.report.clone(),
     };
     let runs: [TearRun; 2] = runs.try_into().expect("two runs");
     Ok((TearOffline::new(model, basis, vad, ritz), report, runs))
+}
+
+/// The relative L2 error, at each step of the model's schedule, of the online integrator on
+/// `off` stepping the pull mix `mix` (multipliers of the patterns along the load and across
+/// it, [`TearModel::pull_load`]) against the full-order explicit reference (h = 0, the
+/// scheme the simplified integrator reduces) under the load `Σ_p mix_p L_p`. Neither splits
+/// its steps, so the comparison is of the method alone. What a pull in any direction costs
+/// in accuracy.
+pub fn pull_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3]) -> Result<Vec<f64>, RunError> {
+    use super::online::{OnlineTear, StepLimits, Variant};
+    let model = &off.model;
+    let mut loaded = model.clone();
+    let loads: Vec<Vec<f64>> = (0..3).map(|p| model.pull_load(p)).collect();
+    loaded.load = (0..loaded.load.len()).map(|d| (0..3).map(|p| mix[p] * loads[p][d]).sum()).collect();
+    if mix[0] == 0.0 {
+        loaded.prescribed.iter_mut().for_each(|x| *x = 0.0);
+    } else {
+        loaded.prescribed.iter_mut().for_each(|x| *x *= mix[0]);
+    }
+    let exact = reference::run(&loaded, RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {})?;
+    let whole = StepLimits {
+        max_damage_increment: f64::INFINITY,
+        max_substeps: 1,
+    };
+    let mut online = OnlineTear::new(off.clone(), Variant::Simplified, whole);
+    Ok(model
+        .schedule
+        .iter()
+        .enumerate()
+        .map(|(k, &ds)| {
+            online.step_pull(mix.map(|m| m * ds));
+            reference::l2_error(&online.displacement_vec(), &exact.steps[k + 1].u).1
+        })
+        .collect())
 }

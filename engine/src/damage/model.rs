@@ -119,6 +119,52 @@ impl TearModel {
         (d, torn)
     }
 
+    /// The pull's frame `[n̂, t̂₁, t̂₂]`: `n̂` the unit load's resultant direction, `t̂₁, t̂₂`
+    /// completing a right-handed orthonormal frame (`t̂₁` from the axis least aligned with
+    /// `n̂`). `None` when the load has no resultant.
+    pub fn pull_frame(&self) -> Option<[[f64; 3]; 3]> {
+        let (_, _, r) = self.grasp()?;
+        let len = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+        if !(len > 0.0 && len.is_finite()) {
+            return None;
+        }
+        let n = r.map(|x| x / len);
+        let k = (0..3).min_by(|&a, &b| n[a].abs().total_cmp(&n[b].abs())).expect("three axes");
+        let mut t = [0.0; 3];
+        t[k] = 1.0;
+        let d = t[0] * n[0] + t[1] * n[1] + t[2] * n[2];
+        let t = std::array::from_fn::<f64, 3, _>(|i| t[i] - d * n[i]);
+        let tl = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+        let t1 = t.map(|x| x / tl);
+        let t2 = [
+            n[1] * t1[2] - n[2] * t1[1],
+            n[2] * t1[0] - n[0] * t1[2],
+            n[0] * t1[1] - n[1] * t1[0],
+        ];
+        Some([n, t1, t2])
+    }
+
+    /// The unit force increment of pull pattern `p` (N, full length): `p = 0` the scene's
+    /// load; `p = 1, 2` the same nodes pulled across it, each node's force along `n̂` turned to
+    /// `t̂_p` (`f_a → (f_a·n̂) t̂_p`, the same resultant magnitude). Zero when there is no
+    /// frame.
+    pub fn pull_load(&self, p: usize) -> Vec<f64> {
+        if p == 0 {
+            return self.load.clone();
+        }
+        let mut out = vec![0.0; self.load.len()];
+        if let Some(frame) = self.pull_frame() {
+            let (n, t) = (frame[0], frame[p]);
+            for (f, o) in self.load.chunks_exact(3).zip(out.chunks_exact_mut(3)) {
+                let along = f[0] * n[0] + f[1] * n[1] + f[2] * n[2];
+                for k in 0..3 {
+                    o[k] = along * t[k];
+                }
+            }
+        }
+        out
+    }
+
     /// The grasp of a session (`crate::pipeline::tearing`): the loaded nodes, their centre and
     /// the unit load's resultant (N per unit step). `None` when nothing is loaded.
     pub fn grasp(&self) -> Option<(Vec<usize>, [f64; 3], [f64; 3])> {

@@ -14,6 +14,16 @@
 //!   not clamped (the operator is exact in `ξ`, nothing is tabulated) but still reported when
 //!   it leaves the box, where the basis was not trained. If the bordered matrix is not
 //!   positive definite (past a stress peak), the step uses the secant part alone (reported).
+//!   The basis holds the modes of the pull along the load; the parts of a step across it
+//!   come from their vademecums, as in the simplified variant.
+//!
+//! # Pulls in any direction
+//! The vademecum holds, after the modes of the scene's load, those of the same nodes pulled
+//! across it ([`super::model::TearModel::pull_load`], built unless `cross_pulls` is off): a
+//! step of multipliers `ds = (ds₀, ds₁, ds₂)` adds `Σ_p ds_p Σ_{i ∈ p} a_i F_i`, exact in the
+//! load for a given damage (the secant problem is linear in it). The damage basis is the
+//! pull along the load's, as the seed's: a pull across damages other points, whose damage
+//! the basis projects (`build::pull_errors` measures what that costs).
 //!
 //! # Only the tearable region each step
 //! Damage needs the displacement at the tearable points' nodes only. A step therefore
@@ -70,13 +80,15 @@ pub struct RitzOperator {
 }
 
 impl RitzOperator {
-    /// Orthonormalises the vademecum's spatial modes (modified Gram–Schmidt, twice; modes
-    /// dependent to 10⁻¹⁰ dropped) and reduces the affine system on them.
+    /// Orthonormalises the spatial modes of the vademecum's pull along the load (modified
+    /// Gram–Schmidt, twice; modes dependent to 10⁻¹⁰ dropped) and reduces the affine system
+    /// on them.
     pub fn new(vad: &DamageVademecum, sys: &AffineSystem) -> Self {
         let nf = vad.n_free;
+        let along = vad.patterns[0];
         let mut cols: Vec<Vec<f64>> = Vec::new();
-        let scale = (0..vad.n_modes).map(|i| norm(vad.mode(i))).fold(0.0, f64::max);
-        for i in 0..vad.n_modes {
+        let scale = (0..along).map(|i| norm(vad.mode(i))).fold(0.0, f64::max);
+        for i in 0..along {
             let mut c = vad.mode(i).to_vec();
             for _ in 0..2 {
                 for b in &cols {
@@ -112,11 +124,8 @@ impl RitzOperator {
                 r
             })
             .collect();
-        let b = sys
-            .rhs
-            .iter()
-            .map(|bj| cols.iter().map(|c| c.iter().zip(bj).map(|(a, b)| a * b).sum()).collect())
-            .collect();
+        let reduce = |bj: &Vec<f64>| -> Vec<f64> { cols.iter().map(|c| c.iter().zip(bj).map(|(a, b)| a * b).sum()).collect() };
+        let b = sys.rhs.iter().map(reduce).collect();
         Self { m, v, k, b }
     }
 }
@@ -149,7 +158,7 @@ impl LocalDofs {
                     .iter()
                     .flat_map(|&a| (0..3).map(move |i| 3 * a + i))
             })
-            // every dof of the loaded nodes: the grasp's displacement
+            // every dof of the loaded nodes: the grasp's displacement, along and across
             .chain(
                 (0..model.load.len())
                     .filter(|&d| model.load[d] != 0.0)
@@ -206,6 +215,8 @@ pub struct TearOffline {
     pub ritz: RitzOperator,
     /// The dofs a step updates.
     pub local: LocalDofs,
+    /// The pull pattern of each vademecum mode (0: the scene's load; 1, 2: across it).
+    pub mode_pattern: Vec<usize>,
 }
 
 impl TearOffline {
@@ -240,6 +251,11 @@ impl TearOffline {
         }
     }
 
+    /// Pull patterns the vademecum holds: 1 (along the scene's load only) or 3 (and across).
+    pub fn patterns(&self) -> usize {
+        self.vademecum.patterns.len()
+    }
+
     /// Bytes of the modes, factors, Ritz operator and local rows (shared by sessions; the
     /// model's mesh and points not counted).
     pub fn memory_bytes(&self) -> usize {
@@ -259,12 +275,14 @@ impl TearOffline {
     /// Assembles the offline data (computes the local dofs).
     pub fn new(model: TearModel, basis: DamageBasis, vademecum: DamageVademecum, ritz: RitzOperator) -> Self {
         let local = LocalDofs::new(&model, &vademecum, &ritz);
+        let mode_pattern = vademecum.mode_patterns();
         Self {
             model,
             basis,
             vademecum,
             ritz,
             local,
+            mode_pattern,
         }
     }
 }
@@ -315,7 +333,7 @@ pub struct TearAmplitudes {
     pub vad: Vec<f64>,
     /// `Σ ds·a` of the Ritz basis.
     pub ritz: Vec<f64>,
-    /// `Σ ds`: the load factor reached.
+    /// `Σ ds₀`: the load factor reached along the scene's load (the prescribed part's).
     pub load: f64,
 }
 
@@ -357,6 +375,8 @@ pub struct OnlineTear {
     g: Vec<f64>,
     xi: Vec<f64>,
     a: Vec<f64>,
+    /// The vademecum's coefficients at the current damage ([`Self::refresh_coefficients`]).
+    coef: Vec<f64>,
     du: Vec<f64>,
     mat: Vec<f64>,
     rhs: Vec<f64>,
@@ -391,6 +411,7 @@ impl OnlineTear {
             g: vec![1.0; m.points.tearable.len()],
             xi: vec![0.0; q],
             a: vec![0.0; off.vademecum.n_modes.max(r)],
+            coef: vec![0.0; off.vademecum.n_modes],
             du: vec![0.0; nf.max(off.local.len())],
             mat: vec![0.0; r * r],
             rhs: vec![0.0; r],
@@ -434,6 +455,7 @@ impl OnlineTear {
             + self.g.len()
             + self.xi.len()
             + self.a.len()
+            + self.coef.len()
             + self.du.len()
             + self.mat.len()
             + self.rhs.len()
@@ -457,6 +479,14 @@ impl OnlineTear {
     /// One pseudo-time step of multiplier `ds` of the model's unit increment (Alg. 4.2, lines
     /// 3–8), split into sub-steps while it damages too fast.
     pub fn step(&mut self, ds: f64) -> OnlineStep {
+        self.step_pull([ds, 0.0, 0.0])
+    }
+
+    /// One pseudo-time step of multipliers `ds` of the pull patterns' unit increments (the
+    /// scene's load, then across it: [`TearModel::pull_load`]); the cross parts are ignored
+    /// by a vademecum built without them ([`TearOffline::patterns`]). Sub-steps as
+    /// [`Self::step`].
+    pub fn step_pull(&mut self, ds: [f64; 3]) -> OnlineStep {
         self.saved_state.copy_from_slice(&self.state);
         self.saved_u.copy_from_slice(&self.u);
         self.saved_amplitudes.copy_from(&self.amplitudes);
@@ -468,7 +498,7 @@ impl OnlineTear {
                 ..OnlineStep::default()
             };
             for _ in 0..n {
-                let s = self.substep(ds / n as f64);
+                let s = self.substep(ds.map(|d| d / n as f64));
                 out.outside |= s.outside;
                 out.clamped |= s.clamped;
                 out.secant_fallback |= s.secant_fallback;
@@ -492,7 +522,7 @@ impl OnlineTear {
         }
     }
 
-    fn substep(&mut self, ds: f64) -> OnlineStep {
+    fn substep(&mut self, ds: [f64; 3]) -> OnlineStep {
         let off = Arc::clone(&self.off);
         let m = &off.model;
         let mut out = OnlineStep::default();
@@ -505,21 +535,25 @@ impl OnlineTear {
         let vademecum = |this: &mut Self, out: &mut OnlineStep| {
             let nm = off.vademecum.n_modes;
             out.clamped = off.vademecum.coefficients(&this.xi, &mut this.a[..nm]);
-            // ∆u on the local dofs, Σ_i a_i F_i
+            // ∆u on the local dofs, Σ_p ds_p Σ_{i ∈ p} a_i F_i
             this.du[..nl].fill(0.0);
             for (i, &ai) in this.a[..nm].iter().enumerate() {
-                this.amplitudes.vad[i] += ds * ai;
+                let w = ds[off.mode_pattern[i]] * ai;
+                if w == 0.0 {
+                    continue; // a pattern this step does not pull (most steps pull along only)
+                }
+                this.amplitudes.vad[i] += w;
                 for (o, f) in this.du[..nl].iter_mut().zip(&local.modes[i * nl..(i + 1) * nl]) {
-                    *o += ai * f;
+                    *o += w * f;
                 }
             }
         };
         match self.variant {
             Variant::Simplified => vademecum(self, &mut out),
             Variant::Full => {
-                let solved = self.ritz_solve(&off, true) || {
+                let solved = self.ritz_solve(&off, ds, true) || {
                     out.secant_fallback = true;
-                    self.ritz_solve(&off, false)
+                    self.ritz_solve(&off, ds, false)
                 };
                 if solved {
                     // ∆u on the local dofs, V a
@@ -529,7 +563,19 @@ impl OnlineTear {
                         *o = row.iter().zip(&self.a[..r]).map(|(v, a)| v * a).sum();
                     }
                     for (acc, a) in self.amplitudes.ritz.iter_mut().zip(&self.a[..r]) {
-                        *acc += ds * a;
+                        *acc += a;
+                    }
+                    // the pulls across the load: their vademecums (secant, h = 0)
+                    if ds[1] != 0.0 || ds[2] != 0.0 {
+                        out.clamped |= off.vademecum.coefficients(&self.xi, &mut self.coef);
+                        let along = off.vademecum.patterns[0];
+                        for i in along..off.vademecum.n_modes {
+                            let w = ds[off.mode_pattern[i]] * self.coef[i];
+                            self.amplitudes.vad[i] += w;
+                            for (o, f) in self.du[..nl].iter_mut().zip(&local.modes[i * nl..(i + 1) * nl]) {
+                                *o += w * f;
+                            }
+                        }
                     }
                 } else {
                     // not even the secant part is positive on the basis: the vademecum
@@ -537,11 +583,11 @@ impl OnlineTear {
                 }
             }
         }
-        self.amplitudes.load += ds;
+        self.amplitudes.load += ds[0];
         for (l, &d) in local.dofs.iter().enumerate() {
             self.u[d] += match local.eqs[l] {
-                Some(_) => ds * self.du[l],
-                None => ds * m.prescribed[d],
+                Some(_) => self.du[l],
+                None => ds[0] * m.prescribed[d],
             };
         }
         for &p in &m.points.tearable {
@@ -555,19 +601,35 @@ impl OnlineTear {
         out
     }
 
-    /// The Ritz solve into `a[..m]`, with the loading points' rank-one terms when `tangent`.
-    /// Returns whether the reduced matrix was positive definite.
-    fn ritz_solve(&mut self, off: &TearOffline, tangent: bool) -> bool {
+    /// The vademecum's coefficients `Π_K G_K^i(ξ_K)` at the current damage (its POD
+    /// projection, clamped to the box), for the grasp's compliance: pattern `p`'s unit step
+    /// moves the displacement by `Σ_{i ∈ p} coef_i F_i`. No allocation.
+    pub fn refresh_coefficients(&mut self) -> &[f64] {
+        let m = &self.off.model;
+        for (gi, &p) in self.g.iter_mut().zip(&m.points.tearable) {
+            *gi = self.state[p].g;
+        }
+        self.off.basis.project(&self.g, &mut self.xi);
+        self.off.vademecum.coefficients(&self.xi, &mut self.coef);
+        &self.coef
+    }
+
+    /// The Ritz solve of the increment of the pull along the load (multiplier `ds[0]`) into
+    /// `a[..m]`, with the loading points' rank-one terms when `tangent`. Returns whether the reduced matrix was positive
+    /// definite.
+    fn ritz_solve(&mut self, off: &TearOffline, ds: [f64; 3], tangent: bool) -> bool {
         let (ritz, m) = (&off.ritz, &off.model);
         let r = ritz.m;
         self.mat.copy_from_slice(&ritz.k[0]);
-        self.rhs.copy_from_slice(&ritz.b[0]);
+        for (a, b) in self.rhs.iter_mut().zip(&ritz.b[0]) {
+            *a = ds[0] * b;
+        }
         for (k, &x) in self.xi.iter().enumerate() {
             for (a, b) in self.mat.iter_mut().zip(&ritz.k[k + 1]) {
                 *a += x * b;
             }
             for (a, b) in self.rhs.iter_mut().zip(&ritz.b[k + 1]) {
-                *a += x * b;
+                *a += ds[0] * x * b;
             }
         }
         if tangent {

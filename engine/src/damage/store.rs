@@ -35,6 +35,8 @@ pub struct TearArrays {
     pub ritz_k: Vec<f64>,
     /// `Vᵀb_j`, `(q + 1) × m`.
     pub ritz_b: Vec<f64>,
+    /// Modes of each pull pattern (`[n_modes]`, or along and the two across the load).
+    pub patterns: Vec<usize>,
     /// Modes `n_modes`.
     pub n_modes: usize,
     /// Ritz size `m`.
@@ -57,6 +59,7 @@ impl TearOffline {
             ritz_v: r.v.clone(),
             ritz_k: r.k.concat(),
             ritz_b: r.b.concat(),
+            patterns: v.patterns.clone(),
             n_modes: v.n_modes,
             m: r.m,
         }
@@ -86,6 +89,12 @@ impl TearOffline {
         check("ritz_v", a.ritz_v.len(), nf * a.m)?;
         check("ritz_k", a.ritz_k.len(), (q + 1) * a.m * a.m)?;
         check("ritz_b", a.ritz_b.len(), (q + 1) * a.m)?;
+        if !(a.patterns.len() == 1 || a.patterns.len() == 3) || a.patterns.iter().sum::<usize>() != a.n_modes {
+            return Err(format!(
+                "tearing pull patterns {:?} do not hold the {} modes in 1 or 3 patterns",
+                a.patterns, a.n_modes
+            ));
+        }
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
         if !(finite(&a.pod_basis)
             && finite(&a.lo)
@@ -119,6 +128,7 @@ impl TearOffline {
             n_modes: a.n_modes,
             spatial: a.spatial,
             factors: a.factors,
+            patterns: a.patterns,
             report: VademecumReport {
                 modes: a.n_modes,
                 amplitudes: Vec::new(),

@@ -193,6 +193,9 @@ pub struct DamageVademecum {
     pub spatial: Vec<f64>,
     /// `G_K^i` at the grid nodes, `[i][K][m]` flattened.
     pub factors: Vec<f64>,
+    /// Modes of each pull pattern, in order (they sum to `n_modes`): the first for the
+    /// scene's load, then one per cross pull ([`DamageVademecum::merge`]).
+    pub patterns: Vec<usize>,
     /// The build report.
     pub report: VademecumReport,
 }
@@ -210,8 +213,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// The one-dimensional inner products `⟨S_k, T_k⟩` of every parameter `k`, plain and
-/// weighted by `ξ_k`, from which the builder's products of Eq. 4.20 and §4.5.4.2 are taken
-/// (kept up to date as each `S_k` changes, instead of recomputed for every product).
+/// weighted by `ξ_k`, from which the builder's products of Eq. 4.20 and §4.5.4.2 are taken.
 struct Inners {
     plain: Vec<f64>,
     weighted: Vec<f64>,
@@ -416,11 +418,42 @@ pub fn build(
         n_modes: spatial.len(),
         spatial: spatial.concat(),
         factors: factors.into_iter().flatten().flatten().collect(),
+        patterns: vec![report.modes],
         report,
     })
 }
 
 impl DamageVademecum {
+    /// One vademecum holding the modes of `parts` (one per pull pattern, built over the same
+    /// box and grid) one after the other: `∆u = Σ_p ds_p Σ_{i ∈ p} F_i Π_K G_K^i(ξ_K)`. The
+    /// report is the first part's, its amplitudes and iterations followed by the others'.
+    pub fn merge(parts: Vec<DamageVademecum>) -> Self {
+        let mut it = parts.into_iter();
+        let mut out = it.next().expect("at least one vademecum");
+        for v in it {
+            debug_assert!(v.q == out.q && v.grid == out.grid && v.n_free == out.n_free);
+            out.n_modes += v.n_modes;
+            out.spatial.extend_from_slice(&v.spatial);
+            out.factors.extend_from_slice(&v.factors);
+            out.patterns.extend_from_slice(&v.patterns);
+            out.report.modes += v.report.modes;
+            out.report.amplitudes.extend_from_slice(&v.report.amplitudes);
+            out.report.iterations.extend_from_slice(&v.report.iterations);
+            out.report.nonpositive |= v.report.nonpositive;
+            out.report.seconds += v.report.seconds;
+        }
+        out
+    }
+
+    /// The pull pattern of each mode.
+    pub fn mode_patterns(&self) -> Vec<usize> {
+        self.patterns
+            .iter()
+            .enumerate()
+            .flat_map(|(p, &n)| std::iter::repeat_n(p, n))
+            .collect()
+    }
+
     /// The products `a_i = Π_K G_K^i(ξ_K)` into `a` (length `n_modes`), each `ξ_K` clamped to
     /// its range. Returns whether some coefficient was clamped. No allocation.
     pub fn coefficients(&self, xi: &[f64], a: &mut [f64]) -> bool {

@@ -648,7 +648,7 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         let n_free = (c.x.len() / c.size.max(1)) as u64;
         arrays.push(("cut_basis", vec![n_free, c.size as u64], ArrayData::F64(&c.x)));
     }
-    let tear_meta;
+    let (tear_meta, tear_patterns);
     if let Some(t) = &built.tear {
         let (q, nm, m) = (t.lo.len() as u64, t.n_modes as u64, t.m as u64);
         tear_meta = [t.captured, t.grid as f64];
@@ -673,6 +673,12 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
             ("tear_ritz_k", vec![q + 1, m, m], ArrayData::F64(&t.ritz_k)),
             ("tear_ritz_b", vec![q + 1, m], ArrayData::F64(&t.ritz_b)),
         ]);
+        // the pulls across the load, when built (bundles without them pull along it only)
+        tear_patterns = t.patterns.iter().map(|&n| n as f64).collect::<Vec<f64>>();
+        if t.patterns.len() > 1 {
+            let p = t.patterns.len() as u64;
+            arrays.push(("tear_patterns", vec![p], ArrayData::F64(&tear_patterns)));
+        }
     }
     bundle::write(dir, manifest, &scene.source, &arrays)
 }
@@ -812,7 +818,18 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
                 meta.len()
             )));
         }
+        let n_modes = fs[0] as usize;
+        let patterns = if manifest.arrays.contains_key("tear_patterns") {
+            let p = f("tear_patterns")?.1;
+            if !p.iter().all(|&n| n >= 0.0 && n.fract() == 0.0 && n <= 1e6) {
+                return Err(bad(format!("tear_patterns holds {p:?}: mode counts expected")));
+            }
+            p.iter().map(|&n| n as usize).collect()
+        } else {
+            vec![n_modes]
+        };
         Some(Arc::new(TearArrays {
+            patterns,
             pod_basis: f("tear_pod_basis")?.1,
             singular_values: f("tear_singular_values")?.1,
             captured: meta[0],
@@ -824,7 +841,7 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
             ritz_v: f("tear_ritz_v")?.1,
             ritz_k,
             ritz_b: f("tear_ritz_b")?.1,
-            n_modes: fs[0] as usize,
+            n_modes,
             m: ks[1] as usize,
         }))
     } else {

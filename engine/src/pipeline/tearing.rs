@@ -4,19 +4,24 @@
 //! # The grasp
 //! The vademecum was built for the scene's grasp: the nodes its load (`[[organs.loads]]`)
 //! acts on and the direction `n̂` of that load's resultant (the seed pulls one node; the load
-//! increment of a unit step is that load). The jaws take hold when they close
-//! (`closure ≥ 0.5`) within `jaw_width` of the grasp's centre; the position where they closed
-//! is the anchor.
+//! increment of a unit step is that load), and — unless built without them — for the same
+//! nodes pulled across it, along `t̂₁` and `t̂₂` ([`TearModel::pull_frame`],
+//! [`TearModel::pull_load`]). The jaws take hold when they close (`closure ≥ 0.5`) within
+//! `jaw_width` of the grasp's centre; the position where they closed is the anchor.
 //!
 //! # The pull
-//! Each tick the device's pull is `p = max(0, (x − anchor)·n̂)`; the tissue follows it by
-//! displacement control: with the grasp's displacement `w = (L·u)/|R|` (the load-weighted mean
-//! along `n̂`; `L` the unit load, `R` its resultant) and the secant compliance `c = w/s` (at
-//! rest, the virgin compliance measured when the session starts), the load factor moves by
-//! `ds = (p − w)/c`, at most [`MAX_LOAD_STEP`] unit steps per tick and never past the grasper's
-//! `max_force` (`s·|R| ≤ max_force`, flagged `FORCE_SATURATED`). The force on the tool is the
-//! tissue's reaction `−s·R`. The step's damage growth is limited by the integrator's
-//! sub-steps (`[fidelity.tearing] max_damage_increment`).
+//! Each tick the device's motion from the anchor, in the pull's frame, is the target
+//! `p = (max(0, ∆x·n̂), ∆x·t̂₁, ∆x·t̂₂)` (pushing along `−n̂` does nothing). The tissue follows
+//! it by displacement control: with the grasp's displacements `w_p = (L_p·u)/|R|` (the
+//! load-weighted means along each direction; `L_p` the patterns' unit loads, `R` the
+//! resultant) and the grasp's compliance at the current damage `C_pq = ∂w_p/∂s_q` (from the
+//! vademecum's coefficients: exact for the integrator's step while the damage does not
+//! change), the load factors move by `ds = C⁻¹(p − w)`, scaled to at most [`MAX_LOAD_STEP`]
+//! unit steps per tick, and never past the grasper's `max_force` (`|s|·|R| ≤ max_force`,
+//! flagged `FORCE_SATURATED`). The force on the tool is the tissue's reaction
+//! `−|R| Σ_p s_p t̂_p`. A bundle built without the cross pulls follows the motion along `n̂`
+//! only. The step's damage growth is limited by the integrator's sub-steps
+//! (`[fidelity.tearing] max_damage_increment`).
 //!
 //! # Tearing, losing the grasp
 //! When the damage of a cell of the tearable tissue reaches the scene's `torn` threshold
@@ -39,6 +44,8 @@
 use std::sync::Arc;
 
 use super::{Effect, Events, TickState, ToolInput, ToolKind};
+#[cfg(doc)]
+use crate::damage::model::TearModel;
 use crate::damage::online::{OnlineTear, StepLimits, TearAmplitudes, TearOffline, Variant};
 
 /// Most unit load steps the load factor moves by in one tick.
@@ -77,10 +84,11 @@ pub struct TearPicture {
 pub struct GraspSite {
     /// Organ index in the scene.
     pub organ: usize,
-    /// The grasp's centre (m): the load-weighted mean of the grasped nodes. The jaws take hold
+    /// The grasp's centre (m): the mean of the grasped nodes. The jaws take hold
     /// when they close within the grasper's `jaw_width` of it.
     pub centre_m: [f64; 3],
-    /// The pull's direction `n̂` (unit): the device's motion counts along it.
+    /// The pull's direction `n̂` (unit), the scene's load's: the tissue follows the device
+    /// in every direction, but the damage model was trained along it.
     pub pull_direction: [f64; 3],
 }
 
@@ -94,19 +102,24 @@ enum Phase {
     Free,
     /// Holding, since the jaws closed at `anchor`.
     Held { anchor: [f64; 3] },
-    /// Letting go: the load factor fades from `from` over [`FADE_TICKS`]; `k` ticks done.
-    Fading { from: f64, k: u32 },
+    /// Letting go: the load factors fade from `from` over [`FADE_TICKS`]; `k` ticks done.
+    Fading { from: [f64; 3], k: u32 },
 }
 
 /// The tearing effect of one organ.
 pub struct Tearing {
     organ: usize,
+    off: Arc<TearOffline>,
     online: OnlineTear,
-    /// Loaded dofs and the unit load there (N).
-    load: Vec<(usize, f64)>,
-    /// `|R|` (N per unit step) and `n̂`.
+    /// Per pull pattern (along the load, then across it): the loaded dofs and the unit load
+    /// there (N).
+    loads: Vec<Vec<(usize, f64)>>,
+    /// `(L_p·F_i)/|R|`: how far mode `i` moves the grasp along pattern `p`'s direction,
+    /// row-major `patterns × n_modes`.
+    grasp_modes: Vec<f64>,
+    /// `|R|` (N per unit step) and the pull's frame `[n̂, t̂₁, t̂₂]`.
     resultant_n: f64,
-    direction: [f64; 3],
+    frame: [[f64; 3]; 3],
     centre: [f64; 3],
     jaw_width: f64,
     max_factor: f64,
@@ -117,7 +130,8 @@ pub struct Tearing {
     torn: f64,
     phase: Phase,
     torn_out: bool,
-    s: f64,
+    /// The load factors of the pull patterns.
+    s: [f64; 3],
     tick: u64,
     picture: triple_buffer::Input<TearPicture>,
 }
@@ -145,19 +159,21 @@ impl Tearing {
         max_force: f64,
     ) -> Result<(Self, TearPictures), TearingError> {
         let m = &off.model;
-        let load: Vec<(usize, f64)> = m
-            .load
-            .iter()
-            .enumerate()
-            .filter(|(_, f)| **f != 0.0)
-            .map(|(d, f)| (d, *f))
-            .collect();
         let (_, centre, r) = m.grasp().ok_or(TearingError::NoGrasp)?;
         let resultant_n = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
-        if resultant_n <= 0.0 || !resultant_n.is_finite() {
-            return Err(TearingError::NoGrasp);
+        let frame = m.pull_frame().ok_or(TearingError::NoGrasp)?;
+        let loads: Vec<Vec<(usize, f64)>> = (0..off.patterns())
+            .map(|p| m.pull_load(p).into_iter().enumerate().filter(|(_, f)| *f != 0.0).collect())
+            .collect();
+        let load = &loads[0];
+        let nm = off.vademecum.n_modes;
+        let mut grasp_modes = vec![0.0; loads.len() * nm];
+        for (p, l) in loads.iter().enumerate() {
+            for i in 0..nm {
+                let f = off.vademecum.mode(i);
+                grasp_modes[p * nm + i] = l.iter().map(|&(d, x)| m.dofs.eq(d).map_or(0.0, |e| x * f[e])).sum::<f64>() / resultant_n;
+            }
         }
-        let direction = r.map(|x| x / resultant_n);
         // the virgin compliance, from one unit step of a scratch integrator
         let mut scratch = OnlineTear::new(off.clone(), variant, limits);
         scratch.step(1.0);
@@ -188,10 +204,12 @@ impl Tearing {
         Ok((
             Self {
                 organ,
+                off: off.clone(),
                 online,
-                load,
+                loads,
+                grasp_modes,
                 resultant_n,
-                direction,
+                frame,
                 centre,
                 jaw_width,
                 max_factor: max_force.max(0.0) / resultant_n,
@@ -200,7 +218,7 @@ impl Tearing {
                 torn,
                 phase: Phase::Free,
                 torn_out: false,
-                s: 0.0,
+                s: [0.0; 3],
                 tick: 0,
                 picture: input,
             },
@@ -213,20 +231,72 @@ impl Tearing {
         GraspSite {
             organ: self.organ,
             centre_m: self.centre,
-            pull_direction: self.direction,
+            pull_direction: self.frame[0],
         }
     }
 
-    /// The grasp's displacement along the pull, `w = (L·u)/|R|` (m).
-    fn grasp_displacement(&self) -> f64 {
-        self.load.iter().map(|&(d, f)| f * self.online.local_u(d)).sum::<f64>() / self.resultant_n
+    /// The grasp's displacement along each pull pattern's direction, `w_p = (L_p·u)/|R|` (m).
+    fn grasp_displacement(&self) -> [f64; 3] {
+        let mut w = [0.0; 3];
+        for (p, l) in self.loads.iter().enumerate() {
+            w[p] = l.iter().map(|&(d, f)| f * self.online.local_u(d)).sum::<f64>() / self.resultant_n;
+        }
+        w
     }
 
-    /// Moves the load factor to `target` (one integrator step), flagging growing damage.
-    fn load_to(&mut self, target: f64, state: &mut TickState) {
-        let ds = target - self.s;
-        if ds.abs() > 1e-12 {
-            let step = self.online.step(ds);
+    /// The grasp's compliance at the current damage, `C_pq = ∂w_p/∂s_q` (m per unit step):
+    /// `Σ_{i ∈ q} a_i (L_p·F_i)/|R|` with the vademecum's coefficients `a_i` at the current
+    /// damage. The first `patterns × patterns` block is set.
+    fn compliance(&mut self) -> [[f64; 3]; 3] {
+        let n = self.loads.len();
+        let nm = self.grasp_modes.len() / n;
+        let a = self.online.refresh_coefficients();
+        let mut c = [[0.0; 3]; 3];
+        for p in 0..n {
+            let row = &self.grasp_modes[p * nm..(p + 1) * nm];
+            for (i, (&ai, &g)) in a.iter().zip(row).enumerate() {
+                c[p][self.off.mode_pattern[i]] += ai * g;
+            }
+        }
+        c
+    }
+
+    /// The load-factor step that brings the grasp's displacement `w` to `target`:
+    /// `C⁻¹(target − w)` (a Newton step on the integrator's own incremental compliance, exact
+    /// while the damage does not change), along the load alone with the virgin compliance if
+    /// `C` is not positive definite.
+    fn control(&mut self, target: [f64; 3], w: [f64; 3]) -> [f64; 3] {
+        let n = self.loads.len();
+        let c = self.compliance();
+        let mut ds = [0.0; 3];
+        let mut m = [0.0; 9];
+        for p in 0..n {
+            for q in 0..n {
+                m[p * n + q] = 0.5 * (c[p][q] + c[q][p]);
+            }
+            ds[p] = target[p] - w[p];
+        }
+        if crate::dense::cholesky(&mut m[..n * n], n).is_ok() {
+            crate::dense::cholesky_solve(&m[..n * n], n, &mut ds[..n]);
+        } else {
+            ds = [(target[0] - w[0]) / self.virgin_compliance, 0.0, 0.0];
+        }
+        if !ds.iter().all(|x| x.is_finite()) {
+            ds = [0.0; 3];
+        }
+        // at most MAX_LOAD_STEP unit steps per tick, the direction kept
+        let big = ds.iter().fold(0.0f64, |a, x| a.max(x.abs()));
+        if big > MAX_LOAD_STEP {
+            ds.iter_mut().for_each(|x| *x *= MAX_LOAD_STEP / big);
+        }
+        ds
+    }
+
+    /// Moves the load factors to `target` (one integrator step), flagging growing damage.
+    fn load_to(&mut self, target: [f64; 3], state: &mut TickState) {
+        let ds: [f64; 3] = std::array::from_fn(|p| target[p] - self.s[p]);
+        if ds.iter().any(|x| x.abs() > 1e-12) {
+            let step = self.online.step_pull(ds);
             self.s = target;
             if step.dissipated > 0.0 {
                 state.events.0 |= Events::TEARING;
@@ -275,20 +345,21 @@ impl Effect for Tearing {
                     self.phase = Phase::Fading { from: self.s, k: 0 };
                     state.events.0 |= Events::RELEASED;
                 } else {
-                    let pull = (0..3)
-                        .map(|k| (tool.position_m[k] - anchor[k]) * self.direction[k])
-                        .sum::<f64>()
-                        .max(0.0);
+                    // the pull from the anchor in the pull's frame: along the load (pushing
+                    // does nothing) and across it
+                    let dx: [f64; 3] = std::array::from_fn(|k| tool.position_m[k] - anchor[k]);
+                    let mut pull = [0.0; 3];
+                    for (p, t) in self.frame.iter().enumerate().take(self.loads.len()) {
+                        pull[p] = dx[0] * t[0] + dx[1] * t[1] + dx[2] * t[2];
+                    }
+                    pull[0] = pull[0].max(0.0);
                     let w = self.grasp_displacement();
-                    let c = if self.s > 1e-9 && w > 0.0 {
-                        w / self.s
-                    } else {
-                        self.virgin_compliance
-                    };
-                    let ds = ((pull - w) / c).clamp(-MAX_LOAD_STEP, MAX_LOAD_STEP);
-                    let mut target = (self.s + ds).max(0.0);
-                    if target > self.max_factor {
-                        target = self.max_factor;
+                    let ds = self.control(pull, w);
+                    let mut target: [f64; 3] = std::array::from_fn(|p| self.s[p] + ds[p]);
+                    target[0] = target[0].max(0.0);
+                    let size = target.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    if size > self.max_factor {
+                        target.iter_mut().for_each(|x| *x *= self.max_factor / size);
                         state.events.0 |= Events::FORCE_SATURATED;
                     }
                     self.load_to(target, state);
@@ -301,7 +372,7 @@ impl Effect for Tearing {
             }
             Phase::Fading { from, k } => {
                 let k = k + 1;
-                let target = from * (1.0 - f64::from(k) / f64::from(FADE_TICKS)).max(0.0);
+                let target = from.map(|x| x * (1.0 - f64::from(k) / f64::from(FADE_TICKS)).max(0.0));
                 self.load_to(target, state);
                 self.phase = if k >= FADE_TICKS { Phase::Free } else { Phase::Fading { from, k } };
             }
@@ -309,9 +380,11 @@ impl Effect for Tearing {
         if matches!(self.phase, Phase::Held { .. }) {
             state.events.0 |= Events::CONTACT;
         }
-        let f = self.s * self.resultant_n;
-        for k in 0..3 {
-            state.force_n[k] -= f * self.direction[k];
+        // the tissue's reaction, −|R| Σ_p s_p t̂_p
+        for (s, t) in self.s.iter().zip(&self.frame) {
+            for k in 0..3 {
+                state.force_n[k] -= s * self.resultant_n * t[k];
+            }
         }
         self.publish();
     }

@@ -65,10 +65,16 @@ struct Report {
     /// Steps on which the coefficients left the box / were clamped / sub-stepped.
     simplified_flags: [usize; 3],
     full_flags: [usize; 3],
+    /// Pulls in other directions (multipliers along, across, across the load) and their
+    /// worst relative L2 error against the reference under the same load (h = 0).
+    other_pulls: Vec<([f64; 3], f64)>,
     timing: Vec<Stat>,
     offline_bytes: usize,
     session_bytes: usize,
 }
+
+/// The pulls across and oblique to the load a bench compares (multipliers of the patterns).
+pub const OTHER_PULLS: [[f64; 3]; 3] = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.7, 0.5, -0.5]];
 
 /// `(load · u) / |load|₁`-like measures: the resultant of the unit load and the displacement
 /// along it, weighted by the load (for the shear cube: stress and strain).
@@ -157,6 +163,14 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
         });
     }
     let last = |r: &TearRun| r.steps.last().map_or(0.0, |s| s.dissipated);
+    let mut other_pulls = Vec::new();
+    if off.patterns() == 3 {
+        stages.stage("pulls across the load");
+        for mix in OTHER_PULLS {
+            let worst = build::pull_errors(&off, mix)?.into_iter().fold(0.0, f64::max);
+            other_pulls.push((mix, worst));
+        }
+    }
 
     // the online step's cost: the whole schedule, --passes times, each step timed
     let mut timing = Vec::new();
@@ -199,6 +213,7 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
         dissipated_j: [last(&runs[0]), last(&runs[1]), last(&newton), diss_s, diss_f],
         simplified_flags: flags_s,
         full_flags: flags_f,
+        other_pulls,
         timing,
         offline_bytes: off.memory_bytes(),
         session_bytes,
@@ -209,16 +224,21 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
     plot_curve(&report, &dir.join("tear_curve.svg"))?;
     let mut out = std::io::stdout().lock();
     if a.json {
+        // stdout holds the JSON alone (the plots' paths go to stderr)
         writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
     } else {
         print_text(&mut out, &report)?;
     }
-    writeln!(
-        out,
+    let plots = format!(
         "plots: {} (error per step), {} (load against displacement)",
         dir.join("tear_error.svg").display(),
         dir.join("tear_curve.svg").display()
-    )?;
+    );
+    if a.json {
+        eprintln!("{plots}");
+    } else {
+        writeln!(out, "{plots}")?;
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -281,6 +301,18 @@ vademecum error {:.2e} at the snapshots; references {:.2} s, POD + vademecum {:.
         "steps outside the box / clamped / sub-stepped: h = 0 {:?}, h ≠ 0 {:?}",
         r.simplified_flags, r.full_flags
     )?;
+    if !r.other_pulls.is_empty() {
+        let cells: Vec<String> = r
+            .other_pulls
+            .iter()
+            .map(|(m, e)| format!("({:.1}, {:.1}, {:.1}) {e:.2e}", m[0], m[1], m[2]))
+            .collect();
+        writeln!(
+            out,
+            "pulled in other directions (multipliers along n, t1, t2; h = 0, worst relative L2 error against the reference under the same load): {}",
+            cells.join(", ")
+        )?;
+    }
     writeln!(out)?;
     write_stats(out, &r.timing)?;
     writeln!(

@@ -155,13 +155,13 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             if let Some(t) = &r.tear {
                 writeln!(
                     stdout,
-                    "  tearing          {} damage snapshots, {} POD vectors ({:.6} of the energy), {} PGD modes, Ritz basis {}; vademecum error {:.2e} at the snapshots; references {:.1} s, POD + vademecum {:.1} s",
+                    "  tearing          {} damage snapshots, {} POD vectors ({:.6} of the energy); PGD modes along/across the pull {:?}; vademecum error {:.2e} along, {:.2e} across; references {:.1} s, build {:.1} s",
                     t.snapshots,
                     t.pod_vectors,
                     t.captured,
-                    t.pgd_modes,
-                    t.ritz_size,
+                    t.pattern_modes,
                     t.vademecum_error,
+                    t.cross_vademecum_error,
                     t.reference_seconds,
                     t.build_seconds
                 )?;
