@@ -448,8 +448,9 @@ fn a_step_updates_only_the_tearable_region_and_the_whole_field_is_rebuilt_exactl
     assert_eq!(model.points.tearable.len(), 8 * 8, "the 8 middle cells, 8 points each");
     let (settings, limits) = organ::settings(&scene);
     let (off, report, runs) = build::build(model, &settings, |_, _| {}).unwrap();
-    // the middle cells' nodes: 3 planes x = 1, 2, 3 of 9 nodes
-    assert_eq!(off.local.len(), 3 * 27);
+    // the middle cells' nodes, 3 planes x = 1, 2, 3 of 9 nodes, and the loaded end x = 4
+    // (the grasp's displacement is read there)
+    assert_eq!(off.local.len(), 4 * 27);
     let off = Arc::new(off);
     for (variant, run) in [(Variant::Simplified, &runs[0]), (Variant::Full, &runs[1])] {
         let mut online = OnlineTear::new(off.clone(), variant, limits);
