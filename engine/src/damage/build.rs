@@ -208,11 +208,8 @@ pub fn pull_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3]) -> Result<V
     let mut loaded = model.clone();
     let loads: Vec<Vec<f64>> = (0..3).map(|p| model.pull_load(p)).collect();
     loaded.load = (0..loaded.load.len()).map(|d| (0..3).map(|p| mix[p] * loads[p][d]).sum()).collect();
-    if mix[0] == 0.0 {
-        loaded.prescribed.iter_mut().for_each(|x| *x = 0.0);
-    } else {
-        loaded.prescribed.iter_mut().for_each(|x| *x *= mix[0]);
-    }
+    // the prescribed displacements go with the pull along the load
+    loaded.prescribed.iter_mut().for_each(|x| *x *= mix[0]);
     let exact = reference::run(&loaded, RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {})?;
     let whole = StepLimits {
         max_damage_increment: f64::INFINITY,

@@ -532,12 +532,12 @@ impl OnlineTear {
         out.outside = off.basis.project(&self.g, &mut self.xi);
         let local = &off.local;
         let nl = local.len();
-        let vademecum = |this: &mut Self, out: &mut OnlineStep| {
+        // adds to ∆u on the local dofs the vademecum's modes from `first` on,
+        // Σ_p ds_p Σ_{i ∈ p} a_i F_i (`a` then holds the coefficients)
+        let vademecum = |this: &mut Self, out: &mut OnlineStep, first: usize| {
             let nm = off.vademecum.n_modes;
-            out.clamped = off.vademecum.coefficients(&this.xi, &mut this.a[..nm]);
-            // ∆u on the local dofs, Σ_p ds_p Σ_{i ∈ p} a_i F_i
-            this.du[..nl].fill(0.0);
-            for (i, &ai) in this.a[..nm].iter().enumerate() {
+            out.clamped |= off.vademecum.coefficients(&this.xi, &mut this.a[..nm]);
+            for (i, &ai) in this.a[..nm].iter().enumerate().skip(first) {
                 let w = ds[off.mode_pattern[i]] * ai;
                 if w == 0.0 {
                     continue; // a pattern this step does not pull (most steps pull along only)
@@ -549,11 +549,14 @@ impl OnlineTear {
             }
         };
         match self.variant {
-            Variant::Simplified => vademecum(self, &mut out),
+            Variant::Simplified => {
+                self.du[..nl].fill(0.0);
+                vademecum(self, &mut out, 0);
+            }
             Variant::Full => {
-                let solved = self.ritz_solve(&off, ds, true) || {
+                let solved = self.ritz_solve(&off, ds[0], true) || {
                     out.secant_fallback = true;
-                    self.ritz_solve(&off, ds, false)
+                    self.ritz_solve(&off, ds[0], false)
                 };
                 if solved {
                     // ∆u on the local dofs, V a
@@ -567,19 +570,12 @@ impl OnlineTear {
                     }
                     // the pulls across the load: their vademecums (secant, h = 0)
                     if ds[1] != 0.0 || ds[2] != 0.0 {
-                        out.clamped |= off.vademecum.coefficients(&self.xi, &mut self.coef);
-                        let along = off.vademecum.patterns[0];
-                        for i in along..off.vademecum.n_modes {
-                            let w = ds[off.mode_pattern[i]] * self.coef[i];
-                            self.amplitudes.vad[i] += w;
-                            for (o, f) in self.du[..nl].iter_mut().zip(&local.modes[i * nl..(i + 1) * nl]) {
-                                *o += w * f;
-                            }
-                        }
+                        vademecum(self, &mut out, off.vademecum.patterns[0]);
                     }
                 } else {
                     // not even the secant part is positive on the basis: the vademecum
-                    vademecum(self, &mut out);
+                    self.du[..nl].fill(0.0);
+                    vademecum(self, &mut out, 0);
                 }
             }
         }
@@ -614,22 +610,22 @@ impl OnlineTear {
         &self.coef
     }
 
-    /// The Ritz solve of the increment of the pull along the load (multiplier `ds[0]`) into
-    /// `a[..m]`, with the loading points' rank-one terms when `tangent`. Returns whether the reduced matrix was positive
-    /// definite.
-    fn ritz_solve(&mut self, off: &TearOffline, ds: [f64; 3], tangent: bool) -> bool {
+    /// The Ritz solve of the increment of the pull along the load (multiplier `ds0`) into
+    /// `a[..m]`, with the loading points' rank-one terms when `tangent`. Returns whether the
+    /// reduced matrix was positive definite.
+    fn ritz_solve(&mut self, off: &TearOffline, ds0: f64, tangent: bool) -> bool {
         let (ritz, m) = (&off.ritz, &off.model);
         let r = ritz.m;
         self.mat.copy_from_slice(&ritz.k[0]);
         for (a, b) in self.rhs.iter_mut().zip(&ritz.b[0]) {
-            *a = ds[0] * b;
+            *a = ds0 * b;
         }
         for (k, &x) in self.xi.iter().enumerate() {
             for (a, b) in self.mat.iter_mut().zip(&ritz.k[k + 1]) {
                 *a += x * b;
             }
             for (a, b) in self.rhs.iter_mut().zip(&ritz.b[k + 1]) {
-                *a += ds[0] * x * b;
+                *a += ds0 * x * b;
             }
         }
         if tangent {
