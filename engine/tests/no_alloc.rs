@@ -274,3 +274,39 @@ fn a_grasper_tick_allocates_nothing() {
     }
     assert_eq!(COUNT.with(|n| n.get()), 0, "the grasper's tick allocated");
 }
+
+#[test]
+fn a_change_of_grasp_site_allocates_nothing() {
+    use vademecum_engine::pipeline::ToolKind;
+    // the seed's cube with a second grasp site (the upper corner opposite the scene's): pull
+    // there, let go, take the scene's corner (its integrator takes over the damage), pull,
+    // let go, and back; counted on the tick's thread
+    let text = Scene::builtin("cube_tear")
+        .unwrap()
+        .source
+        .replace("pod_vectors = 3", "pod_vectors = 3\ngrasp_sites = 2");
+    let scene = Scene::from_toml(&text, "cube.toml").unwrap();
+    let mut p = pipeline(&scene);
+    let sites = p.grasp_sites().to_vec();
+    assert_eq!(sites.len(), 2);
+    let jaws = |site: usize, pull: f64, closure: f64| ToolInput {
+        kind: ToolKind::Grasper,
+        position_m: std::array::from_fn(|k| sites[site].centre_m[k] + pull * sites[site].pull_direction[k]),
+        closure,
+        ..ToolInput::default()
+    };
+    let mut grasps = 0;
+    COUNT.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    for site in [1, 0, 1] {
+        for k in 0..200 {
+            grasps += p.tick(&jaws(site, 0.05 * f64::from(k) / 200.0, 1.0)).events.has(Events::GRASPED) as u32;
+        }
+        for _ in 0..30 {
+            p.tick(&jaws(site, 0.0, 0.0));
+        }
+    }
+    COUNTING.with(|c| c.set(false));
+    assert_eq!(grasps, 3, "each site taken in turn");
+    assert_eq!(COUNT.with(|n| n.get()), 0, "a change of grasp site allocated");
+}

@@ -27,7 +27,7 @@ fn cube(alpha: f64, beta: f64, max_force: f64) -> Scene {
 /// The scene's bundle, built and loaded back as a session would.
 fn bundle(scene: &Scene) -> Arc<LoadedBundle> {
     let built = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).unwrap();
-    assert!(built.tear.is_some(), "a tearing scene's bundle holds the tearing vademecum");
+    assert!(!built.tear.is_empty(), "a tearing scene's bundle holds the tearing vademecum");
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), scene, &built).unwrap();
     Arc::new(offline::load_bundle(dir.path()).unwrap())
@@ -57,7 +57,7 @@ fn the_stored_offline_stage_steps_exactly_as_the_built_one() {
     let (model, _) = organ::tear_model(&scene, 0).unwrap();
     let (settings, limits) = organ::settings(&scene);
     let (built, _, _) = build::build(model.clone(), &settings, |_, _| {}).unwrap();
-    let stored = TearOffline::from_arrays(model, (**b.tear.as_ref().unwrap()).clone()).unwrap();
+    let stored = TearOffline::from_arrays(model, (*b.tear[0]).clone()).unwrap();
     for variant in [Variant::Simplified, Variant::Full] {
         let mut a = OnlineTear::new(Arc::new(built.clone()), variant, limits);
         let mut c = OnlineTear::new(Arc::new(stored.clone()), variant, limits);
@@ -236,7 +236,7 @@ fn a_tearing_scene_needs_a_grasper_and_its_bundle_and_refuses_other_tools() {
     assert!(e.to_string().contains("grasper"), "{e}");
     // a bundle without the tearing vademecum (built for a palpation scene)
     let mut stale = (*b).clone();
-    stale.tear = None;
+    stale.tear = Vec::new();
     let e = Pipeline::for_scene(&scene, &[Arc::new(stale)]).unwrap_err();
     assert!(e.to_string().contains("vademecum build"), "{e}");
 }

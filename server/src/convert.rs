@@ -162,7 +162,7 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
         tick_rate_hz: 1.0 / s.config().period.as_secs_f64(),
         stats: Some(session_stats(e)),
         haptic_channel: s.config().haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
-        tools: s.scene().spec.tools.iter().map(|t| tool_info(t, s.grasp_site())).collect(),
+        tools: s.scene().spec.tools.iter().map(|t| tool_info(t, s.grasp_sites())).collect(),
         organ_info: s
             .geometry()
             .organs
@@ -182,7 +182,7 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
 }
 
 /// What a client needs to know of a scene's tool; a grasper's sites are the session's `grasp`.
-fn tool_info(t: &ToolSpec, grasp: Option<GraspSite>) -> pb::ToolInfo {
+fn tool_info(t: &ToolSpec, grasp: &[GraspSite]) -> pb::ToolInfo {
     use vademecum_engine::pipeline::SCALPEL_TIP_FRACTION;
     let (kind, radius_m, max_force_n) = match t {
         ToolSpec::Probe { radius, max_force, .. } => (pb::ToolKind::Probe, *radius, *max_force),

@@ -15,6 +15,8 @@
 //! - [`online`]: the POD–PGD integrator (Alg. 4.2): the seed's simplified model (h = 0) and
 //!   the full one (h ≠ 0, the vademecum's modes as a Ritz basis with the loading points'
 //!   rank-one tangent terms).
+//! - [`sites`]: where else the grasper can take hold — grasp sites spread over the tearable
+//!   surface, each with its own load and offline stage.
 //! - [`organ`]: a scene's tearable organ as a [`model::TearModel`], and its settings.
 //! - [`build`]: the offline stage — snapshots, POD, vademecum, Ritz form, validation.
 //! - [`store`]: the offline stage's arrays, as a bundle stores them.
@@ -27,6 +29,7 @@ pub mod organ;
 pub mod pod;
 pub mod points;
 pub mod reference;
+pub mod sites;
 pub mod store;
 pub mod vademecum;
 

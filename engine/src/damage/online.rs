@@ -238,7 +238,7 @@ impl TearOffline {
             };
         }
         // the vademecum's modes one at a time (each contiguous)
-        for (i, &a) in amp.vad.iter().enumerate() {
+        for (i, &a) in amp.vad.iter().enumerate().take(vad.n_modes) {
             if a == 0.0 {
                 continue;
             }
@@ -347,10 +347,13 @@ impl TearAmplitudes {
         }
     }
 
-    /// Copies `o` (same sizes) without allocating.
+    /// Copies `o` without allocating; `self` may be longer (amplitudes sized for the largest
+    /// of several vademecums: the rest is zeroed).
     pub fn copy_from(&mut self, o: &Self) {
-        self.vad.copy_from_slice(&o.vad);
-        self.ritz.copy_from_slice(&o.ritz);
+        self.vad[..o.vad.len()].copy_from_slice(&o.vad);
+        self.vad[o.vad.len()..].fill(0.0);
+        self.ritz[..o.ritz.len()].copy_from_slice(&o.ritz);
+        self.ritz[o.ritz.len()..].fill(0.0);
         self.load = o.load;
     }
 }
@@ -421,6 +424,20 @@ impl OnlineTear {
             dissipated: 0.0,
             off,
         }
+    }
+
+    /// Takes over the damage of `other` (an integrator of the same model with another
+    /// vademecum: another grasp site) at rest: its points' states and dissipated energy, the
+    /// displacement zero (the secant model's equilibrium under no load). Used when the grasp
+    /// moves to another site once the last one's load has faded; no allocation.
+    pub fn take_over(&mut self, other: &OnlineTear) {
+        self.state.copy_from_slice(&other.state);
+        self.dissipated = other.dissipated;
+        self.u.fill(0.0);
+        self.sigma0.fill([0.0; 6]);
+        self.amplitudes.vad.fill(0.0);
+        self.amplitudes.ritz.fill(0.0);
+        self.amplitudes.load = 0.0;
     }
 
     /// The offline data.

@@ -12,6 +12,7 @@ use super::law::DamageLaw;
 use super::model::TearModel;
 use super::online::StepLimits;
 use super::points::{MaterialPoints, PointsError};
+use super::sites::{self, SiteLoad};
 use crate::fem::Locking;
 use crate::mesh::CellKind;
 use crate::rom::pod::PodCriterion;
@@ -69,6 +70,27 @@ pub fn tear_model(scene: &Scene, index: usize) -> Result<(TearModel, Vec<String>
     model.torn = torn;
     model.schedule = scene.spec.fidelity.tearing.steps();
     Ok((model, warnings))
+}
+
+/// The jaw width of the scene's grasper (its first grasper tool; m).
+pub fn jaw_width(scene: &Scene) -> Option<f64> {
+    scene.spec.tools.iter().find_map(|t| match t {
+        crate::scene::schema::ToolSpec::Grasper { jaw_width, .. } => Some(*jaw_width),
+        _ => None,
+    })
+}
+
+/// The grasp sites of organ `index` beside the scene's own (its load), as many as
+/// `[fidelity.tearing] grasp_sites` asks (less where the accessible tearable surface is
+/// covered sooner): [`super::sites`]. `model` is the organ's [`tear_model`].
+pub fn extra_sites(scene: &Scene, index: usize, model: &TearModel) -> Result<Vec<SiteLoad>, SceneError> {
+    let wanted = scene.spec.fidelity.tearing.grasp_sites;
+    let Some(jaw) = jaw_width(scene).filter(|_| wanted > 1) else {
+        return Ok(Vec::new());
+    };
+    let organ = scene.organ_model(index)?;
+    let candidates = sites::candidates(model, &organ.boundary, &organ.accessible_nodes);
+    Ok(sites::extra_sites(model, &organ.boundary, &candidates, jaw, wanted - 1))
 }
 
 /// The law of a `damage = { … }` entry for a material of Young's modulus `young` in a cell of

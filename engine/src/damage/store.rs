@@ -2,11 +2,13 @@
 //! not come from the scene (the POD basis of the damage and its coefficient box, the
 //! vademecum's spatial modes and one-dimensional factors, the Ritz operator). The model
 //! (mesh, integration points, supports, loads) is rebuilt from the scene when a session
-//! starts, and checked against the arrays' sizes.
+//! starts, and checked against the arrays' sizes. A grasp site other than the scene's
+//! ([`super::sites`]) also stores its load, which replaces the scene's in the rebuilt model.
 
 use super::model::TearModel;
 use super::online::{RitzOperator, TearOffline};
 use super::pod::DamageBasis;
+use super::sites::SiteLoad;
 use super::vademecum::{DamageVademecum, VademecumReport};
 use crate::rom::pod::Pod;
 
@@ -41,6 +43,10 @@ pub struct TearArrays {
     pub n_modes: usize,
     /// Ritz size `m`.
     pub m: usize,
+    /// The grasped nodes of a site other than the scene's grasp (empty: the scene's load).
+    pub load_nodes: Vec<usize>,
+    /// The force per unit step on each of them (N), `3 × load_nodes`.
+    pub load_forces: Vec<f64>,
 }
 
 impl TearOffline {
@@ -62,12 +68,40 @@ impl TearOffline {
             patterns: v.patterns.clone(),
             n_modes: v.n_modes,
             m: r.m,
+            load_nodes: Vec::new(),
+            load_forces: Vec::new(),
+        }
+    }
+
+    /// [`Self::to_arrays`] of a grasp site other than the scene's: its load stored with it.
+    pub fn to_site_arrays(&self, site: &SiteLoad) -> TearArrays {
+        TearArrays {
+            load_nodes: site.nodes.clone(),
+            load_forces: site.nodes.iter().flat_map(|_| site.force).collect(),
+            ..self.to_arrays()
         }
     }
 
     /// The offline data of `model` from stored arrays; an error says which array does not
     /// fit the model (a bundle built for another scene or mesh).
-    pub fn from_arrays(model: TearModel, a: TearArrays) -> Result<Self, String> {
+    pub fn from_arrays(mut model: TearModel, a: TearArrays) -> Result<Self, String> {
+        if !a.load_nodes.is_empty() {
+            let n_nodes = model.mesh.n_nodes();
+            if a.load_forces.len() != 3 * a.load_nodes.len()
+                || a.load_nodes.iter().any(|&n| n >= n_nodes)
+                || !a.load_forces.iter().all(|f| f.is_finite())
+            {
+                return Err(format!(
+                    "a grasp site's load ({} nodes, {} force components) does not fit the scene's mesh of {n_nodes} nodes; rebuild the bundle with `vademecum build`",
+                    a.load_nodes.len(),
+                    a.load_forces.len()
+                ));
+            }
+            model.load = vec![0.0; 3 * n_nodes];
+            for (&n, f) in a.load_nodes.iter().zip(a.load_forces.chunks_exact(3)) {
+                model.load[3 * n..3 * n + 3].copy_from_slice(f);
+            }
+        }
         let q = a.lo.len();
         let (nt, nf) = (model.points.tearable.len(), model.dofs.n_free());
         let check = |name: &str, len: usize, want: usize| {

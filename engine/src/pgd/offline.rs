@@ -96,8 +96,18 @@ pub enum BuildStage {
     Lattice(usize, usize),
     /// The Ritz basis of a cutting session.
     CutBasis,
-    /// Tearing's offline stage (references, POD, vademecum): what, and the fraction done.
-    Tearing(&'static str, f64),
+    /// Tearing's offline stage (references, POD, vademecum) of grasp site `site` (0: the
+    /// scene's grasp) out of `sites`: what, and the fraction done.
+    Tearing {
+        /// The grasp site (0: the scene's).
+        site: usize,
+        /// Grasp sites in all.
+        sites: usize,
+        /// The stage.
+        what: &'static str,
+        /// Fraction done.
+        fraction: f64,
+    },
 }
 
 /// Why a build failed.
@@ -198,6 +208,23 @@ pub struct BuildReport {
     /// What was built for tearing (the tearable organ of a scene with `effects.tearing`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub tear: Option<crate::damage::build::TearBuildReport>,
+    /// What was built for the grasp sites beside the scene's (`[fidelity.tearing]
+    /// grasp_sites`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tear_sites: Vec<GraspSiteReport>,
+}
+
+/// A grasp site beside the scene's and what its offline stage built.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GraspSiteReport {
+    /// The grasped nodes' centre (m).
+    pub centre_m: [f64; 3],
+    /// The pull's direction (the surface's outward normal there).
+    pub pull_direction: [f64; 3],
+    /// Nodes grasped.
+    pub nodes: usize,
+    /// Its offline stage.
+    pub build: crate::damage::build::TearBuildReport,
 }
 
 /// What a build stored for a cutting session.
@@ -240,8 +267,9 @@ pub struct Built {
     pub anm: Option<AnmLattice>,
     /// The cutting session's Ritz basis, when the scene cuts with bare enrichment.
     pub cut_basis: Option<CutBasis>,
-    /// Tearing's offline arrays, for the tearable organ of a tearing scene.
-    pub tear: Option<TearArrays>,
+    /// Tearing's offline arrays, for the tearable organ of a tearing scene: the scene's
+    /// grasp, then the other grasp sites (empty: no tearing).
+    pub tear: Vec<TearArrays>,
 }
 
 /// Load nodes of an organ: accessible surface nodes with at least one free component.
@@ -508,6 +536,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         anm_s: 0.0,
         cut: None,
         tear: None,
+        tear_sites: Vec::new(),
     };
     let anm = match &opts.large {
         None => None,
@@ -553,14 +582,47 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
             seconds: clock.elapsed().as_secs_f64(),
         });
     }
-    let mut tear = None;
+    let mut tear = Vec::new();
     if scene.spec.effects.tearing && crate::damage::organ::tearable_organ(scene) == Some(index) {
-        let (tear_model, _) = crate::damage::organ::tear_model(scene, index).map_err(|e| BuildError::Tearing(e.to_string()))?;
-        let (settings, _) = crate::damage::organ::settings(scene);
-        let (off, tear_report, _) = crate::damage::build::build(tear_model, &settings, |what, f| on(BuildStage::Tearing(what, f)))
-            .map_err(|e| BuildError::Tearing(e.to_string()))?;
+        use crate::damage::organ;
+        let fail = |e: String| BuildError::Tearing(e);
+        let (tear_model, _) = organ::tear_model(scene, index).map_err(|e| fail(e.to_string()))?;
+        let (settings, _) = organ::settings(scene);
+        let extra = organ::extra_sites(scene, index, &tear_model).map_err(|e| fail(e.to_string()))?;
+        let sites = 1 + extra.len();
+        let (off, tear_report, _) = crate::damage::build::build(tear_model.clone(), &settings, |what, fraction| {
+            on(BuildStage::Tearing {
+                site: 0,
+                sites,
+                what,
+                fraction,
+            })
+        })
+        .map_err(|e| fail(e.to_string()))?;
         report.tear = Some(tear_report);
-        tear = Some(off.to_arrays());
+        tear.push(off.to_arrays());
+        for (k, site) in extra.iter().enumerate() {
+            let mut model = tear_model.clone();
+            model.load = site.full(model.mesh.n_nodes());
+            let (off, build, _) = crate::damage::build::build(model, &settings, |what, fraction| {
+                on(BuildStage::Tearing {
+                    site: k + 1,
+                    sites,
+                    what,
+                    fraction,
+                })
+            })
+            .map_err(|e| fail(format!("grasp site {}: {e}", k + 1)))?;
+            let (_, centre_m, r) = off.model.grasp().expect("a site has a load");
+            let len = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+            report.tear_sites.push(GraspSiteReport {
+                centre_m,
+                pull_direction: r.map(|x| x / len),
+                nodes: site.nodes.len(),
+                build,
+            });
+            tear.push(off.to_site_arrays(site));
+        }
     }
     Ok(Built {
         vademecum,
@@ -648,36 +710,46 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         let n_free = (c.x.len() / c.size.max(1)) as u64;
         arrays.push(("cut_basis", vec![n_free, c.size as u64], ArrayData::F64(&c.x)));
     }
-    let (tear_meta, tear_patterns);
-    if let Some(t) = &built.tear {
+    // tearing: `tear_*` for the scene's grasp, `tear{k}_*` for grasp site k
+    let tear_small: Vec<TearSmall> = built.tear.iter().map(TearSmall::of).collect();
+    let tear_names: Vec<Vec<String>> = (0..built.tear.len())
+        .map(|k| TEAR_ARRAYS.iter().map(|n| format!("{}{n}", tear_prefix(k))).collect())
+        .collect();
+    for ((t, small), names) in built.tear.iter().zip(&tear_small).zip(&tear_names) {
         let (q, nm, m) = (t.lo.len() as u64, t.n_modes as u64, t.m as u64);
-        tear_meta = [t.captured, t.grid as f64];
         let len = |v: &[f64]| vec![v.len() as u64];
+        let name = |k: &str| names[TEAR_ARRAYS.iter().position(|n| *n == k).expect("a tearing array")].as_str();
         arrays.extend([
-            ("tear_meta", vec![2], ArrayData::F64(&tear_meta)),
+            (name("meta"), vec![2], ArrayData::F64(&small.meta)),
             (
-                "tear_pod_basis",
+                name("pod_basis"),
                 vec![q, t.pod_basis.len() as u64 / q.max(1)],
                 ArrayData::F64(&t.pod_basis),
             ),
-            ("tear_singular_values", len(&t.singular_values), ArrayData::F64(&t.singular_values)),
-            ("tear_lo", vec![q], ArrayData::F64(&t.lo)),
-            ("tear_hi", vec![q], ArrayData::F64(&t.hi)),
+            (name("singular_values"), len(&t.singular_values), ArrayData::F64(&t.singular_values)),
+            (name("lo"), vec![q], ArrayData::F64(&t.lo)),
+            (name("hi"), vec![q], ArrayData::F64(&t.hi)),
             (
-                "tear_spatial",
+                name("spatial"),
                 vec![nm, t.spatial.len() as u64 / nm.max(1)],
                 ArrayData::F64(&t.spatial),
             ),
-            ("tear_factors", vec![nm, q, t.grid as u64], ArrayData::F64(&t.factors)),
-            ("tear_ritz_v", vec![t.ritz_v.len() as u64 / m.max(1), m], ArrayData::F64(&t.ritz_v)),
-            ("tear_ritz_k", vec![q + 1, m, m], ArrayData::F64(&t.ritz_k)),
-            ("tear_ritz_b", vec![q + 1, m], ArrayData::F64(&t.ritz_b)),
+            (name("factors"), vec![nm, q, t.grid as u64], ArrayData::F64(&t.factors)),
+            (name("ritz_v"), vec![t.ritz_v.len() as u64 / m.max(1), m], ArrayData::F64(&t.ritz_v)),
+            (name("ritz_k"), vec![q + 1, m, m], ArrayData::F64(&t.ritz_k)),
+            (name("ritz_b"), vec![q + 1, m], ArrayData::F64(&t.ritz_b)),
         ]);
         // the pulls across the load, when built (bundles without them pull along it only)
-        tear_patterns = t.patterns.iter().map(|&n| n as f64).collect::<Vec<f64>>();
         if t.patterns.len() > 1 {
-            let p = t.patterns.len() as u64;
-            arrays.push(("tear_patterns", vec![p], ArrayData::F64(&tear_patterns)));
+            arrays.push((name("patterns"), len(&small.patterns), ArrayData::F64(&small.patterns)));
+        }
+        if !t.load_nodes.is_empty() {
+            arrays.push((
+                name("load_nodes"),
+                vec![small.load_nodes.len() as u64],
+                ArrayData::I64(&small.load_nodes),
+            ));
+            arrays.push((name("load"), vec![small.load_nodes.len() as u64, 3], ArrayData::F64(&t.load_forces)));
         }
     }
     bundle::write(dir, manifest, &scene.source, &arrays)
@@ -700,8 +772,101 @@ pub struct LoadedBundle {
     /// with bare enrichment).
     pub cut_basis: Option<CutBasis>,
     /// Tearing's offline arrays, when the bundle has them (the tearable organ of a tearing
-    /// scene); checked against the scene's model when a session starts.
-    pub tear: Option<Arc<TearArrays>>,
+    /// scene): the scene's grasp, then the other grasp sites; checked against the scene's
+    /// model when a session starts.
+    pub tear: Vec<Arc<TearArrays>>,
+}
+
+/// The arrays of a grasp site's tearing stage, after its prefix ([`tear_prefix`]).
+const TEAR_ARRAYS: [&str; 13] = [
+    "meta",
+    "pod_basis",
+    "singular_values",
+    "lo",
+    "hi",
+    "spatial",
+    "factors",
+    "ritz_v",
+    "ritz_k",
+    "ritz_b",
+    "patterns",
+    "load_nodes",
+    "load",
+];
+
+/// The bundle's names of grasp site `k`'s tearing arrays: `tear_…` for the scene's grasp
+/// (as bundles before grasp sites), `tear{k}_…` for the others.
+fn tear_prefix(k: usize) -> String {
+    if k == 0 { "tear_".into() } else { format!("tear{k}_") }
+}
+
+/// The small arrays a bundle writes for a tearing stage, owned while the bundle is written.
+struct TearSmall {
+    meta: [f64; 2],
+    patterns: Vec<f64>,
+    load_nodes: Vec<i64>,
+}
+
+impl TearSmall {
+    fn of(t: &TearArrays) -> Self {
+        Self {
+            meta: [t.captured, t.grid as f64],
+            patterns: t.patterns.iter().map(|&n| n as f64).collect(),
+            load_nodes: t.load_nodes.iter().map(|&n| n as i64).collect(),
+        }
+    }
+}
+
+/// Reads one grasp site's tearing arrays (names after `prefix`).
+fn read_tear(dir: &Path, manifest: &Manifest, prefix: &str) -> Result<TearArrays, String> {
+    let f = |name: &str| bundle::read_f64(dir, manifest, &format!("{prefix}{name}")).map_err(|e| e.to_string());
+    let has = |name: &str| manifest.arrays.contains_key(&format!("{prefix}{name}"));
+    let (_, meta) = f("meta")?;
+    let (ks, ritz_k) = f("ritz_k")?;
+    let (fs, factors) = f("factors")?;
+    if meta.len() != 2 || ks.len() != 3 || fs.len() != 3 || !(meta[1] >= 2.0 && meta[1] <= 1e6) {
+        return Err(format!(
+            "tearing arrays {prefix}* have the wrong shapes: meta {}, ritz_k {ks:?}, factors {fs:?}",
+            meta.len()
+        ));
+    }
+    let n_modes = fs[0] as usize;
+    let patterns = if has("patterns") {
+        let p = f("patterns")?.1;
+        if !p.iter().all(|&n| n >= 0.0 && n.fract() == 0.0 && n <= 1e6) {
+            return Err(format!("{prefix}patterns holds {p:?}: mode counts expected"));
+        }
+        p.iter().map(|&n| n as usize).collect()
+    } else {
+        vec![n_modes]
+    };
+    let (load_nodes, load_forces) = if has("load_nodes") {
+        let (_, nodes) = bundle::read_i64(dir, manifest, &format!("{prefix}load_nodes")).map_err(|e| e.to_string())?;
+        if nodes.iter().any(|&n| n < 0) {
+            return Err(format!("{prefix}load_nodes holds a negative node index"));
+        }
+        (nodes.iter().map(|&n| n as usize).collect(), f("load")?.1)
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    Ok(TearArrays {
+        patterns,
+        pod_basis: f("pod_basis")?.1,
+        singular_values: f("singular_values")?.1,
+        captured: meta[0],
+        lo: f("lo")?.1,
+        hi: f("hi")?.1,
+        grid: meta[1] as usize,
+        spatial: f("spatial")?.1,
+        factors,
+        ritz_v: f("ritz_v")?.1,
+        ritz_k,
+        ritz_b: f("ritz_b")?.1,
+        n_modes,
+        m: ks[1] as usize,
+        load_nodes,
+        load_forces,
+    })
 }
 
 /// Loads and verifies a bundle (format, version, kind, checksums, shapes, consistency).
@@ -807,46 +972,10 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
     } else {
         None
     };
-    let tear = if manifest.arrays.contains_key("tear_meta") {
-        let f = |name: &str| bundle::read_f64(dir, &manifest, name);
-        let (_, meta) = f("tear_meta")?;
-        let (ks, ritz_k) = f("tear_ritz_k")?;
-        let (fs, factors) = f("tear_factors")?;
-        if meta.len() != 2 || ks.len() != 3 || fs.len() != 3 || !(meta[1] >= 2.0 && meta[1] <= 1e6) {
-            return Err(bad(format!(
-                "tearing arrays have the wrong shapes: tear_meta {}, tear_ritz_k {ks:?}, tear_factors {fs:?}",
-                meta.len()
-            )));
-        }
-        let n_modes = fs[0] as usize;
-        let patterns = if manifest.arrays.contains_key("tear_patterns") {
-            let p = f("tear_patterns")?.1;
-            if !p.iter().all(|&n| n >= 0.0 && n.fract() == 0.0 && n <= 1e6) {
-                return Err(bad(format!("tear_patterns holds {p:?}: mode counts expected")));
-            }
-            p.iter().map(|&n| n as usize).collect()
-        } else {
-            vec![n_modes]
-        };
-        Some(Arc::new(TearArrays {
-            patterns,
-            pod_basis: f("tear_pod_basis")?.1,
-            singular_values: f("tear_singular_values")?.1,
-            captured: meta[0],
-            lo: f("tear_lo")?.1,
-            hi: f("tear_hi")?.1,
-            grid: meta[1] as usize,
-            spatial: f("tear_spatial")?.1,
-            factors,
-            ritz_v: f("tear_ritz_v")?.1,
-            ritz_k,
-            ritz_b: f("tear_ritz_b")?.1,
-            n_modes,
-            m: ks[1] as usize,
-        }))
-    } else {
-        None
-    };
+    let mut tear = Vec::new();
+    while manifest.arrays.contains_key(&format!("{}meta", tear_prefix(tear.len()))) {
+        tear.push(Arc::new(read_tear(dir, &manifest, &tear_prefix(tear.len())).map_err(bad)?));
+    }
     Ok(LoadedBundle {
         anm,
         cut_basis,

@@ -285,10 +285,10 @@ pub struct Pipeline {
     grasper_max_force_n: Option<f64>,
     /// The frame thread's end of the tearing pictures (taken once, by the session).
     tear_pictures: Option<TearPictures>,
-    /// The tearing organ's offline data (tearing scenes).
-    tear_offline: Option<Arc<crate::damage::online::TearOffline>>,
+    /// The tearing organ's offline data, one per grasp site (tearing scenes).
+    tear_offline: Vec<Arc<crate::damage::online::TearOffline>>,
     /// Where the grasper takes hold (tearing scenes).
-    grasp_site: Option<GraspSite>,
+    grasp_sites: Vec<GraspSite>,
 }
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
@@ -371,14 +371,14 @@ impl Pipeline {
             Some(r) => vec![Box::new(Palpation::new(bundles.to_vec(), r, large))],
             None => Vec::new(),
         };
-        let (mut tear_pictures, mut tear_offline, mut grasp_site) = (None, None, None);
+        let (mut tear_pictures, mut tear_offline, mut grasp_sites) = (None, Vec::new(), Vec::new());
         if fx.tearing
             && let Some((jaw_width, max_force)) = grasper
         {
             let (t, pictures, off) = tearing_effect(scene, bundles, jaw_width, max_force)?;
             tear_pictures = Some(pictures);
-            tear_offline = Some(off);
-            grasp_site = Some(t.site());
+            tear_offline = off;
+            grasp_sites = t.sites();
             effects.push(Box::new(t));
         }
         let mut cut_status = None;
@@ -414,13 +414,14 @@ impl Pipeline {
             grasper_max_force_n: grasper.filter(|_| fx.tearing).map(|g| g.1.clamp(0.0, GLOBAL_FORCE_LIMIT_N)),
             tear_pictures,
             tear_offline,
-            grasp_site,
+            grasp_sites,
         })
     }
 
-    /// Where the grasper takes hold and which way it pulls (tearing scenes).
-    pub fn grasp_site(&self) -> Option<GraspSite> {
-        self.grasp_site
+    /// Where the grasper takes hold and which way it pulls (tearing scenes; empty
+    /// otherwise): the scene's grasp first.
+    pub fn grasp_sites(&self) -> &[GraspSite] {
+        &self.grasp_sites
     }
 
     /// The frame thread's end of the tearing pictures (tearing scenes; `None` once taken).
@@ -428,10 +429,10 @@ impl Pipeline {
         self.tear_pictures.take()
     }
 
-    /// The tearing organ's offline data (tearing scenes), to rebuild displacements from a
-    /// [`TearPicture`].
-    pub fn tear_offline(&self) -> Option<&Arc<crate::damage::online::TearOffline>> {
-        self.tear_offline.as_ref()
+    /// The tearing organ's offline data (tearing scenes), one per grasp site, to rebuild
+    /// displacements from a [`TearPicture`] (its `site`).
+    pub fn tear_offline(&self) -> &[Arc<crate::damage::online::TearOffline>] {
+        &self.tear_offline
     }
 
     /// What the cut thread has done so far (cutting scenes).
@@ -531,13 +532,14 @@ impl Pipeline {
 }
 
 /// The tearing effect of `scene`'s tearable organ: its model from the scene, the offline
-/// arrays from its bundle (checked against the model), the scene's variant and limits.
+/// arrays of every grasp site from its bundle (checked against the model), the scene's
+/// variant and limits.
 fn tearing_effect(
     scene: &Scene,
     bundles: &[Arc<LoadedBundle>],
     jaw_width: f64,
     max_force: f64,
-) -> Result<(Tearing, TearPictures, Arc<crate::damage::online::TearOffline>), PipelineError> {
+) -> Result<(Tearing, TearPictures, Vec<Arc<crate::damage::online::TearOffline>>), PipelineError> {
     use crate::damage::online::TearOffline;
     use crate::damage::organ;
     let Some(i) = organ::tearable_organ(scene) else {
@@ -547,18 +549,27 @@ fn tearing_effect(
         });
     };
     let fail = |message: String| PipelineError::Tearing { organ: i, message };
-    let arrays = bundles[i].tear.as_ref().ok_or_else(|| {
-        fail(
+    if bundles[i].tear.is_empty() {
+        return Err(fail(
             "its bundle holds no tearing vademecum (built before tearing existed, or for another scene); rebuild it with `vademecum build`"
                 .into(),
-        )
-    })?;
+        ));
+    }
     let (model, _) = organ::tear_model(scene, i).map_err(|e| fail(e.to_string()))?;
-    let off = Arc::new(TearOffline::from_arrays(model, (**arrays).clone()).map_err(fail)?);
+    let offs = bundles[i]
+        .tear
+        .iter()
+        .enumerate()
+        .map(|(k, arrays)| {
+            TearOffline::from_arrays(model.clone(), (**arrays).clone())
+                .map(Arc::new)
+                .map_err(|e| fail(if k == 0 { e } else { format!("grasp site {k}: {e}") }))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let (_, limits) = organ::settings(scene);
     let variant = scene.spec.fidelity.tearing.variant;
-    let (t, pictures) = Tearing::new(i, off.clone(), variant, limits, jaw_width, max_force).map_err(|e| fail(e.to_string()))?;
-    Ok((t, pictures, off))
+    let (t, pictures) = Tearing::new(i, offs.clone(), variant, limits, jaw_width, max_force).map_err(|e| fail(e.to_string()))?;
+    Ok((t, pictures, offs))
 }
 
 /// The cutting effect of organ 0 of `scene` (module [`cutting`]): its mesh and model from the

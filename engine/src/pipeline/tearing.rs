@@ -1,13 +1,26 @@
 //! The grasper (seed 000 §4.6.2): jaws close on the tissue, the device pulls, the tissue
 //! damages and tears; one step of the POD–PGD integrator ([`crate::damage::online`]) per tick.
 //!
-//! # The grasp
-//! The vademecum was built for the scene's grasp: the nodes its load (`[[organs.loads]]`)
-//! acts on and the direction `n̂` of that load's resultant (the seed pulls one node; the load
-//! increment of a unit step is that load), and — unless built without them — for the same
-//! nodes pulled across it, along `t̂₁` and `t̂₂` ([`TearModel::pull_frame`],
-//! [`TearModel::pull_load`]). The jaws take hold when they close (`closure ≥ 0.5`) within
-//! `jaw_width` of the grasp's centre; the position where they closed is the anchor.
+//! # The grasp sites
+//! Each vademecum was built for one grasp: the nodes its load acts on and the direction `n̂`
+//! of that load's resultant (the load increment of a unit step is that load), and — unless
+//! built without them — for the same nodes pulled across it, along `t̂₁` and `t̂₂`
+//! ([`TearModel::pull_frame`], [`TearModel::pull_load`]). The first is the scene's grasp (its
+//! `[[organs.loads]]`, as the seed pulls one node); a scene may ask for more
+//! (`[fidelity.tearing] grasp_sites`), spread over the tearable surface and pulled along its
+//! outward normal ([`crate::damage::sites`]). The jaws take hold when they close
+//! (`closure ≥ 0.5`) within `jaw_width` of a site's centre (the nearest, if several); the
+//! position where they closed is the anchor.
+//!
+//! # One damage, several sites
+//! Every site has its own integrator (its POD basis of the damage its pull causes, its
+//! vademecum), but the tissue has one damage: the integration points' states. When the jaws
+//! take hold at another site than the last one held, that site's integrator takes over the
+//! states ([`OnlineTear::take_over`]) — the last grasp's load has faded to zero by then, so
+//! the tissue is at rest. Damage is never lost: the states are the truth, rendered and checked
+//! against the threshold; the site's POD projection of them only sets its stiffness, so
+//! damage a site's basis cannot represent (far from it, made by another site's pull) softens
+//! the tissue under the new grasp only as far as that basis sees it.
 //!
 //! # The pull
 //! Each tick the device's motion from the anchor, in the pull's frame, is the target
@@ -27,13 +40,14 @@
 //! When the damage of a cell of the tearable tissue reaches the scene's `torn` threshold
 //! (default 0.8, as the seed: "levels of damage exceeding certain threshold indicate the full
 //! rupture of the tissue … grasping is considered lost"), the grasp is lost (`TISSUE_TORN`)
-//! and the tissue springs back. The tear need not pass through the grasped nodes themselves —
+//! and the tissue springs back. (A cell torn before the grasp — by another site's pull —
+//! does not count: what loses the grasp is a point reaching the threshold while held.) The tear need not pass through the grasped nodes themselves —
 //! on the gallbladder it runs through the fat a cell or two from them, where the pulled flap
 //! meets the anchored layer; the vademecum's load stays on the grasped nodes, so past the
 //! first torn cell its answers would describe a flap still attached. The load factor fades linearly to zero over [`FADE_TICKS`] ticks, so the force drops by at
 //! most `1/FADE_TICKS` of its value per tick — gentler than the device bridge's watchdog,
 //! which may drop a third per tick. Opening the jaws releases the same way (`RELEASED`). A
-//! torn grasp cannot be taken again. Cells past the threshold stop rendering (the frame's
+//! site torn while held cannot be taken again; the other sites can. Cells past the threshold stop rendering (the frame's
 //! per-cell damage; the recording's `.pvd` leaves them out).
 //!
 //! # Frames
@@ -62,9 +76,12 @@ pub const JAWS_CLOSED: f64 = 0.5;
 pub struct TearPicture {
     /// Organ index in the scene.
     pub organ: usize,
+    /// The grasp site whose vademecum the amplitudes are of (0: the scene's grasp).
+    pub site: usize,
     /// The tick it shows (0: the rest state).
     pub tick: u64,
-    /// The accumulated modal amplitudes.
+    /// The accumulated modal amplitudes (sized for the largest site's vademecum: the rest
+    /// zero).
     pub amplitudes: TearAmplitudes,
     /// Damage of every cell of the organ's mesh: the largest of its integration points' (a
     /// cell is torn, and not rendered, once one of its points reaches the threshold, as the
@@ -87,8 +104,9 @@ pub struct GraspSite {
     /// The grasp's centre (m): the mean of the grasped nodes. The jaws take hold
     /// when they close within the grasper's `jaw_width` of it.
     pub centre_m: [f64; 3],
-    /// The pull's direction `n̂` (unit), the scene's load's: the tissue follows the device
-    /// in every direction, but the damage model was trained along it.
+    /// The pull's direction `n̂` (unit): the scene's load's at the scene's grasp, the
+    /// surface's outward normal at the others. The tissue follows the device in every
+    /// direction, but the damage model was trained along it.
     pub pull_direction: [f64; 3],
 }
 
@@ -106,9 +124,8 @@ enum Phase {
     Fading { from: [f64; 3], k: u32 },
 }
 
-/// The tearing effect of one organ.
-pub struct Tearing {
-    organ: usize,
+/// One grasp site: its integrator, and what the control reads of its vademecum.
+struct Site {
     off: Arc<TearOffline>,
     online: OnlineTear,
     /// Per pull pattern (along the load, then across it): the loaded dofs and the unit load
@@ -121,43 +138,14 @@ pub struct Tearing {
     resultant_n: f64,
     frame: [[f64; 3]; 3],
     centre: [f64; 3],
-    jaw_width: f64,
-    max_factor: f64,
     /// Compliance of the virgin tissue, `w` per unit step (m).
     virgin_compliance: f64,
-    /// Tearable cells, with their points' range.
-    cells: Vec<(usize, std::ops::Range<usize>)>,
-    torn: f64,
-    phase: Phase,
-    torn_out: bool,
-    /// The load factors of the pull patterns.
-    s: [f64; 3],
-    tick: u64,
-    picture: triple_buffer::Input<TearPicture>,
+    /// Torn while held: cannot be taken again.
+    spent: bool,
 }
 
-/// A tearing effect could not be prepared.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
-pub enum TearingError {
-    /// The scene's load (the grasp) is zero or acts on no node.
-    #[error("the tearable organ has no load to grasp by: add an [[organs.loads]] entry (the grasp and its pull direction)")]
-    NoGrasp,
-    /// Pulling the virgin tissue does not move the grasp along the pull.
-    #[error("a unit pull does not move the grasped nodes along the pull (compliance {0:e} m): check the supports and the load")]
-    Rigid(f64),
-}
-
-impl Tearing {
-    /// The effect for organ `organ`, on `off` (shared by sessions), with the grasper's jaw
-    /// width and force limit. Also returns the frame thread's end of the pictures.
-    pub fn new(
-        organ: usize,
-        off: Arc<TearOffline>,
-        variant: Variant,
-        limits: StepLimits,
-        jaw_width: f64,
-        max_force: f64,
-    ) -> Result<(Self, TearPictures), TearingError> {
+impl Site {
+    fn new(off: Arc<TearOffline>, variant: Variant, limits: StepLimits) -> Result<Self, TearingError> {
         let m = &off.model;
         let (_, centre, r) = m.grasp().ok_or(TearingError::NoGrasp)?;
         let resultant_n = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
@@ -165,7 +153,6 @@ impl Tearing {
         let loads: Vec<Vec<(usize, f64)>> = (0..off.patterns())
             .map(|p| m.pull_load(p).into_iter().enumerate().filter(|(_, f)| *f != 0.0).collect())
             .collect();
-        let load = &loads[0];
         let nm = off.vademecum.n_modes;
         let mut grasp_modes = vec![0.0; loads.len() * nm];
         for (p, l) in loads.iter().enumerate() {
@@ -177,62 +164,21 @@ impl Tearing {
         // the virgin compliance, from one unit step of a scratch integrator
         let mut scratch = OnlineTear::new(off.clone(), variant, limits);
         scratch.step(1.0);
-        let w1 = load.iter().map(|&(d, f)| f * scratch.local_u(d)).sum::<f64>() / resultant_n;
+        let w1 = loads[0].iter().map(|&(d, f)| f * scratch.local_u(d)).sum::<f64>() / resultant_n;
         if !(w1 > 0.0 && w1.is_finite()) {
             return Err(TearingError::Rigid(w1));
         }
-        let mut tearable_cell = vec![false; m.mesh.n_cells()];
-        for &p in &m.points.tearable {
-            tearable_cell[m.points.cell[p]] = true;
-        }
-        let cells: Vec<(usize, std::ops::Range<usize>)> = (0..m.mesh.n_cells())
-            .filter(|&c| tearable_cell[c])
-            .map(|c| (c, m.points.first[c]..m.points.first[c + 1]))
-            .collect();
-        let torn = m.torn.iter().copied().fold(f64::INFINITY, f64::min).min(1.0);
-        let online = OnlineTear::new(off.clone(), variant, limits);
-        let picture = TearPicture {
-            organ,
-            tick: 0,
-            amplitudes: online.amplitudes().clone(),
-            cell_damage: vec![0.0; m.mesh.n_cells()],
-            torn: torn as f32,
-            grasped: false,
-            dissipated_j: 0.0,
-        };
-        let (input, output) = triple_buffer::triple_buffer(&picture);
-        Ok((
-            Self {
-                organ,
-                off: off.clone(),
-                online,
-                loads,
-                grasp_modes,
-                resultant_n,
-                frame,
-                centre,
-                jaw_width,
-                max_factor: max_force.max(0.0) / resultant_n,
-                virgin_compliance: w1,
-                cells,
-                torn,
-                phase: Phase::Free,
-                torn_out: false,
-                s: [0.0; 3],
-                tick: 0,
-                picture: input,
-            },
-            output,
-        ))
-    }
-
-    /// Where the jaws take hold and which way they pull.
-    pub fn site(&self) -> GraspSite {
-        GraspSite {
-            organ: self.organ,
-            centre_m: self.centre,
-            pull_direction: self.frame[0],
-        }
+        Ok(Self {
+            online: OnlineTear::new(off.clone(), variant, limits),
+            off,
+            loads,
+            grasp_modes,
+            resultant_n,
+            frame,
+            centre,
+            virgin_compliance: w1,
+            spent: false,
+        })
     }
 
     /// The grasp's displacement along each pull pattern's direction, `w_p = (L_p·u)/|R|` (m).
@@ -292,11 +238,166 @@ impl Tearing {
         ds
     }
 
+    /// Where the jaws take hold of this site, and which way they pull.
+    fn describe(&self, organ: usize) -> GraspSite {
+        GraspSite {
+            organ,
+            centre_m: self.centre,
+            pull_direction: self.frame[0],
+        }
+    }
+}
+
+/// The tearing effect of one organ.
+pub struct Tearing {
+    organ: usize,
+    /// The grasp sites, the scene's first; they share one damage (module docs).
+    sites: Vec<Site>,
+    /// The site whose integrator holds the tissue's current state.
+    active: usize,
+    jaw_width: f64,
+    max_force: f64,
+    /// Tearable cells, with their points' range.
+    cells: Vec<(usize, std::ops::Range<usize>)>,
+    torn: f64,
+    /// Tearable points at or past `torn` (counted when the grasp was taken, and since).
+    torn_points: usize,
+    phase: Phase,
+    /// The load factors of the active site's pull patterns.
+    s: [f64; 3],
+    tick: u64,
+    picture: triple_buffer::Input<TearPicture>,
+}
+
+/// A tearing effect could not be prepared.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TearingError {
+    /// The scene's load (the grasp) is zero or acts on no node.
+    #[error("the tearable organ has no load to grasp by: add an [[organs.loads]] entry (the grasp and its pull direction)")]
+    NoGrasp,
+    /// Pulling the virgin tissue does not move the grasp along the pull.
+    #[error("a unit pull does not move the grasped nodes along the pull (compliance {0:e} m): check the supports and the load")]
+    Rigid(f64),
+    /// The grasp sites' offline data are not of one model.
+    #[error("the grasp sites' tearing data are not of one model (integration points {0} and {1})")]
+    Mismatch(usize, usize),
+}
+
+impl Tearing {
+    /// The effect for organ `organ`, on the offline data of its grasp sites `offs` (the
+    /// scene's grasp first; shared by sessions), with the grasper's jaw width and force limit.
+    /// Also returns the frame thread's end of the pictures.
+    pub fn new(
+        organ: usize,
+        offs: Vec<Arc<TearOffline>>,
+        variant: Variant,
+        limits: StepLimits,
+        jaw_width: f64,
+        max_force: f64,
+    ) -> Result<(Self, TearPictures), TearingError> {
+        let first = offs.first().ok_or(TearingError::NoGrasp)?.clone();
+        let m = &first.model;
+        if let Some(o) = offs.iter().find(|o| o.model.points.len() != m.points.len()) {
+            return Err(TearingError::Mismatch(m.points.len(), o.model.points.len()));
+        }
+        let sites = offs
+            .into_iter()
+            .map(|off| Site::new(off, variant, limits))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut tearable_cell = vec![false; m.mesh.n_cells()];
+        for &p in &m.points.tearable {
+            tearable_cell[m.points.cell[p]] = true;
+        }
+        let cells: Vec<(usize, std::ops::Range<usize>)> = (0..m.mesh.n_cells())
+            .filter(|&c| tearable_cell[c])
+            .map(|c| (c, m.points.first[c]..m.points.first[c + 1]))
+            .collect();
+        let torn = m.torn.iter().copied().fold(f64::INFINITY, f64::min).min(1.0);
+        // the picture's amplitudes sized for the largest site, so switching never allocates
+        let mut amplitudes = TearAmplitudes::zero(&first);
+        for s in &sites {
+            let a = s.online.amplitudes();
+            amplitudes.vad.resize(amplitudes.vad.len().max(a.vad.len()), 0.0);
+            amplitudes.ritz.resize(amplitudes.ritz.len().max(a.ritz.len()), 0.0);
+        }
+        let picture = TearPicture {
+            organ,
+            site: 0,
+            tick: 0,
+            amplitudes,
+            cell_damage: vec![0.0; m.mesh.n_cells()],
+            torn: torn as f32,
+            grasped: false,
+            dissipated_j: 0.0,
+        };
+        let (input, output) = triple_buffer::triple_buffer(&picture);
+        Ok((
+            Self {
+                organ,
+                sites,
+                active: 0,
+                jaw_width,
+                max_force: max_force.max(0.0),
+                cells,
+                torn,
+                torn_points: 0,
+                phase: Phase::Free,
+                s: [0.0; 3],
+                tick: 0,
+                picture: input,
+            },
+            output,
+        ))
+    }
+
+    /// Where the jaws take hold and which way they pull: the scene's grasp.
+    pub fn site(&self) -> GraspSite {
+        self.sites[0].describe(self.organ)
+    }
+
+    /// Every grasp site, the scene's first.
+    pub fn sites(&self) -> Vec<GraspSite> {
+        self.sites.iter().map(|s| s.describe(self.organ)).collect()
+    }
+
+    /// The integrator holding the tissue's current state (the last site grasped).
+    pub fn online(&self) -> &OnlineTear {
+        &self.sites[self.active].online
+    }
+
+    /// The nearest site not torn within `jaw_width` of `at`.
+    fn site_at(&self, at: [f64; 3]) -> Option<usize> {
+        let d2 = |c: [f64; 3]| (0..3).map(|k| (at[k] - c[k]).powi(2)).sum::<f64>();
+        self.sites
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| !s.spent && d2(s.centre) <= self.jaw_width * self.jaw_width)
+            .min_by(|a, b| d2(a.1.centre).total_cmp(&d2(b.1.centre)))
+            .map(|(k, _)| k)
+    }
+
+    /// Makes site `k` the active one, taking over the tissue's damage (at rest: no load).
+    fn activate(&mut self, k: usize) {
+        if k == self.active {
+            return;
+        }
+        let (a, b) = (k.min(self.active), k.max(self.active));
+        let (lo, hi) = self.sites.split_at_mut(b);
+        let (to, from) = if k < self.active {
+            (&mut lo[a], &hi[0])
+        } else {
+            (&mut hi[0], &lo[a])
+        };
+        to.online.take_over(&from.online);
+        self.active = k;
+        self.s = [0.0; 3];
+    }
+
     /// Moves the load factors to `target` (one integrator step), flagging growing damage.
     fn load_to(&mut self, target: [f64; 3], state: &mut TickState) {
         let ds: [f64; 3] = std::array::from_fn(|p| target[p] - self.s[p]);
         if ds.iter().any(|x| x.abs() > 1e-12) {
-            let step = self.online.step_pull(ds);
+            let step = self.sites[self.active].online.step_pull(ds);
             self.s = target;
             if step.dissipated > 0.0 {
                 state.events.0 |= Events::TEARING;
@@ -304,22 +405,25 @@ impl Tearing {
         }
     }
 
-    /// The largest damage of the tearable points.
-    fn worst_damage(&self) -> f64 {
-        let m = &self.online.offline().model;
-        m.points.tearable.iter().map(|&p| self.online.state[p].damage()).fold(0.0, f64::max)
+    /// How many tearable points are at or past the threshold.
+    fn count_torn(&self) -> usize {
+        let online = self.online();
+        let m = &online.offline().model;
+        m.points.tearable.iter().filter(|&&p| online.state[p].damage() >= self.torn).count()
     }
 
     fn publish(&mut self) {
-        let (state, amplitudes) = (&self.online.state, self.online.amplitudes());
+        let online = &self.sites[self.active].online;
+        let (state, amplitudes) = (&online.state, online.amplitudes());
         let buf = self.picture.input_buffer_mut();
         buf.tick = self.tick;
+        buf.site = self.active;
         buf.amplitudes.copy_from(amplitudes);
         for (c, range) in &self.cells {
             buf.cell_damage[*c] = range.clone().map(|p| state[p].damage()).fold(0.0, f64::max) as f32;
         }
         buf.grasped = matches!(self.phase, Phase::Held { .. });
-        buf.dissipated_j = self.online.dissipated;
+        buf.dissipated_j = online.dissipated;
         self.picture.publish();
     }
 }
@@ -334,8 +438,9 @@ impl Effect for Tearing {
         let closed = tool.kind == ToolKind::Grasper && tool.closure >= JAWS_CLOSED;
         match self.phase {
             Phase::Free => {
-                let d2: f64 = (0..3).map(|k| (tool.position_m[k] - self.centre[k]).powi(2)).sum();
-                if closed && !self.torn_out && d2 <= self.jaw_width * self.jaw_width {
+                if closed && let Some(k) = self.site_at(tool.position_m) {
+                    self.activate(k);
+                    self.torn_points = self.count_torn(); // what was torn before this grasp
                     self.phase = Phase::Held { anchor: tool.position_m };
                     state.events.0 |= Events::GRASPED;
                 }
@@ -345,26 +450,30 @@ impl Effect for Tearing {
                     self.phase = Phase::Fading { from: self.s, k: 0 };
                     state.events.0 |= Events::RELEASED;
                 } else {
+                    let site = &mut self.sites[self.active];
                     // the pull from the anchor in the pull's frame: along the load (pushing
                     // does nothing) and across it
                     let dx: [f64; 3] = std::array::from_fn(|k| tool.position_m[k] - anchor[k]);
                     let mut pull = [0.0; 3];
-                    for (p, t) in self.frame.iter().enumerate().take(self.loads.len()) {
+                    for (p, t) in site.frame.iter().enumerate().take(site.loads.len()) {
                         pull[p] = dx[0] * t[0] + dx[1] * t[1] + dx[2] * t[2];
                     }
                     pull[0] = pull[0].max(0.0);
-                    let w = self.grasp_displacement();
-                    let ds = self.control(pull, w);
+                    let w = site.grasp_displacement();
+                    let ds = site.control(pull, w);
+                    let max_factor = self.max_force / site.resultant_n;
                     let mut target: [f64; 3] = std::array::from_fn(|p| self.s[p] + ds[p]);
                     target[0] = target[0].max(0.0);
                     let size = target.iter().map(|x| x * x).sum::<f64>().sqrt();
-                    if size > self.max_factor {
-                        target.iter_mut().for_each(|x| *x *= self.max_factor / size);
+                    if size > max_factor {
+                        target.iter_mut().for_each(|x| *x *= max_factor / size);
                         state.events.0 |= Events::FORCE_SATURATED;
                     }
                     self.load_to(target, state);
-                    if self.worst_damage() >= self.torn {
-                        self.torn_out = true;
+                    let torn_points = self.count_torn();
+                    if torn_points > self.torn_points {
+                        self.torn_points = torn_points;
+                        self.sites[self.active].spent = true;
                         self.phase = Phase::Fading { from: self.s, k: 0 };
                         state.events.0 |= Events::TISSUE_TORN;
                     }
@@ -381,9 +490,10 @@ impl Effect for Tearing {
             state.events.0 |= Events::CONTACT;
         }
         // the tissue's reaction, −|R| Σ_p s_p t̂_p
-        for (s, t) in self.s.iter().zip(&self.frame) {
+        let site = &self.sites[self.active];
+        for (s, t) in self.s.iter().zip(&site.frame) {
             for k in 0..3 {
-                state.force_n[k] -= s * self.resultant_n * t[k];
+                state.force_n[k] -= s * site.resultant_n * t[k];
             }
         }
         self.publish();

@@ -338,6 +338,9 @@ impl Scene {
         if !(1..=64).contains(&t.max_substeps) || !t.max_substeps.is_power_of_two() {
             return Err(self.error_at(&key("max_substeps"), "max_substeps must be a power of two from 1 to 64"));
         }
+        if !(1..=64).contains(&t.grasp_sites) {
+            return Err(self.error_at(&key("grasp_sites"), "grasp_sites must be between 1 (the scene's grasp only) and 64"));
+        }
         Ok(())
     }
 

@@ -560,6 +560,13 @@ pub struct TearingFidelity {
     /// Most sub-steps of an online step (a power of two).
     #[serde(default = "default_max_substeps")]
     pub max_substeps: u32,
+    /// Places the grasper can take hold of the tissue: the scene's load (the grasp the seed
+    /// pulls by), then up to `grasp_sites − 1` more on the tearable tissue's accessible
+    /// surface, farthest first and at least `jaw_width` apart (`crate::damage::sites`). Each
+    /// site costs one more offline stage (reference runs, POD, vademecum) and bundle space
+    /// (default 1: the scene's grasp only).
+    #[serde(default = "default_grasp_sites")]
+    pub grasp_sites: usize,
 }
 
 fn default_schedule() -> Vec<ScheduleBlock> {
@@ -589,6 +596,9 @@ fn default_max_dd() -> f64 {
 fn default_max_substeps() -> u32 {
     8
 }
+fn default_grasp_sites() -> usize {
+    1
+}
 
 impl Default for TearingFidelity {
     fn default() -> Self {
@@ -603,6 +613,7 @@ impl Default for TearingFidelity {
             variant: default_variant(),
             max_damage_increment: default_max_dd(),
             max_substeps: default_max_substeps(),
+            grasp_sites: default_grasp_sites(),
         }
     }
 }

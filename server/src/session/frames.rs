@@ -171,7 +171,8 @@ impl WallGeometry {
 /// What the frame thread keeps to draw a tearing organ.
 pub(super) struct TearView {
     pictures: TearPictures,
-    offline: Arc<TearOffline>,
+    /// The offline data of every grasp site (a picture says whose amplitudes it holds).
+    offline: Vec<Arc<TearOffline>>,
     /// The cell each surface triangle bounds.
     triangle_cell: Vec<usize>,
     /// The whole displacement, rebuilt per frame.
@@ -179,9 +180,10 @@ pub(super) struct TearView {
 }
 
 impl TearView {
-    /// The view of `offline`'s organ, whose surface is `surface`.
-    pub fn new(pictures: TearPictures, offline: Arc<TearOffline>, surface: &OrganSurface) -> Self {
-        let mesh = &offline.model.mesh;
+    /// The view of `offline`'s organ (one per grasp site, not empty), whose surface is
+    /// `surface`.
+    pub fn new(pictures: TearPictures, offline: Vec<Arc<TearOffline>>, surface: &OrganSurface) -> Self {
+        let mesh = &offline[0].model.mesh;
         let mut cells_of: Vec<Vec<usize>> = vec![Vec::new(); mesh.n_nodes()];
         for c in 0..mesh.n_cells() {
             for &a in mesh.cell(c) {
@@ -216,7 +218,8 @@ impl TearView {
         if o >= frame.displacements_m.len() {
             return;
         }
-        self.offline.displacement(&p.amplitudes, &mut self.u);
+        let Some(off) = self.offline.get(p.site) else { return };
+        off.displacement(&p.amplitudes, &mut self.u);
         for (j, &n) in nodes.iter().enumerate() {
             for k in 0..3 {
                 frame.displacements_m[o][3 * j + k] += self.u[3 * n + k] as f32;

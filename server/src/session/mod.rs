@@ -178,7 +178,7 @@ pub struct Session {
     bundles: Vec<Arc<LoadedBundle>>,
     effects: Vec<&'static str>,
     workspace: Bounds,
-    grasp_site: Option<GraspSite>,
+    grasp_sites: Vec<GraspSite>,
     tool_kinds: Vec<ToolKind>,
     commands: SyncSender<Command>,
     router: Arc<answers::Router>,
@@ -236,10 +236,10 @@ impl Session {
         let mut pipeline = Pipeline::for_scene(&scene, &bundles)?;
         let effects = pipeline.effect_names();
         let tear_pictures = pipeline.take_tear_pictures();
-        let tear_offline = pipeline.tear_offline().cloned();
+        let tear_offline = pipeline.tear_offline().to_vec();
         let cut = pipeline.cut_status();
         let workspace = pipeline.workspace();
-        let grasp_site = pipeline.grasp_site();
+        let grasp_sites = pipeline.grasp_sites().to_vec();
         let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
             .into_iter()
             .filter(|&k| pipeline.accepts(k))
@@ -320,7 +320,7 @@ impl Session {
             Err(_) => panic!("the tick thread ended before opening its haptic channel"),
         };
         let tear = match (tear_pictures, tear_offline) {
-            (Some(pictures), Some(offline)) => {
+            (Some(pictures), offline) if !offline.is_empty() => {
                 let o = pictures.peek_output_buffer().organ;
                 geometry
                     .organs
@@ -351,7 +351,7 @@ impl Session {
             bundles,
             effects,
             workspace,
-            grasp_site,
+            grasp_sites,
             tool_kinds,
             commands,
             router,
@@ -387,9 +387,10 @@ impl Session {
         self.workspace
     }
 
-    /// Where the grasper takes hold and which way it pulls (tearing scenes).
-    pub fn grasp_site(&self) -> Option<GraspSite> {
-        self.grasp_site
+    /// Where the grasper takes hold and which way it pulls (tearing scenes; the scene's
+    /// grasp first).
+    pub fn grasp_sites(&self) -> &[GraspSite] {
+        &self.grasp_sites
     }
 
     /// The tool kinds the pipeline simulates; a state of another kind is answered with zero

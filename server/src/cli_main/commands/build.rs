@@ -40,7 +40,16 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
             "large deformations: full Newton, POD and ANM at lattice position {done}/{total}"
         )),
         BuildStage::CutBasis => bar.stage("cutting: the K-orthonormal Ritz basis for bare enrichment"),
-        BuildStage::Tearing(what, f) => bar.stage(&format!("tearing: {what} {:.0} %", 100.0 * f)),
+        BuildStage::Tearing {
+            site,
+            sites,
+            what,
+            fraction,
+        } => bar.stage(&if sites > 1 {
+            format!("tearing, grasp site {}/{sites}: {what} {:.0} %", site + 1, 100.0 * fraction)
+        } else {
+            format!("tearing: {what} {:.0} %", 100.0 * fraction)
+        }),
     })
     .with_context(|| format!("cannot build organ '{name}'"))?;
     Ok((built, bar))
@@ -164,6 +173,26 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                     t.cross_vademecum_error,
                     t.reference_seconds,
                     t.build_seconds
+                )?;
+            }
+            for (k, s) in r.tear_sites.iter().enumerate() {
+                let (c, n, t) = (s.centre_m, s.pull_direction, &s.build);
+                writeln!(
+                    stdout,
+                    "  grasp site {:<5} at ({:.4}, {:.4}, {:.4}) m pulled along ({:.2}, {:.2}, {:.2}), {} nodes: {} POD vectors, PGD modes {:?}; vademecum error {:.2e} along, {:.2e} across; {:.1} s",
+                    k + 2,
+                    c[0],
+                    c[1],
+                    c[2],
+                    n[0],
+                    n[1],
+                    n[2],
+                    s.nodes,
+                    t.pod_vectors,
+                    t.pattern_modes,
+                    t.vademecum_error,
+                    t.cross_vademecum_error,
+                    t.reference_seconds + t.build_seconds
                 )?;
             }
             writeln!(
