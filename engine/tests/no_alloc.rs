@@ -284,7 +284,7 @@ fn a_change_of_grasp_site_allocates_nothing() {
     let text = Scene::builtin("cube_tear")
         .unwrap()
         .source
-        .replace("pod_vectors = 3", "pod_vectors = 3\ngrasp_sites = 2");
+        .replace("grasp_sites = 4 ", "grasp_sites = 2 ");
     let scene = Scene::from_toml(&text, "cube.toml").unwrap();
     let mut p = pipeline(&scene);
     let sites = p.grasp_sites().to_vec();

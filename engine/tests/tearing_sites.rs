@@ -132,7 +132,7 @@ fn the_sites_spread_over_the_tearable_surface_farthest_first() {
     }
     // the seed's cube: its three other upper corners (the base slides: no candidate there)
     let cube = Scene::builtin("cube_tear").unwrap();
-    let text = cube.source.replace("pod_vectors = 3", "pod_vectors = 3\ngrasp_sites = 8");
+    let text = cube.source.replace("grasp_sites = 4 ", "grasp_sites = 8 ");
     let corners = extra(&Scene::from_toml(&text, "cube.toml").unwrap());
     assert_eq!(corners.len(), 3);
     for (c, _) in corners {
@@ -318,4 +318,35 @@ fn a_site_torn_while_held_is_spent_and_the_others_still_hold() {
         "{:?}",
         s.events
     );
+}
+
+#[test]
+fn on_the_gallbladder_the_sites_lie_on_the_fat_free_of_its_anchors_and_face_up() {
+    // the fat is grasped from above (the scene pulls up) and anchored at its two ends
+    let text = Scene::builtin("gallbladder_fat")
+        .unwrap()
+        .source
+        .replace("pod_vectors = 3 ", "grasp_sites = 8\npod_vectors = 3 ");
+    let scene = Scene::from_toml(&text, "<builtin:gallbladder_fat>").unwrap();
+    let jaw = organ::jaw_width(&scene).unwrap();
+    let (model, _) = organ::tear_model(&scene, 0).unwrap();
+    let sites = organ::extra_sites(&scene, 0, &model).unwrap();
+    assert!(sites.len() >= 3, "{} sites", sites.len());
+    let anchored: Vec<[f64; 3]> = (0..model.mesh.n_nodes())
+        .filter(|&n| (0..3).any(|k| model.dofs.is_constrained(3 * n + k)))
+        .map(|n| model.mesh.nodes[n])
+        .collect();
+    let mut fat_node = vec![false; model.mesh.n_nodes()];
+    for &p in &model.points.tearable {
+        model.mesh.cell(model.points.cell[p]).iter().for_each(|&n| fat_node[n] = true);
+    }
+    for s in &sites {
+        let len = dist(s.force, [0.0; 3]);
+        assert!(s.force[2] >= 0.5 * len, "pulled off the top, within 60° of up: {:?}", s.force);
+        for &n in &s.nodes {
+            assert!(fat_node[n], "node {n} is not on the fat");
+            let near = anchored.iter().map(|a| dist(*a, model.mesh.nodes[n])).fold(f64::INFINITY, f64::min);
+            assert!(near >= jaw, "node {n} is {near} m from an anchored node");
+        }
+    }
 }

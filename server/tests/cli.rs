@@ -475,5 +475,14 @@ fn bench_tear_json_is_json_and_measures_the_pulls_across_the_load() {
         let e = p[1].as_f64().unwrap();
         assert!(e.is_finite() && e < 0.5, "{p}");
     }
+    // the cube's three other upper corners, each against its own full-order reference: along
+    // its pull as accurate as the scene's grasp (1.9e-4)
+    let sites = r["sites"].as_array().unwrap();
+    assert_eq!(sites.len(), 3, "{r}");
+    for s in sites {
+        assert!((s["centre_m"][2].as_f64().unwrap() - 1.0).abs() < 1e-12, "{s}");
+        let (along, across) = (s["error_along"].as_f64().unwrap(), s["error_across"].as_f64().unwrap());
+        assert!(along < 1e-2 && across.is_finite() && across < 0.5, "{s}");
+    }
     assert!(stderr(&o).contains("plots:"), "the plots' paths go to stderr");
 }

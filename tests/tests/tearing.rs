@@ -43,8 +43,9 @@ fn a_grasper_session_holds_pulls_damages_and_lets_go_over_grpc() {
         let grasper = &s.info().tools[0];
         assert_eq!(grasper.kind, pb::ToolKind::Grasper as i32);
         assert_eq!((grasper.jaw_width_m, grasper.max_force_n), (0.2, 1.0));
-        // the site: the pulled corner (1, 1, 1), pulled up
-        assert_eq!(grasper.grasp_sites.len(), 1);
+        // the sites: the scene's, the pulled corner (1, 1, 1), pulled up, first; then the
+        // three other upper corners
+        assert_eq!(grasper.grasp_sites.len(), 4);
         let site = &grasper.grasp_sites[0];
         let (centre, pull) = (v3(site.centre_m.as_ref()), v3(site.pull_direction.as_ref()));
         assert_eq!(site.organ, 0);
@@ -118,6 +119,43 @@ fn a_grasper_session_holds_pulls_damages_and_lets_go_over_grpc() {
             (prev, tick) = (now, r.tick);
         }
         assert!(tick - open.tick >= FADE_TICKS as u64 - 1, "faded in {} ticks", tick - open.tick);
+
+        // the opposite corner (0, 0, 1) is another site: held there, pulled off the cube along
+        // its outward normal, the tissue pulls back, and its damage only grows
+        let other = grasper
+            .grasp_sites
+            .iter()
+            .find(|g| {
+                v3(g.centre_m.as_ref())
+                    .iter()
+                    .zip([0.0, 0.0, 1.0])
+                    .all(|(a, b)| (a - b).abs() < 1e-12)
+            })
+            .expect("a site at (0, 0, 1)");
+        let (c2, n2) = (v3(other.centre_m.as_ref()), v3(other.pull_direction.as_ref()));
+        assert!(n2[0] < 0.0 && n2[1] < 0.0 && n2[2] > 0.0, "outward at the corner: {n2:?}");
+        let at2 = |d: f64| [c2[0] + d * n2[0], c2[1] + d * n2[1], c2[2] + d * n2[2]];
+        let held = jaws(&mut tools, &mut seq, at2(0.0), 1.0).await;
+        assert!(held.events & pb::Event::Grasped as u32 != 0, "events {}", held.events);
+        let mut last = 0.0;
+        for k in 1..=300 {
+            let r = jaws(&mut tools, &mut seq, at2(0.03 * k as f64 / 300.0), 1.0).await;
+            last = dot(v3(r.force_n.as_ref()), n2);
+        }
+        assert!(last < 0.0, "the reaction at the second site: {last} N");
+        let mut frames = s.watch(30.0).await.unwrap();
+        let again = loop {
+            // the stream opens with the geometry; the frames after it carry the damage
+            let f = frames.message().await.unwrap().expect("the stream goes on");
+            if let Some(d) = f.organs.first().and_then(|o| o.damage.as_ref())
+                && !d.cell_damage.is_empty()
+            {
+                break f32s(&d.cell_damage);
+            }
+        };
+        assert!(again[0] >= cells[0], "the damage went from {} to {}", cells[0], again[0]);
+        drop(frames);
+        jaws(&mut tools, &mut seq, at2(0.03), 0.0).await;
         // a probe is not this scene's tool: the stream ends with INVALID_ARGUMENT
         tools.send(tool_at(seq, at(0.0))).await.unwrap();
         let e = tools.next().await.expect_err("a probe in a grasper scene");

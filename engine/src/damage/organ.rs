@@ -89,7 +89,7 @@ pub fn extra_sites(scene: &Scene, index: usize, model: &TearModel) -> Result<Vec
         return Ok(Vec::new());
     };
     let organ = scene.organ_model(index)?;
-    let candidates = sites::candidates(model, &organ.boundary, &organ.accessible_nodes);
+    let candidates = sites::candidates(model, &organ.boundary, &organ.accessible_nodes, jaw);
     Ok(sites::extra_sites(model, &organ.boundary, &candidates, jaw, wanted - 1))
 }
 

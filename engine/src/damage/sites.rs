@@ -3,9 +3,12 @@
 //! stage: a POD of the damage its pull causes, and a vademecum).
 //!
 //! The scene's load (`[[organs.loads]]`) is the first grasp, as the seed's (§4.6.2: one
-//! grasping point). The others are chosen farthest first: among the candidate nodes — on the
-//! accessible surface, on a tearable cell, no component constrained — the one farthest from
-//! every grasp chosen so far, until every candidate lies within `jaw_width` of a grasp or the
+//! grasping point). The others are chosen farthest first among the candidate nodes: on the
+//! accessible surface, on a tearable cell, free (no component constrained, and no constrained
+//! node within `jaw_width`: the jaws would hold anchored tissue), on the side the scene grasps
+//! from (the outward normal within 60° of the scene's pull: pulled off the organ as the scene's
+//! grasp is, not sideways off an edge). The next site is the candidate farthest from every
+//! grasp chosen so far, until every candidate lies within `jaw_width` of a grasp or the
 //! scene's number of sites is reached. So `n` sites cover as much of the tissue as `n` grasps
 //! can, and each further site fills the largest gap left.
 //!
@@ -38,10 +41,31 @@ impl SiteLoad {
     }
 }
 
-/// The candidate nodes of `model` for a grasp: `accessible` nodes on the boundary, on a
-/// tearable cell, with no constrained component (sorted).
-pub fn candidates(model: &TearModel, boundary: &Boundary, accessible: &[usize]) -> Vec<usize> {
+/// Cosine of the largest angle between a site's pull and the scene's (60°).
+pub const SAME_SIDE: f64 = 0.5;
+
+/// The candidate nodes of `model` for a grasp by jaws `jaw_width` wide: `accessible` nodes
+/// on the boundary, on a tearable cell, with no constrained node within `jaw_width`, whose
+/// outward normal lies within 60° of the scene's pull (sorted; empty without a load).
+pub fn candidates(model: &TearModel, boundary: &Boundary, accessible: &[usize], jaw_width: f64) -> Vec<usize> {
     let n_nodes = model.mesh.n_nodes();
+    let Some(frame) = model.pull_frame() else { return Vec::new() };
+    let normals = outward_normals(model, boundary);
+    let faces_the_pull = |n: usize| {
+        let v = normals[n];
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        len > 0.0 && (v[0] * frame[0][0] + v[1] * frame[0][1] + v[2] * frame[0][2]) >= SAME_SIDE * len
+    };
+    let anchored: Vec<[f64; 3]> = (0..n_nodes)
+        .filter(|&n| (0..3).any(|k| model.dofs.is_constrained(3 * n + k)))
+        .map(|n| model.mesh.nodes[n])
+        .collect();
+    let free_around = |n: usize| {
+        let p = model.mesh.nodes[n];
+        anchored
+            .iter()
+            .all(|a| (0..3).map(|k| (a[k] - p[k]).powi(2)).sum::<f64>() >= jaw_width * jaw_width)
+    };
     let mut on_tearable = vec![false; n_nodes];
     for &p in &model.points.tearable {
         for &n in model.mesh.cell(model.points.cell[p]) {
@@ -55,7 +79,7 @@ pub fn candidates(model: &TearModel, boundary: &Boundary, accessible: &[usize]) 
     let mut out: Vec<usize> = accessible
         .iter()
         .copied()
-        .filter(|&n| n < n_nodes && on_tearable[n] && on_boundary[n] && (0..3).all(|k| !model.dofs.is_constrained(3 * n + k)))
+        .filter(|&n| n < n_nodes && on_tearable[n] && on_boundary[n] && faces_the_pull(n) && free_around(n))
         .collect();
     out.sort_unstable();
     out.dedup();

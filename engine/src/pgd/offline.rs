@@ -613,11 +613,10 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
                 })
             })
             .map_err(|e| fail(format!("grasp site {}: {e}", k + 1)))?;
-            let (_, centre_m, r) = off.model.grasp().expect("a site has a load");
-            let len = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+            let (_, centre_m, _) = off.model.grasp().expect("a site has a load");
             report.tear_sites.push(GraspSiteReport {
                 centre_m,
-                pull_direction: r.map(|x| x / len),
+                pull_direction: off.model.pull_frame().expect("a site has a load")[0],
                 nodes: site.nodes.len(),
                 build,
             });

@@ -427,7 +427,7 @@ const CUBE_TEAR: &str = concat!(
     r#"# Seed 000, section 4.6.1.1: a unit cube pulled at an upper corner until it damages.
 [scene]
 name = "cube_tear"
-description = "The unit cube of seed 000, section 4.6.1.1: one hexahedron, E = 5 Pa, nu = 0.3, Simo damage with alpha = beta = 0.4; one base node fixed, the other base nodes sliding in the base plane, and the base node at (1, 0, 0) also held in y (the least constraint that removes the free rotation about z, which the seed leaves); the upper corner (1, 1, 1) pulled up by 0.05 N per step for 10 steps; 3 POD vectors."
+description = "The unit cube of seed 000, section 4.6.1.1: one hexahedron, E = 5 Pa, nu = 0.3, Simo damage with alpha = beta = 0.4; one base node fixed, the other base nodes sliding in the base plane, and the base node at (1, 0, 0) also held in y (the least constraint that removes the free rotation about z, which the seed leaves); the upper corner (1, 1, 1) pulled up by 0.05 N per step for 10 steps; 3 POD vectors. The grasper may also take the three other upper corners (grasp_sites = 4), each pulled off the cube along its outward normal."
 
 "#,
     unit_cube!("0.4", "0.4"),
@@ -455,6 +455,7 @@ force = [0.0, 0.0, 0.05]             # N
     cube_tool_and_fidelity!(),
     r#"schedule = [{ steps = 10, scale = 1.0 }]
 pod_vectors = 3
+grasp_sites = 4                      # the scene's corner and the three other upper corners
 "#
 );
 

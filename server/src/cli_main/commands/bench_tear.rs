@@ -48,6 +48,24 @@ struct StepRow {
     displacement_newton_m: f64,
 }
 
+/// A grasp site beside the scene's.
+#[derive(Debug, Serialize)]
+struct SiteRow {
+    centre_m: [f64; 3],
+    pull_direction: [f64; 3],
+    nodes: usize,
+    pod_vectors: usize,
+    pgd_modes: usize,
+    /// Full-order references plus POD and vademecums (s).
+    offline_seconds: f64,
+    offline_bytes: usize,
+    /// Worst relative L2 error of the simplified integrator against the site's explicit
+    /// reference (h = 0) over the schedule: pulled along its direction, and across it (the
+    /// worst of [`OTHER_PULLS`]).
+    error_along: f64,
+    error_across: f64,
+}
+
 #[derive(Debug, Serialize)]
 struct Report {
     scene: String,
@@ -68,6 +86,9 @@ struct Report {
     /// Pulls in other directions (multipliers along, across, across the load) and their
     /// worst relative L2 error against the reference under the same load (h = 0).
     other_pulls: Vec<([f64; 3], f64)>,
+    /// The grasp sites beside the scene's (`[fidelity.tearing] grasp_sites`): each one's
+    /// offline stage and accuracy against its own full-order reference.
+    sites: Vec<SiteRow>,
     timing: Vec<Stat>,
     offline_bytes: usize,
     session_bytes: usize,
@@ -171,6 +192,7 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
             other_pulls.push((mix, worst));
         }
     }
+    let sites = grasp_sites(&scene, i, &off.model, &settings, &stages)?;
 
     // the online step's cost: the whole schedule, --passes times, each step timed
     let mut timing = Vec::new();
@@ -214,6 +236,7 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
         simplified_flags: flags_s,
         full_flags: flags_f,
         other_pulls,
+        sites,
         timing,
         offline_bytes: off.memory_bytes(),
         session_bytes,
@@ -240,6 +263,49 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
         writeln!(out, "{plots}")?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Builds the offline stage of every grasp site the scene adds and measures it against its
+/// own full-order reference.
+fn grasp_sites(
+    scene: &Scene,
+    organ_index: usize,
+    model: &TearModel,
+    settings: &build::TearSettings,
+    stages: &Stages,
+) -> anyhow::Result<Vec<SiteRow>> {
+    let extra = organ::extra_sites(scene, organ_index, model)?;
+    let mut rows = Vec::new();
+    for (k, site) in extra.iter().enumerate() {
+        let mut m = model.clone();
+        m.load = site.full(m.mesh.n_nodes());
+        let label = format!("grasp site {}/{}", k + 2, extra.len() + 1);
+        let (off, b, _) = build::build(m, settings, |what, f| stages.stage(&format!("{label}: {what} {:.0} %", 100.0 * f)))
+            .with_context(|| format!("the offline stage of {label}"))?;
+        let off = Arc::new(off);
+        stages.stage(&format!("{label}: accuracy"));
+        let worst = |mix: [f64; 3]| build::pull_errors(&off, mix).map(|e| e.into_iter().fold(0.0, f64::max));
+        let error_along = worst([1.0, 0.0, 0.0])?;
+        let mut error_across = 0.0f64;
+        if off.patterns() == 3 {
+            for mix in OTHER_PULLS {
+                error_across = error_across.max(worst(mix)?);
+            }
+        }
+        let (_, centre_m, _) = off.model.grasp().expect("a site has a load");
+        rows.push(SiteRow {
+            centre_m,
+            pull_direction: off.model.pull_frame().expect("a site has a load")[0],
+            nodes: site.nodes.len(),
+            pod_vectors: b.pod_vectors,
+            pgd_modes: b.pgd_modes,
+            offline_seconds: b.reference_seconds + b.build_seconds,
+            offline_bytes: off.memory_bytes(),
+            error_along,
+            error_across,
+        });
+    }
+    Ok(rows)
 }
 
 fn print_text(out: &mut impl Write, r: &Report) -> std::io::Result<()> {
@@ -312,6 +378,27 @@ vademecum error {:.2e} at the snapshots; references {:.2} s, POD + vademecum {:.
             "pulled in other directions (multipliers along n, t1, t2; h = 0, worst relative L2 error against the reference under the same load): {}",
             cells.join(", ")
         )?;
+    }
+    if !r.sites.is_empty() {
+        writeln!(
+            out,
+            "\ngrasp sites beside the scene's (each against its own full-order reference, h = 0):\n\n| centre (m) | pull | nodes | POD | PGD modes | offline (s) | KiB | error along | error across |\n|---|---|---:|---:|---:|---:|---:|---:|---:|"
+        )?;
+        for s in &r.sites {
+            writeln!(
+                out,
+                "| {} | {} | {} | {} | {} | {:.1} | {:.0} | {:.2e} | {:.2e} |",
+                super::vec3(s.centre_m, 4),
+                super::vec3(s.pull_direction, 2),
+                s.nodes,
+                s.pod_vectors,
+                s.pgd_modes,
+                s.offline_seconds,
+                s.offline_bytes as f64 / 1024.0,
+                s.error_along,
+                s.error_across
+            )?;
+        }
     }
     writeln!(out)?;
     write_stats(out, &r.timing)?;

@@ -176,17 +176,13 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 )?;
             }
             for (k, s) in r.tear_sites.iter().enumerate() {
-                let (c, n, t) = (s.centre_m, s.pull_direction, &s.build);
+                let t = &s.build;
                 writeln!(
                     stdout,
-                    "  grasp site {:<5} at ({:.4}, {:.4}, {:.4}) m pulled along ({:.2}, {:.2}, {:.2}), {} nodes: {} POD vectors, PGD modes {:?}; vademecum error {:.2e} along, {:.2e} across; {:.1} s",
+                    "  grasp site {:<5} at {} m pulled along {}, {} nodes: {} POD vectors, PGD modes {:?}; vademecum error {:.2e} along, {:.2e} across; {:.1} s",
                     k + 2,
-                    c[0],
-                    c[1],
-                    c[2],
-                    n[0],
-                    n[1],
-                    n[2],
+                    super::vec3(s.centre_m, 4),
+                    super::vec3(s.pull_direction, 2),
                     s.nodes,
                     t.pod_vectors,
                     t.pattern_modes,

@@ -43,6 +43,15 @@ pub fn run(a: InspectArgs) -> anyhow::Result<ExitCode> {
     ) {
         writeln!(out, "  build time   PGD {p:.2} s, brute force {bf:.2} s")?;
     }
+    if !b.tear.is_empty() {
+        let modes: Vec<String> = b.tear.iter().map(|t| format!("{} POD × {} PGD", t.lo.len(), t.n_modes)).collect();
+        writeln!(
+            out,
+            "  tearing      {} grasp site(s) (the scene's first): {}",
+            b.tear.len(),
+            modes.join(", ")
+        )?;
+    }
     writeln!(out, "  arrays (all checksums verified):")?;
     for (name, e) in &m.arrays {
         writeln!(out, "    {name:<11} {:<16} {:?} {}", e.file, e.shape, e.dtype)?;

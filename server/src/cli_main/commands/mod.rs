@@ -44,3 +44,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Tear(a)) => bench_tear::run(a),
     }
 }
+
+/// A point or direction as `(x, y, z)` with `decimals` decimals.
+pub fn vec3(v: [f64; 3], decimals: usize) -> String {
+    format!("({:.d$}, {:.d$}, {:.d$})", v[0], v[1], v[2], d = decimals)
+}
