@@ -15,11 +15,14 @@
 //!   it crosses, the model bordered.
 //! - [`reduced`]: the online model: PGD modes as a Ritz basis (PRB, SRB) bordered with the
 //!   enriched nodes, the factor updated as the cut grows.
+//! - [`corotational`]: co-rotational XFEM (seed 003 §3.1): each side of a cut cell turns with
+//!   its own rotation, so rotating flaps keep their volume.
 //! - [`system`]: the full-order XFEM system (the reference of the reduced online models), its
 //!   detached pieces, and the static solve.
 //! - [`view`]: the mesh split along a cut, for viewers and recordings.
 
 pub mod blade;
+pub mod corotational;
 pub mod enrichment;
 pub mod online;
 pub mod reduced;

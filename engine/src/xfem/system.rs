@@ -163,6 +163,127 @@ pub struct CellSide {
     pub shifts: Vec<f64>,
 }
 
+/// One side of a cell, with the moments of the standard shape functions over it: on a side
+/// every generalized gradient is a standard one times a constant, so every matrix over the
+/// side follows from these.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SideMoments {
+    /// The side: volume and the shifted Heaviside of each enriched node of the cell.
+    pub side: CellSide,
+    /// `M_ab = ∫_side ∇N_a ⊗ ∇N_b`, row-major `n × n`, set for `a ≤ b` only (`M_ba = M_abᵀ`).
+    pub m: Vec<[[f64; 3]; 3]>,
+    /// `∫_side ∇N_a`.
+    pub g: [[f64; 3]; 8],
+}
+
+impl SideMoments {
+    /// `M_ab` for any `a, b`.
+    pub fn moment(&self, n: usize, a: usize, b: usize) -> [[f64; 3]; 3] {
+        if a <= b {
+            self.m[a * n + b]
+        } else {
+            let t = self.m[b * n + a];
+            std::array::from_fn(|i| std::array::from_fn(|j| t[j][i]))
+        }
+    }
+}
+
+/// The 3 × 3 block of the isotropic stiffness `∫ Bᵀ C B` coupling two functions whose
+/// gradient moment is `mab = ∫ ∇N_a ⊗ ∇N_b`: `μ(M_ji − ⅔M_ij + tr M δ_ij)` plus, with `plain`,
+/// the volumetric `κ M_ij` (left out when the dilatation is taken elsewhere, as B̄ does).
+pub fn moment_block(mab: &[[f64; 3]; 3], mu: f64, kappa: f64, plain: bool) -> [[f64; 3]; 3] {
+    let trace = mab[0][0] + mab[1][1] + mab[2][2];
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let mut v = mu * (mab[j][i] - 2.0 / 3.0 * mab[i][j]);
+            if i == j {
+                v += mu * trace;
+            }
+            if plain {
+                v += kappa * mab[i][j];
+            }
+            v
+        })
+    })
+}
+
+/// The sides of cell `x` (of `kind`) cut by the planes of its enriched nodes `local` (the
+/// local index and enriched index of each), with the moments of the standard functions over
+/// each ([`SideMoments`]); one side when no plane crosses it (the cell's own Gauss rule).
+pub fn side_moments(kind: CellKind, x: &[[f64; 3]], enr: &Enrichment, local: &[(usize, usize)]) -> Result<Vec<SideMoments>, ElementError> {
+    let n = kind.nodes_per_cell();
+    let mut planes: Vec<subcell::Plane> = Vec::new();
+    let plane_of: Vec<usize> = local
+        .iter()
+        .map(|&(_, k)| {
+            let p = enr.planes[k];
+            planes.iter().position(|q| *q == p).unwrap_or_else(|| {
+                planes.push(p);
+                planes.len() - 1
+            })
+        })
+        .collect();
+    let mut sides: Vec<SideMoments> = Vec::new();
+    let mut dn = [[0.0; 3]; 8];
+    let mut grad = [[0.0; 3]; 8];
+    let mut bad = None;
+    let pieces = subcell::split(kind, x, &planes);
+    // a cell no plane crosses is one side: its own Gauss rule, not the sub-cells'
+    let whole = pieces.iter().all(|t| t.sides == pieces[0].sides);
+    for t in pieces.iter().take(if whole { 1 } else { pieces.len() }) {
+        let shifts: Vec<f64> = local
+            .iter()
+            .zip(&plane_of)
+            .map(|(&(_, k), &p)| enr.shifted(k, (t.sides >> p) & 1 == 1))
+            .collect();
+        let side = match sides.iter().position(|s| s.side.shifts == shifts) {
+            Some(i) => i,
+            None => {
+                sides.push(SideMoments {
+                    side: CellSide { volume: 0.0, shifts },
+                    m: vec![[[0.0; 3]; 3]; n * n],
+                    g: [[0.0; 3]; 8],
+                });
+                sides.len() - 1
+            }
+        };
+        let sm = &mut sides[side];
+        let at_point = |xi: [f64; 3], w: f64| {
+            subcell::reference_gradients(kind, xi, &mut dn);
+            let det = shape::physical_gradients(x, &dn[..n], &mut grad[..n]);
+            if det <= 0.0 {
+                bad = Some(det);
+                return;
+            }
+            let wd = w * det;
+            sm.side.volume += wd;
+            for a in 0..n {
+                let ga = grad[a].map(|v| wd * v);
+                for i in 0..3 {
+                    sm.g[a][i] += ga[i];
+                }
+                for b in a..n {
+                    let mab = &mut sm.m[a * n + b];
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            mab[i][j] += ga[i] * grad[b][j];
+                        }
+                    }
+                }
+            }
+        };
+        if whole {
+            subcell::whole_cell_quadrature(kind, at_point);
+        } else {
+            subcell::quadrature(kind, t, at_point);
+        }
+        if let Some(det) = bad {
+            return Err(ElementError::NonPositiveJacobian { det });
+        }
+    }
+    Ok(sides)
+}
+
 /// The stiffness of a cell with enriched nodes over its generalized nodes (module docs), row-
 /// major `(3(n+k))²` into `ke`, with its standard–standard block left at zero (it belongs to the
 /// uncut stiffness); returns the cell's sides, and writes into `divergence` the integral over
@@ -184,132 +305,43 @@ pub fn enriched_cell_stiffness(
     ke.resize(9 * ng * ng, 0.0);
     divergence.clear();
     divergence.resize(ng, [0.0; 3]);
-    let mut planes: Vec<subcell::Plane> = Vec::new();
-    let plane_of: Vec<usize> = local
-        .iter()
-        .map(|&(_, k)| {
-            let p = enr.planes[k];
-            planes.iter().position(|q| *q == p).unwrap_or_else(|| {
-                planes.push(p);
-                planes.len() - 1
-            })
-        })
-        .collect();
     let (kappa, mu) = (mat.bulk(), mat.shear());
     let plain = volumetric == EnrichedVolumetric::Plain;
-    // per side: the moments M_ab = ∫ ∇N_a ⊗ ∇N_b and ∫ ∇N_a of the standard functions; on a
-    // side every generalized gradient is s ∇N_a, so the cell matrix follows from them
-    let mut sides: Vec<CellSide> = Vec::new();
-    let mut moments: Vec<Vec<[[f64; 3]; 3]>> = Vec::new();
-    let mut integrals: Vec<[[f64; 3]; 8]> = Vec::new();
-    let mut dn = [[0.0; 3]; 8];
-    let mut grad = [[0.0; 3]; 8];
-    let mut bad = None;
-    let pieces = subcell::split(kind, x, &planes);
-    // a cell no plane crosses is one side: its own Gauss rule, not the sub-cells'
-    let whole = pieces.iter().all(|t| t.sides == pieces[0].sides);
-    for t in pieces.iter().take(if whole { 1 } else { pieces.len() }) {
-        let shifts: Vec<f64> = local
-            .iter()
-            .zip(&plane_of)
-            .map(|(&(_, k), &p)| enr.shifted(k, (t.sides >> p) & 1 == 1))
-            .collect();
-        let side = match sides.iter().position(|s| s.shifts == shifts) {
-            Some(i) => i,
-            None => {
-                sides.push(CellSide { volume: 0.0, shifts });
-                moments.push(vec![[[0.0; 3]; 3]; n * n]);
-                integrals.push([[0.0; 3]; 8]);
-                sides.len() - 1
-            }
-        };
-        let (m, gi) = (&mut moments[side], &mut integrals[side]);
-        let at_point = |xi: [f64; 3], w: f64| {
-            subcell::reference_gradients(kind, xi, &mut dn);
-            let det = shape::physical_gradients(x, &dn[..n], &mut grad[..n]);
-            if det <= 0.0 {
-                bad = Some(det);
-                return;
-            }
-            let wd = w * det;
-            sides[side].volume += wd;
-            for a in 0..n {
-                let ga = grad[a].map(|v| wd * v);
-                for i in 0..3 {
-                    gi[a][i] += ga[i];
-                }
-                for b in a..n {
-                    let mab = &mut m[a * n + b];
-                    for i in 0..3 {
-                        for j in 0..3 {
-                            mab[i][j] += ga[i] * grad[b][j];
-                        }
-                    }
-                }
-            }
-        };
-        if whole {
-            subcell::whole_cell_quadrature(kind, at_point);
-        } else {
-            subcell::quadrature(kind, t, at_point);
-        }
-        if let Some(det) = bad {
-            return Err(ElementError::NonPositiveJacobian { det });
-        }
-    }
+    let sides = side_moments(kind, x, enr, local)?;
     // generalized function p: standard node p (p < n), or s_j ∇N_{a_j} (p = n + j)
     let node_of = |p: usize| if p < n { p } else { local[p - n].0 };
     let nd = 3 * ng;
-    for (side, (m, gi)) in sides.iter().zip(moments.iter().zip(&integrals)) {
-        let s = |p: usize| if p < n { 1.0 } else { side.shifts[p - n] };
+    for sm in &sides {
+        let s = |p: usize| if p < n { 1.0 } else { sm.side.shifts[p - n] };
         for p in 0..ng {
             for q in 0..ng {
                 let spq = s(p) * s(q);
                 if (p < n && q < n) || spq == 0.0 {
                     continue; // the standard–standard block is the uncut stiffness's
                 }
-                // only a ≤ b is accumulated: M_ba = M_abᵀ
-                let (a, b) = (node_of(p), node_of(q));
-                let mab = if a <= b {
-                    m[a * n + b]
-                } else {
-                    let t = m[b * n + a];
-                    [
-                        [t[0][0], t[1][0], t[2][0]],
-                        [t[0][1], t[1][1], t[2][1]],
-                        [t[0][2], t[1][2], t[2][2]],
-                    ]
-                };
-                let trace = mab[0][0] + mab[1][1] + mab[2][2];
+                let block = moment_block(&sm.moment(n, node_of(p), node_of(q)), mu, kappa, plain);
                 for i in 0..3 {
                     for j in 0..3 {
-                        let mut v = mu * (mab[j][i] - 2.0 / 3.0 * mab[i][j]);
-                        if i == j {
-                            v += mu * trace;
-                        }
-                        if plain {
-                            v += kappa * mab[i][j];
-                        }
-                        ke[(3 * p + i) * nd + 3 * q + j] += spq * v;
+                        ke[(3 * p + i) * nd + 3 * q + j] += spq * block[i][j];
                     }
                 }
             }
         }
         for p in 0..ng {
             for i in 0..3 {
-                divergence[p][i] += s(p) * gi[node_of(p)][i];
+                divergence[p][i] += s(p) * sm.g[node_of(p)][i];
             }
         }
     }
     if volumetric == EnrichedVolumetric::CellMean {
-        let volume: f64 = sides.iter().map(|s| s.volume).sum();
+        let volume: f64 = sides.iter().map(|s| s.side.volume).sum();
         let gbar: Vec<[f64; 3]> = divergence.iter().map(|s| s.map(|v| v / volume)).collect();
         element::add_terms(ke, ng, &gbar, volume, kappa, mu, true, false);
         for r in 0..3 * n {
             ke[r * nd..r * nd + 3 * n].fill(0.0);
         }
     }
-    Ok(sides)
+    Ok(sides.into_iter().map(|s| s.side).collect())
 }
 
 /// Union–find over copies.

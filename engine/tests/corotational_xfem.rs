@@ -1,0 +1,258 @@
+//! Co-rotational XFEM (seed 003 §3.1): rigid motions of cut blocks — each side its own — make
+//! no force; under small loads it is the linear XFEM; a flap cut loose on three sides and bent
+//! by 90° keeps its volume where the linear XFEM inflates it.
+
+use vademecum_engine::fem::Locking;
+use vademecum_engine::fem::assembly::MaterialMap;
+use vademecum_engine::fem::linear_static::StaticProblem;
+use vademecum_engine::material::LinearElastic;
+use vademecum_engine::mesh::Mesh;
+use vademecum_engine::mesh::procedural;
+use vademecum_engine::xfem::corotational::{CorotationalSettings, CorotationalXfem, polar_rotation};
+use vademecum_engine::xfem::system;
+use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
+
+use nalgebra::{Matrix3, Rotation3, Vector3};
+
+fn materials(mesh: &Mesh) -> MaterialMap {
+    MaterialMap::uniform(LinearElastic::new(1000.0, 0.3).unwrap(), 1000.0, mesh.n_cells())
+}
+
+/// The cells `plane` crosses among those whose centroid satisfies `keep`, and the enrichment.
+fn cut(mesh: &Mesh, plane: Plane, keep: impl Fn([f64; 3]) -> bool) -> Enrichment {
+    let cells: Vec<(usize, Plane)> = Enrichment::cells_crossed_by(mesh, &plane)
+        .into_iter()
+        .filter(|(c, _)| {
+            let cell = mesh.cell(*c);
+            let mut m = [0.0; 3];
+            for &a in cell {
+                (0..3).for_each(|k| m[k] += mesh.nodes[a][k] / cell.len() as f64);
+            }
+            keep(m)
+        })
+        .collect();
+    assert!(!cells.is_empty());
+    Enrichment::from_cut_cells(mesh, &cells, &XfemParams::default()).unwrap()
+}
+
+fn clamp_below(mesh: &Mesh, z: f64) -> StaticProblem {
+    let mut p = StaticProblem::new(mesh.n_nodes());
+    for (a, x) in mesh.nodes.iter().enumerate() {
+        if x[2] <= z + 1e-12 {
+            (0..3).for_each(|k| p.constrained[3 * a + k] = true);
+        }
+    }
+    p
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+#[test]
+fn the_polar_rotation_is_the_rotation_of_a_stretched_rotation() {
+    let q = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, -0.5)), 1.9).into_inner();
+    let u = Matrix3::new(1.3, 0.2, 0.0, 0.2, 0.8, 0.1, 0.0, 0.1, 1.1);
+    let r = polar_rotation(&(q * u));
+    assert!((r - q).norm() < 1e-12, "{r} vs {q}");
+    assert!((r.determinant() - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn rigid_motions_of_a_cut_block_make_no_force_each_side_its_own() {
+    // a block cut through by a plane between node layers: two pieces
+    let mesh = procedural::block_tet([0.0; 3], [1.0, 1.0, 1.0], [3, 3, 3]);
+    let plane = Plane {
+        point: [0.5, 0.5, 0.5],
+        normal: [1.0, 0.1, 0.05].map(|x: f64| x / 1.0125f64.sqrt()),
+    };
+    let enr = cut(&mesh, plane, |_| true);
+    assert!(
+        enr.dropped.is_empty(),
+        "no sliver: every node near the cut is enriched, so both motions are exact"
+    );
+    let model = CorotationalXfem::new(&mesh, &materials(&mesh), &clamp_below(&mesh, 0.0), &enr).unwrap();
+    let n = mesh.n_nodes();
+    let motion = |q: &Matrix3<f64>, t: [f64; 3], x: [f64; 3]| -> [f64; 3] {
+        let y = q * Vector3::new(x[0], x[1], x[2]);
+        [y[0] - x[0] + t[0], y[1] - x[1] + t[1], y[2] - x[2] + t[2]]
+    };
+    let q1 = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(0.3, -1.0, 0.4)), 1.2).into_inner();
+    let q2 = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 0.5, 0.0)), -2.4).into_inner();
+    let (t1, t2) = ([0.1, -0.3, 0.2], [0.5, 0.0, -0.1]);
+    // the scale of an elastic force: a 1 % stretch
+    let stretch: Vec<f64> = (0..model.n_dofs())
+        .map(|k| {
+            if k < 3 * n && k % 3 == 0 {
+                0.01 * mesh.nodes[k / 3][0]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let scale = norm(&model.internal_forces(&stretch));
+    assert!(scale > 0.0);
+    // the whole block turned as one: no jump
+    let mut d = vec![0.0; model.n_dofs()];
+    for a in 0..n {
+        d[3 * a..3 * a + 3].copy_from_slice(&motion(&q1, t1, mesh.nodes[a]));
+    }
+    let f = norm(&model.internal_forces(&d));
+    assert!(f < 1e-10 * scale, "one rigid motion: |f| = {f:e} against {scale:e}");
+    // each side its own rigid motion: the + side q1, t1; the − side q2, t2
+    for a in 0..n {
+        let positive = plane.phi(mesh.nodes[a]) > 0.0;
+        let (q, t) = if positive { (&q1, t1) } else { (&q2, t2) };
+        d[3 * a..3 * a + 3].copy_from_slice(&motion(q, t, mesh.nodes[a]));
+    }
+    for (k, &a) in enr.nodes.iter().enumerate() {
+        // the other side's copy of node a: u_a + H̃ q = its motion
+        let own = enr.planes[k].phi(mesh.nodes[a]) > 0.0;
+        let (q, t) = if own { (&q2, t2) } else { (&q1, t1) };
+        let other = motion(q, t, mesh.nodes[a]);
+        let h = enr.shifted(k, !own);
+        for i in 0..3 {
+            d[3 * (n + k) + i] = (other[i] - d[3 * a + i]) / h;
+        }
+    }
+    let f = norm(&model.internal_forces(&d));
+    assert!(f < 1e-10 * scale, "two rigid motions: |f| = {f:e} against {scale:e}");
+    // the two sides did turn differently
+    let rotations = model.rotations(&d);
+    assert!(rotations.iter().any(|r| (r - q1).norm() < 1e-9) && rotations.iter().any(|r| (r - q2).norm() < 1e-9));
+}
+
+#[test]
+fn under_a_small_load_it_is_the_linear_xfem() {
+    // a bar clamped at its base, cut half through, pushed sideways at the top by a small force
+    let mesh = procedural::block_tet([0.0; 3], [0.5, 0.5, 2.0], [2, 2, 8]);
+    let enr = cut(
+        &mesh,
+        Plane {
+            point: [0.0, 0.0, 0.9],
+            normal: [0.0, 0.0, 1.0],
+        },
+        |m| m[0] < 0.25,
+    );
+    let mut problem = clamp_below(&mesh, 0.0);
+    let top: Vec<usize> = (0..mesh.n_nodes()).filter(|&a| mesh.nodes[a][2] >= 2.0 - 1e-12).collect();
+    for &a in &top {
+        problem.forces[3 * a] = 1e-3 / top.len() as f64;
+    }
+    let mats = materials(&mesh);
+    let linear = system::solve(&mesh, &mats, Locking::None, &problem, &enr, &XfemParams::default()).unwrap();
+    let model = CorotationalXfem::new(&mesh, &mats, &problem, &enr).unwrap();
+    let co = model.solve(&CorotationalSettings::default()).unwrap();
+    let lin = CorotationalXfem::of_linear(&linear);
+    let diff: Vec<f64> = co.d.iter().zip(&lin).map(|(a, b)| a - b).collect();
+    let rel = norm(&diff) / norm(&lin);
+    // the displacement is 1e-4 of the bar: the co-rotational correction is of that order
+    let size = lin.iter().fold(0.0f64, |m, v| m.max(v.abs())) / 2.0;
+    println!("tip deflection / length {size:.1e}; co-rotational against linear {rel:.2e}");
+    assert!(rel < 10.0 * size && rel > 0.0, "{rel:e}");
+}
+
+/// The flap: a slab clamped at its base, cut by a plane parallel to its top from its free end
+/// to 3/5 of its length (loose on three sides: below, and its two lateral faces, which are the
+/// slab's), its end's top row of nodes carried along the quarter circle of a rigid turn about
+/// the hinge, free to rotate: the flap turns up by 90°, bending at its root. Its volume away
+/// from the root, and the whole body's volume change against the flap's volume, are measured.
+#[test]
+fn a_flap_bent_by_ninety_degrees_keeps_its_volume_where_the_linear_xfem_inflates_it() {
+    let (l, zc, h) = (3.0, 0.5625, 0.25);
+    let mesh = procedural::block_tet([0.0; 3], [5.0, 1.0, 1.0], [20, 4, 8]);
+    let enr = cut(
+        &mesh,
+        Plane {
+            point: [0.0, 0.0, zc],
+            normal: [0.0, 0.0, 1.0],
+        },
+        |m| m[0] < l,
+    );
+    let mut problem = clamp_below(&mesh, 0.0);
+    // the flap's end, its top row (not enriched)
+    let end: Vec<usize> = (0..mesh.n_nodes())
+        .filter(|&a| mesh.nodes[a][0] <= 1e-12 && mesh.nodes[a][2] >= 1.0 - 1e-12)
+        .collect();
+    assert!(end.len() == 5 && end.iter().all(|&a| enr.index(a).is_none()));
+    for &a in &end {
+        (0..3).for_each(|k| problem.constrained[3 * a + k] = true);
+    }
+    // the hinge: the cut cells end at x = l and the enriched nodes there carry the
+    // discontinuity into the next cells (the cracking-node tip): half a cell beyond, at the
+    // flap's mid-height
+    let hinge = [l + 0.5 * h, 0.5 * (zc + 1.0)];
+    let turned = |x: [f64; 3], theta: f64| -> [f64; 3] {
+        let (rx, rz) = (x[0] - hinge[0], x[2] - hinge[1]);
+        let (c, s) = (theta.cos(), theta.sin());
+        [hinge[0] + rx * c + rz * s - x[0], 0.0, hinge[1] - rx * s + rz * c - x[2]]
+    };
+    let quarter = std::f64::consts::FRAC_PI_2;
+    for &a in &end {
+        let u = turned(mesh.nodes[a], quarter);
+        problem.prescribed[3 * a..3 * a + 3].copy_from_slice(&u);
+    }
+    let mats = materials(&mesh);
+    let model = CorotationalXfem::new(&mesh, &mats, &problem, &enr).unwrap();
+    let settings = CorotationalSettings {
+        steps: 18,
+        ..CorotationalSettings::default()
+    };
+    let co = model
+        .solve_path(&settings, |lambda, out| {
+            for &a in &end {
+                let u = turned(mesh.nodes[a], lambda * quarter);
+                out[3 * a..3 * a + 3].copy_from_slice(&u);
+            }
+        })
+        .unwrap();
+    let linear = system::solve(&mesh, &mats, Locking::None, &problem, &enr, &XfemParams::default()).unwrap();
+    let lin = CorotationalXfem::of_linear(&linear);
+    let centroid = |c: usize| {
+        let cell = mesh.cell(c);
+        let mut m = [0.0; 3];
+        for &a in cell {
+            (0..3).for_each(|k| m[k] += mesh.nodes[a][k] / cell.len() as f64);
+        }
+        m
+    };
+    // the flap away from its root: above the cut's layer, a cell and a half from the hinge
+    let away = |c: usize| centroid(c)[0] < l - 1.5 * h && centroid(c)[2] > zc + 0.07;
+    let change = |d: &[f64], which: &dyn Fn(usize) -> bool| {
+        let (v0, v) = model.volumes(d, which);
+        (v - v0) / v0
+    };
+    let (co_away, lin_away) = (change(&co.d, &away), change(&lin, &away));
+    let flap = 1.0 * l * (1.0 - zc);
+    let (v0, v) = model.volumes(&co.d, |_| true);
+    let (w0, w) = model.volumes(&lin, |_| true);
+    let (co_all, lin_all) = ((v - v0) / flap, (w - w0) / flap);
+    println!(
+        "flap volume change away from its root: co-rotational {:+.3} %, linear XFEM {:+.1} %; the whole body's against the flap's: {:+.3} %, {:+.1} %; iterations per step {:?}; {} sides",
+        100.0 * co_away,
+        100.0 * lin_away,
+        100.0 * co_all,
+        100.0 * lin_all,
+        co.iterations,
+        model.n_sides()
+    );
+    assert!(
+        co_away.abs() < 0.01 && co_all.abs() < 0.01,
+        "co-rotational: {co_away:+e}, {co_all:+e}"
+    );
+    assert!(lin_away > 0.2, "the linear XFEM inflates the turned flap: {lin_away:+e}");
+    // the flap turned by about a quarter turn away from its root (its pinned end curls a
+    // little further), the base far from the root hardly at all
+    let turn = |r: &Matrix3<f64>| ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos();
+    let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+    for ((c, _, _), r) in model.deformations(&co.d).iter().zip(model.rotations(&co.d)) {
+        let angle = turn(&r);
+        if away(*c) {
+            (lo, hi) = (lo.min(angle), hi.max(angle));
+        } else if centroid(*c)[0] > l + 5.0 * h {
+            assert!(angle < 0.05, "base cell {c}: turned by {angle} rad");
+        }
+    }
+    println!("the flap's cells turned by {:.0}° to {:.0}°", lo.to_degrees(), hi.to_degrees());
+    assert!(lo > 1.0 && hi < 2.0, "turned by {lo} to {hi} rad");
+}
