@@ -20,6 +20,7 @@
 //! - [`system`]: the full-order XFEM system (the reference of the reduced online models), its
 //!   detached pieces, and the static solve.
 //! - [`view`]: the mesh split along a cut, for viewers and recordings.
+//! - [`visual`]: visual surfaces embedded in the tetrahedra, following each side of a cut.
 
 pub mod blade;
 pub mod corotational;
@@ -29,6 +30,7 @@ pub mod reduced;
 pub mod subcell;
 pub mod system;
 pub mod view;
+pub mod visual;
 
 pub use enrichment::{Detached, Enrichment, EnrichmentError, XfemParams};
 pub use subcell::Plane;

@@ -1,0 +1,151 @@
+//! Visual meshes mapped to the simulation mesh (seed 003 §3.2, §3.4): SOFA's smooth liver
+//! surface (`../shared/data/meshes/sofa/liver-smooth.obj`, 2,194 vertices) embedded in its
+//! tetrahedral liver (`sofa/liver.msh`, 596 cells) follows any affine motion exactly, and
+//! once the liver is cut through, every vertex follows the side of the cut it lies on.
+
+mod common;
+
+use std::path::PathBuf;
+
+use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
+use vademecum_engine::mesh::{self, Mesh};
+use vademecum_engine::xfem::visual::{Embedding, VisualError, VisualMesh};
+use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
+
+fn liver() -> Option<(Mesh, VisualMesh)> {
+    let dir: PathBuf = common::shared_data()?.join("data/meshes/sofa");
+    let mesh = mesh::read(dir.join("liver.msh")).unwrap();
+    let visual = VisualMesh::load_obj(&dir.join("liver-smooth.obj"), 1.0).unwrap();
+    Some((mesh, visual))
+}
+
+fn affine(a: &Matrix3<f64>, t: [f64; 3], x: [f64; 3]) -> [f64; 3] {
+    let y = a * Vector3::new(x[0], x[1], x[2]);
+    [y[0] + t[0], y[1] + t[1], y[2] + t[2]]
+}
+
+#[test]
+fn the_smooth_liver_is_a_closed_surface_embedded_in_the_tetrahedra() {
+    let Some((mesh, visual)) = liver() else { return };
+    assert_eq!((visual.vertices.len(), visual.triangles.len()), (2194, 4384));
+    assert!(visual.edges().is_closed_manifold(), "{:?}", visual.edges());
+    let e = Embedding::new(&mesh, &visual.vertices).unwrap();
+    let inside = e.outside.iter().filter(|&&o| o == 0.0).count();
+    let worst = e.outside.iter().copied().fold(0.0, f64::max);
+    println!(
+        "{inside} of {} vertices inside a tetrahedron; the farthest outside at barycentric −{worst:.2}",
+        e.cell.len()
+    );
+    // any affine motion of the nodes moves every vertex by the same motion (barycentric
+    // coordinates extrapolate exactly outside)
+    let a = Matrix3::new(0.9, 0.2, 0.0, -0.1, 1.1, 0.3, 0.05, 0.0, 0.95) - Matrix3::identity();
+    let t = [0.3, -0.2, 0.1];
+    let d: Vec<f64> = mesh.nodes.iter().flat_map(|&x| affine(&a, t, x)).collect();
+    let mut u = vec![0.0; 3 * visual.vertices.len()];
+    e.displacements(&mesh, &Enrichment::none(&mesh), &visual.vertices, &d, &mut u);
+    for (v, &x) in visual.vertices.iter().enumerate() {
+        let want = affine(&a, t, x);
+        for i in 0..3 {
+            assert!(
+                (u[3 * v + i] - want[i]).abs() < 1e-9,
+                "vertex {v}: {:?} vs {want:?}",
+                &u[3 * v..3 * v + 3]
+            );
+        }
+    }
+}
+
+#[test]
+fn cut_through_every_vertex_follows_its_own_side() {
+    let Some((mesh, visual)) = liver() else { return };
+    // a plane across the liver, nudged until no node falls to the sliver rule (then both
+    // sides' motions are represented exactly)
+    let normal = Vector3::new(1.0, 0.3, -0.2).normalize();
+    let enr_at = |offset: f64| {
+        let plane = Plane {
+            point: [-1.4 + offset, 2.6, 0.5],
+            normal: [normal[0], normal[1], normal[2]],
+        };
+        let cells = Enrichment::cells_crossed_by(&mesh, &plane);
+        (plane, Enrichment::from_cut_cells(&mesh, &cells, &XfemParams::default()).unwrap())
+    };
+    let (plane, enr) = (0..50)
+        .map(|k| enr_at(0.013 * k as f64))
+        .find(|(_, e)| e.dropped.is_empty())
+        .expect("a plane with no sliver");
+    assert!(enr.len() > 20, "{} enriched nodes", enr.len());
+    // the two sides move apart, each by its own rigid motion
+    let q1 = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(0.0, 1.0, 0.3)), 0.4).into_inner();
+    let q2 = Rotation3::from_axis_angle(&Unit::new_normalize(Vector3::new(1.0, 0.0, 0.2)), -0.5).into_inner();
+    let (t1, t2) = ([0.5, 0.0, 0.2], [-0.4, 0.3, 0.0]);
+    let motion = |positive: bool, x: [f64; 3]| {
+        let (q, t) = if positive { (&q1, t1) } else { (&q2, t2) };
+        affine(&(q - Matrix3::identity()), t, x)
+    };
+    let n = mesh.n_nodes();
+    let mut d = vec![0.0; 3 * (n + enr.len())];
+    for (a, &x) in mesh.nodes.iter().enumerate() {
+        d[3 * a..3 * a + 3].copy_from_slice(&motion(plane.phi(x) > 0.0, x));
+    }
+    for (k, &a) in enr.nodes.iter().enumerate() {
+        let own = enr.planes[k].phi(mesh.nodes[a]) > 0.0;
+        let other = motion(!own, mesh.nodes[a]);
+        let h = enr.shifted(k, !own);
+        for i in 0..3 {
+            d[3 * (n + k) + i] = (other[i] - d[3 * a + i]) / h;
+        }
+    }
+    let mut e = Embedding::new(&mesh, &visual.vertices).unwrap();
+    let moved = e.follow_cut(&mesh, &enr, &visual.vertices);
+    let mut u = vec![0.0; 3 * visual.vertices.len()];
+    e.displacements(&mesh, &enr, &visual.vertices, &d, &mut u);
+    let mut on_each = [0, 0];
+    for (v, &x) in visual.vertices.iter().enumerate() {
+        let positive = plane.phi(x) > 0.0;
+        on_each[usize::from(positive)] += 1;
+        let want = motion(positive, x);
+        for i in 0..3 {
+            assert!(
+                (u[3 * v + i] - want[i]).abs() < 1e-9,
+                "vertex {v} on the {} side: {:?} vs {want:?}",
+                if positive { "+" } else { "−" },
+                &u[3 * v..3 * v + 3]
+            );
+        }
+    }
+    println!(
+        "{} enriched nodes; vertices on the two sides {on_each:?}; {moved} re-associated to a cut cell",
+        enr.len()
+    );
+    assert!(moved > 0, "vertices hanging outside the mesh across the cut from their cell");
+    assert!(on_each[0] > 100 && on_each[1] > 100);
+}
+
+#[test]
+fn bad_visual_meshes_are_refused_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = VisualMesh::load_obj(&dir.path().join("none.obj"), 1.0).unwrap_err();
+    assert!(matches!(missing, VisualError::File { .. }), "{missing}");
+    let bad = dir.path().join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nf 1 2 7\n").unwrap();
+    let e = VisualMesh::load_obj(&bad, 1.0).unwrap_err().to_string();
+    assert!(e.contains("bad.obj"), "{e}");
+    let empty = dir.path().join("empty.obj");
+    std::fs::write(&empty, "v 0 0 0\n").unwrap();
+    assert!(VisualMesh::load_obj(&empty, 1.0).is_err());
+    // a hexahedral simulation mesh cannot carry one (yet)
+    let hexes = vademecum_engine::mesh::procedural::block_hex([0.0; 3], [1.0; 3], [1, 1, 1]);
+    assert!(matches!(Embedding::new(&hexes, &[[0.5; 3]]), Err(VisualError::NotTetrahedra(_))));
+    // a surface with a hole is not a closed manifold
+    let open = VisualMesh {
+        vertices: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3]],
+    };
+    let r = open.edges();
+    assert_eq!((r.boundary, r.non_manifold, r.misoriented), (3, 0, 0));
+    let flipped = VisualMesh {
+        triangles: vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 2, 3]],
+        ..open
+    };
+    assert!(!flipped.edges().is_closed_manifold() && flipped.edges().misoriented > 0);
+}
