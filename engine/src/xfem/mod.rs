@@ -13,6 +13,8 @@
 //!   node, the cracking-node method), the sliver rule.
 //! - [`online`]: the scalpel cutting as it moves: the criterion, the swept surface, the cells
 //!   it crosses, the model bordered.
+//! - [`progressive`]: semi-progressive cutting (seed 003 §3.3): the blade's swept quads
+//!   crossed with the cells' edges, a cell cut once crossed entirely.
 //! - [`reduced`]: the online model: PGD modes as a Ritz basis (PRB, SRB) bordered with the
 //!   enriched nodes, the factor updated as the cut grows.
 //! - [`corotational`]: co-rotational XFEM (seed 003 §3.1): each side of a cut cell turns with
@@ -26,6 +28,7 @@ pub mod blade;
 pub mod corotational;
 pub mod enrichment;
 pub mod online;
+pub mod progressive;
 pub mod reduced;
 pub mod subcell;
 pub mod system;

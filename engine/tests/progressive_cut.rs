@@ -1,0 +1,123 @@
+//! Semi-progressive cutting (seed 003 §3.3): a cell is cut only once the blade has crossed it
+//! entirely; partly crossed cells wait in the lists L1–L3 with their crossings shown; a blade
+//! that stops, backs out and resumes cuts what one steady stroke cuts; a blade through nodes
+//! or along faces cuts only cells it really divides.
+
+use std::collections::BTreeSet;
+
+use vademecum_engine::mesh::{Mesh, procedural};
+use vademecum_engine::xfem::progressive::{NotTetrahedra, ProgressiveCut};
+
+/// The blade's edge at `x` along the stroke: from its tip at depth `tip_z` up through the top
+/// of the block, in the plane `y = y0 + slope·x` (a vertical blade moving along x).
+fn blade(x: f64, y0: f64, slope: f64, tip_z: f64) -> ([f64; 3], [f64; 3]) {
+    let y = y0 + slope * x;
+    ([x, y, tip_z], [x, y, 1.5])
+}
+
+/// Sweeps the blade through the positions `xs` in turn; returns the cut's state.
+fn stroke(mesh: &Mesh, xs: &[f64], y0: f64, slope: f64, tip_z: f64) -> ProgressiveCut {
+    let mut cut = ProgressiveCut::new(mesh).unwrap();
+    for w in xs.windows(2) {
+        let (t0, b0) = blade(w[0], y0, slope, tip_z);
+        let (t1, b1) = blade(w[1], y0, slope, tip_z);
+        cut.sweep(mesh, t0, b0, t1, b1);
+    }
+    cut
+}
+
+fn set(cut: &ProgressiveCut) -> BTreeSet<usize> {
+    cut.cut_cells().iter().copied().collect()
+}
+
+/// Whether the plane `y = y0 + slope·x` has vertices of cell `c` strictly on both sides.
+fn divides(mesh: &Mesh, c: usize, y0: f64, slope: f64) -> bool {
+    let phi: Vec<f64> = mesh
+        .cell(c)
+        .iter()
+        .map(|&a| mesh.nodes[a][1] - y0 - slope * mesh.nodes[a][0])
+        .collect();
+    phi.iter().any(|&p| p > 1e-12) && phi.iter().any(|&p| p < -1e-12)
+}
+
+#[test]
+fn a_cell_is_cut_only_once_the_blade_has_crossed_it() {
+    let mesh = procedural::block_tet([0.0; 3], [1.0; 3], [4, 4, 2]);
+    let (y0, slope) = (0.53, 0.07);
+    // a steady stroke through the whole block, the tip below it: every cell the plane divides
+    let through = stroke(&mesh, &[-0.1, 1.1], y0, slope, -0.5);
+    let divided: BTreeSet<usize> = (0..mesh.n_cells()).filter(|&c| divides(&mesh, c, y0, slope)).collect();
+    assert_eq!(set(&through), divided);
+    assert!(through.lists().iter().all(Vec::is_empty), "nothing left half crossed");
+    // stopped halfway: the cells behind the blade are cut, those it stands in are crossed on
+    // some edges only (L1–L3, shown as polygons), those ahead untouched
+    let half = stroke(&mesh, &[-0.1, 0.6], y0, slope, -0.5);
+    let cut = set(&half);
+    assert!(!cut.is_empty() && cut.is_subset(&divided) && cut.len() < divided.len());
+    let [l1, l2, l3] = half.lists();
+    let waiting: BTreeSet<usize> = l1.iter().chain(&l2).chain(&l3).copied().collect();
+    assert!(!waiting.is_empty() && waiting.is_disjoint(&cut));
+    for c in &waiting {
+        assert!(divided.contains(c), "cell {c} crossed but the plane does not divide it");
+        let centroid_x: f64 = mesh.cell(*c).iter().map(|&a| mesh.nodes[a][0]).sum::<f64>() / 4.0;
+        assert!(centroid_x > 0.3, "cell {c} behind the blade left uncut");
+    }
+    for (c, x) in half.partial() {
+        assert!(!half.is_cut(c));
+        for p in x.edges.values() {
+            assert!(
+                (p[1] - y0 - slope * p[0]).abs() < 1e-9 && p[0] <= 0.6 + 1e-9,
+                "crossing {p:?} off the swept part"
+            );
+        }
+    }
+    // a shallow blade (tip at mid-depth) cuts the upper cells only
+    let shallow = stroke(&mesh, &[-0.1, 1.1], y0, slope, 0.5);
+    assert!(set(&shallow).is_subset(&divided) && set(&shallow).len() < divided.len());
+    for c in set(&shallow) {
+        assert!(mesh.cell(c).iter().any(|&a| mesh.nodes[a][2] > 0.5), "cell {c} below the tip cut");
+    }
+}
+
+#[test]
+fn a_blade_that_stops_backs_out_and_resumes_cuts_what_one_stroke_cuts() {
+    let mesh = procedural::block_tet([0.0; 3], [1.0; 3], [5, 5, 3]);
+    let (y0, slope) = (0.37, -0.11);
+    let steady = stroke(&mesh, &[-0.1, 1.1], y0, slope, -0.2);
+    // small steps, a stop, a retreat along the path and a resumption
+    let mut xs: Vec<f64> = (0..=14).map(|k| -0.1 + 0.05 * k as f64).collect();
+    xs.extend([0.5, 0.3, 0.3, 0.45]);
+    xs.extend((0..=14).map(|k| 0.45 + 0.05 * k as f64));
+    let halting = stroke(&mesh, &xs, y0, slope, -0.2);
+    assert_eq!(set(&halting), set(&steady));
+    // each cell cut once, the order following the blade
+    assert_eq!(halting.cut_cells().len(), set(&halting).len());
+}
+
+#[test]
+fn a_blade_through_nodes_or_along_faces_cuts_only_what_it_divides() {
+    let mesh = procedural::block_tet([0.0; 3], [1.0; 3], [4, 4, 2]);
+    // along the node layer y = 0.5: every cell touches the plane with a face, an edge or a
+    // vertex and none is divided
+    let along = stroke(&mesh, &[-0.1, 1.1], 0.5, 0.0, -0.5);
+    assert!(along.cut_cells().is_empty(), "{:?}", along.cut_cells());
+    // through the nodes (0, 0.25, ·) and (1, 0.75, ·) diagonally: it cuts exactly the cells
+    // it divides, those it passes by a vertex or an edge stay whole
+    let (y0, slope) = (0.25, 0.5);
+    let diagonal = stroke(&mesh, &[-0.1, 1.1], y0, slope, -0.5);
+    let divided: BTreeSet<usize> = (0..mesh.n_cells()).filter(|&c| divides(&mesh, c, y0, slope)).collect();
+    assert_eq!(set(&diagonal), divided);
+    // two strokes meeting at a point: each cuts its own cells
+    let mut cross = stroke(&mesh, &[-0.1, 0.5], 0.53, 0.0, -0.5);
+    let (t0, b0) = ([0.5, -0.1, -0.5], [0.5, -0.1, 1.5]);
+    let (t1, b1) = ([0.5, 0.53, -0.5], [0.5, 0.53, 1.5]);
+    cross.sweep(&mesh, t0, b0, t1, b1);
+    assert!(!cross.cut_cells().is_empty());
+    // a blade that does not move cuts nothing
+    let mut still = ProgressiveCut::new(&mesh).unwrap();
+    let (t, b) = blade(0.5, 0.53, 0.0, -0.5);
+    assert!(still.sweep(&mesh, t, b, t, b).is_empty());
+    // hexahedra are refused
+    let hexes = procedural::block_hex([0.0; 3], [1.0; 3], [1, 1, 1]);
+    assert!(matches!(ProgressiveCut::new(&hexes), Err(NotTetrahedra(_))));
+}
