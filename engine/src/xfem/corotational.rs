@@ -96,7 +96,8 @@ pub struct CorotationalSettings {
     /// Load steps.
     pub steps: usize,
     /// Convergence: the residual's norm below this fraction of the external and reaction
-    /// forces'.
+    /// forces' (or, when both vanish — a piece turned free of stress —, of the largest
+    /// unbalance a load step started with).
     pub tolerance: f64,
     /// Most iterations per step.
     pub max_iterations: usize,
@@ -401,6 +402,7 @@ impl CorotationalXfem {
         let mut symbolic = None;
         let steps = settings.steps.max(1);
         let mut r = vec![0.0; self.dofs.n_free()];
+        let mut unbalance = 0.0f64;
         for step in 1..=steps {
             let lambda = step as f64 / steps as f64;
             prescribed(lambda, &mut target);
@@ -425,6 +427,12 @@ impl CorotationalXfem {
                         None => scale2 += (f[k] - ext) * (f[k] - ext),
                     }
                 }
+                // the scale: external and reaction forces, or — for a motion that ends free of
+                // stress, with neither — the largest unbalance a load step started with
+                if it == 0 {
+                    unbalance = unbalance.max(r2);
+                }
+                let scale2 = scale2.max(unbalance);
                 residual = (r2 / scale2.max(f64::MIN_POSITIVE)).sqrt();
                 if !residual.is_finite() {
                     return Err(XfemError::NonFinite.into());

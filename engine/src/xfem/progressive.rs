@@ -226,6 +226,42 @@ impl ProgressiveCut {
         self.cells.iter().filter(|(c, _)| !self.is_cut[**c]).map(|(c, x)| (*c, x))
     }
 
+    /// The plane of every cut cell, for the enrichment
+    /// ([`super::Enrichment::from_cut_cells`]): the least-squares plane through its crossing
+    /// points and the vertices the blade passed through (the normal, the direction of least
+    /// spread, turned to make its largest component positive).
+    pub fn cut_planes(&self, mesh: &Mesh) -> Vec<(usize, super::Plane)> {
+        self.cut
+            .iter()
+            .map(|&c| {
+                let x = &self.cells[&c];
+                let cell = mesh.cell(c);
+                let points: Vec<[f64; 3]> = x
+                    .edges
+                    .values()
+                    .copied()
+                    .chain((0..4).filter(|&v| x.on_blade[v]).map(|v| mesh.nodes[cell[v]]))
+                    .collect();
+                let n = points.len() as f64;
+                let centre: [f64; 3] = std::array::from_fn(|k| points.iter().map(|p| p[k]).sum::<f64>() / n);
+                let mut m = nalgebra::Matrix3::zeros();
+                for p in &points {
+                    let d = nalgebra::Vector3::new(p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]);
+                    m += d * d.transpose();
+                }
+                let eig = m.symmetric_eigen();
+                let k = (0..3)
+                    .min_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]))
+                    .expect("three eigenvalues");
+                let v = eig.eigenvectors.column(k);
+                let big = (0..3).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs())).expect("three components");
+                let sign = if v[big] < 0.0 { -1.0 } else { 1.0 };
+                let normal = [sign * v[0], sign * v[1], sign * v[2]];
+                (c, super::Plane { point: centre, normal })
+            })
+            .collect()
+    }
+
     /// The crossings of cell `c`, if the blade reached it.
     pub fn crossings(&self, c: usize) -> Option<&Crossings> {
         self.cells.get(&c)
