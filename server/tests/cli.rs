@@ -486,3 +486,21 @@ fn bench_tear_json_is_json_and_measures_the_pulls_across_the_load() {
     }
     assert!(stderr(&o).contains("plots:"), "the plots' paths go to stderr");
 }
+
+#[test]
+fn bench_corot_times_an_iteration_with_and_without_cuts() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["bench", "corot", "--cuts", "0,10", "--iterations", "2", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is one JSON document");
+    let rows = r["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2, "{r}");
+    assert_eq!((rows[0]["cut_cells"].as_u64(), rows[1]["cut_cells"].as_u64()), (Some(0), Some(10)));
+    assert!(rows[1]["enriched_nodes"].as_u64().unwrap() > 0 && rows[1]["sides"].as_u64() > rows[0]["sides"].as_u64());
+    for row in rows {
+        let t = row["iteration_ms"].as_f64().unwrap();
+        assert!(t > 0.0 && t.is_finite(), "{row}");
+    }
+    let o = vademecum(&["bench", "corot", "--iterations", "0"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("--iterations"), "{}", stderr(&o));
+}

@@ -317,8 +317,9 @@ impl CorotationalXfem {
         f
     }
 
-    /// The warped stiffness at `d` over the free generalized dofs (module docs).
-    fn tangent(&self, d: &[f64]) -> SymmetricMatrix {
+    /// The warped stiffness `Σ_s T_sᵀ R_s K_s R_sᵀ T_s` at `d` over the free generalized dofs
+    /// (module docs): what each equilibrium iteration factors.
+    pub fn tangent(&self, d: &[f64]) -> SymmetricMatrix {
         let npc = self.mesh.kind.nodes_per_cell();
         let nd = 3 * npc;
         let mut k = SymmetricMatrix::zeros(self.pattern.clone());

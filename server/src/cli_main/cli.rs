@@ -401,6 +401,15 @@ step, and the load against the load-weighted displacement (for cube_shear: the s
 curve).\n\n\
 Default scene: the built-in cube_tear; also --builtin cube_shear and --builtin gallbladder_fat.")]
     Tear(BenchTearArgs),
+    /// One equilibrium iteration of the co-rotational XFEM on tetrahedral meshes, with cuts.
+    #[command(long_about = "What one equilibrium iteration of the co-rotational XFEM (seed 003 §3.1; \
+docs/cutting.md) costs: the elastic forces (a polar decomposition per side of every cell), the warped \
+stiffness, its Cholesky factorization (symbolic analysis once) and the solve, p50 of --iterations \
+each, for every MESH with each number of cut cells in --cuts (the cells nearest the mesh's centre \
+that a plane through it crosses), beside a null loop.\n\n\
+Default mesh: a built-in 24 x 6 x 6 block of tetrahedra. The liver of the issue: \
+../shared/data/meshes/derived/openhelp_liver_tet_h20.msh and _h12.msh.")]
+    Corot(BenchCorotArgs),
 }
 
 /// Arguments of `vademecum bench tear`.
@@ -422,6 +431,22 @@ pub struct BenchTearArgs {
     /// seed's Simó law and the threshold/softening form through its peak); writes this SVG.
     #[arg(long, value_name = "SVG", conflicts_with = "scene")]
     pub closed_form: Option<PathBuf>,
+    /// Print the results as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `vademecum bench corot`.
+#[derive(Debug, Args)]
+pub struct BenchCorotArgs {
+    /// Tetrahedral meshes (Gmsh, VTK). Default: a built-in block.
+    pub meshes: Vec<PathBuf>,
+    /// Cut cells to time with.
+    #[arg(long, value_delimiter = ',', default_values_t = vec![0, 10, 50, 200])]
+    pub cuts: Vec<usize>,
+    /// Timed calls of each part.
+    #[arg(long, default_value_t = 10)]
+    pub iterations: usize,
     /// Print the results as JSON.
     #[arg(long)]
     pub json: bool,

@@ -2,6 +2,7 @@
 
 mod bench;
 mod bench_anm;
+mod bench_corot;
 mod bench_cube;
 mod bench_cut;
 mod bench_cut_session;
@@ -42,6 +43,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Efg(a)) => bench_efg::run(a),
         Command::Bench(BenchCommand::Cut(a)) => bench_cut::run(a),
         Command::Bench(BenchCommand::Tear(a)) => bench_tear::run(a),
+        Command::Bench(BenchCommand::Corot(a)) => bench_corot::run(a),
     }
 }
 
