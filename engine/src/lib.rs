@@ -16,6 +16,7 @@
 //!   the asymptotic numerical method).
 //! - [`pipeline`]: one simulation tick — tool state → contact → the scene's effects → force.
 //! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
+//! - [`vec3`]: `[f64; 3]` arithmetic for the geometry of cuts, contacts and surfaces.
 //! - [`xfem`]: cutting by XFEM (cracking nodes, shifted Heaviside): the full-order reference.
 //! - [`bundle`]: the on-disk form of built vademecums (manifest + `.npy` + checksums).
 //! - [`scene`]: scene files (TOML), their validation, and the static problem they describe.
@@ -38,4 +39,5 @@ pub mod pipeline;
 pub mod rom;
 pub mod scene;
 pub mod solve;
+pub mod vec3;
 pub mod xfem;

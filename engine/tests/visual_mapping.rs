@@ -82,19 +82,7 @@ fn cut_through_every_vertex_follows_its_own_side() {
         let (q, t) = if positive { (&q1, t1) } else { (&q2, t2) };
         affine(&(q - Matrix3::identity()), t, x)
     };
-    let n = mesh.n_nodes();
-    let mut d = vec![0.0; 3 * (n + enr.len())];
-    for (a, &x) in mesh.nodes.iter().enumerate() {
-        d[3 * a..3 * a + 3].copy_from_slice(&motion(plane.phi(x) > 0.0, x));
-    }
-    for (k, &a) in enr.nodes.iter().enumerate() {
-        let own = enr.planes[k].phi(mesh.nodes[a]) > 0.0;
-        let other = motion(!own, mesh.nodes[a]);
-        let h = enr.shifted(k, !own);
-        for i in 0..3 {
-            d[3 * (n + k) + i] = (other[i] - d[3 * a + i]) / h;
-        }
-    }
+    let d = common::two_sides::displacements(&mesh, &enr, &plane, motion);
     let mut e = Embedding::new(&mesh, &visual.vertices).unwrap();
     let moved = e.follow_cut(&mesh, &enr, &visual.vertices);
     let mut u = vec![0.0; 3 * visual.vertices.len()];

@@ -2,6 +2,7 @@
 //! normals, triangle neighbourhoods and a grid that also knows inside from outside.
 
 use super::grid::{CellClass, Grid};
+use crate::vec3::{cross, dot, sub};
 
 /// A point on a surface triangle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -46,15 +47,6 @@ fn clamp_weights(w: [f64; 3]) -> [f64; 3] {
     if sum > 0.0 { w.map(|x| x / sum) } else { [1.0 / 3.0; 3] }
 }
 
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
 fn unit(a: [f64; 3]) -> Option<[f64; 3]> {
     let l = dot(a, a).sqrt();
     (l > 0.0 && l.is_finite()).then(|| a.map(|x| x / l))

@@ -29,6 +29,8 @@
 //! signed level-set value (the seed's `±ε`): here they carry a *sight* position shifted by
 //! `±ε n`, used only for the criterion.
 
+use crate::vec3::{add, cross, dot, norm, scale, sub};
+
 /// Why a cut could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CutError {
@@ -78,30 +80,6 @@ pub struct Facet {
     pub length: f64,
     /// Whether the end of this facet is the open tip of the cut (2D).
     pub open_end: bool,
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
 impl Facet {

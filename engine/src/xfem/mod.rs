@@ -23,6 +23,7 @@
 //!   detached pieces, and the static solve.
 //! - [`view`]: the mesh split along a cut, for viewers and recordings.
 //! - [`visual`]: visual surfaces embedded in the tetrahedra, following each side of a cut.
+//! - [`visual_split`]: a visual surface split along a cut and closed by the cut faces.
 
 pub mod blade;
 pub mod corotational;
@@ -34,6 +35,7 @@ pub mod subcell;
 pub mod system;
 pub mod view;
 pub mod visual;
+pub mod visual_split;
 
 pub use enrichment::{Detached, Enrichment, EnrichmentError, XfemParams};
 pub use subcell::Plane;

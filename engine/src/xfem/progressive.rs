@@ -16,6 +16,7 @@
 use std::collections::BTreeMap;
 
 use crate::mesh::{CellKind, Mesh};
+use crate::vec3::{cross, dot, sub};
 
 /// The six edges of a tetrahedron (local vertex pairs).
 pub const TET_EDGES: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];
@@ -83,18 +84,6 @@ pub struct ProgressiveCut {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
 #[error("semi-progressive cutting works on tetrahedra; this mesh has {0:?} cells")]
 pub struct NotTetrahedra(pub CellKind);
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 
 /// Where the segment `p → q` meets the triangle `t`: the parameter along the segment, or
 /// `None` (Möller–Trumbore; a segment in the triangle's plane meets nothing).
@@ -242,22 +231,7 @@ impl ProgressiveCut {
                     .copied()
                     .chain((0..4).filter(|&v| x.on_blade[v]).map(|v| mesh.nodes[cell[v]]))
                     .collect();
-                let n = points.len() as f64;
-                let centre: [f64; 3] = std::array::from_fn(|k| points.iter().map(|p| p[k]).sum::<f64>() / n);
-                let mut m = nalgebra::Matrix3::zeros();
-                for p in &points {
-                    let d = nalgebra::Vector3::new(p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]);
-                    m += d * d.transpose();
-                }
-                let eig = m.symmetric_eigen();
-                let k = (0..3)
-                    .min_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]))
-                    .expect("three eigenvalues");
-                let v = eig.eigenvectors.column(k);
-                let big = (0..3).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs())).expect("three components");
-                let sign = if v[big] < 0.0 { -1.0 } else { 1.0 };
-                let normal = [sign * v[0], sign * v[1], sign * v[2]];
-                (c, super::Plane { point: centre, normal })
+                (c, fit_plane(&points))
             })
             .collect()
     }
@@ -265,5 +239,28 @@ impl ProgressiveCut {
     /// The crossings of cell `c`, if the blade reached it.
     pub fn crossings(&self, c: usize) -> Option<&Crossings> {
         self.cells.get(&c)
+    }
+}
+
+/// The least-squares plane through `points` (at least three): through their centre, the normal
+/// the direction of least spread, turned to make its largest component positive.
+pub fn fit_plane(points: &[[f64; 3]]) -> super::Plane {
+    let n = points.len().max(1) as f64;
+    let centre: [f64; 3] = std::array::from_fn(|k| points.iter().map(|p| p[k]).sum::<f64>() / n);
+    let mut m = nalgebra::Matrix3::zeros();
+    for p in points {
+        let d = nalgebra::Vector3::new(p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]);
+        m += d * d.transpose();
+    }
+    let eig = m.symmetric_eigen();
+    let k = (0..3)
+        .min_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]))
+        .unwrap_or(0);
+    let v = eig.eigenvectors.column(k);
+    let big = (0..3).max_by(|&a, &b| v[a].abs().total_cmp(&v[b].abs())).unwrap_or(0);
+    let sign = if v[big] < 0.0 { -1.0 } else { 1.0 };
+    super::Plane {
+        point: centre,
+        normal: [sign * v[0], sign * v[1], sign * v[2]],
     }
 }

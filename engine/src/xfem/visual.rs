@@ -25,14 +25,19 @@
 //! re-associates "the visual points connected with the discontinuous elements"
 //! ([`Embedding::follow_cut`]).
 //!
-//! Not built yet (issue 16): splitting the visual surface along the cut and closing each side
-//! with the triangulated cut faces.
+//! # Split surfaces
+//! A surface split along the cut ([`super::visual_split`]) has vertices on the cut plane that
+//! belong to one side (the two copies of an opened vertex) or to both (where it closes): their
+//! side is given ([`Embedding::with_sides`]), not read from their position. A vertex of a given
+//! side whose cell is not cut moves to the nearest cut cell, which carries both sides; one
+//! following both sides takes their mean.
 
 use std::path::Path;
 
 use crate::mesh::{CellKind, Mesh};
 
 use super::enrichment::Enrichment;
+use super::visual_split::VertexSide;
 
 /// A visual (or collision) surface: vertices (m) and triangles.
 #[derive(Debug, Clone, PartialEq)]
@@ -170,6 +175,8 @@ pub struct Embedding {
     /// How far outside its cell each vertex lies, as the most negative barycentric coordinate
     /// (0 inside).
     pub outside: Vec<f64>,
+    /// The side of a cut each vertex follows ([`VertexSide::Own`] unless given).
+    pub side: Vec<VertexSide>,
 }
 
 /// Barycentric coordinates of `p` in the tetrahedron `x`.
@@ -233,6 +240,7 @@ impl Embedding {
             cell: Vec::with_capacity(vertices.len()),
             bary: Vec::with_capacity(vertices.len()),
             outside: Vec::with_capacity(vertices.len()),
+            side: vec![VertexSide::Own; vertices.len()],
         };
         for &p in vertices {
             let bucket = &grid[(slot(p, 0) * cells_per_axis + slot(p, 1)) * cells_per_axis + slot(p, 2)];
@@ -251,6 +259,16 @@ impl Embedding {
             e.outside.push((-worst).max(0.0));
         }
         Ok(e)
+    }
+
+    /// The same embedding, each vertex following the side given (a split surface's,
+    /// [`super::visual_split::SplitSurface::side`]); the sides are those of the vertices, in
+    /// order (missing ones follow their own).
+    pub fn with_sides(mut self, side: &[VertexSide]) -> Self {
+        for (s, &given) in self.side.iter_mut().zip(side) {
+            *s = given;
+        }
+        self
     }
 
     /// Re-associates, after the cut `enr`, every vertex whose cell is not cut (it carries one
@@ -276,6 +294,7 @@ impl Embedding {
             if mesh.cell(host).iter().all(|&a| enr.index(a).is_some()) {
                 continue; // a cut cell: it carries both sides
             }
+            let given = matches!(self.side[v], VertexSide::Positive | VertexSide::Negative);
             let own = centroid(host);
             let reach = 4.0 * dist2(p, own);
             let Some((_, c, plane)) = cut
@@ -285,7 +304,7 @@ impl Embedding {
             else {
                 continue;
             };
-            if (plane.phi(p) > 0.0) != (plane.phi(own) > 0.0) {
+            if given || (plane.phi(p) > 0.0) != (plane.phi(own) > 0.0) {
                 mesh.cell_coords(*c, &mut x);
                 let l = barycentric(&x, p);
                 self.cell[v] = *c;
@@ -307,7 +326,12 @@ impl Embedding {
             for (a, &node) in mesh.cell(c).iter().enumerate() {
                 let mut p = [d[3 * node], d[3 * node + 1], d[3 * node + 2]];
                 if let Some(k) = enr.index(node) {
-                    let s = enr.shifted(k, enr.planes[k].phi(vertices[v]) > 0.0);
+                    let s = match self.side[v] {
+                        VertexSide::Own => enr.shifted(k, enr.planes[k].phi(vertices[v]) > 0.0),
+                        VertexSide::Positive => enr.shifted(k, true),
+                        VertexSide::Negative => enr.shifted(k, false),
+                        VertexSide::Mean => 0.5 * (enr.shifted(k, true) + enr.shifted(k, false)),
+                    };
                     for i in 0..3 {
                         p[i] += s * d[3 * (n + k) + i];
                     }

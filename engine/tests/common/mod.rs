@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod mutate;
+pub mod two_sides;
 
 use std::path::PathBuf;
 
