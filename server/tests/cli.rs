@@ -498,8 +498,8 @@ fn bench_corot_times_an_iteration_with_and_without_cuts() {
     assert_eq!((rows[0]["cut_cells"].as_u64(), rows[1]["cut_cells"].as_u64()), (Some(0), Some(10)));
     assert!(rows[1]["enriched_nodes"].as_u64().unwrap() > 0 && rows[1]["sides"].as_u64() > rows[0]["sides"].as_u64());
     for row in rows {
-        let t = row["iteration_ms"].as_f64().unwrap();
-        assert!(t > 0.0 && t.is_finite(), "{row}");
+        let (t, frame) = (row["iteration_ms"].as_f64().unwrap(), row["frame_ms"].as_f64().unwrap());
+        assert!(t > 0.0 && t.is_finite() && frame > 0.0 && frame.is_finite(), "{row}");
     }
     let o = vademecum(&["bench", "corot", "--iterations", "0"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("--iterations"), "{}", stderr(&o));

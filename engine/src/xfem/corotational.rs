@@ -77,6 +77,9 @@ struct Side {
     k: Vec<f64>,
 }
 
+/// Sides per parallel chunk of the force evaluation.
+const FORCE_CHUNK: usize = 2048;
+
 /// The co-rotational XFEM model of a cut organ.
 #[derive(Debug, Clone)]
 pub struct CorotationalXfem {
@@ -280,11 +283,26 @@ impl CorotationalXfem {
     /// The elastic forces `f_int(d)` on every generalized degree of freedom (module docs; full
     /// length; on constrained dofs, `f_int − f_ext` is the reaction).
     pub fn internal_forces(&self, d: &[f64]) -> Vec<f64> {
+        use rayon::prelude::*;
+        // fixed chunks of sides in parallel, their sums added in order: the same bits every run
+        let parts: Vec<Vec<f64>> = self.sides.par_chunks(FORCE_CHUNK).map(|sides| self.side_forces(sides, d)).collect();
+        let mut parts = parts.into_iter();
+        let mut f = parts.next().unwrap_or_else(|| vec![0.0; d.len()]);
+        for part in parts {
+            for (a, b) in f.iter_mut().zip(&part) {
+                *a += b;
+            }
+        }
+        f
+    }
+
+    /// The elastic forces of `sides` (type docs), over every generalized dof.
+    fn side_forces(&self, sides: &[Side], d: &[f64]) -> Vec<f64> {
         let npc = self.mesh.kind.nodes_per_cell();
         let nd = 3 * npc;
         let mut f = vec![0.0; d.len()];
         let (mut p, mut e, mut fl) = ([[0.0; 3]; 8], vec![0.0; nd], vec![0.0; nd]);
-        for side in &self.sides {
+        for side in sides {
             self.virtual_nodes(side, d, &mut p);
             let r = polar_rotation(&self.gradient(side, &p));
             let cell = self.mesh.cell(side.cell);
@@ -415,19 +433,7 @@ impl CorotationalXfem {
             let mut done = None;
             let mut residual = f64::INFINITY;
             for it in 0..=settings.max_iterations {
-                let f = self.internal_forces(&d);
-                let (mut r2, mut scale2) = (0.0, 0.0);
-                for k in 0..nd {
-                    let ext = lambda * self.forces[k];
-                    match self.dofs.eq(k) {
-                        Some(e) => {
-                            r[e] = ext - f[k];
-                            r2 += r[e] * r[e];
-                            scale2 += ext * ext;
-                        }
-                        None => scale2 += (f[k] - ext) * (f[k] - ext),
-                    }
-                }
+                let (r2, scale2) = self.residual(&d, lambda, &mut r);
                 // the scale: external and reaction forces, or — for a motion that ends free of
                 // stress, with neither — the largest unbalance a load step started with
                 if it == 0 {
@@ -445,12 +451,7 @@ impl CorotationalXfem {
                 if it == settings.max_iterations {
                     break;
                 }
-                let k = self.tangent(&d);
-                let chol = match symbolic.take() {
-                    Some(s) => Cholesky::factor_with(s, &k),
-                    None => Cholesky::factor(&k),
-                }
-                .map_err(XfemError::from)?;
+                let chol = self.factor_at(&d, symbolic.take())?;
                 symbolic = Some(chol.symbolic().clone());
                 chol.solve_in_place(&mut r);
                 for (k, v) in d.iter_mut().enumerate() {
@@ -473,6 +474,47 @@ impl CorotationalXfem {
         Ok(CorotationalSolution { d, iterations })
     }
 
+    /// The free dofs' residual `r = λ f_ext − f_int(d)` into `r`; returns `|r|²` and the
+    /// square of its scale: the external and reaction forces' norm.
+    fn residual(&self, d: &[f64], lambda: f64, r: &mut [f64]) -> (f64, f64) {
+        let f = self.internal_forces(d);
+        let (mut r2, mut scale2) = (0.0, 0.0);
+        for (k, &fk) in f.iter().enumerate() {
+            let ext = lambda * self.forces[k];
+            match self.dofs.eq(k) {
+                Some(e) => {
+                    r[e] = ext - fk;
+                    r2 += r[e] * r[e];
+                    scale2 += ext * ext;
+                }
+                None => scale2 += (fk - ext) * (fk - ext),
+            }
+        }
+        (r2, scale2)
+    }
+
+    /// The Cholesky factor of the warped stiffness at `d` (on the free dofs), reusing a
+    /// symbolic analysis when given: what a frame thread's model takes from a slower thread
+    /// ([`Frames::install`]).
+    pub fn factor_at(&self, d: &[f64], symbolic: Option<faer::sparse::linalg::solvers::SymbolicLlt<usize>>) -> Result<Cholesky, XfemError> {
+        let k = self.tangent(d);
+        Ok(match symbolic {
+            Some(s) => Cholesky::factor_with(s, &k),
+            None => Cholesky::factor(&k),
+        }?)
+    }
+
+    /// The deformation advanced frame by frame from rest ([`Frames`]).
+    pub fn frames(&self) -> Frames<'_> {
+        Frames {
+            model: self,
+            d: vec![0.0; self.dofs.n_dofs()],
+            factor: None,
+            r: vec![0.0; self.dofs.n_free()],
+            unbalance: 0.0,
+        }
+    }
+
     /// The reference and deformed volumes of the cells for which `which(cell)` holds, under
     /// `d`: `Σ_s V_s` and `Σ_s det(F_s) V_s` over their sides (exact for tetrahedra, the
     /// mean gradient's for hexahedra).
@@ -488,5 +530,109 @@ impl CorotationalXfem {
     /// The generalized displacements of a linear XFEM solution, in this model's order.
     pub fn of_linear(solution: &system::XfemSolution) -> Vec<f64> {
         solution.u.iter().chain(&solution.q).copied().collect()
+    }
+}
+
+/// The co-rotational deformation advanced one frame at a time, at the rate a frame thread
+/// sustains (the multi-rate framework of seed 003 §4): each frame evaluates the co-rotational
+/// forces at the current state and corrects it once with a factor of the warped stiffness kept
+/// across frames,
+///
+/// `K_w(d_f) δ = λ f_ext − f_int(d)`, `d ← d + δ`,
+///
+/// `d_f` the state the factor was made at. This is a modified Newton iteration: its fixed
+/// point is the exact equilibrium of `f_int` whatever `d_f`, and it converges linearly while
+/// the rotations at `d` stay near those at `d_f`. The factorization — most of an iteration's
+/// cost — is made off the frame thread from a recent state
+/// ([`CorotationalXfem::factor_at`]) and installed when it lands ([`Frames::install`]).
+///
+/// A correction is kept only if it lowers the residual (one more evaluation of the forces);
+/// otherwise the frame factors at its own state — with no factor installed yet, or when the
+/// state has turned too far from the factor's: for a slender part, whose axial stiffness the
+/// warped stiffness turns into its bending directions, a few degrees suffice to make the stale
+/// correction grow the residual.
+#[derive(Debug)]
+pub struct Frames<'m> {
+    model: &'m CorotationalXfem,
+    d: Vec<f64>,
+    factor: Option<Cholesky>,
+    r: Vec<f64>,
+    unbalance: f64,
+}
+
+/// What one frame did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameReport {
+    /// The residual's norm before the correction, relative to the external and reaction
+    /// forces' (or to the largest unbalance seen, when both vanish).
+    pub residual: f64,
+    /// Whether the frame had to factor: no factor installed yet, or the kept one's correction
+    /// did not lower the residual (the state has turned too far from the factor's).
+    pub factored: bool,
+}
+
+impl Frames<'_> {
+    /// The current generalized displacements.
+    pub fn d(&self) -> &[f64] {
+        &self.d
+    }
+
+    /// Installs a new factor of the warped stiffness (made by [`CorotationalXfem::factor_at`],
+    /// typically on another thread from a recent [`Frames::d`]); the next frames correct with it.
+    pub fn install(&mut self, factor: Cholesky) {
+        self.factor = Some(factor);
+    }
+
+    /// The symbolic analysis of the installed factor, for the next one.
+    pub fn symbolic(&self) -> Option<faer::sparse::linalg::solvers::SymbolicLlt<usize>> {
+        self.factor.as_ref().map(|f| f.symbolic().clone())
+    }
+
+    /// `d ← d + K⁻¹ r` on the free dofs, `r` the residual in `self.r`.
+    fn correct(&mut self, factor: &Cholesky) {
+        factor.solve_in_place(&mut self.r);
+        for (k, v) in self.d.iter_mut().enumerate() {
+            if let Some(e) = self.model.dofs.eq(k) {
+                *v += self.r[e];
+            }
+        }
+    }
+
+    /// One frame at load factor `lambda` with the constrained dofs at `prescribed` (full
+    /// length; read on constrained dofs only): the residual, then one correction with the kept
+    /// factor (type docs).
+    pub fn step(&mut self, lambda: f64, prescribed: &[f64]) -> Result<FrameReport, CorotationalError> {
+        let dofs = &self.model.dofs;
+        for (k, v) in self.d.iter_mut().enumerate() {
+            if dofs.eq(k).is_none() {
+                *v = prescribed[k];
+            }
+        }
+        let (r2, scale2) = self.model.residual(&self.d, lambda, &mut self.r);
+        self.unbalance = self.unbalance.max(r2);
+        let residual = (r2 / scale2.max(self.unbalance).max(f64::MIN_POSITIVE)).sqrt();
+        if !residual.is_finite() {
+            return Err(XfemError::NonFinite.into());
+        }
+        // the correction with the kept factor, kept if it lowers the residual; otherwise (or
+        // with no factor yet) a factor made here, at the current state
+        let before = self.d.clone();
+        let mut factored = self.factor.is_none();
+        if let Some(factor) = self.factor.take() {
+            self.correct(&factor);
+            self.factor = Some(factor);
+            let (after, _) = self.model.residual(&self.d, lambda, &mut self.r);
+            if after >= r2 {
+                self.d.copy_from_slice(&before);
+                self.model.residual(&self.d, lambda, &mut self.r);
+                factored = true;
+            }
+        }
+        if factored {
+            let factor = self.model.factor_at(&self.d, self.symbolic())?;
+            self.correct(&factor);
+            self.factor = Some(factor);
+        }
+        Ok(FrameReport { residual, factored })
     }
 }
