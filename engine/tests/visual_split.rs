@@ -271,6 +271,22 @@ fn no_cut_cell_leaves_the_surface_as_it_was_but_split_along_the_plane() {
     assert_eq!((split.report.cap_triangles, split.report.doubled_vertices), (0, 0));
     let bad = visual_split::split(&surface, &mesh, &x_plane(0.5), &[10_000]).unwrap_err();
     assert!(matches!(bad, SplitError::Cell { cell: 10_000, .. }), "{bad}");
+    let flat = Plane {
+        point: [0.5; 3],
+        normal: [0.0; 3],
+    };
+    assert!(matches!(
+        visual_split::split(&surface, &mesh, &flat, &[]),
+        Err(SplitError::Malformed(_))
+    ));
+    let nan = VisualMesh {
+        vertices: vec![[f64::NAN; 3]; 3],
+        triangles: vec![[0, 1, 2]],
+    };
+    assert!(matches!(
+        visual_split::split(&nan, &mesh, &x_plane(0.5), &[]),
+        Err(SplitError::Malformed(_))
+    ));
     let hexes = procedural::block_hex([0.0; 3], [1.0; 3], [1, 1, 1]);
     assert!(matches!(
         visual_split::split(&surface, &hexes, &x_plane(0.5), &[]),

@@ -115,6 +115,10 @@ pub enum SplitError {
         /// The tolerance (1 % of the mean cut cell's size).
         tolerance: f64,
     },
+    /// The surface or the plane is malformed (an empty or non-finite surface, a plane
+    /// without a finite normal).
+    #[error("cannot split: {0}")]
+    Malformed(String),
     /// The plane's triangulation could not be built (degenerate geometry).
     #[error("the cut faces could not be triangulated: {0}")]
     Triangulation(String),
@@ -535,7 +539,13 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
             cells: mesh.n_cells(),
         });
     }
+    visual.check().map_err(|e| SplitError::Malformed(e.to_string()))?;
     let l = dot(plane.normal, plane.normal).sqrt();
+    if !(l > 0.0 && l.is_finite() && plane.point.iter().all(|x| x.is_finite())) {
+        return Err(SplitError::Malformed(format!(
+            "the cut plane {plane:?} has no finite normal or point"
+        )));
+    }
     let plane = Plane {
         point: plane.point,
         normal: [plane.normal[0] / l, plane.normal[1] / l, plane.normal[2] / l],
