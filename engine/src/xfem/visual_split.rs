@@ -17,10 +17,13 @@
 //!    tetrahedra), nearest to a cut cell's cross-section rather than an uncut one's.
 //! 3. The contour edges bordering the cap are *opened*: their vertices get a second copy for
 //!    the negative side's triangles, unless the vertex also borders an edge that stays closed
-//!    (where the cut's edge comes out through the surface: the slit ends there).
+//!    (where the cut's edge comes out through the surface: the slit ends there) or lies on the
+//!    front. The cap's inner points get one copy per side, its front points one for both.
 //! 4. The cap is added twice: on the positive side with the positive copies, facing `−n` (out
 //!    of the material above the plane), and on the negative side, facing `+n`. Where the cut
 //!    ends inside the surface (its front), both caps share the front's vertices and edges.
+//!    An edge that parts (opened, or inside the cap) with both ends shared — the front crossing
+//!    the contour twice, or running across the cap — parts at a midpoint with a copy per side.
 //!
 //! Every edge of `M'` is then shared by exactly two triangles traversing it in opposite
 //! directions, as in `M`: a closed, consistently oriented 2-manifold (at rest its two caps lie
