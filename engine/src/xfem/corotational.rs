@@ -41,9 +41,9 @@ use nalgebra::Matrix3;
 use super::enrichment::Enrichment;
 use super::system::{self, XfemError, generalized_cell, moment_block, side_moments};
 use crate::fem::assembly::{self, DofMap, MaterialMap, SymmetricMatrix, SymmetricPattern};
-use crate::fem::linear_static::{StaticError, StaticProblem};
+use crate::fem::linear_static::StaticProblem;
 use crate::mesh::Mesh;
-use crate::solve::{self, Cholesky};
+use crate::solve::Cholesky;
 
 /// Why a co-rotational solve failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -150,23 +150,7 @@ impl CorotationalXfem {
     pub fn new(mesh: &Mesh, materials: &MaterialMap, problem: &StaticProblem, enr: &Enrichment) -> Result<Self, XfemError> {
         let n = mesh.n_nodes();
         let ng = n + enr.len();
-        let supported = problem.supported();
-        if !supported.iter().any(|c| *c) {
-            return Err(StaticError::NoConstraints.into());
-        }
-        let free = solve::free_rigid_motions(&mesh.nodes, &supported);
-        if !free.is_empty() {
-            return Err(StaticError::RigidMotion { free }.into());
-        }
-        let mut constrained = problem.constrained.clone();
-        let mut prescribed = problem.prescribed.clone();
-        for &a in &enr.nodes {
-            for i in 0..3 {
-                constrained.push(problem.constrained[3 * a + i]);
-                prescribed.push(0.0);
-            }
-        }
-        let dofs = DofMap::new(&constrained);
+        let system::Generalized { prescribed, dofs, .. } = system::generalized_dofs(mesh, problem, enr)?;
         let npc = mesh.kind.nodes_per_cell();
         let (mut cell_nodes, mut local) = (Vec::new(), Vec::new());
         let mut adj: Vec<Vec<usize>> = vec![Vec::new(); ng];

@@ -384,6 +384,46 @@ pub struct ExtendedSystem {
     pub detached: Vec<Piece>,
 }
 
+/// The generalized degrees of freedom of `problem` cut by `enr`: the nodes', then the
+/// enriched nodes' jumps.
+pub(super) struct Generalized {
+    /// The nodes' dofs held by a support (clamped or prescribed).
+    pub supported: Vec<bool>,
+    /// Every generalized dof's constraint: a jump is held where its node's dof is.
+    pub constrained: Vec<bool>,
+    /// Prescribed values: the problem's, and zero jumps.
+    pub prescribed: Vec<f64>,
+    /// Their numbering.
+    pub dofs: DofMap,
+}
+
+/// [`Generalized`] of `problem` cut by `enr`, refused when the supports leave a rigid motion
+/// free (the linear and the co-rotational XFEM alike).
+pub(super) fn generalized_dofs(mesh: &Mesh, problem: &StaticProblem, enr: &Enrichment) -> Result<Generalized, XfemError> {
+    let supported = problem.supported();
+    if !supported.iter().any(|c| *c) {
+        return Err(StaticError::NoConstraints.into());
+    }
+    let free = solve::free_rigid_motions(&mesh.nodes, &supported);
+    if !free.is_empty() {
+        return Err(StaticError::RigidMotion { free }.into());
+    }
+    let mut constrained = problem.constrained.clone();
+    let mut prescribed = problem.prescribed.clone();
+    for &a in &enr.nodes {
+        for i in 0..3 {
+            constrained.push(problem.constrained[3 * a + i]);
+            prescribed.push(0.0);
+        }
+    }
+    Ok(Generalized {
+        supported,
+        dofs: DofMap::new(&constrained),
+        constrained,
+        prescribed,
+    })
+}
+
 /// Assembles the XFEM system of `problem` with the cut `enr` (module docs).
 pub fn assemble(
     mesh: &Mesh,
@@ -396,25 +436,14 @@ pub fn assemble(
     let n = mesh.n_nodes();
     let m = enr.len();
     let ng = n + m;
-    let supported = problem.supported();
-    if !supported.iter().any(|c| *c) {
-        return Err(StaticError::NoConstraints.into());
-    }
-    let free = solve::free_rigid_motions(&mesh.nodes, &supported);
-    if !free.is_empty() {
-        return Err(StaticError::RigidMotion { free }.into());
-    }
+    let Generalized {
+        supported,
+        constrained,
+        prescribed,
+        dofs,
+    } = generalized_dofs(mesh, problem, enr)?;
     let volumetric = EnrichedVolumetric::of(mesh.kind, locking);
     let patches = NodalPatches::when(mesh, volumetric == EnrichedVolumetric::Nodal).ok().flatten();
-    let mut constrained = problem.constrained.clone();
-    let mut prescribed = problem.prescribed.clone();
-    for &a in &enr.nodes {
-        for i in 0..3 {
-            constrained.push(problem.constrained[3 * a + i]);
-            prescribed.push(0.0);
-        }
-    }
-    let dofs = DofMap::new(&constrained);
     // the pattern: the uncut one (with the nodal pressure's wider reach) and the generalized cells
     let (mut cell_nodes, mut local) = (Vec::new(), Vec::new());
     let mut adj: Vec<Vec<usize>> = match &patches {
