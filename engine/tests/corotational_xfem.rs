@@ -374,7 +374,7 @@ fn frames_with_a_factor_made_frames_earlier_reach_the_solver_s_equilibrium() {
     // the cantilever bent by 45°, its end face carried along the arc over 12 frames, then held;
     // a new factor lands every 4 frames, made from the state 4 frames before (multi-rate)
     let c = Cantilever::new(45.0);
-    let model = c.model();
+    let model = std::sync::Arc::new(c.model());
     let reference = model
         .solve_path(
             &CorotationalSettings {

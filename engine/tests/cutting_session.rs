@@ -276,3 +276,98 @@ fn a_bundle_stores_the_basis_bare_enrichment_needs_and_old_bundles_still_load() 
     let e = offline::load_bundle(old.path()).unwrap_err().to_string();
     assert!(e.contains("version 99") && e.contains("rebuild"), "{e}");
 }
+
+/// `patch_cut` with co-rotational cutting (seed 003), without its load (the co-rotational
+/// deformation carries the scene's loads; here only the blade's).
+fn corotational_patch_cut() -> (Scene, Arc<LoadedBundle>) {
+    let text = Scene::builtin("patch_cut")
+        .unwrap()
+        .source
+        .replace("force = [0.0, 0.0, -1.0]", "force = [0.0, 0.0, 0.0]")
+        .replace("[fidelity]\n", "[fidelity]\ncutting = \"corotational_xfem\"\n");
+    assert!(text.contains("force = [0.0, 0.0, 0.0]"));
+    let scene = Scene::from_toml(&text, "patch_cut_corot.toml").unwrap();
+    let b = bundle(&scene);
+    (scene, b)
+}
+
+#[test]
+fn co_rotational_cutting_keeps_the_reduced_force_until_a_frame_lands_then_follows_the_deformation() {
+    let (scene, b) = corotational_patch_cut();
+    let mut corot = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+    let mut linear = patch_cut();
+    assert!(linear.take_corotational().is_none());
+    let mut deformation = corot
+        .take_corotational()
+        .expect("a co-rotational scene hands its deformation to the frame thread");
+    assert!(corot.take_corotational().is_none());
+    // the flat of the blade pressed into the top, cutting nothing: until a frame lands the
+    // tick's force is the reduced model's, bit for bit
+    let mut last = TickState::default();
+    for i in 0..=14 {
+        let tool = blade(5.1 - 0.01 * f64::from(i), FLAT);
+        let (a, l) = (corot.tick(&tool), linear.tick(&tool));
+        assert_eq!(a.force_n, l.force_n, "tick {i}");
+        last = a;
+    }
+    let contact = last.contact.expect("the blade presses the patch");
+    // frames of the co-rotational deformation under that contact (the frame thread's work)
+    for _ in 0..20 {
+        deformation.step_with_picture(None, Some(&contact)).unwrap();
+    }
+    let tool = blade(5.1 - 0.14, FLAT);
+    let (a, l) = (corot.tick(&tool), linear.tick(&tool));
+    let status = corot.cut_status().unwrap();
+    assert_eq!(status.landings.load(Relaxed), 1, "the correction landed during the contact");
+    assert!(status.corrected_ticks.load(Relaxed) >= 1 && status.refused_corrections.load(Relaxed) == 0);
+    // the deformation shown is small against the patch (0.08 deep in 5): its correction moves the
+    // force by a little, and the step it made when it landed is what the status reports
+    let diff = norm(std::array::from_fn(|k| a.force_n[k] - l.force_n[k]));
+    assert!(diff > 0.0 && diff < 0.2 * norm(l.force_n), "{:?} vs {:?}", a.force_n, l.force_n);
+    let jump = status.landing_jump_max_un.load(Relaxed) as f64 * 1e-6;
+    assert!((jump - diff).abs() <= 1e-6 + 1e-9 * diff, "landing step {jump:e} vs {diff:e}");
+    assert!(deformation.frames() == 20 && deformation.revision() == 0);
+}
+
+#[test]
+fn co_rotational_cutting_and_visual_meshes_are_checked_when_the_scene_is_read() {
+    let patch_cut = Scene::builtin("patch_cut").unwrap().source;
+    let cases = [
+        // the model without cutting
+        (
+            patch_cut
+                .replace("cutting = true", "cutting = false")
+                .replace("[fidelity]\n", "[fidelity]\ncutting = \"corotational_xfem\"\n"),
+            "cutting is off",
+        ),
+        // a visual mesh in a scene that does not draw it
+        (
+            patch_cut.replace(
+                "[[organs.materials]]",
+                "[organs.visual]\nfile = \"liver.obj\"\n\n[[organs.materials]]",
+            ),
+            "co-rotational cutting sessions",
+        ),
+        // a visual mesh that is not an OBJ
+        (
+            patch_cut
+                .replace(
+                    "[[organs.materials]]",
+                    "[organs.visual]\nfile = \"liver.stl\"\n\n[[organs.materials]]",
+                )
+                .replace("[fidelity]\n", "[fidelity]\ncutting = \"corotational_xfem\"\n"),
+            ".obj",
+        ),
+        // an unknown model
+        (patch_cut.replace("[fidelity]\n", "[fidelity]\ncutting = \"magic\"\n"), "magic"),
+    ];
+    for (i, (text, says)) in cases.iter().enumerate() {
+        let e = Scene::from_toml(text, "case.toml").unwrap_err().to_string();
+        assert!(e.contains(says), "case {i}: {e}");
+    }
+    // a visual file that does not exist is reported when the session starts
+    let text = cases[2].0.replace("liver.stl", "missing.obj");
+    let scene = Scene::from_toml(&text, "case.toml").unwrap();
+    let e = scene.organ_visual(0).unwrap_err().to_string();
+    assert!(e.contains("missing.obj"), "{e}");
+}

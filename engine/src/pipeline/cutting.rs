@@ -47,6 +47,7 @@ use std::time::Duration;
 
 use crossbeam_queue::ArrayQueue;
 
+use super::corotational::{Correction, Corrections};
 use super::{Contact, Effect, Events, TickState, ToolInput, ToolKind};
 use crate::mesh::Mesh;
 use crate::pgd::Vademecum;
@@ -96,6 +97,19 @@ pub struct CutStatus {
     pub in_cut: AtomicBool,
     /// Blade states the cut thread never saw (it fell more than [`SAMPLES`] ticks behind).
     pub overwritten: AtomicU64,
+    /// Co-rotational cutting ([`super::corotational`]): ticks whose force used the rotation
+    /// correction `ΔC_rot`.
+    pub corrected_ticks: AtomicU64,
+    /// Corrections refused (the corrected compliance was not positive definite).
+    pub refused_corrections: AtomicU64,
+    /// New corrections that landed during a contact they applied to, and the step they made
+    /// in the force at that tick (µN, largest and summed): the force discontinuity of the
+    /// multi-rate coupling.
+    pub landings: AtomicU64,
+    /// The largest landing step (µN).
+    pub landing_jump_max_un: AtomicU64,
+    /// The landing steps summed (µN).
+    pub landing_jump_sum_un: AtomicU64,
     /// The cut's shape (updated by the cut thread after each cut; never read by the tick).
     pub shape: std::sync::Mutex<CutShape>,
     /// The cut as viewers draw it (updated by the cut thread after each cut; read by the
@@ -130,6 +144,8 @@ pub struct CutPicture {
     pub view: CutView,
     /// The walls of the opening.
     pub walls: CutWalls,
+    /// The cut's enrichment at that revision (its cut cells and cracked nodes).
+    pub enrichment: Arc<crate::xfem::enrichment::Enrichment>,
     /// The distinct mesh nodes of the walls, increasing.
     pub wall_nodes: Vec<usize>,
     /// Per wall vertex, its node's index in `wall_nodes`.
@@ -155,6 +171,7 @@ impl CutPicture {
             revision,
             view: model.view(),
             walls,
+            enrichment: Arc::new(model.enrichment().clone()),
             wall_nodes,
             wall_node_of,
             unknowns: model.opening_unknowns(),
@@ -233,6 +250,9 @@ pub struct Cutting {
     stroke: bool,
     stop: Arc<AtomicBool>,
     worker: Option<JoinHandle<()>>,
+    /// Co-rotational cutting: the frame thread's corrections, and the one applied last.
+    corrections: Option<Corrections>,
+    applied: Correction,
 }
 
 impl std::fmt::Debug for Cutting {
@@ -283,7 +303,16 @@ impl Cutting {
             stroke: false,
             stop,
             worker: Some(worker),
+            corrections: None,
+            applied: Correction::default(),
         }
+    }
+
+    /// The same effect taking the rotation correction of a co-rotational deformation
+    /// ([`super::corotational`]) into its force.
+    pub fn with_corrections(mut self, corrections: Corrections) -> Self {
+        self.corrections = Some(corrections);
+        self
     }
 
     /// What the cut thread has done so far.
@@ -330,16 +359,55 @@ impl Effect for Cutting {
         if self.take_fresh() {
             state.events.0 |= Events::CUT_ADVANCED;
         }
-        // the cut's compliance at the contact
-        if self.view.enriched_unknowns() > 0
+        // the co-rotational deformation's latest correction (co-rotational cutting)
+        let previous = self.applied;
+        if let Some(out) = &mut self.corrections {
+            self.applied = *out.read();
+        }
+        let rotated = self.applied.seq > 0;
+        // the cut's compliance at the contact, and the rotation's
+        if (self.view.enriched_unknowns() > 0 || rotated)
             && let Some(c) = &mut state.contact
             && c.organ == self.organ
             && c.loadable > 0.0
             && let Some(cv) = self.bundle.vademecum.compliance(c.nodes, c.weights)
         {
-            let added = self.view.added_compliance(&c.nodes, &c.weights);
-            let total: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cv[i][j] + added[i][j]));
-            let tissue = Vademecum::contact_force(&total, c.imposed_m).map(|f| c.loadable * f);
+            let added = if self.view.enriched_unknowns() > 0 {
+                self.view.added_compliance(&c.nodes, &c.weights)
+            } else {
+                [[0.0; 3]; 3]
+            };
+            let cut: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cv[i][j] + added[i][j]));
+            let force = |corr: &Correction| -> Option<[f64; 3]> {
+                if !corr.applies_to(&c.nodes) {
+                    return Some(Vademecum::contact_force(&cut, c.imposed_m).map(|f| c.loadable * f));
+                }
+                let total: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cut[i][j] + corr.delta[i][j]));
+                positive_definite(&total).then(|| Vademecum::contact_force(&total, c.imposed_m).map(|f| c.loadable * f))
+            };
+            let tissue = match force(&self.applied) {
+                Some(f) => {
+                    if self.applied.applies_to(&c.nodes) {
+                        self.status.corrected_ticks.fetch_add(1, Ordering::Relaxed);
+                    }
+                    f
+                }
+                None => {
+                    self.status.refused_corrections.fetch_add(1, Ordering::Relaxed);
+                    Vademecum::contact_force(&cut, c.imposed_m).map(|f| c.loadable * f)
+                }
+            };
+            // the force's step when a new correction lands (the multi-rate discontinuity)
+            if self.applied.seq != previous.seq
+                && self.applied.applies_to(&c.nodes)
+                && let Some(before) = force(&previous)
+            {
+                let jump = (0..3).map(|k| (tissue[k] - before[k]).powi(2)).sum::<f64>().sqrt();
+                let un = (jump * 1e6).round() as u64;
+                self.status.landings.fetch_add(1, Ordering::Relaxed);
+                self.status.landing_jump_max_un.fetch_max(un, Ordering::Relaxed);
+                self.status.landing_jump_sum_un.fetch_add(un, Ordering::Relaxed);
+            }
             for k in 0..3 {
                 state.force_n[k] += c.tissue_force_n[k] - tissue[k];
             }
@@ -380,6 +448,15 @@ impl Effect for Cutting {
     fn reset(&mut self) {
         self.stroke = false;
     }
+}
+
+/// Whether the symmetric part of the 3×3 `m` is positive definite (its leading minors).
+fn positive_definite(m: &[[f64; 3]; 3]) -> bool {
+    let s: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| 0.5 * (m[i][j] + m[j][i])));
+    let m2 = s[0][0] * s[1][1] - s[0][1] * s[1][0];
+    let m3 = s[0][0] * (s[1][1] * s[2][2] - s[1][2] * s[2][1]) - s[0][1] * (s[1][0] * s[2][2] - s[1][2] * s[2][0])
+        + s[0][2] * (s[1][0] * s[2][1] - s[1][1] * s[2][0]);
+    s[0][0] > 0.0 && m2 > 0.0 && m3 > 0.0
 }
 
 /// The cut thread's state (module docs).

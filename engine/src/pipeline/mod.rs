@@ -18,6 +18,7 @@
 //! - [`tearing`]: the grasper (seed 000 §4.6.2): grasp, pull, one POD–PGD damage step per
 //!   tick, the grasp lost when the tissue tears.
 
+pub mod corotational;
 pub mod cutting;
 pub mod palpation;
 pub mod tearing;
@@ -289,6 +290,9 @@ pub struct Pipeline {
     tear_offline: Vec<Arc<crate::damage::online::TearOffline>>,
     /// Where the grasper takes hold (tearing scenes).
     grasp_sites: Vec<GraspSite>,
+    /// The co-rotational deformation (co-rotational cutting; taken once, by the session's
+    /// frame thread).
+    corotational: Option<corotational::CorotationalDeformation>,
 }
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
@@ -381,12 +385,13 @@ impl Pipeline {
             grasp_sites = t.sites();
             effects.push(Box::new(t));
         }
-        let mut cut_status = None;
+        let (mut cut_status, mut corotational) = (None, None);
         if fx.cutting
             && let Some((_, cut_force)) = scalpel
         {
-            let c = cutting_effect(scene, &bundles[0], cut_force)?;
+            let (c, deformation) = cutting_effect(scene, &bundles[0], cut_force)?;
             cut_status = Some(c.status());
+            corotational = deformation;
             effects.push(Box::new(c));
         }
         let mut workspace = crate::contact::Bounds {
@@ -415,7 +420,14 @@ impl Pipeline {
             tear_pictures,
             tear_offline,
             grasp_sites,
+            corotational,
         })
+    }
+
+    /// The co-rotational deformation the frame thread advances (co-rotational cutting,
+    /// `fidelity.cutting = "corotational_xfem"`; `None` once taken).
+    pub fn take_corotational(&mut self) -> Option<corotational::CorotationalDeformation> {
+        self.corotational.take()
     }
 
     /// Where the grasper takes hold and which way it pulls (tearing scenes; empty
@@ -573,8 +585,14 @@ fn tearing_effect(
 }
 
 /// The cutting effect of organ 0 of `scene` (module [`cutting`]): its mesh and model from the
-/// scene, checked against the bundle, the reduced model on the bundle's modes.
-fn cutting_effect(scene: &Scene, bundle: &Arc<LoadedBundle>, cut_force: f64) -> Result<Cutting, PipelineError> {
+/// scene, checked against the bundle, the reduced model on the bundle's modes; with
+/// co-rotational cutting, also the co-rotational deformation coupled to it
+/// ([`corotational`]).
+fn cutting_effect(
+    scene: &Scene,
+    bundle: &Arc<LoadedBundle>,
+    cut_force: f64,
+) -> Result<(Cutting, Option<corotational::CorotationalDeformation>), PipelineError> {
     use crate::xfem::online::OnlineCut;
     use crate::xfem::reduced::{Discontinuous, ReducedCut};
     let fail = |message: String| PipelineError::Cutting { organ: 0, message };
@@ -634,5 +652,12 @@ fn cutting_effect(scene: &Scene, bundle: &Arc<LoadedBundle>, cut_force: f64) -> 
     }
     .map_err(|e| fail(e.to_string()))?;
     let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(fail)?;
-    Ok(Cutting::new(0, bundle.clone(), model.mesh, online, cut_force))
+    if scene.spec.fidelity.cutting != crate::scene::schema::CuttingModel::CorotationalXfem {
+        return Ok((Cutting::new(0, bundle.clone(), model.mesh, online, cut_force), None));
+    }
+    let visual = scene.organ_visual(0).map_err(|e| fail(e.to_string()))?;
+    let (deformation, corrections) =
+        corotational::CorotationalDeformation::new(0, model.mesh.clone(), model.materials, model.problem, visual).map_err(fail)?;
+    let cutting = Cutting::new(0, bundle.clone(), model.mesh, online, cut_force).with_corrections(corrections);
+    Ok((cutting, Some(deformation)))
 }

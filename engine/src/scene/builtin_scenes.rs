@@ -1,7 +1,7 @@
 //! Scenes compiled into the binary, so defaults need no files.
 
 /// Names of the built-in scenes; the first is the default.
-pub const BUILTIN_NAMES: [&str; 10] = [
+pub const BUILTIN_NAMES: [&str; 11] = [
     "organ",
     "patch",
     "cantilever",
@@ -12,6 +12,7 @@ pub const BUILTIN_NAMES: [&str; 10] = [
     "cube_tear",
     "cube_shear",
     "gallbladder_fat",
+    "liver_cut",
 ];
 
 /// The TOML text of a built-in scene.
@@ -27,6 +28,7 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "cube_tear" => CUBE_TEAR,
         "cube_shear" => CUBE_SHEAR,
         "gallbladder_fat" => GALLBLADDER_FAT,
+        "liver_cut" => LIVER_CUT,
         _ => return None,
     })
 }
@@ -543,4 +545,62 @@ tearing = true
 [fidelity.tearing]
 schedule = [{ steps = 15, scale = 1.0 }]
 pod_vectors = 3                      # as the seed
+"#;
+
+const LIVER_CUT: &str = r#"# Seed 003: co-rotational cutting of SOFA's liver, drawn with its smooth visual mesh.
+[scene]
+name = "liver_cut"
+description = "SOFA's liver (181 nodes, 596 tetrahedra; 6.5 x 4.9 x 4.4 cm) with its smooth visual surface (2,194 vertices) embedded in it, E = 8 kPa, nu = 0.45, held along its back under gravity, its left lobe drawn aside by a 0.15 N retractor; a scalpel with a 3.2 cm edge cuts 2.8 cm into the front in the plane x = -2.02 cm. Co-rotational XFEM (seed 003) at the frame rate, the visual surface split along the cut. Reads ../shared/data (run from the repository's folder or below it)."
+
+[[organs]]
+name = "liver"
+density = 1060.0
+
+[organs.mesh]
+file = "../shared/data/meshes/sofa/liver.msh"
+scale = 0.01                         # the mesh is in cm
+
+[organs.visual]                      # same units as the mesh: its scale applies
+file = "../shared/data/meshes/sofa/liver-smooth.obj"
+
+[[organs.materials]]
+model = "linear"
+young = 8e3
+poisson = 0.45
+
+[organs.fixed]                       # the back, where the liver lies against the diaphragm
+half_space = { point = [0.0, 0.0, -0.01], normal = [0.0, 0.0, -1.0] }
+
+[organs.accessible]                  # the front, where the blade works
+half_space = { point = [0.0, 0.0, 0.01], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]
+kind = "gravity"
+acceleration = [0.0, -9.81, 0.0]
+
+[[organs.loads]]                     # a retractor drawing the left lip aside
+kind = "point"
+at = [-0.030, 0.025, 0.024]          # nearest node
+force = [-0.15, 0.0, 0.0]            # N
+
+[[organs.cuts]]                      # the blade's edge upright, pushed from the front into the liver
+blade = [
+  [[-0.0202, 0.010, 0.032], [-0.0202, 0.042, 0.032]],
+  [[-0.0202, 0.010, 0.025], [-0.0202, 0.042, 0.025]],
+  [[-0.0202, 0.010, 0.018], [-0.0202, 0.042, 0.018]],
+  [[-0.0202, 0.010, 0.011], [-0.0202, 0.042, 0.011]],
+  [[-0.0202, 0.010, 0.004], [-0.0202, 0.042, 0.004]],
+]
+
+[[tools]]
+kind = "scalpel"
+name = "scalpel"
+blade_length = 0.04                  # m
+cut_force = 0.05                     # N
+
+[effects]
+cutting = true
+
+[fidelity]
+cutting = "corotational_xfem"
 "#;

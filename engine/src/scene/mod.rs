@@ -257,6 +257,28 @@ impl Scene {
                 "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\"",
             ));
         }
+        if s.fidelity.cutting == schema::CuttingModel::CorotationalXfem && !s.effects.cutting {
+            return Err(self.error_at(
+                &[Seg::Key("fidelity"), Seg::Key("cutting")],
+                "fidelity.cutting = \"corotational_xfem\" chooses a cutting model, but cutting is off: set effects.cutting = true",
+            ));
+        }
+        for (i, o) in s.organs.iter().enumerate() {
+            let Some(v) = &o.visual else { continue };
+            let at = [Seg::Key("organs"), Seg::Index(i), Seg::Key("visual")];
+            if s.fidelity.cutting != schema::CuttingModel::CorotationalXfem {
+                return Err(self.error_at(
+                    &at,
+                    "a visual mesh is drawn by co-rotational cutting sessions: set effects.cutting = true and fidelity.cutting = \"corotational_xfem\", or remove [organs.visual]",
+                ));
+            }
+            if !v.file.to_ascii_lowercase().ends_with(".obj") {
+                return Err(self.error_at(&at, format!("'{}': visual meshes are read from Wavefront .obj files", v.file)));
+            }
+            if v.scale.is_some_and(|k| !(k.is_finite() && k > 0.0)) {
+                return Err(self.error_at(&at, "`scale` must be a positive number"));
+            }
+        }
         if s.effects.tearing && !s.tools.iter().any(|t| matches!(t, ToolSpec::Grasper { .. })) {
             return Err(self.error_at(
                 &[Seg::Key("effects"), Seg::Key("tearing")],
@@ -779,6 +801,37 @@ impl Scene {
             .warnings
             .splice(0..0, notes.into_iter().map(|n| format!("organ '{name}': {n}")));
         Ok(model)
+    }
+
+    /// Organ `index`'s visual mesh (`[organs.visual]`), read and placed as its simulation
+    /// mesh is (the mesh's `scale` unless the visual names its own, then the mesh's
+    /// `translate`) and checked to be a closed, consistently oriented surface; `None` when the
+    /// organ has none.
+    pub fn organ_visual(&self, index: usize) -> Result<Option<crate::xfem::visual::VisualMesh>, SceneError> {
+        let o = &self.spec.organs[index];
+        let Some(v) = &o.visual else { return Ok(None) };
+        let at = [Seg::Key("organs"), Seg::Index(index), Seg::Key("visual")];
+        let scale = v.scale.or(o.mesh.scale).unwrap_or(1.0);
+        let mut visual =
+            crate::xfem::visual::VisualMesh::load_obj(&self.resolve_path(&v.file), scale).map_err(|e| self.error_at(&at, e.to_string()))?;
+        if let Some(t) = o.mesh.translate {
+            for p in &mut visual.vertices {
+                for k in 0..3 {
+                    p[k] += t[k];
+                }
+            }
+        }
+        let edges = visual.edges();
+        if !edges.is_closed_manifold() {
+            return Err(self.error_at(
+                &at,
+                format!(
+                    "'{}' is not a closed, consistently oriented surface ({} boundary, {} non-manifold, {} misoriented edges): it cannot be split along a cut",
+                    v.file, edges.boundary, edges.non_manifold, edges.misoriented
+                ),
+            ));
+        }
+        Ok(Some(visual))
     }
 
     /// Organ `index`'s pre-planned cuts (validated when the scene was read).

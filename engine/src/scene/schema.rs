@@ -64,6 +64,23 @@ pub struct OrganSpec {
     /// linear one (`vademecum solve`; `[fidelity.xfem]`).
     #[serde(default)]
     pub cuts: Vec<CutSpec>,
+    /// `[organs.visual]`: a finer surface drawn (and recorded) instead of the simulation
+    /// mesh's, embedded in its tetrahedra and split along the cut (co-rotational cutting,
+    /// `fidelity.cutting = "corotational_xfem"`).
+    #[serde(default)]
+    pub visual: Option<VisualSpec>,
+}
+
+/// `[organs.visual]`: a visual surface mesh (seed 003 §3.2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct VisualSpec {
+    /// A Wavefront `.obj` surface, relative to the scene file: closed, consistently oriented.
+    pub file: String,
+    /// Factor applied to its coordinates. Default: the organ mesh's `scale`, so that a
+    /// surface made in the same units as the mesh lines up with it.
+    #[serde(default)]
+    pub scale: Option<f64>,
 }
 
 /// `fixed`: one region (all components held), or several supports.
@@ -504,6 +521,11 @@ pub struct Fidelity {
     /// Settings of the meshless solver.
     #[serde(default)]
     pub meshless: MeshlessFidelity,
+    /// The cutting model: `pgd_xfem` (default; the reduced XFEM of seed 000, linear) or
+    /// `corotational_xfem` (seed 003: the same haptic model, and a co-rotational XFEM
+    /// deformation at the frame rate that a cut flap may rotate in; `docs/cutting.md`).
+    #[serde(default)]
+    pub cutting: CuttingModel,
     /// Settings of cutting by XFEM (linear organs).
     #[serde(default)]
     pub xfem: XfemFidelity,
@@ -684,6 +706,19 @@ impl XfemFidelity {
             ..crate::xfem::XfemParams::default()
         }
     }
+}
+
+/// `fidelity.cutting`: which model a cutting session runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CuttingModel {
+    /// The reduced (PGD-based) linear XFEM of seed 000: force and drawn deformation.
+    #[default]
+    PgdXfem,
+    /// Seed 003: the reduced model gives the haptic force every tick; the co-rotational XFEM
+    /// of the cut organ gives the deformation on the frame thread (multi-rate), and corrects
+    /// the force's compliance where it rotates.
+    CorotationalXfem,
 }
 
 /// Which solver `vademecum solve` runs.

@@ -210,6 +210,18 @@ impl CorotationalXfem {
         })
     }
 
+    /// The prescribed values of every generalized dof (the problem's supports; zero on the
+    /// enriched dofs), what [`Frames::step`] takes for a fixed support.
+    pub fn prescribed(&self) -> &[f64] {
+        &self.prescribed
+    }
+
+    /// The index among the free dofs of generalized dof `dof` (`None`: constrained), the
+    /// numbering of [`Self::factor_at`]'s factor.
+    pub fn free_index(&self, dof: usize) -> Option<usize> {
+        self.dofs.eq(dof)
+    }
+
     /// Generalized degrees of freedom, `3(n + m)`.
     pub fn n_dofs(&self) -> usize {
         self.dofs.n_dofs()
@@ -417,7 +429,7 @@ impl CorotationalXfem {
             let mut done = None;
             let mut residual = f64::INFINITY;
             for it in 0..=settings.max_iterations {
-                let (r2, scale2) = self.residual(&d, lambda, &mut r);
+                let (r2, scale2) = self.residual(&d, lambda, &self.forces, &mut r);
                 // the scale: external and reaction forces, or — for a motion that ends free of
                 // stress, with neither — the largest unbalance a load step started with
                 if it == 0 {
@@ -458,13 +470,13 @@ impl CorotationalXfem {
         Ok(CorotationalSolution { d, iterations })
     }
 
-    /// The free dofs' residual `r = λ f_ext − f_int(d)` into `r`; returns `|r|²` and the
-    /// square of its scale: the external and reaction forces' norm.
-    fn residual(&self, d: &[f64], lambda: f64, r: &mut [f64]) -> (f64, f64) {
+    /// The free dofs' residual `r = λ f_ext − f_int(d)` into `r`, `f_ext = forces`; returns
+    /// `|r|²` and the square of its scale: the external and reaction forces' norm.
+    fn residual(&self, d: &[f64], lambda: f64, forces: &[f64], r: &mut [f64]) -> (f64, f64) {
         let f = self.internal_forces(d);
         let (mut r2, mut scale2) = (0.0, 0.0);
         for (k, &fk) in f.iter().enumerate() {
-            let ext = lambda * self.forces[k];
+            let ext = lambda * forces[k];
             match self.dofs.eq(k) {
                 Some(e) => {
                     r[e] = ext - fk;
@@ -488,15 +500,44 @@ impl CorotationalXfem {
         }?)
     }
 
-    /// The deformation advanced frame by frame from rest ([`Frames`]).
-    pub fn frames(&self) -> Frames<'_> {
+    /// The deformation advanced frame by frame from rest ([`Frames`]), under the problem's
+    /// forces.
+    pub fn frames(self: &Arc<Self>) -> Frames {
+        self.frames_from(vec![0.0; self.dofs.n_dofs()])
+    }
+
+    /// [`Self::frames`] from the state `d` (e.g. a previous model's, carried over to this
+    /// one's dofs: [`Self::carry_over`]).
+    ///
+    /// # Panics
+    /// If `d` is not [`Self::n_dofs`] long.
+    pub fn frames_from(self: &Arc<Self>, d: Vec<f64>) -> Frames {
+        assert_eq!(d.len(), self.dofs.n_dofs(), "a state of every generalized dof");
         Frames {
-            model: self,
-            d: vec![0.0; self.dofs.n_dofs()],
+            model: self.clone(),
+            forces: self.forces.clone(),
+            d,
             factor: None,
             r: vec![0.0; self.dofs.n_free()],
             unbalance: 0.0,
         }
+    }
+
+    /// The mesh's nodes' displacements of `d` (made for a model cut by `old`), with the
+    /// jumps of the enriched nodes this model (cut by `new`) shares with it, and zero for the
+    /// others: the state a deformation continues from when the cut grows.
+    pub fn carry_over(&self, d: &[f64], old: &Enrichment, new: &Enrichment) -> Vec<f64> {
+        let n = 3 * self.mesh.n_nodes();
+        let mut out = vec![0.0; self.dofs.n_dofs()];
+        out[..n].copy_from_slice(&d[..n]);
+        for (k, (node, plane)) in new.nodes.iter().zip(&new.planes).enumerate() {
+            if let Some(j) = (0..old.len()).find(|&j| old.nodes[j] == *node && old.planes[j] == *plane)
+                && n + 3 * j + 3 <= d.len()
+            {
+                out[n + 3 * k..n + 3 * k + 3].copy_from_slice(&d[n + 3 * j..n + 3 * j + 3]);
+            }
+        }
+        out
     }
 
     /// The reference and deformed volumes of the cells for which `which(cell)` holds, under
@@ -536,8 +577,10 @@ impl CorotationalXfem {
 /// warped stiffness turns into its bending directions, a few degrees suffice to make the stale
 /// correction grow the residual.
 #[derive(Debug)]
-pub struct Frames<'m> {
-    model: &'m CorotationalXfem,
+pub struct Frames {
+    model: Arc<CorotationalXfem>,
+    /// The external forces on the generalized dofs (the problem's, unless set).
+    forces: Vec<f64>,
     d: Vec<f64>,
     factor: Option<Cholesky>,
     r: Vec<f64>,
@@ -555,16 +598,38 @@ pub struct FrameReport {
     pub factored: bool,
 }
 
-impl Frames<'_> {
+impl Frames {
     /// The current generalized displacements.
     pub fn d(&self) -> &[f64] {
         &self.d
+    }
+
+    /// The model the frames advance.
+    pub fn model(&self) -> &Arc<CorotationalXfem> {
+        &self.model
+    }
+
+    /// The external forces the next frames balance (N, on the mesh's nodes: `3 n` values;
+    /// the enriched dofs carry none), e.g. a tool's contact force moving from frame to frame.
+    ///
+    /// # Panics
+    /// If `forces` is not `3 n` long.
+    pub fn set_forces(&mut self, forces: &[f64]) {
+        let n = 3 * self.model.mesh.n_nodes();
+        assert_eq!(forces.len(), n, "a force on every node");
+        self.forces[..n].copy_from_slice(forces);
+        self.forces[n..].fill(0.0);
     }
 
     /// Installs a new factor of the warped stiffness (made by [`CorotationalXfem::factor_at`],
     /// typically on another thread from a recent [`Frames::d`]); the next frames correct with it.
     pub fn install(&mut self, factor: Cholesky) {
         self.factor = Some(factor);
+    }
+
+    /// The installed factor (`None` before the first frame).
+    pub fn factor(&self) -> Option<&Cholesky> {
+        self.factor.as_ref()
     }
 
     /// The symbolic analysis of the installed factor, for the next one.
@@ -592,7 +657,7 @@ impl Frames<'_> {
                 *v = prescribed[k];
             }
         }
-        let (r2, scale2) = self.model.residual(&self.d, lambda, &mut self.r);
+        let (r2, scale2) = self.model.residual(&self.d, lambda, &self.forces, &mut self.r);
         self.unbalance = self.unbalance.max(r2);
         let residual = (r2 / scale2.max(self.unbalance).max(f64::MIN_POSITIVE)).sqrt();
         if !residual.is_finite() {
@@ -605,10 +670,10 @@ impl Frames<'_> {
         if let Some(factor) = self.factor.take() {
             self.correct(&factor);
             self.factor = Some(factor);
-            let (after, _) = self.model.residual(&self.d, lambda, &mut self.r);
+            let (after, _) = self.model.residual(&self.d, lambda, &self.forces, &mut self.r);
             if after >= r2 {
                 self.d.copy_from_slice(&before);
-                self.model.residual(&self.d, lambda, &mut self.r);
+                self.model.residual(&self.d, lambda, &self.forces, &mut self.r);
                 factored = true;
             }
         }

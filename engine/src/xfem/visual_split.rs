@@ -904,22 +904,62 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
 /// size (the cut is not one plane).
 pub fn cut_plane(mesh: &Mesh, cut: &ProgressiveCut) -> Result<Option<Plane>, SplitError> {
     let mut points = Vec::new();
-    let mut size = 0.0;
     for &c in cut.cut_cells() {
         let Some(x) = cut.crossings(c) else { continue };
         let cell = mesh.cell(c);
         points.extend(x.edges.values().copied());
         points.extend((0..4).filter(|&v| x.on_blade[v]).map(|v| mesh.nodes[cell[v]]));
-        let mut xs = [[0.0; 3]; 4];
+    }
+    fit_cut_plane(mesh, cut.cut_cells(), &points, 0.01)
+}
+
+/// The one plane of the cells cut by an XFEM cut, each with the plane that crossed it (an
+/// [`super::enrichment::Enrichment`]'s `cut_cells`): fitted, as [`cut_plane`], to where each
+/// cell's plane crosses its edges; `None` before any cell is cut, [`SplitError::NotPlanar`]
+/// when a crossing lies farther from it than `tolerance` times the mean cut cell's size. A
+/// session's cut follows the blade in the tissue's reference frame — the blade's positions
+/// taken back by the tissue's displacement —, so a straight incision is one plane only to
+/// within the displacement's variation over the cut (the co-rotational session accepts
+/// [`SESSION_PLANARITY`]).
+pub fn cut_plane_of_cells(mesh: &Mesh, cut_cells: &[(usize, Plane)], tolerance: f64) -> Result<Option<Plane>, SplitError> {
+    let mut points = Vec::new();
+    for &(c, plane) in cut_cells {
+        let cell = mesh.cell(c);
+        for (i, &a) in cell.iter().enumerate() {
+            for &b in &cell[i + 1..] {
+                let (pa, pb) = (mesh.nodes[a], mesh.nodes[b]);
+                let (fa, fb) = (plane.phi(pa), plane.phi(pb));
+                if fa == 0.0 {
+                    points.push(pa);
+                } else if (fa < 0.0) != (fb < 0.0) && fb != 0.0 {
+                    points.push(lerp(pa, pb, fa / (fa - fb)));
+                }
+            }
+        }
+    }
+    let cells: Vec<usize> = cut_cells.iter().map(|c| c.0).collect();
+    fit_cut_plane(mesh, &cells, &points, tolerance)
+}
+
+/// How far from one plane a session's cut may stray to be split as one, in mean cut cell
+/// sizes ([`cut_plane_of_cells`]).
+pub const SESSION_PLANARITY: f64 = 0.25;
+
+/// The least-squares plane of `points` on the cells `cells`, refused when a point lies
+/// farther from it than `tolerance` times the cells' mean size.
+fn fit_cut_plane(mesh: &Mesh, cells: &[usize], points: &[[f64; 3]], tolerance: f64) -> Result<Option<Plane>, SplitError> {
+    if cells.is_empty() || points.len() < 3 {
+        return Ok(None);
+    }
+    let mut size = 0.0;
+    let mut xs = [[0.0; 3]; 4];
+    for &c in cells {
         mesh.cell_coords(c, &mut xs);
         size += super::subcell::cell_size(&xs);
     }
-    if cut.cut_cells().is_empty() {
-        return Ok(None);
-    }
-    let plane = super::progressive::fit_plane(&points);
+    let plane = super::progressive::fit_plane(points);
     let residual = points.iter().map(|&p| plane.phi(p).abs()).fold(0.0, f64::max);
-    let tolerance = 0.01 * size / cut.cut_cells().len() as f64;
+    let tolerance = tolerance * size / cells.len() as f64;
     if residual > tolerance {
         return Err(SplitError::NotPlanar { residual, tolerance });
     }

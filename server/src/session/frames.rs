@@ -12,6 +12,7 @@ use vademecum_engine::damage::online::TearOffline;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pgd::vademecum::NodeMajorField;
 use vademecum_engine::pipeline::Contact;
+use vademecum_engine::pipeline::corotational::CorotationalDeformation;
 use vademecum_engine::pipeline::cutting::{CutPicture, CutStatus};
 use vademecum_engine::pipeline::{TearPicture, TearPictures};
 use vademecum_engine::scene::Scene;
@@ -99,6 +100,26 @@ pub struct Frame {
     pub cuts: Vec<Option<CutFrame>>,
     /// Per organ, its damage (`None`: it does not tear).
     pub damage: Vec<Option<DamageFrame>>,
+    /// The visual mesh of a co-rotational cutting organ, split along the cut (`None`: the
+    /// session draws the simulation surfaces only).
+    pub visual: Option<VisualFrame>,
+}
+
+/// An organ's visual mesh in one frame (co-rotational cutting, `[organs.visual]`): split
+/// along the cut, each vertex following its side of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VisualFrame {
+    /// The organ.
+    pub organ: usize,
+    /// The cut revision the surface was split for (0: uncut); vertices and triangles change
+    /// only with it.
+    pub revision: u64,
+    /// Reference position of every vertex (m), 3 per vertex.
+    pub positions_m: Arc<[f32]>,
+    /// Triangles, 3 vertex indices each, outward.
+    pub triangles: Arc<[u32]>,
+    /// Displacement of every vertex (m), 3 per vertex.
+    pub displacements_m: Vec<f32>,
 }
 
 /// The damage of a tearing organ in one frame (see [`TearPicture`]).
@@ -144,6 +165,7 @@ impl Frame {
             displacements_m: g.organs.iter().map(|o| vec![0.0; 3 * o.nodes.len()]).collect(),
             cuts: vec![None; g.organs.len()],
             damage: vec![None; g.organs.len()],
+            visual: None,
         }
     }
 }
@@ -235,7 +257,16 @@ impl TearView {
     }
 }
 
+/// The co-rotational deformation the frame thread advances, and the visual geometry of its
+/// revision (kept between frames).
+struct Corotational {
+    deformation: CorotationalDeformation,
+    visual: Option<(u64, Arc<[f32]>, Arc<[u32]>)>,
+    scratch: Vec<f64>,
+}
+
 pub(super) struct FrameProducer {
+    corotational: Option<Corotational>,
     bundles: Vec<Arc<LoadedBundle>>,
     cut: Option<Arc<CutStatus>>,
     tear: Option<TearView>,
@@ -271,6 +302,7 @@ impl FrameProducer {
             .collect();
         let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
         Self {
+            corotational: None,
             bundles,
             cut,
             tear,
@@ -286,8 +318,23 @@ impl FrameProducer {
         }
     }
 
-    /// Produces frames while someone watches and the tick state changes.
+    /// The same producer drawing the co-rotational `deformation` of a cut organ (advanced
+    /// every frame, watched or not; see `pipeline::corotational`).
+    pub fn with_corotational(mut self, deformation: CorotationalDeformation) -> Self {
+        self.corotational = Some(Corotational {
+            deformation,
+            visual: None,
+            scratch: Vec::new(),
+        });
+        self
+    }
+
+    /// Produces frames while someone watches and the tick state changes (a co-rotational
+    /// deformation advances every frame regardless).
     pub fn run(mut self) {
+        if self.corotational.is_some() {
+            vademecum_engine::pipeline::corotational::lower_priority();
+        }
         let mut seq = 0u64;
         let mut coeffs: Vec<Vec<f64>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
         let mut c32: Vec<Vec<f32>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
@@ -303,6 +350,25 @@ impl FrameProducer {
             next += self.interval;
             if next < now {
                 next = now + self.interval;
+            }
+            if let Some(c) = &mut self.corotational {
+                let l = *self.latest.read();
+                let picture = self.cut.as_ref().and_then(|s| s.picture());
+                let t = Instant::now();
+                match c.deformation.step_with_picture(picture.as_deref(), l.state.contact.as_ref()) {
+                    Ok(outcome) => self.stats.record_corotational(&outcome, t.elapsed()),
+                    Err(e) => {
+                        self.stats.corotational_failures.fetch_add(1, Ordering::Relaxed);
+                        tracing::warn!("a co-rotational frame failed: {e}");
+                    }
+                }
+                if self.tx.receiver_count() > 0 {
+                    let frame = self.corotational_frame(&l, seq + 1, picture.as_deref());
+                    seq += 1;
+                    self.tx.send_replace(Arc::new(frame));
+                    self.stats.frames.fetch_add(1, Ordering::Relaxed);
+                }
+                continue;
             }
             if self.tx.receiver_count() == 0 || !self.latest.updated() {
                 continue;
@@ -339,6 +405,71 @@ impl FrameProducer {
             self.tx.send_replace(Arc::new(frame));
             self.stats.frames.fetch_add(1, Ordering::Relaxed);
         }
+    }
+
+    /// The frame of a co-rotational cutting session: the deformation's surface, cut walls
+    /// (of the picture `p` when it is the model's revision) and visual mesh.
+    fn corotational_frame(&mut self, l: &Latest, seq: u64, p: Option<&CutPicture>) -> Frame {
+        let mut frame = Frame::rest(&self.geometry);
+        frame.seq = seq;
+        frame.tick = l.tick;
+        frame.time_s = l.time_us as f64 * 1e-6;
+        frame.force_n = l.state.force_n;
+        frame.contact = l.state.contact;
+        let Some(c) = &mut self.corotational else { return frame };
+        let def = &c.deformation;
+        let o = def.organ();
+        let (Some(surface), Some(enr)) = (self.geometry.organs.get(o), def.enrichment()) else {
+            return frame;
+        };
+        def.node_displacements(&surface.nodes, &mut frame.displacements_m[o]);
+        let d = def.d();
+        let n = 3 * self.bundles[o].nodes.len();
+        if let Some(p) = p.filter(|p| p.organ == o && p.revision == def.revision() && !enr.is_empty()) {
+            if self.walls.as_ref().is_none_or(|w| w.revision != p.revision) {
+                self.walls = Some(WallGeometry::of(p, &self.bundles[o].nodes));
+            }
+            if let Some(w) = &self.walls {
+                let displacements_m = p
+                    .walls
+                    .vertices
+                    .iter()
+                    .flat_map(|v| {
+                        (0..3).map(move |i| {
+                            let jump = v.copy.map_or(0.0, |(k, s)| s * d.get(n + 3 * k + i).copied().unwrap_or(0.0));
+                            (d[3 * v.node + i] + jump) as f32
+                        })
+                    })
+                    .collect();
+                frame.cuts[o] = Some(CutFrame {
+                    revision: w.revision,
+                    positions_m: w.positions_m.clone(),
+                    triangles: w.triangles.clone(),
+                    side: w.side.clone(),
+                    displacements_m,
+                });
+            }
+        }
+        if let Some(v) = def.visual() {
+            if c.visual.as_ref().is_none_or(|g| g.0 != v.revision) {
+                c.visual = Some((
+                    v.revision,
+                    v.mesh.vertices.iter().flat_map(|p| p.map(|x| x as f32)).collect(),
+                    v.mesh.triangles.iter().flat_map(|t| t.map(|i| i as u32)).collect(),
+                ));
+            }
+            def.visual_displacements(&mut c.scratch);
+            if let Some((revision, positions_m, triangles)) = &c.visual {
+                frame.visual = Some(VisualFrame {
+                    organ: o,
+                    revision: *revision,
+                    positions_m: positions_m.clone(),
+                    triangles: triangles.clone(),
+                    displacements_m: c.scratch.iter().map(|&x| x as f32).collect(),
+                });
+            }
+        }
+        frame
     }
 
     /// Adds the cut of picture `p` to `frame`: what it moves the organ's surface by, and its

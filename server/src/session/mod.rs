@@ -238,6 +238,7 @@ impl Session {
         let tear_pictures = pipeline.take_tear_pictures();
         let tear_offline = pipeline.tear_offline().to_vec();
         let cut = pipeline.cut_status();
+        let corotational = pipeline.take_corotational();
         let workspace = pipeline.workspace();
         let grasp_sites = pipeline.grasp_sites().to_vec();
         let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
@@ -341,6 +342,10 @@ impl Session {
             cut.clone(),
             tear,
         );
+        let producer = match corotational {
+            Some(c) => producer.with_corotational(c),
+            None => producer,
+        };
         let frame_thread = std::thread::Builder::new()
             .name(format!("frames-{id}"))
             .spawn(move || producer.run())

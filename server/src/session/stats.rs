@@ -99,6 +99,10 @@ pub struct TickStats {
     pub bridge: BridgeStats,
     /// CPU time of the tick thread (ns), updated every few ticks.
     pub tick_cpu_ns: AtomicU64,
+    /// The co-rotational deformation (co-rotational cutting) on the frame thread.
+    pub corotational: CorotationalStats,
+    /// Co-rotational frames that failed (the state kept).
+    pub corotational_failures: AtomicU64,
     /// Everything merged so far (readers only).
     histograms: Mutex<Histograms>,
     /// A recorded set waiting for a reader.
@@ -123,9 +127,51 @@ impl Default for TickStats {
             haptic_errors: AtomicU64::new(0),
             bridge: BridgeStats::default(),
             tick_cpu_ns: AtomicU64::new(0),
+            corotational: CorotationalStats::default(),
+            corotational_failures: AtomicU64::new(0),
             histograms: Mutex::new(Histograms::default()),
             full: ArrayQueue::new(1),
             empty,
+        }
+    }
+}
+
+/// What the frame thread's co-rotational deformation has done (co-rotational cutting).
+#[derive(Debug, Default)]
+pub struct CorotationalStats {
+    /// Frames advanced.
+    pub frames: AtomicU64,
+    /// Frames that factored on the frame thread (no fresh factor, or the kept one's
+    /// correction did not lower the residual).
+    pub factored: AtomicU64,
+    /// Factors from the factor thread installed.
+    pub installed: AtomicU64,
+    /// Models rebuilt because the cut grew.
+    pub rebuilt: AtomicU64,
+    /// The last frame's relative residual (f64 bits).
+    pub residual_bits: AtomicU64,
+    /// Time of a frame (µs): the last, the largest, the sum.
+    pub last_us: AtomicU64,
+    /// The largest frame time (µs).
+    pub max_us: AtomicU64,
+    /// Frame times summed (µs).
+    pub sum_us: AtomicU64,
+}
+
+impl TickStats {
+    /// Records a co-rotational frame that took `took`.
+    pub fn record_corotational(&self, o: &vademecum_engine::pipeline::corotational::FrameOutcome, took: std::time::Duration) {
+        let c = &self.corotational;
+        let us = took.as_micros() as u64;
+        c.frames.fetch_add(1, Ordering::Relaxed);
+        c.last_us.store(us, Ordering::Relaxed);
+        c.max_us.fetch_max(us, Ordering::Relaxed);
+        c.sum_us.fetch_add(us, Ordering::Relaxed);
+        c.installed.fetch_add(u64::from(o.installed), Ordering::Relaxed);
+        c.rebuilt.fetch_add(u64::from(o.rebuilt), Ordering::Relaxed);
+        if let Some(r) = o.report {
+            c.factored.fetch_add(u64::from(r.factored), Ordering::Relaxed);
+            c.residual_bits.store(r.residual.to_bits(), Ordering::Relaxed);
         }
     }
 }

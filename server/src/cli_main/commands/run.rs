@@ -52,6 +52,35 @@ struct Summary {
     /// What the grasper did (tearing scenes).
     #[serde(skip_serializing_if = "Option::is_none")]
     tear: Option<TearSummary>,
+    /// The co-rotational deformation and its coupling to the force (co-rotational cutting).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    corotational: Option<CorotationalSummary>,
+}
+
+/// What the frame thread's co-rotational deformation did, and how the force followed it.
+#[derive(Debug, Serialize)]
+struct CorotationalSummary {
+    frames: u64,
+    /// Frame time (ms): mean and largest.
+    frame_ms_mean: f64,
+    frame_ms_max: f64,
+    /// Frames that factored themselves; factors installed from the factor thread; models
+    /// rebuilt as the cut grew; frames that failed.
+    factored: u64,
+    installed: u64,
+    rebuilt: u64,
+    failures: u64,
+    /// The last frame's relative residual.
+    residual: f64,
+    /// Ticks whose force took the rotation correction; corrections refused.
+    corrected_ticks: u64,
+    refused_corrections: u64,
+    /// Corrections that landed during a contact, and the force step they made (N).
+    landings: u64,
+    landing_jump_max_n: f64,
+    landing_jump_mean_n: f64,
+    /// The visual surface's series (`None`: the organ has no visual mesh).
+    visual_pvd: Option<PathBuf>,
 }
 
 /// What a tearing run did: when the jaws took hold, when the tissue tore, when they let go.
@@ -360,6 +389,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         .collect();
     // the damage at the last frame: largest, torn cells, energy dissipated
     let mut last_damage: Option<(f64, usize, f64)> = None;
+    // the visual mesh (co-rotational cutting): its steps, and its geometry per revision
+    let mut visual_steps: Vec<(f64, String)> = Vec::new();
+    let mut visual_geometry: Option<(u64, Vec<[f64; 3]>, Vec<usize>)> = None;
+    let session_stats = session.stats().clone();
     while !session.finished() {
         std::thread::sleep(interval);
         bar.set_position((clock.elapsed().as_secs_f64() * 1000.0) as u64);
@@ -397,6 +430,30 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             }
             steps[k].push((frame.time_s, format!("frames/{file}")));
         }
+        if let Some(v) = &frame.visual {
+            if visual_geometry.as_ref().is_none_or(|g| g.0 != v.revision) {
+                visual_geometry = Some((
+                    v.revision,
+                    v.positions_m
+                        .chunks_exact(3)
+                        .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
+                        .collect(),
+                    v.triangles.iter().map(|&i| i as usize).collect(),
+                ));
+            }
+            if let Some((_, positions, tris)) = &visual_geometry {
+                let name = &geometry.organs[v.organ].name;
+                let file = format!("{name}_visual_{:05}.vtu", frame.seq);
+                let u: Vec<f64> = v.displacements_m.iter().map(|&x| x as f64).collect();
+                let point_data = [Field {
+                    name: "displacement",
+                    components: 3,
+                    values: &u,
+                }];
+                vtk::write_surface_vtu(&frames_dir.join(&file), positions, tris, &point_data, &[])?;
+                visual_steps.push((frame.time_s, format!("frames/{file}")));
+            }
+        }
     }
     bar.finish_and_clear();
     let stats = session.wait();
@@ -423,6 +480,19 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     for (k, o) in geometry.organs.iter().enumerate() {
         vtk::write_pvd(&record.join(format!("{}.pvd", o.name)), &steps[k])?;
     }
+    let corotational = (scene.spec.fidelity.cutting == vademecum_engine::scene::schema::CuttingModel::CorotationalXfem && cutting)
+        .then(|| -> anyhow::Result<CorotationalSummary> {
+            let visual_pvd = match visual_steps.is_empty() {
+                true => None,
+                false => {
+                    let path = record.join(format!("{}_visual.pvd", geometry.organs[0].name));
+                    vtk::write_pvd(&path, &visual_steps)?;
+                    Some(path)
+                }
+            };
+            Ok(corotational_summary(&session_stats, cut_status.as_deref(), visual_pvd))
+        })
+        .transpose()?;
     let summary = Summary {
         scene: scene.spec.scene.name.clone(),
         organs: geometry.organs.iter().map(|o| o.name.clone()).collect(),
@@ -444,6 +514,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         record: record.clone(),
         cut,
         tear,
+        corotational,
     };
     std::fs::write(record.join("summary.json"), serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("cannot write {}", record.join("summary.json").display()))?;
@@ -497,6 +568,21 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                     o.max_opening_m,
                     c.opened_vtu.as_ref().map_or(String::new(), |p| p.display().to_string())
                 )?;
+            }
+        }
+        if let Some(c) = &s.corotational {
+            writeln!(
+                out,
+                "  co-rotational  {} frames, {:.1} ms mean ({:.1} max); {} factored on the frame thread, {} factors installed, {} rebuilt as the cut grew, {} failed; residual {:.1e}",
+                c.frames, c.frame_ms_mean, c.frame_ms_max, c.factored, c.installed, c.rebuilt, c.failures, c.residual
+            )?;
+            writeln!(
+                out,
+                "  coupling       {} ticks with the rotation correction ({} refused); {} landings, force step {:.2e} N mean, {:.2e} N max",
+                c.corrected_ticks, c.refused_corrections, c.landings, c.landing_jump_mean_n, c.landing_jump_max_n
+            )?;
+            if let Some(v) = &c.visual_pvd {
+                writeln!(out, "  visual mesh    {}", v.display())?;
             }
         }
         if let Some(t) = &s.tear {
@@ -593,6 +679,36 @@ fn plot_blade(file: &std::path::Path, scene: &str, rows: &[BladeRow], cut_force:
         .draw()?;
     root.present()?;
     Ok(())
+}
+
+/// The co-rotational part of a run's summary, from the session's counters.
+fn corotational_summary(
+    stats: &crate::session::stats::TickStats,
+    cut: Option<&vademecum_engine::pipeline::cutting::CutStatus>,
+    visual_pvd: Option<PathBuf>,
+) -> CorotationalSummary {
+    use std::sync::atomic::Ordering::Relaxed;
+    let c = &stats.corotational;
+    let frames = c.frames.load(Relaxed);
+    let counter =
+        |f: fn(&vademecum_engine::pipeline::cutting::CutStatus) -> &std::sync::atomic::AtomicU64| cut.map_or(0, |s| f(s).load(Relaxed));
+    let landings = counter(|s| &s.landings);
+    CorotationalSummary {
+        frames,
+        frame_ms_mean: c.sum_us.load(Relaxed) as f64 * 1e-3 / frames.max(1) as f64,
+        frame_ms_max: c.max_us.load(Relaxed) as f64 * 1e-3,
+        factored: c.factored.load(Relaxed),
+        installed: c.installed.load(Relaxed),
+        rebuilt: c.rebuilt.load(Relaxed),
+        failures: stats.corotational_failures.load(Relaxed),
+        residual: f64::from_bits(c.residual_bits.load(Relaxed)),
+        corrected_ticks: counter(|s| &s.corrected_ticks),
+        refused_corrections: counter(|s| &s.refused_corrections),
+        landings,
+        landing_jump_max_n: counter(|s| &s.landing_jump_max_un) as f64 * 1e-6,
+        landing_jump_mean_n: counter(|s| &s.landing_jump_sum_un) as f64 * 1e-6 / landings.max(1) as f64,
+        visual_pvd,
+    }
 }
 
 /// How long the built-in incisions take to draw each pre-planned cut (s).

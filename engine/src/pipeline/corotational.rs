@@ -1,0 +1,475 @@
+//! Co-rotational cutting in a session (seed 003, `fidelity.cutting = "corotational_xfem"`):
+//! the multi-rate coupling of the haptic tick with a co-rotational XFEM deformation advanced
+//! at the frame rate.
+//!
+//! # Two rates
+//! The tick (1 kHz) keeps the force of the cutting effect ([`super::cutting`]): the reduced
+//! model's compliance at the contact plus the cut's, `C(s_L) + ΔC_cut(s_L)`. Beside it, the
+//! frame thread advances the co-rotational XFEM of the organ as cut so far
+//! ([`crate::xfem::corotational::Frames`]: one modified-Newton correction per frame with a
+//! factor of the warped stiffness made on a factor thread from a recent state), under the
+//! scene's own loads (`[[organs.loads]]`: gravity, a retractor holding a lip; ramped in over
+//! the first [`RAMP_FRAMES`] frames) and the tick's latest tissue force at the contact. What
+//! viewers and recordings draw is this deformation: the organ's surface, the walls of the cut
+//! and the visual mesh, split along the cut and following each side
+//! ([`crate::xfem::visual_split`], [`crate::xfem::visual::Embedding`]).
+//!
+//! # The coupling: a tangent correction of the compliance
+//! Each frame with a contact also leaves the tick the difference, at the contact, between
+//! the compliance of the co-rotational model's warped stiffness at its current state and at
+//! rest (same mesh, same cut, same element):
+//!
+//! `ΔC_rot = Pᵀ K_w(d)⁻¹ P − Pᵀ K_0⁻¹ P`,
+//!
+//! `P` the contact's barycentric load distribution. The tick's force becomes
+//! `f = λ (C + ΔC_cut + ΔC_rot)⁻¹ δ`: with no rotation (small strains) `ΔC_rot = 0` and the
+//! force is the reduced model's exactly; where the tissue has turned (a flap lifted, the organ
+//! pre-loaded by the scene) the local stiffness the hand feels is the one of the deformation
+//! shown. A correction applies while the tick's contact triangle shares a node with the one it
+//! was computed at; a corrected compliance whose symmetric part is not positive definite is
+//! not used (counted). The correction changes when a frame lands: the tick measures that
+//! step, `|f(ΔC_new) − f(ΔC_old)|` at the same imposed displacement, in
+//! [`super::cutting::CutStatus`] (`landings`, `landing_jump_max_un`, `landing_jump_sum_un`).
+//!
+//! The frame thread runs its parallel work (forces, factorization) in its own rayon pool of
+//! [`pool_threads`] threads — one fewer than the machine's cores — so that it never takes
+//! every core, and the pool, the factor thread and the frame thread of a co-rotational session
+//! run at the lowest CPU priority ([`lower_priority`]): the tick thread takes a core from them
+//! as soon as it wakes.
+
+use std::sync::Arc;
+use std::sync::mpsc;
+
+use crate::fem::assembly::MaterialMap;
+use crate::fem::linear_static::StaticProblem;
+use crate::mesh::Mesh;
+use crate::solve::Cholesky;
+use crate::xfem::corotational::{CorotationalError, CorotationalXfem, FrameReport, Frames};
+use crate::xfem::enrichment::Enrichment;
+use crate::xfem::visual::{Embedding, VisualMesh};
+use crate::xfem::visual_split::{self, VertexSide};
+
+use super::Contact;
+use super::cutting::CutPicture;
+
+/// Frames over which the scene's loads are ramped in from rest.
+pub const RAMP_FRAMES: u64 = 10;
+
+/// What the frame thread leaves the tick: the compliance correction `ΔC_rot` at a contact
+/// (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Correction {
+    /// 0: none yet; then one more per frame that computed one.
+    pub seq: u64,
+    /// The contact triangle it was computed at.
+    pub nodes: [usize; 3],
+    /// `ΔC_rot` (m/N), symmetric.
+    pub delta: [[f64; 3]; 3],
+}
+
+impl Correction {
+    /// Whether it applies to a contact on triangle `nodes` (module docs).
+    pub fn applies_to(&self, nodes: &[usize; 3]) -> bool {
+        self.seq > 0 && nodes.iter().any(|a| self.nodes.contains(a))
+    }
+}
+
+/// The tick's end of the corrections.
+pub type Corrections = triple_buffer::Output<Correction>;
+
+/// Lowers the calling thread to the lowest CPU priority (nice 19; Linux, where the nice
+/// value is per thread): the co-rotational threads yield the cores to the tick thread
+/// whenever it wakes.
+pub fn lower_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: setpriority only reads its arguments; `who = 0` is the calling thread
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+    }
+}
+
+/// Threads of the frame thread's pool: one fewer than the machine's cores (at least one).
+pub fn pool_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get().saturating_sub(1).max(1))
+}
+
+/// The visual mesh as split along the cut at one revision, and its embedding.
+#[derive(Debug, Clone)]
+pub struct VisualSurface {
+    /// The cut revision it was split for (0: uncut).
+    pub revision: u64,
+    /// Vertices (m, reference) and triangles, outward.
+    pub mesh: Arc<VisualMesh>,
+    /// Per vertex, which side of the cut it follows.
+    pub side: Arc<[VertexSide]>,
+    /// Why the surface could not be split at this revision (drawn unsplit), if it could not.
+    pub unsplit: Option<String>,
+    embedding: Embedding,
+}
+
+/// The co-rotational model at one cut revision.
+struct State {
+    revision: u64,
+    enrichment: Arc<Enrichment>,
+    frames: Frames,
+    /// The warped stiffness at rest, `K_0`, for `ΔC_rot`.
+    rest: Cholesky,
+}
+
+/// A factorization asked of the factor thread: the model, the state, the symbolic analysis.
+type FactorJob = (
+    Arc<CorotationalXfem>,
+    Vec<f64>,
+    Option<faer::sparse::linalg::solvers::SymbolicLlt<usize>>,
+);
+
+/// What one frame did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrameOutcome {
+    /// The frame's report (`None`: no model, see [`CorotationalDeformation::failure`]).
+    pub report: Option<FrameReport>,
+    /// Whether the cut grew since the last frame (a new model, a new visual split).
+    pub rebuilt: bool,
+    /// Whether a factor from the factor thread was installed before this frame.
+    pub installed: bool,
+}
+
+/// The co-rotational deformation of a cut organ, advanced one frame at a time on the frame
+/// thread (module docs).
+pub struct CorotationalDeformation {
+    organ: usize,
+    mesh: Mesh,
+    materials: MaterialMap,
+    problem: StaticProblem,
+    visual: Option<VisualMesh>,
+    surface: Option<VisualSurface>,
+    state: Option<State>,
+    pool: Arc<rayon::ThreadPool>,
+    jobs: mpsc::SyncSender<FactorJob>,
+    factors: mpsc::Receiver<(Arc<CorotationalXfem>, Result<Cholesky, String>)>,
+    busy: bool,
+    frames: u64,
+    corrections: triple_buffer::Input<Correction>,
+    correction_seq: u64,
+    forces: Vec<f64>,
+    prescribed: Vec<f64>,
+    failure: Option<String>,
+    /// Factors the factor thread made and the frames installed.
+    pub factors_installed: u64,
+}
+
+impl std::fmt::Debug for CorotationalDeformation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CorotationalDeformation")
+            .field("organ", &self.organ)
+            .field("revision", &self.revision())
+            .field("frames", &self.frames)
+            .finish_non_exhaustive()
+    }
+}
+
+impl CorotationalDeformation {
+    /// The deformation of organ `organ` (its `mesh`, `materials`, supports and loads
+    /// `problem`), drawn on `visual` if given; returns it and the tick's end of the
+    /// corrections. Starts the factor thread; builds the uncut model.
+    pub fn new(
+        organ: usize,
+        mesh: Mesh,
+        materials: MaterialMap,
+        problem: StaticProblem,
+        visual: Option<VisualMesh>,
+    ) -> Result<(Self, Corrections), String> {
+        let pool = Arc::new(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(pool_threads())
+                .thread_name(|i| format!("corot-{i}"))
+                .start_handler(|_| lower_priority())
+                .build()
+                .map_err(|e| format!("cannot start the co-rotational pool: {e}"))?,
+        );
+        let (jobs, job_rx) = mpsc::sync_channel::<FactorJob>(1);
+        let (factor_tx, factors) = mpsc::channel();
+        let factor_pool = pool.clone();
+        std::thread::Builder::new()
+            .name("corot-factor".into())
+            .spawn(move || {
+                lower_priority();
+                while let Ok((model, d, symbolic)) = job_rx.recv() {
+                    let f = factor_pool.install(|| model.factor_at(&d, symbolic)).map_err(|e| e.to_string());
+                    if factor_tx.send((model, f)).is_err() {
+                        break;
+                    }
+                }
+            })
+            .map_err(|e| format!("cannot start the factor thread: {e}"))?;
+        let (corrections, output) = triple_buffer::triple_buffer(&Correction::default());
+        let n = 3 * mesh.n_nodes();
+        let surface = match &visual {
+            Some(v) => Some(Self::unsplit_surface(&mesh, v, 0, None)?),
+            None => None,
+        };
+        let mut me = Self {
+            organ,
+            materials,
+            problem,
+            visual,
+            surface,
+            state: None,
+            pool,
+            jobs,
+            factors,
+            busy: false,
+            frames: 0,
+            corrections,
+            correction_seq: 0,
+            forces: vec![0.0; n],
+            prescribed: Vec::new(),
+            failure: None,
+            factors_installed: 0,
+            mesh,
+        };
+        let none = Arc::new(Enrichment::none(&me.mesh));
+        me.rebuild(0, none)?;
+        Ok((me, output))
+    }
+
+    /// The organ (its index in the scene).
+    pub fn organ(&self) -> usize {
+        self.organ
+    }
+
+    /// The cut revision of the model (0: uncut).
+    pub fn revision(&self) -> u64 {
+        self.state.as_ref().map_or(0, |s| s.revision)
+    }
+
+    /// Frames advanced.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// Why the model stopped at its revision (a cut it could not take: a piece cut loose
+    /// leaves the co-rotational stiffness singular), if it did.
+    pub fn failure(&self) -> Option<&str> {
+        self.failure.as_deref()
+    }
+
+    /// The visual surface at the model's revision (`None`: the organ has none).
+    pub fn visual(&self) -> Option<&VisualSurface> {
+        self.surface.as_ref()
+    }
+
+    /// The generalized displacements: the mesh's nodes', then the enriched nodes' jumps.
+    pub fn d(&self) -> &[f64] {
+        self.state.as_ref().map_or(&[], |s| s.frames.d())
+    }
+
+    /// The enrichment of the model's cut.
+    pub fn enrichment(&self) -> Option<&Enrichment> {
+        self.state.as_ref().map(|s| &*s.enrichment)
+    }
+
+    fn unsplit_surface(mesh: &Mesh, visual: &VisualMesh, revision: u64, why: Option<String>) -> Result<VisualSurface, String> {
+        let embedding = Embedding::new(mesh, &visual.vertices).map_err(|e| format!("the visual mesh cannot be embedded: {e}"))?;
+        Ok(VisualSurface {
+            revision,
+            side: vec![VertexSide::Own; visual.vertices.len()].into(),
+            mesh: Arc::new(visual.clone()),
+            unsplit: why,
+            embedding,
+        })
+    }
+
+    /// The visual mesh split along the cut `enr` (drawn unsplit, each vertex following the
+    /// side it lies on, when the cut is not one plane).
+    fn split_surface(&self, revision: u64, enr: &Enrichment) -> Result<Option<VisualSurface>, String> {
+        let Some(visual) = &self.visual else { return Ok(None) };
+        let cells: Vec<usize> = enr.cut_cells.iter().map(|c| c.0).collect();
+        let split = visual_split::cut_plane_of_cells(&self.mesh, &enr.cut_cells, visual_split::SESSION_PLANARITY)
+            .and_then(|plane| plane.map(|p| visual_split::split(visual, &self.mesh, &p, &cells)).transpose());
+        let surface = match split {
+            Ok(Some(s)) => {
+                let mut embedding = Embedding::new(&self.mesh, &s.surface.vertices)
+                    .map_err(|e| format!("the split visual mesh cannot be embedded: {e}"))?
+                    .with_sides(&s.side);
+                embedding.follow_cut(&self.mesh, enr, &s.surface.vertices);
+                VisualSurface {
+                    revision,
+                    mesh: Arc::new(s.surface),
+                    side: s.side.into(),
+                    unsplit: None,
+                    embedding,
+                }
+            }
+            Ok(None) => Self::unsplit_surface(&self.mesh, visual, revision, None)?,
+            Err(e) => {
+                tracing::warn!("the visual mesh is drawn unsplit: {e}");
+                let mut s = Self::unsplit_surface(&self.mesh, visual, revision, Some(e.to_string()))?;
+                s.embedding.follow_cut(&self.mesh, enr, &visual.vertices);
+                s
+            }
+        };
+        Ok(Some(surface))
+    }
+
+    /// The model of the cut `enr` at `revision`, continuing from the current state.
+    fn rebuild(&mut self, revision: u64, enr: Arc<Enrichment>) -> Result<(), String> {
+        let model = Arc::new(
+            self.pool
+                .install(|| CorotationalXfem::new(&self.mesh, &self.materials, &self.problem, &enr))
+                .map_err(|e| e.to_string())?,
+        );
+        let rest = self
+            .pool
+            .install(|| model.factor_at(&vec![0.0; model.n_dofs()], None))
+            .map_err(|e| e.to_string())?;
+        let d = match &self.state {
+            Some(s) => model.carry_over(s.frames.d(), &s.enrichment, &enr),
+            None => vec![0.0; model.n_dofs()],
+        };
+        let surface = self.split_surface(revision, &enr)?;
+        self.prescribed = model.prescribed().to_vec();
+        self.state = Some(State {
+            revision,
+            enrichment: enr,
+            frames: model.frames_from(d),
+            rest,
+        });
+        if surface.is_some() {
+            self.surface = surface;
+        }
+        self.busy = false; // a factor of the old model is dropped when it lands
+        Ok(())
+    }
+
+    /// One frame of a session: [`Self::step`] with the cut of the cut thread's latest
+    /// picture.
+    pub fn step_with_picture(
+        &mut self,
+        picture: Option<&CutPicture>,
+        contact: Option<&Contact>,
+    ) -> Result<FrameOutcome, CorotationalError> {
+        let cut = picture.filter(|p| p.organ == self.organ).map(|p| (p.revision, &p.enrichment));
+        self.step(cut, contact)
+    }
+
+    /// One frame: takes the cut `(revision, enrichment)` if it is newer than the model's (a
+    /// new model carrying the state over, the visual mesh split again), sets the loads (the
+    /// scene's, ramped, and the tissue force of `contact`), installs a factor the factor
+    /// thread finished and asks it for the next, advances the deformation one correction and
+    /// publishes `ΔC_rot` at the contact for the tick.
+    pub fn step(&mut self, cut: Option<(u64, &Arc<Enrichment>)>, contact: Option<&Contact>) -> Result<FrameOutcome, CorotationalError> {
+        let mut outcome = FrameOutcome::default();
+        if let Some((revision, enr)) = cut.filter(|c| c.0 > self.revision())
+            && self.failure.is_none()
+        {
+            match self.rebuild(revision, enr.clone()) {
+                Ok(()) => outcome.rebuilt = true,
+                Err(e) => {
+                    tracing::warn!("the co-rotational model stays at cut revision {}: {e}", self.revision());
+                    self.failure = Some(e);
+                }
+            }
+        }
+        // a factor that landed (of the current model only)
+        while let Ok((model, factor)) = self.factors.try_recv() {
+            self.busy = false;
+            if let (Some(s), Ok(f)) = (&mut self.state, factor)
+                && Arc::ptr_eq(&model, s.frames.model())
+            {
+                s.frames.install(f);
+                self.factors_installed += 1;
+                outcome.installed = true;
+            }
+        }
+        let Some(s) = &mut self.state else { return Ok(outcome) };
+        // the loads: the scene's, ramped in, and the tool's
+        self.frames += 1;
+        let ramp = (self.frames as f64 / RAMP_FRAMES as f64).min(1.0);
+        for (f, g) in self.forces.iter_mut().zip(&self.problem.forces) {
+            *f = ramp * g;
+        }
+        if let Some(c) = contact.filter(|c| c.organ == self.organ) {
+            for (&a, &w) in c.nodes.iter().zip(&c.weights) {
+                for k in 0..3 {
+                    self.forces[3 * a + k] += w * c.tissue_force_n[k];
+                }
+            }
+        }
+        s.frames.set_forces(&self.forces);
+        let report = self.pool.install(|| s.frames.step(1.0, &self.prescribed))?;
+        outcome.report = Some(report);
+        if !self.busy {
+            let job = (s.frames.model().clone(), s.frames.d().to_vec(), s.frames.symbolic());
+            self.busy = self.jobs.try_send(job).is_ok();
+        }
+        if let Some(c) = contact.filter(|c| c.organ == self.organ)
+            && let Some(delta) = self.rotation_compliance(c)
+        {
+            self.correction_seq += 1;
+            self.corrections.write(Correction {
+                seq: self.correction_seq,
+                nodes: c.nodes,
+                delta,
+            });
+        }
+        Ok(outcome)
+    }
+
+    /// `ΔC_rot` at contact `c` (module docs), from the factor the frames hold.
+    fn rotation_compliance(&self, c: &Contact) -> Option<[[f64; 3]; 3]> {
+        let s = self.state.as_ref()?;
+        let model = s.frames.model();
+        let warped = s.frames.factor()?;
+        let nf = warped.n();
+        let mut rhs = vec![0.0; 3 * nf];
+        for i in 0..3 {
+            for (&a, &w) in c.nodes.iter().zip(&c.weights) {
+                if let Some(e) = model.free_index(3 * a + i) {
+                    rhs[i * nf + e] += w;
+                }
+            }
+        }
+        let compliance = |f: &Cholesky| {
+            let mut x = rhs.clone();
+            f.solve_many_in_place(&mut x, 3);
+            let mut m = [[0.0; 3]; 3];
+            for (i, row) in m.iter_mut().enumerate() {
+                for (j, v) in row.iter_mut().enumerate() {
+                    for (&a, &w) in c.nodes.iter().zip(&c.weights) {
+                        if let Some(e) = model.free_index(3 * a + j) {
+                            *v += w * x[i * nf + e];
+                        }
+                    }
+                }
+            }
+            m
+        };
+        let (cw, c0) = self.pool.install(|| (compliance(warped), compliance(&s.rest)));
+        let delta: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| 0.5 * (cw[i][j] + cw[j][i] - c0[i][j] - c0[j][i])));
+        delta.iter().flatten().all(|v| v.is_finite()).then_some(delta)
+    }
+
+    /// The displacement (m) of mesh nodes `nodes` on their own side, 3 per node, into `out`.
+    pub fn node_displacements(&self, nodes: &[usize], out: &mut [f32]) {
+        let d = self.d();
+        if d.is_empty() {
+            return;
+        }
+        for (&a, o) in nodes.iter().zip(out.chunks_exact_mut(3)) {
+            for k in 0..3 {
+                o[k] = d[3 * a + k] as f32;
+            }
+        }
+    }
+
+    /// The displacement (m) of every vertex of the visual surface, 3 per vertex, into `out`
+    /// (empty without a visual mesh).
+    pub fn visual_displacements(&self, out: &mut Vec<f64>) {
+        out.clear();
+        let (Some(v), Some(s)) = (&self.surface, &self.state) else { return };
+        out.resize(3 * v.mesh.vertices.len(), 0.0);
+        v.embedding
+            .displacements(&self.mesh, &s.enrichment, &v.mesh.vertices, s.frames.d(), out);
+    }
+}

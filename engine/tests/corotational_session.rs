@@ -1,0 +1,208 @@
+//! The co-rotational deformation of a cutting session (`pipeline::corotational`): the
+//! compliance correction it hands the tick vanishes with the rotation and grows with it; a
+//! cut that lands rebuilds the model from the state reached and splits the visual mesh, whose
+//! two sides then part under loads that open the cut.
+
+use std::sync::Arc;
+
+use vademecum_engine::fem::assembly::MaterialMap;
+use vademecum_engine::fem::linear_static::StaticProblem;
+use vademecum_engine::material::LinearElastic;
+use vademecum_engine::mesh::{Mesh, procedural};
+use vademecum_engine::pipeline::Contact;
+use vademecum_engine::pipeline::corotational::{CorotationalDeformation, Corrections};
+use vademecum_engine::xfem::visual::VisualMesh;
+use vademecum_engine::xfem::visual_split::VertexSide;
+use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
+
+fn materials(mesh: &Mesh) -> MaterialMap {
+    MaterialMap::uniform(LinearElastic::new(1000.0, 0.3).unwrap(), 1000.0, mesh.n_cells())
+}
+
+/// A 4 × 0.5 × 0.5 cantilever of tetrahedra clamped at x = 0, and the nodes of its free end.
+fn cantilever() -> (Mesh, StaticProblem, Vec<usize>) {
+    let mesh = procedural::block_tet([0.0; 3], [4.0, 0.5, 0.5], [16, 2, 2]);
+    let clamp: Vec<usize> = (0..mesh.n_nodes()).filter(|&a| mesh.nodes[a][0] <= 1e-12).collect();
+    let end: Vec<usize> = (0..mesh.n_nodes()).filter(|&a| mesh.nodes[a][0] >= 4.0 - 1e-12).collect();
+    let mut problem = StaticProblem::new(mesh.n_nodes());
+    problem.clamp(&clamp);
+    (mesh, problem, end)
+}
+
+/// A contact on the upper face of the free end (a triangle of its upper nodes), carrying
+/// `force` on the tissue.
+fn tip_contact(mesh: &Mesh, force: [f64; 3]) -> Contact {
+    let top: Vec<usize> = (0..mesh.n_nodes())
+        .filter(|&a| mesh.nodes[a][0] >= 4.0 - 1e-12 && mesh.nodes[a][2] >= 0.5 - 1e-12)
+        .collect();
+    let up: Vec<usize> = (0..mesh.n_nodes())
+        .filter(|&a| (mesh.nodes[a][0] - 3.75).abs() < 1e-9 && mesh.nodes[a][2] >= 0.5 - 1e-12 && mesh.nodes[a][1] <= 1e-12)
+        .collect();
+    Contact {
+        nodes: [top[0], top[1], up[0]],
+        weights: [0.4, 0.4, 0.2],
+        tissue_force_n: force,
+        loadable: 1.0,
+        ..Contact::default()
+    }
+}
+
+/// The tool's force ramped in over 30 frames (as a session's contact force grows tick by
+/// tick), then frames until the residual is below 1e-8 (at most 300); the last correction.
+fn settle(def: &mut CorotationalDeformation, out: &mut Corrections, contact: &Contact) -> [[f64; 3]; 3] {
+    for f in 1..=30 {
+        let mut c = *contact;
+        c.tissue_force_n = contact.tissue_force_n.map(|x| x * f as f64 / 30.0);
+        def.step(None, Some(&c)).unwrap();
+    }
+    for _ in 0..300 {
+        let o = def.step(None, Some(contact)).unwrap();
+        if o.report.unwrap().residual < 1e-8 {
+            break;
+        }
+    }
+    let o = def.step(None, Some(contact)).unwrap();
+    assert!(o.report.unwrap().residual < 1e-6, "{o:?}");
+    let c = *out.read();
+    assert!(c.seq > 0 && c.nodes == contact.nodes);
+    c.delta
+}
+
+fn norm(m: &[[f64; 3]; 3]) -> f64 {
+    m.iter().flatten().map(|v| v * v).sum::<f64>().sqrt()
+}
+
+#[test]
+fn the_force_correction_vanishes_with_the_rotation_and_grows_with_it() {
+    let (mesh, problem, _) = cantilever();
+    // the tip's compliance at rest along z, from the linear model (a unit tip load)
+    let compliance = |force: f64| {
+        let (mut def, mut out) = CorotationalDeformation::new(0, mesh.clone(), materials(&mesh), problem.clone(), None).unwrap();
+        let c = tip_contact(&mesh, [0.0, 0.0, -force]);
+        let delta = settle(&mut def, &mut out, &c);
+        let d = def.d();
+        let w = (0..3).map(|k| c.weights[k] * d[3 * c.nodes[k] + 2]).sum::<f64>();
+        (delta, w)
+    };
+    let (small, w_small) = compliance(1e-4);
+    let (large, w_large) = compliance(0.8);
+    let c0 = w_small.abs() / 1e-4; // the tip's linear compliance along the load (m/N)
+    // a tiny load turns nothing: the tick's force is the reduced model's (the correction is
+    // of the order of the rotation, here 5e-5 rad, times the compliance)
+    assert!(norm(&small) < 1e-3 * c0, "{small:?} vs {c0:e}");
+    // a load that bends the beam by tens of degrees changes the tip's compliance by a share of itself
+    let angle = (w_large.abs() / 4.0).atan().to_degrees();
+    assert!(angle > 15.0, "the tip turned {angle:.1}°");
+    assert!(norm(&large) > 0.05 * c0, "{large:?} vs {c0:e} at {angle:.1}°");
+    // and vanishes with the rotation: ten times less load, about ten times less correction
+    let (tenth, _) = compliance(0.08);
+    let ratio = norm(&tenth) / norm(&large);
+    assert!((0.05..0.2).contains(&ratio), "{:e} vs {:e}", norm(&tenth), norm(&large));
+}
+
+/// A 1 × 1 × 1 block of tetrahedra hung by its top (z = 1), and the boundary of a finer box
+/// inside it as its visual mesh.
+fn block() -> (Mesh, StaticProblem, VisualMesh) {
+    let mesh = procedural::block_tet([0.0; 3], [1.0, 1.0, 1.0], [6, 6, 6]);
+    let top: Vec<usize> = (0..mesh.n_nodes()).filter(|&a| mesh.nodes[a][2] >= 1.0 - 1e-12).collect();
+    let mut problem = StaticProblem::new(mesh.n_nodes());
+    problem.clamp(&top);
+    // the lower corners pulled apart along x: what opens a cut in the plane x = 0.53
+    for (a, x) in mesh.nodes.iter().enumerate() {
+        if x[2] <= 1e-12 {
+            problem.forces[3 * a] += if x[0] < 0.5 { -0.02 } else { 0.02 };
+        }
+    }
+    let fine = procedural::block_tet([0.02; 3], [0.96; 3], [9, 9, 9]);
+    (mesh, problem, surface_of(&fine))
+}
+
+/// The boundary triangles of a tetrahedral mesh, outward, on its own boundary vertices.
+fn surface_of(mesh: &Mesh) -> VisualMesh {
+    use std::collections::HashMap;
+    let mut faces: HashMap<[usize; 3], (usize, [usize; 3])> = HashMap::new();
+    for c in 0..mesh.n_cells() {
+        let t = mesh.cell(c);
+        for (i, j, k, l) in [(1, 2, 3, 0), (0, 3, 2, 1), (0, 1, 3, 2), (0, 2, 1, 3)] {
+            let f = [t[i], t[j], t[k]];
+            // outward: the opposite vertex behind the face
+            let [a, b, cc] = f.map(|v| mesh.nodes[v]);
+            let n = vademecum_engine::vec3::cross(vademecum_engine::vec3::sub(b, a), vademecum_engine::vec3::sub(cc, a));
+            let f = if vademecum_engine::vec3::dot(n, vademecum_engine::vec3::sub(mesh.nodes[t[l]], a)) > 0.0 {
+                [f[0], f[2], f[1]]
+            } else {
+                f
+            };
+            let mut key = f;
+            key.sort_unstable();
+            faces.entry(key).and_modify(|e| e.0 += 1).or_insert((1, f));
+        }
+    }
+    let tris: Vec<[usize; 3]> = faces.values().filter(|e| e.0 == 1).map(|e| e.1).collect();
+    let mut index = vec![usize::MAX; mesh.n_nodes()];
+    let mut vertices = Vec::new();
+    let triangles = tris
+        .iter()
+        .map(|t| {
+            t.map(|a| {
+                if index[a] == usize::MAX {
+                    index[a] = vertices.len();
+                    vertices.push(mesh.nodes[a]);
+                }
+                index[a]
+            })
+        })
+        .collect();
+    VisualMesh { vertices, triangles }
+}
+
+#[test]
+fn a_cut_that_lands_splits_the_visual_mesh_and_its_sides_part() {
+    let (mesh, problem, visual) = block();
+    assert!(visual.edges().is_closed_manifold());
+    let (mut def, _out) = CorotationalDeformation::new(0, mesh.clone(), materials(&mesh), problem, Some(visual.clone())).unwrap();
+    for _ in 0..40 {
+        def.step(None, None).unwrap();
+    }
+    // a cut up from the bottom to mid-height in the plane x = 0.53
+    let plane = Plane {
+        point: [0.53, 0.0, 0.0],
+        normal: [1.0, 0.0, 0.0],
+    };
+    let cells: Vec<(usize, Plane)> = Enrichment::cells_crossed_by(&mesh, &plane)
+        .into_iter()
+        .filter(|(c, _)| mesh.cell(*c).iter().map(|&a| mesh.nodes[a][2]).sum::<f64>() / 4.0 < 0.5)
+        .collect();
+    let enr = Arc::new(Enrichment::from_cut_cells(&mesh, &cells, &XfemParams::default()).unwrap());
+    let o = def.step(Some((1, &enr)), None).unwrap();
+    assert!(o.rebuilt && def.revision() == 1);
+    // an older revision is not taken again
+    assert!(!def.step(Some((1, &enr)), None).unwrap().rebuilt);
+    // the visual mesh split: more vertices, still closed and consistently oriented
+    let v = def.visual().unwrap().clone();
+    assert_eq!(v.revision, 1);
+    assert!(v.unsplit.is_none(), "{:?}", v.unsplit);
+    assert!(v.mesh.vertices.len() > visual.vertices.len());
+    assert!(v.mesh.edges().is_closed_manifold(), "{:?}", v.mesh.edges());
+    for _ in 0..200 {
+        if def.step(None, None).unwrap().report.unwrap().residual < 1e-9 {
+            break;
+        }
+    }
+    // the pull opens the cut: vertices that coincide at rest, one on each side, part
+    let mut u = Vec::new();
+    def.visual_displacements(&mut u);
+    let mut opening = 0.0f64;
+    for (i, p) in v.mesh.vertices.iter().enumerate() {
+        if v.side[i] != VertexSide::Negative {
+            continue;
+        }
+        for (j, q) in v.mesh.vertices.iter().enumerate() {
+            if v.side[j] == VertexSide::Positive && (0..3).all(|k| (p[k] - q[k]).abs() < 1e-12) {
+                opening = opening.max(u[3 * j] - u[3 * i]);
+            }
+        }
+    }
+    let sag = u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    assert!(opening > 0.1 * sag, "the cut opens by {opening:e} (largest displacement {sag:e})");
+}
