@@ -8,6 +8,7 @@ use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
 
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
+use vademecum_engine::pipeline::corotational::BLEND_TICKS;
 use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 
@@ -316,16 +317,33 @@ fn co_rotational_cutting_keeps_the_reduced_force_until_a_frame_lands_then_follow
         deformation.step_with_picture(None, Some(&contact)).unwrap();
     }
     let tool = blade(5.1 - 0.14, FLAT);
-    let (a, l) = (corot.tick(&tool), linear.tick(&tool));
     let status = corot.cut_status().unwrap();
+    // the landing tick still applies the correction in effect before (none): the new one is
+    // blended in over the next BLEND_TICKS ticks
+    let (a, l) = (corot.tick(&tool), linear.tick(&tool));
+    assert_eq!(a.force_n, l.force_n);
     assert_eq!(status.landings.load(Relaxed), 1, "the correction landed during the contact");
+    let mut prev = a.force_n;
+    let mut largest_step = 0.0f64;
+    for _ in 0..BLEND_TICKS {
+        let (a, _) = (corot.tick(&tool), linear.tick(&tool));
+        largest_step = largest_step.max(norm(std::array::from_fn(|k| a.force_n[k] - prev[k])));
+        prev = a.force_n;
+    }
     assert!(status.corrected_ticks.load(Relaxed) >= 1 && status.refused_corrections.load(Relaxed) == 0);
     // the deformation shown is small against the patch (0.08 deep in 5): its correction moves the
-    // force by a little, and the step it made when it landed is what the status reports
-    let diff = norm(std::array::from_fn(|k| a.force_n[k] - l.force_n[k]));
-    assert!(diff > 0.0 && diff < 0.2 * norm(l.force_n), "{:?} vs {:?}", a.force_n, l.force_n);
+    // force by a little; the whole step is what the landing reports, spread over the blend
+    let l = linear.tick(&tool);
+    let diff = norm(std::array::from_fn(|k| prev[k] - l.force_n[k]));
+    assert!(diff > 0.0 && diff < 0.2 * norm(l.force_n), "{prev:?} vs {:?}", l.force_n);
     let jump = status.landing_jump_max_un.load(Relaxed) as f64 * 1e-6;
     assert!((jump - diff).abs() <= 1e-6 + 1e-9 * diff, "landing step {jump:e} vs {diff:e}");
+    let step = status.blend_step_max_un.load(Relaxed) as f64 * 1e-6;
+    assert!((step - largest_step).abs() <= 1e-6, "{step:e} vs {largest_step:e}");
+    assert!(
+        largest_step < 2.0 * diff / f64::from(BLEND_TICKS),
+        "{largest_step:e} per tick for a {diff:e} step"
+    );
     assert!(deformation.frames() == 20 && deformation.revision() == 0);
 }
 

@@ -159,22 +159,26 @@ fn the_contact_compliance_of_a_cut_organ_allocates_nothing() {
     }
 }
 
+/// The patch's scalpel with its edge across the patch's depth at height `z` in the plane
+/// x = 4, upright (the plane's normal is x).
+fn blade(z: f64) -> ToolInput {
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    ToolInput {
+        kind: vademecum_engine::pipeline::ToolKind::Scalpel,
+        position_m: [4.0, -0.1, z],
+        blade_end_m: [4.0, 1.1, z],
+        orientation: [h, 0.0, 0.0, -h],
+        ..ToolInput::default()
+    }
+}
+
 #[test]
 fn a_cutting_tick_allocates_and_frees_nothing_while_the_cut_grows() {
-    use vademecum_engine::pipeline::ToolKind;
     // the patch of seed 000 §3.5.1, a scalpel pressed down through its top cell row: the cut
     // thread cuts two cells and the tick swaps the cut model in (the old one is freed on the
     // cut thread); counted on the tick's thread only
     let scene = Scene::builtin("patch_cut").unwrap();
     let mut p = pipeline(&scene);
-    let h = std::f64::consts::FRAC_1_SQRT_2;
-    let blade = |z: f64| ToolInput {
-        kind: ToolKind::Scalpel,
-        position_m: [4.0, -0.1, z],
-        blade_end_m: [4.0, 1.1, z],
-        orientation: [h, 0.0, 0.0, -h],
-        ..ToolInput::default()
-    };
     let tools: Vec<ToolInput> = (0..=1200).map(|i| blade(5.1 - 1.2 * i as f64 / 1200.0)).collect();
     let bad = ToolInput {
         blade_end_m: [f64::NAN; 3],
@@ -204,6 +208,59 @@ fn a_cutting_tick_allocates_and_frees_nothing_while_the_cut_grows() {
     }
     assert_eq!(COUNT.with(|n| n.get()), 0, "the cutting tick allocated");
     assert_eq!(FREES.with(|n| n.get()), 0, "the cutting tick freed memory");
+}
+
+#[test]
+fn a_co_rotational_cutting_tick_allocates_and_frees_nothing_while_corrections_land() {
+    use std::sync::Mutex;
+    use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
+    // the patch cut with co-rotational cutting (without its corner load, and a lower cut force:
+    // pressed a metre into this 5 Pa patch the deformation softens the blade's force to
+    // 0.3–0.4 N where the linear model gives more than 1 N): a frame thread advances the deformation under
+    // the tick's contact every 20 ms and hands the tick its corrections, which the tick blends
+    // in while the cut thread cuts; counted on the tick's thread only
+    let text = Scene::builtin("patch_cut")
+        .unwrap()
+        .source
+        .replace("force = [0.0, 0.0, -1.0]", "force = [0.0, 0.0, 0.0]")
+        .replace("cut_force = 1.0", "cut_force = 0.2")
+        .replace("[fidelity]\n", "[fidelity]\ncutting = \"corotational_xfem\"\n");
+    let scene = Scene::from_toml(&text, "patch_cut_corot.toml").unwrap();
+    let mut p = pipeline(&scene);
+    let mut deformation = p.take_corotational().unwrap();
+    let status = p.cut_status().unwrap();
+    let contact = Arc::new(Mutex::new(None));
+    let stop = Arc::new(AtomicBool::new(false));
+    let frames = std::thread::spawn({
+        let (contact, stop, status) = (contact.clone(), stop.clone(), status.clone());
+        move || {
+            while !stop.load(Relaxed) {
+                let c = *contact.lock().unwrap();
+                deformation.step_with_picture(status.picture().as_deref(), c.as_ref()).unwrap();
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+        }
+    });
+    let tools: Vec<ToolInput> = (0..=1200).map(|i| blade(5.1 - 1.2 * i as f64 / 1200.0)).collect();
+    let mut seen = 0u32;
+    COUNT.with(|n| n.set(0));
+    FREES.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    for t in tools.iter().chain(std::iter::repeat_n(&blade(4.5), 500)) {
+        let s = p.tick(t);
+        seen |= s.events.0;
+        *contact.lock().unwrap() = s.contact;
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    COUNTING.with(|c| c.set(false));
+    stop.store(true, Relaxed);
+    frames.join().unwrap();
+    for e in [Events::CONTACT, Events::CUT_STARTED, Events::CUT_ADVANCED] {
+        assert!(seen & e != 0, "event {e} never happened");
+    }
+    assert!(status.landings.load(Relaxed) > 0 && status.corrected_ticks.load(Relaxed) > 0);
+    assert_eq!(COUNT.with(|n| n.get()), 0, "the co-rotational cutting tick allocated");
+    assert_eq!(FREES.with(|n| n.get()), 0, "the co-rotational cutting tick freed memory");
 }
 
 #[test]

@@ -112,8 +112,16 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
             .iter()
             .zip(&f.cuts)
             .zip(&f.damage)
-            .map(|((d, cut), damage)| pb::OrganDisplacement {
+            .enumerate()
+            .map(|(o, ((d, cut), damage))| pb::OrganDisplacement {
                 displacements: f32_bytes(d.iter().copied()),
+                visual: f.visual.as_ref().filter(|v| v.organ == o).map(|v| pb::VisualSurface {
+                    revision: v.revision,
+                    vertex_count: (v.positions_m.len() / 3) as u32,
+                    positions: f32_bytes(v.positions_m.iter().copied()),
+                    triangles: v.triangles.iter().flat_map(|t| t.to_le_bytes()).collect(),
+                    displacements: f32_bytes(v.displacements_m.iter().copied()),
+                }),
                 damage: damage.as_ref().map(|t| pb::TissueDamage {
                     cell_damage: f32_bytes(t.cell_damage.iter().copied()),
                     triangle_damage: f32_bytes(t.triangle_damage.iter().copied()),
@@ -247,5 +255,63 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
         bridge_deadline_misses: b.deadline_misses,
         bridge_watchdog_ticks: b.watchdog_ticks,
         bridge_input_rejections: b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::session::frames::{OrganSurface, SurfaceGeometry, VisualFrame};
+
+    fn two_organs() -> SurfaceGeometry {
+        let organ = |name: &str| OrganSurface {
+            name: name.into(),
+            nodes: vec![0, 1, 2],
+            positions_m: vec![0.0; 9],
+            triangles: vec![0, 1, 2],
+            accessible: vec![1; 3],
+            bounds: vademecum_engine::contact::Bounds {
+                min: [0.0; 3],
+                max: [1.0; 3],
+            },
+            accessible_bounds: None,
+            accessible_triangles: 1,
+        };
+        SurfaceGeometry {
+            organs: vec![organ("a"), organ("b")],
+        }
+    }
+
+    #[test]
+    fn a_frame_carries_the_visual_surface_on_its_organ_only() {
+        let g = two_organs();
+        let mut f = Frame::rest(&g);
+        assert!(frame(&f, 1).organs.iter().all(|o| o.visual.is_none()), "no visual mesh: unset");
+        f.visual = Some(VisualFrame {
+            organ: 1,
+            revision: 3,
+            positions_m: Arc::from(vec![0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]),
+            triangles: Arc::from(vec![0u32, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2]),
+            displacements_m: vec![0.5; 12],
+        });
+        let pb = frame(&f, 1);
+        assert!(pb.organs[0].visual.is_none());
+        let v = pb.organs[1].visual.as_ref().expect("organ 1 carries it");
+        assert_eq!((v.revision, v.vertex_count), (3, 4));
+        let floats = |b: &[u8]| {
+            b.chunks_exact(4)
+                .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(floats(&v.positions)[3], 1.0);
+        assert_eq!(floats(&v.displacements), vec![0.5; 12]);
+        let tris: Vec<u32> = v
+            .triangles
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        assert_eq!(tris, vec![0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2]);
     }
 }

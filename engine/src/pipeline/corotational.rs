@@ -27,14 +27,21 @@
 //! pre-loaded by the scene) the local stiffness the hand feels is the one of the deformation
 //! shown. A correction applies while the tick's contact triangle shares a node with the one it
 //! was computed at; a corrected compliance whose symmetric part is not positive definite is
-//! not used (counted). The correction changes when a frame lands: the tick measures that
-//! step, `|f(ΔC_new) − f(ΔC_old)|` at the same imposed displacement, in
-//! [`super::cutting::CutStatus`] (`landings`, `landing_jump_max_un`, `landing_jump_sum_un`).
+//! not used (counted).
+//!
+//! # The landing of a frame
+//! A new correction would change the force at once, by `|f(ΔC_new) − f(ΔC_old)|` at the same
+//! imposed displacement. The tick blends it in instead ([`Blend`]): linearly over
+//! [`BLEND_TICKS`] ticks (a frame at 30 Hz), from the correction in effect when it landed, so
+//! the force moves by a thirty-second of that step per tick. Both are measured by the tick in
+//! [`super::cutting::CutStatus`]: the whole step of each landing (`landings`,
+//! `landing_jump_max_un`, `landing_jump_sum_un`) and the largest step between two ticks while
+//! blending (`blend_step_max_un`).
 //!
 //! The frame thread runs its parallel work (forces, factorization) in its own rayon pool of
 //! [`pool_threads`] threads — one fewer than the machine's cores — so that it never takes
 //! every core, and the pool, the factor thread and the frame thread of a co-rotational session
-//! run at the lowest CPU priority ([`lower_priority`]): the tick thread takes a core from them
+//! run at the lowest CPU priority ([`super::lower_thread_priority`]): the tick thread takes a core from them
 //! as soon as it wakes.
 
 use std::sync::Arc;
@@ -77,14 +84,59 @@ impl Correction {
 /// The tick's end of the corrections.
 pub type Corrections = triple_buffer::Output<Correction>;
 
-/// Lowers the calling thread to the lowest CPU priority (nice 19; Linux, where the nice
-/// value is per thread): the co-rotational threads yield the cores to the tick thread
-/// whenever it wakes.
-pub fn lower_priority() {
-    #[cfg(target_os = "linux")]
-    // SAFETY: setpriority only reads its arguments; `who = 0` is the calling thread
-    unsafe {
-        libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+/// Ticks over which the tick blends a new correction in (about one frame at 30 Hz).
+pub const BLEND_TICKS: u32 = 32;
+
+/// The correction the tick applies: each new one blended in from the one applied when it
+/// landed, linearly over [`BLEND_TICKS`] ticks, so that a landing frame changes the force by a
+/// thirty-second of its step per tick instead of all at once (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Blend {
+    target: Correction,
+    from: [[f64; 3]; 3],
+    ticks: u32,
+}
+
+impl Blend {
+    /// Takes the latest correction `latest` at a tick whose contact is on triangle `nodes`
+    /// (`None`: no contact); returns whether it is new. The blend restarts from the correction
+    /// in effect at that contact.
+    pub fn land(&mut self, latest: Correction, nodes: Option<&[usize; 3]>) -> bool {
+        if latest.seq == self.target.seq {
+            self.ticks = self.ticks.saturating_add(1);
+            return false;
+        }
+        self.from = nodes.and_then(|n| self.delta(n, self.ticks)).unwrap_or_default();
+        self.target = latest;
+        self.ticks = 0;
+        true
+    }
+
+    /// `ΔC_rot` in effect at a contact on `nodes`, `ticks` ticks after the latest landed
+    /// (`None`: none applies there).
+    pub fn delta(&self, nodes: &[usize; 3], ticks: u32) -> Option<[[f64; 3]; 3]> {
+        if !self.target.applies_to(nodes) {
+            return None;
+        }
+        let a = (f64::from(ticks) / f64::from(BLEND_TICKS)).min(1.0);
+        Some(std::array::from_fn(|i| {
+            std::array::from_fn(|j| self.from[i][j] + a * (self.target.delta[i][j] - self.from[i][j]))
+        }))
+    }
+
+    /// Ticks since the latest correction landed.
+    pub fn ticks(&self) -> u32 {
+        self.ticks
+    }
+
+    /// The latest correction, fully blended in (what the blend moves towards).
+    pub fn target(&self) -> &Correction {
+        &self.target
+    }
+
+    /// The correction in effect when the latest landed.
+    pub fn from(&self) -> [[f64; 3]; 3] {
+        self.from
     }
 }
 
@@ -183,7 +235,7 @@ impl CorotationalDeformation {
             rayon::ThreadPoolBuilder::new()
                 .num_threads(pool_threads())
                 .thread_name(|i| format!("corot-{i}"))
-                .start_handler(|_| lower_priority())
+                .start_handler(|_| super::lower_thread_priority())
                 .build()
                 .map_err(|e| format!("cannot start the co-rotational pool: {e}"))?,
         );
@@ -193,7 +245,7 @@ impl CorotationalDeformation {
         std::thread::Builder::new()
             .name("corot-factor".into())
             .spawn(move || {
-                lower_priority();
+                super::lower_thread_priority();
                 while let Ok((model, d, symbolic)) = job_rx.recv() {
                     let f = factor_pool.install(|| model.factor_at(&d, symbolic)).map_err(|e| e.to_string());
                     if factor_tx.send((model, f)).is_err() {

@@ -47,7 +47,7 @@ use std::time::Duration;
 
 use crossbeam_queue::ArrayQueue;
 
-use super::corotational::{Correction, Corrections};
+use super::corotational::{BLEND_TICKS, Blend, Corrections};
 use super::{Contact, Effect, Events, TickState, ToolInput, ToolKind};
 use crate::mesh::Mesh;
 use crate::pgd::Vademecum;
@@ -110,6 +110,9 @@ pub struct CutStatus {
     pub landing_jump_max_un: AtomicU64,
     /// The landing steps summed (µN).
     pub landing_jump_sum_un: AtomicU64,
+    /// The largest change of the force between two ticks while a correction is blended in
+    /// (µN; [`super::corotational::Blend`]).
+    pub blend_step_max_un: AtomicU64,
     /// The cut's shape (updated by the cut thread after each cut; never read by the tick).
     pub shape: std::sync::Mutex<CutShape>,
     /// The cut as viewers draw it (updated by the cut thread after each cut; read by the
@@ -250,9 +253,9 @@ pub struct Cutting {
     stroke: bool,
     stop: Arc<AtomicBool>,
     worker: Option<JoinHandle<()>>,
-    /// Co-rotational cutting: the frame thread's corrections, and the one applied last.
+    /// Co-rotational cutting: the frame thread's corrections, and the blend of the latest in.
     corrections: Option<Corrections>,
-    applied: Correction,
+    blend: Blend,
 }
 
 impl std::fmt::Debug for Cutting {
@@ -304,7 +307,7 @@ impl Cutting {
             stop,
             worker: Some(worker),
             corrections: None,
-            applied: Correction::default(),
+            blend: Blend::default(),
         }
     }
 
@@ -360,11 +363,12 @@ impl Effect for Cutting {
             state.events.0 |= Events::CUT_ADVANCED;
         }
         // the co-rotational deformation's latest correction (co-rotational cutting)
-        let previous = self.applied;
+        let mut landed = false;
         if let Some(out) = &mut self.corrections {
-            self.applied = *out.read();
+            let nodes = state.contact.as_ref().filter(|c| c.organ == self.organ).map(|c| c.nodes);
+            landed = self.blend.land(*out.read(), nodes.as_ref());
         }
-        let rotated = self.applied.seq > 0;
+        let rotated = self.blend.target().seq > 0;
         // the cut's compliance at the contact, and the rotation's
         if (self.view.enriched_unknowns() > 0 || rotated)
             && let Some(c) = &mut state.contact
@@ -378,35 +382,47 @@ impl Effect for Cutting {
                 [[0.0; 3]; 3]
             };
             let cut: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cv[i][j] + added[i][j]));
-            let force = |corr: &Correction| -> Option<[f64; 3]> {
-                if !corr.applies_to(&c.nodes) {
-                    return Some(Vademecum::contact_force(&cut, c.imposed_m).map(|f| c.loadable * f));
-                }
-                let total: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cut[i][j] + corr.delta[i][j]));
+            // the force with a rotation correction (None: it makes the compliance indefinite)
+            let force = |delta: Option<[[f64; 3]; 3]>| -> Option<[f64; 3]> {
+                let total = match delta {
+                    None => cut,
+                    Some(d) => std::array::from_fn(|i| std::array::from_fn(|j| cut[i][j] + d[i][j])),
+                };
                 positive_definite(&total).then(|| Vademecum::contact_force(&total, c.imposed_m).map(|f| c.loadable * f))
             };
-            let tissue = match force(&self.applied) {
+            let uncorrected = || Vademecum::contact_force(&cut, c.imposed_m).map(|f| c.loadable * f);
+            let ticks = self.blend.ticks();
+            let now = self.blend.delta(&c.nodes, ticks);
+            let tissue = match force(now) {
                 Some(f) => {
-                    if self.applied.applies_to(&c.nodes) {
+                    if now.is_some() {
                         self.status.corrected_ticks.fetch_add(1, Ordering::Relaxed);
                     }
                     f
                 }
                 None => {
                     self.status.refused_corrections.fetch_add(1, Ordering::Relaxed);
-                    Vademecum::contact_force(&cut, c.imposed_m).map(|f| c.loadable * f)
+                    uncorrected()
                 }
             };
-            // the force's step when a new correction lands (the multi-rate discontinuity)
-            if self.applied.seq != previous.seq
-                && self.applied.applies_to(&c.nodes)
-                && let Some(before) = force(&previous)
+            // the multi-rate discontinuity: the whole step a landing correction would make,
+            // and the step the blend makes from the tick before
+            let size = |a: [f64; 3], b: [f64; 3]| ((0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt() * 1e6).round() as u64;
+            if landed
+                && now.is_some()
+                && let (Some(from), Some(to)) = (force(Some(self.blend.from())), force(Some(self.blend.target().delta)))
             {
-                let jump = (0..3).map(|k| (tissue[k] - before[k]).powi(2)).sum::<f64>().sqrt();
-                let un = (jump * 1e6).round() as u64;
+                let un = size(to, from);
                 self.status.landings.fetch_add(1, Ordering::Relaxed);
                 self.status.landing_jump_max_un.fetch_max(un, Ordering::Relaxed);
                 self.status.landing_jump_sum_un.fetch_add(un, Ordering::Relaxed);
+            }
+            if ticks > 0
+                && ticks <= BLEND_TICKS
+                && now.is_some()
+                && let Some(before) = force(self.blend.delta(&c.nodes, ticks - 1))
+            {
+                self.status.blend_step_max_un.fetch_max(size(tissue, before), Ordering::Relaxed);
             }
             for k in 0..3 {
                 state.force_n[k] += c.tissue_force_n[k] - tissue[k];

@@ -33,6 +33,17 @@ pub use cutting::{BladeForce, Cutting};
 pub use palpation::Palpation;
 pub use tearing::{GraspSite, TearPicture, TearPictures, Tearing};
 
+/// Lowers the calling thread to the lowest CPU priority (nice 19; Linux, where the nice value
+/// is per thread; elsewhere nothing): for the work beside the tick — a co-rotational
+/// deformation, a recorder — so that the tick thread takes a core from it whenever it wakes.
+pub fn lower_thread_priority() {
+    #[cfg(target_os = "linux")]
+    // SAFETY: setpriority only reads its arguments; `who = 0` is the calling thread
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 19);
+    }
+}
+
 /// The kind of tool a tool state describes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum ToolKind {

@@ -333,7 +333,7 @@ impl FrameProducer {
     /// deformation advances every frame regardless).
     pub fn run(mut self) {
         if self.corotational.is_some() {
-            vademecum_engine::pipeline::corotational::lower_priority();
+            vademecum_engine::pipeline::lower_thread_priority();
         }
         let mut seq = 0u64;
         let mut coeffs: Vec<Vec<f64>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();

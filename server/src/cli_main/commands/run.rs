@@ -75,10 +75,12 @@ struct CorotationalSummary {
     /// Ticks whose force took the rotation correction; corrections refused.
     corrected_ticks: u64,
     refused_corrections: u64,
-    /// Corrections that landed during a contact, and the force step they made (N).
+    /// Corrections that landed during a contact, and the whole force step each would make
+    /// (N); the tick blends each in over 32 ticks: the largest step between two ticks (N).
     landings: u64,
     landing_jump_max_n: f64,
     landing_jump_mean_n: f64,
+    blend_step_max_n: f64,
     /// The visual surface's series (`None`: the organ has no visual mesh).
     visual_pvd: Option<PathBuf>,
 }
@@ -393,6 +395,9 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let mut visual_steps: Vec<(f64, String)> = Vec::new();
     let mut visual_geometry: Option<(u64, Vec<[f64; 3]>, Vec<usize>)> = None;
     let session_stats = session.stats().clone();
+    // the recorder is no real-time work: it yields the cores to the tick thread (frames it
+    // falls behind on are skipped, as a slow viewer's are)
+    vademecum_engine::pipeline::lower_thread_priority();
     while !session.finished() {
         std::thread::sleep(interval);
         bar.set_position((clock.elapsed().as_secs_f64() * 1000.0) as u64);
@@ -578,8 +583,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             )?;
             writeln!(
                 out,
-                "  coupling       {} ticks with the rotation correction ({} refused); {} landings, force step {:.2e} N mean, {:.2e} N max",
-                c.corrected_ticks, c.refused_corrections, c.landings, c.landing_jump_mean_n, c.landing_jump_max_n
+                "  coupling       {} ticks with the rotation correction ({} refused); {} landings, each a force step of {:.2e} N mean, {:.2e} N max, blended in: at most {:.2e} N from one tick to the next",
+                c.corrected_ticks, c.refused_corrections, c.landings, c.landing_jump_mean_n, c.landing_jump_max_n, c.blend_step_max_n
             )?;
             if let Some(v) = &c.visual_pvd {
                 writeln!(out, "  visual mesh    {}", v.display())?;
@@ -707,6 +712,7 @@ fn corotational_summary(
         landings,
         landing_jump_max_n: counter(|s| &s.landing_jump_max_un) as f64 * 1e-6,
         landing_jump_mean_n: counter(|s| &s.landing_jump_sum_un) as f64 * 1e-6 / landings.max(1) as f64,
+        blend_step_max_n: counter(|s| &s.blend_step_max_un) as f64 * 1e-6,
         visual_pvd,
     }
 }
