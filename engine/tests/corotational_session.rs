@@ -206,3 +206,34 @@ fn a_cut_that_lands_splits_the_visual_mesh_and_its_sides_part() {
     let sag = u.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     assert!(opening > 0.1 * sag, "the cut opens by {opening:e} (largest displacement {sag:e})");
 }
+
+#[test]
+fn a_piece_cut_loose_leaves_the_deformation_at_its_last_cut_and_says_why() {
+    // the hung block cut through at z = 0.47: its lower part holds on to nothing, and the
+    // co-rotational stiffness (no soft foundation) cannot hold it
+    let (mesh, problem, visual) = block();
+    let (mut def, _out) = CorotationalDeformation::new(0, mesh.clone(), materials(&mesh), problem, Some(visual)).unwrap();
+    for _ in 0..20 {
+        def.step(None, None).unwrap();
+    }
+    let before = def.d().to_vec();
+    let plane = Plane {
+        point: [0.0, 0.0, 0.47],
+        normal: [0.0, 0.0, 1.0],
+    };
+    let cells = Enrichment::cells_crossed_by(&mesh, &plane);
+    let enr = Arc::new(Enrichment::from_cut_cells(&mesh, &cells, &XfemParams::default()).unwrap());
+    let o = def.step(Some((1, &enr)), None).unwrap();
+    assert!(!o.rebuilt && o.refused_cut && def.revision() == 0, "{o:?}");
+    let why = def.failure().expect("the failure is kept").to_string();
+    assert!(!why.is_empty());
+    // the deformation goes on at its last cut, finite, the visual mesh unsplit
+    for _ in 0..5 {
+        assert!(def.step(Some((2, &enr)), None).unwrap().report.is_some());
+    }
+    assert_eq!(def.revision(), 0);
+    assert!(def.d().iter().all(|v| v.is_finite()));
+    assert_eq!(def.visual().unwrap().revision, 0);
+    let moved = def.d().iter().zip(&before).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    assert!(moved <= 1e-6 * before.iter().fold(0.0f64, |m, v| m.max(v.abs())), "{moved:e}");
+}

@@ -184,6 +184,9 @@ pub struct FrameOutcome {
     pub rebuilt: bool,
     /// Whether a factor from the factor thread was installed before this frame.
     pub installed: bool,
+    /// Whether this frame refused a new cut (the model stays at its last one; see
+    /// [`CorotationalDeformation::failure`]).
+    pub refused_cut: bool,
 }
 
 /// The co-rotational deformation of a cut organ, advanced one frame at a time on the frame
@@ -371,6 +374,13 @@ impl CorotationalDeformation {
                 .install(|| CorotationalXfem::new(&self.mesh, &self.materials, &self.problem, &enr))
                 .map_err(|e| e.to_string())?,
         );
+        if let Some((copies, free)) = model.loose_pieces().first() {
+            return Err(format!(
+                "the cut sets a piece of {} nodes loose from every support (free: {}); the co-rotational model holds no loose piece",
+                copies.len(),
+                free.join(", ")
+            ));
+        }
         let rest = self
             .pool
             .install(|| model.factor_at(&vec![0.0; model.n_dofs()], None))
@@ -420,6 +430,7 @@ impl CorotationalDeformation {
                 Err(e) => {
                     tracing::warn!("the co-rotational model stays at cut revision {}: {e}", self.revision());
                     self.failure = Some(e);
+                    outcome.refused_cut = true;
                 }
             }
         }

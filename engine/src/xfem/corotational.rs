@@ -91,6 +91,8 @@ pub struct CorotationalXfem {
     /// Prescribed values of the generalized dofs (the problem's; enriched ones zero).
     prescribed: Vec<f64>,
     forces: Vec<f64>,
+    /// Pieces no support holds ([`Self::loose_pieces`]).
+    loose: Vec<(Vec<usize>, Vec<String>)>,
 }
 
 /// Settings of the equilibrium iteration.
@@ -150,7 +152,13 @@ impl CorotationalXfem {
     pub fn new(mesh: &Mesh, materials: &MaterialMap, problem: &StaticProblem, enr: &Enrichment) -> Result<Self, XfemError> {
         let n = mesh.n_nodes();
         let ng = n + enr.len();
-        let system::Generalized { prescribed, dofs, .. } = system::generalized_dofs(mesh, problem, enr)?;
+        let system::Generalized {
+            prescribed,
+            dofs,
+            supported,
+            constrained,
+        } = system::generalized_dofs(mesh, problem, enr)?;
+        let mut pieces = system::Pieces::new(ng);
         let npc = mesh.kind.nodes_per_cell();
         let (mut cell_nodes, mut local) = (Vec::new(), Vec::new());
         let mut adj: Vec<Vec<usize>> = vec![Vec::new(); ng];
@@ -178,12 +186,18 @@ impl CorotationalXfem {
                         }
                     }
                 }
-                let enriched = local
+                let enriched: Vec<(usize, usize, f64)> = local
                     .iter()
                     .zip(&sm.side.shifts)
                     .filter(|(_, s)| **s != 0.0)
                     .map(|(&(a, kk), &s)| (a, n + kk, s))
                     .collect();
+                // the copies this side joins into one piece of material
+                let cell = mesh.cell(c);
+                let copy = |a: usize| enriched.iter().find(|e| e.0 == a).map_or(cell[a], |e| e.1);
+                for a in 1..npc {
+                    pieces.join(copy(0), copy(a));
+                }
                 sides.push(Side {
                     cell: c,
                     enriched,
@@ -197,6 +211,7 @@ impl CorotationalXfem {
             l.sort_unstable();
             l.dedup();
         }
+        let loose = system::loose_pieces(mesh, enr, &mut pieces, &supported, &constrained);
         let pattern = Arc::new(SymmetricPattern::from_adjacency(&adj, &dofs));
         let mut forces = problem.forces.clone();
         forces.resize(3 * ng, 0.0);
@@ -207,7 +222,16 @@ impl CorotationalXfem {
             pattern,
             prescribed,
             forces,
+            loose,
         })
+    }
+
+    /// The pieces the cut set loose from every support (their copies — `a < n` a node's own
+    /// side, `n + k` the other side of enriched node `k` — and the rigid motions left free):
+    /// the co-rotational stiffness is singular while there is one (no soft foundation holds
+    /// them, unlike the linear XFEM's `Detached`).
+    pub fn loose_pieces(&self) -> &[(Vec<usize>, Vec<String>)] {
+        &self.loose
     }
 
     /// The prescribed values of every generalized dof (the problem's supports; zero on the

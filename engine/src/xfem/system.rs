@@ -345,12 +345,49 @@ pub fn enriched_cell_stiffness(
 }
 
 /// Union–find over copies.
-struct Pieces {
+pub(super) struct Pieces {
     parent: Vec<usize>,
 }
 
+/// The pieces of material `pieces` joins (over the `n + m` copies of `mesh` cut by `enr`)
+/// whose supports leave a rigid motion free — a node's own copy held where `supported` holds
+/// it, an enriched copy where `constrained` does —, each with its copies and those motions;
+/// none while the organ is one piece.
+pub(super) fn loose_pieces(
+    mesh: &Mesh,
+    enr: &Enrichment,
+    pieces: &mut Pieces,
+    supported: &[bool],
+    constrained: &[bool],
+) -> Vec<(Vec<usize>, Vec<String>)> {
+    let n = mesh.n_nodes();
+    let mut members: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
+    for a in 0..pieces.parent.len() {
+        let r = pieces.find(a);
+        members.entry(r).or_default().push(a);
+    }
+    if members.len() <= 1 {
+        return Vec::new();
+    }
+    let copy_node = |a: usize| if a < n { a } else { enr.nodes[a - n] };
+    let held = |a: usize, i: usize| if a < n { supported[3 * a + i] } else { constrained[3 * a + i] };
+    members
+        .into_values()
+        .filter_map(|copies| {
+            let pos: Vec<[f64; 3]> = copies.iter().map(|&a| mesh.nodes[copy_node(a)]).collect();
+            let sup: Vec<bool> = copies
+                .iter()
+                .flat_map(|&a| (0..3).map(move |i| (a, i)))
+                .map(|(a, i)| held(a, i))
+                .collect();
+            let free = solve::free_rigid_motions(&pos, &sup);
+            (!free.is_empty()).then_some((copies, free))
+        })
+        .collect()
+}
+
 impl Pieces {
-    fn new(n: usize) -> Self {
+    pub(super) fn new(n: usize) -> Self {
         Self { parent: (0..n).collect() }
     }
 
@@ -362,7 +399,7 @@ impl Pieces {
         a
     }
 
-    fn join(&mut self, a: usize, b: usize) {
+    pub(super) fn join(&mut self, a: usize, b: usize) {
         let (ra, rb) = (self.find(a), self.find(b));
         if ra != rb {
             self.parent[ra.max(rb)] = ra.min(rb);
@@ -556,42 +593,23 @@ pub fn assemble(
     assembly::add_springs(&mut k, &dofs, &springs);
 
     // pieces that no support holds
-    let mut members: std::collections::BTreeMap<usize, Vec<usize>> = Default::default();
-    for a in 0..ng {
-        let r = pieces.find(a);
-        members.entry(r).or_default().push(a);
-    }
-    let copy_node = |a: usize| if a < n { a } else { enr.nodes[a - n] };
-    let held = |a: usize, i: usize| if a < n { supported[3 * a + i] } else { constrained[3 * a + i] };
     let young = materials.table.iter().map(|m| m.young).fold(0.0, f64::max);
     let k_hold = young * h_sum / mesh.n_cells().max(1) as f64;
     let mut detached = Vec::new();
-    if members.len() > 1 {
-        for copies in members.values() {
-            let pos: Vec<[f64; 3]> = copies.iter().map(|&a| mesh.nodes[copy_node(a)]).collect();
-            let sup: Vec<bool> = copies
-                .iter()
-                .flat_map(|&a| (0..3).map(move |i| (a, i)))
-                .map(|(a, i)| held(a, i))
-                .collect();
-            let free = solve::free_rigid_motions(&pos, &sup);
-            if free.is_empty() {
-                continue;
-            }
-            for &a in copies {
-                hold_copy(&mut k, &dofs, enr, n, a, k_hold);
-                if params.detached == Detached::Remove && a < n {
-                    for i in 0..3 {
-                        forces[3 * a + i] = 0.0;
-                    }
+    for (copies, free) in loose_pieces(mesh, enr, &mut pieces, &supported, &constrained) {
+        for &a in &copies {
+            hold_copy(&mut k, &dofs, enr, n, a, k_hold);
+            if params.detached == Detached::Remove && a < n {
+                for i in 0..3 {
+                    forces[3 * a + i] = 0.0;
                 }
             }
-            detached.push(Piece {
-                copies: copies.clone(),
-                free,
-                action: params.detached,
-            });
         }
+        detached.push(Piece {
+            copies,
+            free,
+            action: params.detached,
+        });
     }
     for (d, f) in forces.iter().enumerate() {
         if let Some(e) = dofs.eq(d) {

@@ -148,6 +148,8 @@ pub struct CorotationalStats {
     pub installed: AtomicU64,
     /// Models rebuilt because the cut grew.
     pub rebuilt: AtomicU64,
+    /// Cuts the model could not take (a piece cut loose): it stays at the last one.
+    pub refused_cuts: AtomicU64,
     /// The last frame's relative residual (f64 bits).
     pub residual_bits: AtomicU64,
     /// Time of a frame (µs): the last, the largest, the sum.
@@ -169,6 +171,7 @@ impl TickStats {
         c.sum_us.fetch_add(us, Ordering::Relaxed);
         c.installed.fetch_add(u64::from(o.installed), Ordering::Relaxed);
         c.rebuilt.fetch_add(u64::from(o.rebuilt), Ordering::Relaxed);
+        c.refused_cuts.fetch_add(u64::from(o.refused_cut), Ordering::Relaxed);
         if let Some(r) = o.report {
             c.factored.fetch_add(u64::from(r.factored), Ordering::Relaxed);
             c.residual_bits.store(r.residual.to_bits(), Ordering::Relaxed);

@@ -69,6 +69,8 @@ struct CorotationalSummary {
     factored: u64,
     installed: u64,
     rebuilt: u64,
+    /// Cuts the model could not take (a piece cut loose: it stayed at the last one).
+    refused_cuts: u64,
     failures: u64,
     /// The last frame's relative residual.
     residual: f64,
@@ -578,8 +580,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         if let Some(c) = &s.corotational {
             writeln!(
                 out,
-                "  co-rotational  {} frames, {:.1} ms mean ({:.1} max); {} factored on the frame thread, {} factors installed, {} rebuilt as the cut grew, {} failed; residual {:.1e}",
-                c.frames, c.frame_ms_mean, c.frame_ms_max, c.factored, c.installed, c.rebuilt, c.failures, c.residual
+                "  co-rotational  {} frames, {:.1} ms mean ({:.1} max); {} factored on the frame thread, {} factors installed, {} rebuilt as the cut grew, {} cuts refused (a piece cut loose), {} failed; residual {:.1e}",
+                c.frames, c.frame_ms_mean, c.frame_ms_max, c.factored, c.installed, c.rebuilt, c.refused_cuts, c.failures, c.residual
             )?;
             writeln!(
                 out,
@@ -705,6 +707,7 @@ fn corotational_summary(
         factored: c.factored.load(Relaxed),
         installed: c.installed.load(Relaxed),
         rebuilt: c.rebuilt.load(Relaxed),
+        refused_cuts: c.refused_cuts.load(Relaxed),
         failures: stats.corotational_failures.load(Relaxed),
         residual: f64::from_bits(c.residual_bits.load(Relaxed)),
         corrected_ticks: counter(|s| &s.corrected_ticks),
