@@ -254,16 +254,23 @@ impl Registry {
         Ok(scene)
     }
 
-    /// Refuses a scene naming a mesh file outside the mesh root (before anything reads it).
+    /// Refuses a scene naming a mesh file — simulation or visual — outside the mesh root
+    /// (before anything reads it).
     fn check_mesh_paths(&self, scene: &Scene) -> Result<(), ServerError> {
         let root = &self.shared.config.mesh_root;
         for (i, organ) in scene.spec.organs.iter().enumerate() {
-            if let Some(file) = &organ.mesh.file
-                && !inside(root, &scene.resolve_path(file))
-            {
-                return Err(ServerError::Denied(format!(
-                    "organs[{i}].mesh.file is outside the server's mesh root: a client's scene may only name mesh files under it (or use a built-in mesh)"
-                )));
+            let files = [
+                ("mesh.file", organ.mesh.file.as_ref()),
+                ("visual.file", organ.visual.as_ref().map(|v| &v.file)),
+            ];
+            for (key, file) in files {
+                if let Some(file) = file
+                    && !inside(root, &scene.resolve_path(file))
+                {
+                    return Err(ServerError::Denied(format!(
+                        "organs[{i}].{key} is outside the server's mesh root: a client's scene may only name mesh files under it (or use a built-in mesh)"
+                    )));
+                }
             }
         }
         Ok(())

@@ -47,6 +47,19 @@ fn inline_scenes_cannot_reach_files_outside_the_mesh_root_and_learn_nothing_of_t
             .await
             .unwrap_err();
         assert_ne!(e.kind(), ErrorKind::PermissionDenied, "{e}");
+        // the same for a visual mesh (co-rotational cutting)
+        let corot = vademecum_engine::scene::builtin("patch_cut")
+            .unwrap()
+            .replace("[fidelity]\n", "[fidelity]\ncutting = \"corotational_xfem\"\n");
+        for file in ["/etc/x.obj", "../../../../etc/x.obj"] {
+            let text = corot.replace(
+                "[[organs.materials]]",
+                &format!("[organs.visual]\nfile = \"{file}\"\n\n[[organs.materials]]"),
+            );
+            let e = client.create_session(SceneSpec::Toml(text), "patch", "x").await.unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::PermissionDenied, "{file}: {e}");
+            assert!(e.to_string().contains("visual.file") && !e.to_string().contains("etc"), "{e}");
+        }
     });
 }
 
