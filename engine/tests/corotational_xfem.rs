@@ -416,3 +416,113 @@ fn frames_with_a_factor_made_frames_earlier_reach_the_solver_s_equilibrium() {
     assert!(factored * 4 < frame, "{factored} of {frame} frames factored");
     assert!(rel < 1e-8, "{rel:e}");
 }
+
+/// A block clamped at its base and cut through at z = 0.47 (between node layers): its upper
+/// part holds on to nothing. The generalized state in which the lower part rests and the upper
+/// part moves rigidly by `motion`.
+fn block_cut_loose(motion: impl Fn([f64; 3]) -> [f64; 3]) -> (Mesh, Enrichment, StaticProblem, Vec<f64>) {
+    let mesh = procedural::block_tet([0.0; 3], [1.0, 1.0, 1.0], [3, 3, 3]);
+    let plane = Plane {
+        point: [0.0, 0.0, 0.47],
+        normal: [0.0, 0.0, 1.0],
+    };
+    let enr = cut(&mesh, plane, |_| true);
+    let n = mesh.n_nodes();
+    let mut d = vec![0.0; 3 * (n + enr.len())];
+    for a in 0..n {
+        if plane.phi(mesh.nodes[a]) > 0.0 {
+            d[3 * a..3 * a + 3].copy_from_slice(&motion(mesh.nodes[a]));
+        }
+    }
+    for (k, &a) in enr.nodes.iter().enumerate() {
+        // the other side's copy of node a: u_a + H̃ q = that side's motion
+        let own = plane.phi(mesh.nodes[a]) > 0.0;
+        let other = if own { [0.0; 3] } else { motion(mesh.nodes[a]) };
+        let h = enr.shifted(k, !own);
+        for i in 0..3 {
+            d[3 * (n + k) + i] = (other[i] - d[3 * a + i]) / h;
+        }
+    }
+    let problem = clamp_below(&mesh, 0.0);
+    (mesh, enr, problem, d)
+}
+
+#[test]
+fn a_piece_cut_loose_is_held_where_it_came_loose() {
+    // the upper part, loose, turned by 0.8 rad and moved off: anchored there, the model is in
+    // equilibrium there, and frames started from rest bring it there
+    let q = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(0.2, 1.0, -0.3)), 0.8).into_inner();
+    let centre = Vector3::new(0.5, 0.5, 0.75);
+    let moved = |x: [f64; 3]| {
+        let p = Vector3::new(x[0], x[1], x[2]) - centre;
+        let y = q * p + centre + Vector3::new(0.1, -0.2, 0.3);
+        [y[0] - x[0], y[1] - x[1], y[2] - x[2]]
+    };
+    let (mesh, enr, problem, anchor) = block_cut_loose(moved);
+    let mats = materials(&mesh);
+    let mut model = CorotationalXfem::new(&mesh, &mats, &problem, &enr).unwrap();
+    let pieces = model.loose_pieces();
+    assert_eq!(pieces.len(), 1, "{pieces:?}");
+    assert_eq!(pieces[0].1.len(), 6, "every rigid motion of the upper part was free");
+    // at rest, the foundation holds it at rest: no force
+    assert!(norm(&model.internal_forces(&vec![0.0; model.n_dofs()])) < 1e-12);
+    model.anchor_loose(&anchor, None);
+    // the scale of an elastic force: the loose part's foundation pulled by its motion
+    let scale = norm(&model.foundation_forces(&vec![0.0; model.n_dofs()]));
+    assert!(scale > 0.0);
+    let at_anchor = norm(&model.internal_forces(&anchor));
+    assert!(at_anchor < 1e-10 * scale, "{at_anchor:e} against {scale:e}");
+    let model = std::sync::Arc::new(model);
+    let mut frames = model.frames();
+    let prescribed = vec![0.0; model.n_dofs()];
+    let mut done = None;
+    for frame in 1..=200 {
+        if frames.step(1.0, &prescribed).unwrap().residual < 1e-12 {
+            done = Some(frame);
+            break;
+        }
+    }
+    let diff: Vec<f64> = frames.d().iter().zip(&anchor).map(|(a, b)| a - b).collect();
+    let rel = norm(&diff) / norm(&anchor);
+    println!("a loose piece turned by 0.8 rad is reached from rest in {done:?} frames, to {rel:.1e}");
+    assert!(done.is_some() && rel < 1e-8, "{done:?}: {rel:e}");
+    // a later model of the same cut keeps the anchors of the copies the earlier one held
+    let mut next = CorotationalXfem::new(&mesh, &mats, &problem, &enr).unwrap();
+    next.anchor_loose(&vec![0.0; model.n_dofs()], Some(&model));
+    assert!(norm(&next.internal_forces(&anchor)) < 1e-10 * scale);
+}
+
+#[test]
+fn a_piece_cut_loose_carries_its_load_on_its_foundation_as_the_linear_xfem_s() {
+    // under a small load on every node the held piece moves as the linear XFEM's held piece
+    let (mesh, enr, mut problem, _) = block_cut_loose(|_| [0.0; 3]);
+    for a in 0..mesh.n_nodes() {
+        problem.forces[3 * a + 2] = -1e-3;
+        problem.forces[3 * a] = 4e-4;
+    }
+    let mats = materials(&mesh);
+    let linear = system::solve(&mesh, &mats, Locking::None, &problem, &enr, &XfemParams::default()).unwrap();
+    assert_eq!(linear.detached.len(), 1);
+    let model = CorotationalXfem::new(&mesh, &mats, &problem, &enr).unwrap();
+    let co = model.solve(&CorotationalSettings::default()).unwrap();
+    let lin = CorotationalXfem::of_linear(&linear);
+    let diff: Vec<f64> = co.d.iter().zip(&lin).map(|(a, b)| a - b).collect();
+    let rel = norm(&diff) / norm(&lin);
+    let size = lin.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    println!("held piece: displacement {size:.1e} of the block; co-rotational against linear {rel:.2e}");
+    // the co-rotational correction is of the order of the rotations, here of the displacement
+    assert!(rel < 10.0 * size && size > 0.0, "{rel:e}");
+    // the foundation carries the piece's load: its forces on the copies (each a node's
+    // displacement plus, for another side's copy, its jump: on the node's dofs in full) add up
+    // to the load on the nodes above the cut, whose own side the piece is
+    let found = model.foundation_forces(&co.d);
+    let mut carried = [0.0; 3];
+    for (k, f) in found[..3 * mesh.n_nodes()].iter().enumerate() {
+        carried[k % 3] += f;
+    }
+    let n_above = mesh.nodes.iter().filter(|x| x[2] > 0.47).count() as f64;
+    let load = [4e-4 * n_above, 0.0, -1e-3 * n_above];
+    for i in [0, 2] {
+        assert!((carried[i] - load[i]).abs() < 1e-6 * load[i].abs(), "{carried:?} against {load:?}");
+    }
+}

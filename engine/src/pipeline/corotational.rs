@@ -187,6 +187,9 @@ pub struct FrameOutcome {
     /// Whether this frame refused a new cut (the model stays at its last one; see
     /// [`CorotationalDeformation::failure`]).
     pub refused_cut: bool,
+    /// Pieces the cut so far has set loose from every support, held where they came loose by
+    /// the model's soft foundation ([`CorotationalXfem::loose_pieces`]).
+    pub held_pieces: usize,
 }
 
 /// The co-rotational deformation of a cut organ, advanced one frame at a time on the frame
@@ -209,6 +212,7 @@ pub struct CorotationalDeformation {
     forces: Vec<f64>,
     prescribed: Vec<f64>,
     failure: Option<String>,
+    held_pieces: usize,
     /// Factors the factor thread made and the frames installed.
     pub factors_installed: u64,
 }
@@ -280,6 +284,7 @@ impl CorotationalDeformation {
             forces: vec![0.0; n],
             prescribed: Vec::new(),
             failure: None,
+            held_pieces: 0,
             factors_installed: 0,
             mesh,
         };
@@ -303,8 +308,8 @@ impl CorotationalDeformation {
         self.frames
     }
 
-    /// Why the model stopped at its revision (a cut it could not take: a piece cut loose
-    /// leaves the co-rotational stiffness singular), if it did.
+    /// Why the model stopped at its revision (a cut it could not take: the model or its
+    /// factor could not be made), if it did.
     pub fn failure(&self) -> Option<&str> {
         self.failure.as_deref()
     }
@@ -369,28 +374,34 @@ impl CorotationalDeformation {
 
     /// The model of the cut `enr` at `revision`, continuing from the current state.
     fn rebuild(&mut self, revision: u64, enr: Arc<Enrichment>) -> Result<(), String> {
-        let model = Arc::new(
-            self.pool
-                .install(|| CorotationalXfem::new(&self.mesh, &self.materials, &self.problem, &enr))
-                .map_err(|e| e.to_string())?,
-        );
-        if let Some((copies, free)) = model.loose_pieces().first() {
-            return Err(format!(
-                "the cut sets a piece of {} nodes loose from every support (free: {}); the co-rotational model holds no loose piece",
-                copies.len(),
-                free.join(", ")
-            ));
-        }
-        let rest = self
+        let mut model = self
             .pool
-            .install(|| model.factor_at(&vec![0.0; model.n_dofs()], None))
+            .install(|| CorotationalXfem::new(&self.mesh, &self.materials, &self.problem, &enr))
             .map_err(|e| e.to_string())?;
         let d = match &self.state {
             Some(s) => model.carry_over(s.frames.d(), &s.enrichment, &enr),
             None => vec![0.0; model.n_dofs()],
         };
+        // a piece cut loose is held where it came loose
+        let held = model.loose_pieces().len();
+        if held > self.held_pieces {
+            for (copies, free) in &model.loose_pieces()[self.held_pieces..] {
+                tracing::info!(
+                    "the cut sets a piece of {} copies loose from every support (free: {}); it is held where it came loose",
+                    copies.len(),
+                    free.join(", ")
+                );
+            }
+        }
+        model.anchor_loose(&d, self.state.as_ref().map(|s| &**s.frames.model()));
+        let model = Arc::new(model);
+        let rest = self
+            .pool
+            .install(|| model.factor_at(&vec![0.0; model.n_dofs()], None))
+            .map_err(|e| e.to_string())?;
         let surface = self.split_surface(revision, &enr)?;
         self.prescribed = model.prescribed().to_vec();
+        self.held_pieces = held;
         self.state = Some(State {
             revision,
             enrichment: enr,
@@ -462,6 +473,7 @@ impl CorotationalDeformation {
         s.frames.set_forces(&self.forces);
         let report = self.pool.install(|| s.frames.step(1.0, &self.prescribed))?;
         outcome.report = Some(report);
+        outcome.held_pieces = self.held_pieces;
         if !self.busy {
             let job = (s.frames.model().clone(), s.frames.d().to_vec(), s.frames.symbolic());
             self.busy = self.jobs.try_send(job).is_ok();

@@ -30,6 +30,12 @@
 //! generalized nodes; the derivative of `R_s` left out, as the co-rotational method does: the
 //! iteration converges to the exact equilibrium of `f_int`, linearly).
 //!
+//! # Loose pieces
+//! A piece the cut frees from every support has a singular stiffness. As the linear XFEM's
+//! [`super::Detached::Hold`], a soft foundation of stiffness `E·h` per copy holds it
+//! ([`CorotationalXfem::loose_pieces`]); it is anchored where the piece was when it came loose
+//! ([`CorotationalXfem::anchor_loose`]), so the piece stays there and carries its own loads.
+//!
 //! # Volumetric locking
 //! The sides use the plain (fully integrated) element: the co-rotational model does not carry
 //! B̄ or the averaged nodal pressure (their dilatation couples the sides of a cut cell).
@@ -93,6 +99,51 @@ pub struct CorotationalXfem {
     forces: Vec<f64>,
     /// Pieces no support holds ([`Self::loose_pieces`]).
     loose: Vec<(Vec<usize>, Vec<String>)>,
+    /// The soft foundation that holds them.
+    foundation: Foundation,
+}
+
+/// A soft elastic foundation on the copies of the loose pieces (the linear XFEM's
+/// [`super::Detached::Hold`]): the energy `½ k Σ_c |w_c(d) − w_c(d̄)|²`, `w_c` a copy's
+/// displacement (`u_a` for a node's own side, `u_a + s q_k` for the other side of enriched
+/// node `k`) and `d̄` the anchor state — rest, or where the piece came loose
+/// ([`CorotationalXfem::anchor_loose`]). It does not turn with the piece: it holds it where
+/// it was, as forceps would, and carries the piece's own loads.
+#[derive(Debug, Clone, Default)]
+struct Foundation {
+    /// `k = E·h` per copy and component.
+    stiffness: f64,
+    /// Every held copy's generalized nodes with their coefficients, and its anchor
+    /// displacement.
+    copies: Vec<(Vec<(usize, f64)>, [f64; 3])>,
+    /// Which copy each is, across models of a growing cut: its node, and the plane of the
+    /// enrichment whose other side it is (`None`: the node's own side).
+    ids: Vec<(usize, Option<super::Plane>)>,
+}
+
+impl Foundation {
+    /// A copy's displacement under `d`.
+    fn displacement(terms: &[(usize, f64)], d: &[f64]) -> [f64; 3] {
+        let mut w = [0.0; 3];
+        for &(g, c) in terms {
+            for i in 0..3 {
+                w[i] += c * d[3 * g + i];
+            }
+        }
+        w
+    }
+
+    /// Adds its forces `k c_j (w_c − w̄_c)` under `d` to `f`.
+    fn add_forces(&self, d: &[f64], f: &mut [f64]) {
+        for (terms, anchor) in &self.copies {
+            let w = Self::displacement(terms, d);
+            for &(g, c) in terms {
+                for i in 0..3 {
+                    f[3 * g + i] += self.stiffness * c * (w[i] - anchor[i]);
+                }
+            }
+        }
+    }
 }
 
 /// Settings of the equilibrium iteration.
@@ -212,6 +263,29 @@ impl CorotationalXfem {
             l.dedup();
         }
         let loose = system::loose_pieces(mesh, enr, &mut pieces, &supported, &constrained);
+        let foundation = Foundation {
+            stiffness: if loose.is_empty() {
+                0.0
+            } else {
+                system::foundation_stiffness(mesh, materials)
+            },
+            copies: loose
+                .iter()
+                .flat_map(|(copies, _)| copies.iter().map(|&c| (system::copy_terms(enr, n, c), [0.0; 3])))
+                .collect(),
+            ids: loose
+                .iter()
+                .flat_map(|(copies, _)| {
+                    copies.iter().map(|&c| {
+                        if c < n {
+                            (c, None)
+                        } else {
+                            (enr.nodes[c - n], Some(enr.planes[c - n]))
+                        }
+                    })
+                })
+                .collect(),
+        };
         let pattern = Arc::new(SymmetricPattern::from_adjacency(&adj, &dofs));
         let mut forces = problem.forces.clone();
         forces.resize(3 * ng, 0.0);
@@ -223,15 +297,46 @@ impl CorotationalXfem {
             prescribed,
             forces,
             loose,
+            foundation,
         })
     }
 
     /// The pieces the cut set loose from every support (their copies — `a < n` a node's own
-    /// side, `n + k` the other side of enriched node `k` — and the rigid motions left free):
-    /// the co-rotational stiffness is singular while there is one (no soft foundation holds
-    /// them, unlike the linear XFEM's `Detached`).
+    /// side, `n + k` the other side of enriched node `k` — and the rigid motions left free).
+    /// A soft foundation of stiffness `E·h` per copy holds them (as the linear XFEM's
+    /// [`super::Detached::Hold`]), at rest unless anchored elsewhere
+    /// ([`Self::anchor_loose`]).
     pub fn loose_pieces(&self) -> &[(Vec<usize>, Vec<String>)] {
         &self.loose
+    }
+
+    /// Anchors the foundation of the loose pieces at the state `d` (e.g. the deformation the
+    /// cut set them loose in, carried over: [`Self::carry_over`]): they are held where they
+    /// were, not pulled back to rest. A copy that `previous` (the model of the cut before)
+    /// already held keeps its anchor, so a held piece does not creep by its sag at every
+    /// growth of the cut.
+    ///
+    /// # Panics
+    /// If `d` is not [`Self::n_dofs`] long.
+    pub fn anchor_loose(&mut self, d: &[f64], previous: Option<&CorotationalXfem>) {
+        assert_eq!(d.len(), self.dofs.n_dofs(), "a state of every generalized dof");
+        let f = &mut self.foundation;
+        for ((terms, anchor), id) in f.copies.iter_mut().zip(&f.ids) {
+            let kept = previous.and_then(|p| {
+                let g = &p.foundation;
+                g.ids.iter().position(|i| i == id).map(|j| g.copies[j].1)
+            });
+            *anchor = kept.unwrap_or_else(|| Foundation::displacement(terms, d));
+        }
+    }
+
+    /// The foundation's forces on the loose pieces under `d` (zero without loose pieces):
+    /// `k c_j (w_c − w̄_c)` on every generalized dof of every held copy (the loads the
+    /// foundation carries, with the sign of an internal force).
+    pub fn foundation_forces(&self, d: &[f64]) -> Vec<f64> {
+        let mut f = vec![0.0; d.len()];
+        self.foundation.add_forces(d, &mut f);
+        f
     }
 
     /// The prescribed values of every generalized dof (the problem's supports; zero on the
@@ -301,7 +406,8 @@ impl CorotationalXfem {
     }
 
     /// The elastic forces `f_int(d)` on every generalized degree of freedom (module docs; full
-    /// length; on constrained dofs, `f_int − f_ext` is the reaction).
+    /// length; on constrained dofs, `f_int − f_ext` is the reaction), the foundation's on the
+    /// loose pieces included ([`Self::loose_pieces`]).
     pub fn internal_forces(&self, d: &[f64]) -> Vec<f64> {
         use rayon::prelude::*;
         // fixed chunks of sides in parallel, their sums added in order: the same bits every run
@@ -313,6 +419,7 @@ impl CorotationalXfem {
                 *a += b;
             }
         }
+        self.foundation.add_forces(d, &mut f);
         f
     }
 
@@ -356,7 +463,8 @@ impl CorotationalXfem {
     }
 
     /// The warped stiffness `Σ_s T_sᵀ R_s K_s R_sᵀ T_s` at `d` over the free generalized dofs
-    /// (module docs): what each equilibrium iteration factors.
+    /// (module docs), plus the loose pieces' foundation: what each equilibrium iteration
+    /// factors.
     pub fn tangent(&self, d: &[f64]) -> SymmetricMatrix {
         let npc = self.mesh.kind.nodes_per_cell();
         let nd = 3 * npc;
@@ -411,6 +519,9 @@ impl CorotationalXfem {
                 }
             }
             assembly::scatter_cell(&mut k, &ke, &nodes, &eqs, None, &mut dummy);
+        }
+        for (terms, _) in &self.foundation.copies {
+            system::add_copy_spring(&mut k, &self.dofs, terms, self.foundation.stiffness);
         }
         k
     }

@@ -344,6 +344,33 @@ pub fn enriched_cell_stiffness(
     Ok(sides.into_iter().map(|s| s.side).collect())
 }
 
+/// The stiffness per node of the soft foundation that holds a loose piece, `E·h`: the
+/// stiffest material's Young's modulus times the mean cell size (the order of one cell's own
+/// stiffness, so a held piece stays near where it was cut and carries its own loads).
+pub(super) fn foundation_stiffness(mesh: &Mesh, materials: &MaterialMap) -> f64 {
+    let npc = mesh.kind.nodes_per_cell();
+    let h_sum: f64 = (0..mesh.n_cells())
+        .map(|c| {
+            let mut x = [[0.0; 3]; 8];
+            mesh.cell_coords(c, &mut x[..npc]);
+            subcell::cell_size(&x[..npc])
+        })
+        .sum();
+    let young = materials.table.iter().map(|m| m.young).fold(0.0, f64::max);
+    young * h_sum / mesh.n_cells().max(1) as f64
+}
+
+/// The generalized nodes a copy's displacement is made of, with their coefficients: `u_a` for
+/// a node's own side (`copy = a < n`), `u_a + s q_k` for the other side of enriched node `k`
+/// (`copy = n + k`, `s` the shifted Heaviside there).
+pub(super) fn copy_terms(enr: &Enrichment, n: usize, copy: usize) -> Vec<(usize, f64)> {
+    if copy < n {
+        return vec![(copy, 1.0)];
+    }
+    let kk = copy - n;
+    vec![(enr.nodes[kk], 1.0), (copy, enr.shifted(kk, !enr.own_positive[kk]))]
+}
+
 /// Union–find over copies.
 pub(super) struct Pieces {
     parent: Vec<usize>,
@@ -568,13 +595,6 @@ pub fn assemble(
             assembly::scatter_cell(&mut k, ke, cell_nodes, &eqs, Some(&prescribed), &mut rhs);
         },
     )?;
-    let h_sum: f64 = (0..mesh.n_cells())
-        .map(|c| {
-            let mut x = [[0.0; 3]; 8];
-            mesh.cell_coords(c, &mut x[..npc]);
-            subcell::cell_size(&x[..npc])
-        })
-        .sum();
     if let Some(patches) = &patches {
         visit_nodal_enriched(mesh, materials, patches, &enriched_divergence, |p, q, v| {
             match (dofs.eq(p), dofs.eq(q)) {
@@ -593,8 +613,7 @@ pub fn assemble(
     assembly::add_springs(&mut k, &dofs, &springs);
 
     // pieces that no support holds
-    let young = materials.table.iter().map(|m| m.young).fold(0.0, f64::max);
-    let k_hold = young * h_sum / mesh.n_cells().max(1) as f64;
+    let k_hold = foundation_stiffness(mesh, materials);
     let mut detached = Vec::new();
     for (copies, free) in loose_pieces(mesh, enr, &mut pieces, &supported, &constrained) {
         for &a in &copies {
@@ -782,31 +801,27 @@ pub fn enriched_rows(
     Ok(out)
 }
 
-/// Adds the foundation `½ k |u_copy|²` of one copy: `u_a` for a node's own side,
-/// `u_I + s q_k` for the other side of enriched node `k`.
+/// Adds the foundation `½ k |u_copy|²` of one copy ([`copy_terms`]).
 fn hold_copy(k: &mut SymmetricMatrix, dofs: &DofMap, enr: &Enrichment, n: usize, copy: usize, stiffness: f64) {
-    let mut add = |r: usize, c: usize, v: f64| {
-        if let (Some(er), Some(ec)) = (dofs.eq(r), dofs.eq(c)) {
-            let pos = k
-                .pattern
-                .position(er.max(ec), er.min(ec))
-                .expect("a node couples with its enrichment");
-            k.values[pos] += v;
+    add_copy_spring(k, dofs, &copy_terms(enr, n, copy), stiffness);
+}
+
+/// Adds the stiffness of a spring `½ k |Σ_j c_j d_j|²` on a copy made of `terms`
+/// (`(generalized node, c_j)`, [`copy_terms`]) to `k` over the free dofs: `k c_i c_j` on
+/// every pair, component by component.
+pub(super) fn add_copy_spring(k: &mut SymmetricMatrix, dofs: &DofMap, terms: &[(usize, f64)], stiffness: f64) {
+    for (p, &(gp, cp)) in terms.iter().enumerate() {
+        for &(gq, cq) in &terms[..=p] {
+            for i in 0..3 {
+                if let (Some(er), Some(ec)) = (dofs.eq(3 * gp + i), dofs.eq(3 * gq + i)) {
+                    let pos = k
+                        .pattern
+                        .position(er.max(ec), er.min(ec))
+                        .expect("a node couples with its enrichment");
+                    k.values[pos] += stiffness * cp * cq;
+                }
+            }
         }
-    };
-    if copy < n {
-        for i in 0..3 {
-            add(3 * copy + i, 3 * copy + i, stiffness);
-        }
-        return;
-    }
-    let kk = copy - n;
-    let a = enr.nodes[kk];
-    let s = enr.shifted(kk, !enr.own_positive[kk]);
-    for i in 0..3 {
-        add(3 * a + i, 3 * a + i, stiffness);
-        add(3 * copy + i, 3 * copy + i, stiffness);
-        add(3 * copy + i, 3 * a + i, s * stiffness);
     }
 }
 

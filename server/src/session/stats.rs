@@ -148,8 +148,11 @@ pub struct CorotationalStats {
     pub installed: AtomicU64,
     /// Models rebuilt because the cut grew.
     pub rebuilt: AtomicU64,
-    /// Cuts the model could not take (a piece cut loose): it stays at the last one.
+    /// Cuts the model could not take (its model or factor could not be made): it stays at
+    /// the last one.
     pub refused_cuts: AtomicU64,
+    /// Pieces the cut so far set loose, held where they came loose (the last frame's count).
+    pub held_pieces: AtomicU64,
     /// The last frame's relative residual (f64 bits).
     pub residual_bits: AtomicU64,
     /// Time of a frame (µs): the last, the largest, the sum.
@@ -172,6 +175,7 @@ impl TickStats {
         c.installed.fetch_add(u64::from(o.installed), Ordering::Relaxed);
         c.rebuilt.fetch_add(u64::from(o.rebuilt), Ordering::Relaxed);
         c.refused_cuts.fetch_add(u64::from(o.refused_cut), Ordering::Relaxed);
+        c.held_pieces.store(o.held_pieces as u64, Ordering::Relaxed);
         if let Some(r) = o.report {
             c.factored.fetch_add(u64::from(r.factored), Ordering::Relaxed);
             c.residual_bits.store(r.residual.to_bits(), Ordering::Relaxed);

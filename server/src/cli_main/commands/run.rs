@@ -69,8 +69,10 @@ struct CorotationalSummary {
     factored: u64,
     installed: u64,
     rebuilt: u64,
-    /// Cuts the model could not take (a piece cut loose: it stayed at the last one).
+    /// Cuts the model could not take (it stayed at the last one).
     refused_cuts: u64,
+    /// Pieces the cut set loose, held where they came loose by the model's soft foundation.
+    held_pieces: u64,
     failures: u64,
     /// The last frame's relative residual.
     residual: f64,
@@ -580,9 +582,16 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         if let Some(c) = &s.corotational {
             writeln!(
                 out,
-                "  co-rotational  {} frames, {:.1} ms mean ({:.1} max); {} factored on the frame thread, {} factors installed, {} rebuilt as the cut grew, {} cuts refused (a piece cut loose), {} failed; residual {:.1e}",
+                "  co-rotational  {} frames, {:.1} ms mean ({:.1} max); {} factored on the frame thread, {} factors installed, {} rebuilt as the cut grew, {} cuts refused, {} failed; residual {:.1e}",
                 c.frames, c.frame_ms_mean, c.frame_ms_max, c.factored, c.installed, c.rebuilt, c.refused_cuts, c.failures, c.residual
             )?;
+            if c.held_pieces > 0 {
+                writeln!(
+                    out,
+                    "  loose pieces   {} cut loose from every support, held where they came loose",
+                    c.held_pieces
+                )?;
+            }
             writeln!(
                 out,
                 "  coupling       {} ticks with the rotation correction ({} refused); {} landings, each a force step of {:.2e} N mean, {:.2e} N max, blended in: at most {:.2e} N from one tick to the next",
@@ -708,6 +717,7 @@ fn corotational_summary(
         installed: c.installed.load(Relaxed),
         rebuilt: c.rebuilt.load(Relaxed),
         refused_cuts: c.refused_cuts.load(Relaxed),
+        held_pieces: c.held_pieces.load(Relaxed),
         failures: stats.corotational_failures.load(Relaxed),
         residual: f64::from_bits(c.residual_bits.load(Relaxed)),
         corrected_ticks: counter(|s| &s.corrected_ticks),
