@@ -177,3 +177,81 @@ fn a_piece_the_blade_cut_loose_turns_rigidly_in_the_corotational_model() {
     assert!(co_dev < 1e-6, "{co_dev:e}");
     assert!(lin_dev > 1e-2, "the linear XFEM strains a turned piece: {lin_dev:e}");
 }
+
+#[test]
+fn the_swept_surface_is_shown_in_the_cells_the_blade_entered_and_not_in_those_it_cut() {
+    use vademecum_engine::xfem::partial::PartialSurface;
+    let mesh = procedural::block_tet([0.0; 3], [1.0; 3], [4, 4, 2]);
+    let (y0, slope) = (0.53, 0.07);
+    let mut cut = ProgressiveCut::new(&mesh).unwrap();
+    let mut shown = PartialSurface::new(&mesh).unwrap();
+    let mut swept: Vec<[[f64; 3]; 3]> = Vec::new();
+    let area = |t: &[[f64; 3]; 3]| {
+        let n = vademecum_engine::vec3::cross(vademecum_engine::vec3::sub(t[1], t[0]), vademecum_engine::vec3::sub(t[2], t[0]));
+        0.5 * vademecum_engine::vec3::dot(n, n).sqrt()
+    };
+    // the blade's swept surface inside the block up to x, its tip at depth 0.25: the part of
+    // the plane over 0 ≤ x ≤ x_end, 0.25 ≤ z ≤ 1, tilted by the slope
+    let inside = |x: f64| x.clamp(0.0, 1.0) * 0.75 * (1.0f64 + slope * slope).sqrt();
+    let xs: Vec<f64> = (0..=24).map(|k| -0.1 + 0.05 * k as f64).collect();
+    let mut seen_partial = false;
+    for w in xs.windows(2) {
+        let (t0, b0) = blade(w[0], y0, slope, 0.25);
+        let (t1, b1) = blade(w[1], y0, slope, 0.25);
+        cut.sweep(&mesh, t0, b0, t1, b1);
+        swept.extend([[t0, b0, b1], [t0, b1, t1]]);
+        let partial = shown.update(&mesh, &swept, |c| cut.is_cut(c));
+        // every shown triangle lies in the swept plane, behind the blade, in a cell not cut
+        for t in &partial {
+            for p in t {
+                assert!((p[1] - y0 - slope * p[0]).abs() < 1e-12 && p[0] <= w[1] + 1e-12 && p[2] >= 0.25 - 1e-12);
+            }
+            let c: Vec<f64> = (0..3).map(|k| (t[0][k] + t[1][k] + t[2][k]) / 3.0).collect();
+            let host = (0..mesh.n_cells()).find(|&cell| {
+                let tet: [[f64; 3]; 4] = std::array::from_fn(|i| mesh.nodes[mesh.cell(cell)[i]]);
+                barycentric_inside(&tet, [c[0], c[1], c[2]])
+            });
+            let host = host.expect("a shown triangle lies in the mesh");
+            assert!(!cut.is_cut(host), "a triangle shown in cell {host}, which is cut");
+        }
+        // with the cut cells' share of the swept surface, it makes up the whole of it inside
+        // the block: nothing shown twice, nothing missing
+        let shown_area: f64 = partial.iter().map(area).sum();
+        let cut_area: f64 = swept
+            .iter()
+            .map(|t| {
+                cut.cut_cells()
+                    .iter()
+                    .map(|&c| {
+                        let tet: [[f64; 3]; 4] = std::array::from_fn(|i| mesh.nodes[mesh.cell(c)[i]]);
+                        let p = vademecum_engine::xfem::partial::clip_triangle_to_tet(t, &tet);
+                        (1..p.len().saturating_sub(1)).map(|j| area(&[p[0], p[j], p[j + 1]])).sum::<f64>()
+                    })
+                    .sum::<f64>()
+            })
+            .sum();
+        let total = inside(w[1]);
+        assert!(
+            (shown_area + cut_area - total).abs() < 1e-9 * total.max(1e-3),
+            "{shown_area} + {cut_area} against {total}"
+        );
+        seen_partial |= shown_area > 0.0 && w[1] < 1.0;
+    }
+    assert!(seen_partial, "the blade's front showed a partial surface");
+    // through the block with its tip inside: the cells at the tip's depth stay partly crossed
+    assert!(!cut.cut_cells().is_empty());
+}
+
+/// Whether `p` lies inside tetrahedron `tet` (barycentric coordinates all ≥ −10⁻¹²).
+fn barycentric_inside(tet: &[[f64; 3]; 4], p: [f64; 3]) -> bool {
+    use vademecum_engine::vec3::{cross, dot, sub};
+    let vol = |a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]| dot(sub(b, a), cross(sub(c, a), sub(d, a)));
+    let v = vol(tet[0], tet[1], tet[2], tet[3]);
+    let l = [
+        vol(p, tet[1], tet[2], tet[3]) / v,
+        vol(tet[0], p, tet[2], tet[3]) / v,
+        vol(tet[0], tet[1], p, tet[3]) / v,
+        vol(tet[0], tet[1], tet[2], p) / v,
+    ];
+    l.iter().all(|&x| x >= -1e-12)
+}

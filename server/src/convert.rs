@@ -122,6 +122,11 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
                     triangles: v.triangles.iter().flat_map(|t| t.to_le_bytes()).collect(),
                     displacements: f32_bytes(v.displacements_m.iter().copied()),
                 }),
+                partial_cut: f.partial.as_ref().filter(|p| p.organ == o).map(|p| pb::PartialCut {
+                    seq: p.seq,
+                    positions: f32_bytes(p.positions_m.iter().copied()),
+                    displacements: f32_bytes(p.displacements_m.iter().copied()),
+                }),
                 damage: damage.as_ref().map(|t| pb::TissueDamage {
                     cell_damage: f32_bytes(t.cell_damage.iter().copied()),
                     triangle_damage: f32_bytes(t.triangle_damage.iter().copied()),
@@ -263,7 +268,7 @@ mod tests {
     use std::sync::Arc;
 
     use super::*;
-    use crate::session::frames::{OrganSurface, SurfaceGeometry, VisualFrame};
+    use crate::session::frames::{OrganSurface, PartialFrame, SurfaceGeometry, VisualFrame};
 
     fn two_organs() -> SurfaceGeometry {
         let organ = |name: &str| OrganSurface {
@@ -313,5 +318,31 @@ mod tests {
             .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect();
         assert_eq!(tris, vec![0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2]);
+    }
+
+    #[test]
+    fn a_frame_carries_the_partial_cut_on_its_organ_only() {
+        let g = two_organs();
+        let mut f = Frame::rest(&g);
+        assert!(frame(&f, 1).organs.iter().all(|o| o.partial_cut.is_none()), "none: unset");
+        f.partial = Some(PartialFrame {
+            organ: 0,
+            seq: 7,
+            positions_m: Arc::from(vec![0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]),
+            displacements_m: vec![0.25; 9],
+        });
+        let pb = frame(&f, 1);
+        assert!(pb.organs[1].partial_cut.is_none());
+        let p = pb.organs[0].partial_cut.as_ref().expect("organ 0 carries it");
+        assert_eq!(p.seq, 7);
+        assert_eq!((p.positions.len(), p.displacements.len()), (36, 36));
+        assert_eq!(
+            f32::from_le_bytes([p.positions[12], p.positions[13], p.positions[14], p.positions[15]]),
+            1.0
+        );
+        assert_eq!(
+            f32::from_le_bytes([p.displacements[0], p.displacements[1], p.displacements[2], p.displacements[3]]),
+            0.25
+        );
     }
 }

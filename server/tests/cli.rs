@@ -561,4 +561,17 @@ fn run_liver_cut_opens_the_smooth_liver_along_the_incision_with_the_co_rotationa
         .unwrap();
     assert!(points > 2194, "{points} vertices in {last}");
     assert!(vtu.contains("Name=\"displacement\""));
+    // the partial cut: shown while the blade stood in cells it had not cut yet (the blade
+    // advances continuously, whole cells are cut behind it), in a series of its own
+    assert!(c["partial_frames"].as_u64().unwrap() > 0, "{s}");
+    let pvd = std::fs::read_to_string(rec.join("liver_partial.pvd")).unwrap();
+    let shown = pvd
+        .lines()
+        .filter_map(|l| l.split("file=\"").nth(1).and_then(|r| r.split('"').next()))
+        .filter(|f| {
+            let vtu = std::fs::read_to_string(rec.join(f)).unwrap();
+            !vtu.contains("NumberOfPoints=\"0\"")
+        })
+        .count();
+    assert_eq!(shown as u64, c["partial_frames"].as_u64().unwrap(), "{s}");
 }

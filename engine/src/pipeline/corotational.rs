@@ -538,6 +538,23 @@ impl CorotationalDeformation {
         }
     }
 
+    /// The embedding of `points` (e.g. the partial cut's vertices,
+    /// [`super::cutting::PartialCut`]) in the organ's cells, each following the mean of the two
+    /// sides of any cut near it: what [`Self::point_displacements`] evaluates.
+    pub fn embed_points(&self, points: &[[f64; 3]]) -> Result<Embedding, String> {
+        let e = Embedding::new(&self.mesh, points).map_err(|e| e.to_string())?;
+        Ok(e.with_sides(&vec![VertexSide::Mean; points.len()]))
+    }
+
+    /// The displacement (m) of `points`, embedded by [`Self::embed_points`], 3 per point, into
+    /// `out` (empty before the first frame).
+    pub fn point_displacements(&self, embedding: &Embedding, points: &[[f64; 3]], out: &mut Vec<f64>) {
+        out.clear();
+        let Some(s) = &self.state else { return };
+        out.resize(3 * points.len(), 0.0);
+        embedding.displacements(&self.mesh, &s.enrichment, points, s.frames.d(), out);
+    }
+
     /// The displacement (m) of every vertex of the visual surface, 3 per vertex, into `out`
     /// (empty without a visual mesh).
     pub fn visual_displacements(&self, out: &mut Vec<f64>) {

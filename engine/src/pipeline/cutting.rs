@@ -54,6 +54,7 @@ use crate::pgd::Vademecum;
 use crate::pgd::offline::LoadedBundle;
 use crate::xfem::blade::Blade;
 use crate::xfem::online::OnlineCut;
+use crate::xfem::partial::PartialSurface;
 use crate::xfem::reduced::{CutView, ReducedCut};
 use crate::xfem::view::CutWalls;
 
@@ -77,6 +78,21 @@ pub struct CutShape {
     /// The triangles of the surface the blade swept while cutting (m, reference frame).
     pub triangles: Vec<[[f64; 3]; 3]>,
 }
+
+/// The surface the blade swept inside the cells it entered and has not cut yet (seed 003
+/// §3.3; [`crate::xfem::partial`]): shown, never simulated, so the incision follows the blade
+/// between the cuts of whole cells.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PartialCut {
+    /// 0 before the blade first cut; one more per change.
+    pub seq: u64,
+    /// Its triangles (m, reference frame).
+    pub triangles: Vec<[[f64; 3]; 3]>,
+}
+
+/// How often at most the cut thread redraws the partial cut while the blade moves (a frame
+/// at 30 Hz); it redraws at once when cells are cut, and when the blade stops.
+pub const PARTIAL_EVERY: Duration = Duration::from_millis(33);
 
 /// What the cut thread publishes for everyone to read: relaxed atomics the tick reads (no
 /// lock), and the cut's shape behind a mutex the tick never touches.
@@ -118,6 +134,9 @@ pub struct CutStatus {
     /// The cut as viewers draw it (updated by the cut thread after each cut; read by the
     /// frame thread, never by the tick).
     pub picture: std::sync::Mutex<Option<Arc<CutPicture>>>,
+    /// The swept surface in the cells the blade entered and has not cut (tetrahedral meshes;
+    /// updated by the cut thread, read by the frame thread, never by the tick).
+    pub partial: std::sync::Mutex<Arc<PartialCut>>,
 }
 
 impl CutStatus {
@@ -129,6 +148,11 @@ impl CutStatus {
     /// The latest picture of the cut (`None` before the first cut).
     pub fn picture(&self) -> Option<Arc<CutPicture>> {
         self.picture.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// The latest partial cut ([`PartialCut`]).
+    pub fn partial(&self) -> Arc<PartialCut> {
+        self.partial.lock().unwrap_or_else(|p| p.into_inner()).clone()
     }
 }
 
@@ -282,6 +306,8 @@ impl Cutting {
         let worker = CutThread {
             organ,
             online,
+            shown: PartialSurface::new(&mesh),
+            swept: Vec::new(),
             mesh,
             samples: samples.clone(),
             fresh: fresh.clone(),
@@ -479,6 +505,10 @@ fn positive_definite(m: &[[f64; 3]; 3]) -> bool {
 struct CutThread {
     organ: usize,
     online: OnlineCut,
+    /// The partial cut's state (tetrahedral meshes).
+    shown: Option<PartialSurface>,
+    /// The swept triangles seen so far.
+    swept: Vec<[[f64; 3]; 3]>,
     mesh: Mesh,
     samples: Arc<ArrayQueue<BladeSample>>,
     fresh: Arc<ArrayQueue<Box<CutView>>>,
@@ -494,6 +524,7 @@ impl CutThread {
         let mut prev: Option<[f64; 3]> = None;
         let mut path = 0.0;
         let mut revision = 0;
+        let mut drawn = std::time::Instant::now();
         while !self.stop.load(Ordering::Relaxed) {
             while self.spent.pop().is_some() {
                 out = false;
@@ -506,6 +537,8 @@ impl CutThread {
                 }
             }
             let Some(s) = self.samples.pop() else {
+                // the blade stopped: the partial cut as it stands
+                self.draw_partial(&mut drawn, true);
                 std::thread::sleep(POLL);
                 continue;
             };
@@ -542,6 +575,7 @@ impl CutThread {
                         *self.status.picture.lock().unwrap_or_else(|p| p.into_inner()) = Some(picture);
                         pending = true;
                     }
+                    self.draw_partial(&mut drawn, step.new_cells > 0);
                 }
                 Err(e) => {
                     self.status.refused.fetch_add(1, Ordering::Relaxed);
@@ -549,5 +583,37 @@ impl CutThread {
                 }
             }
         }
+    }
+
+    /// Redraws the partial cut ([`PartialCut`]) when the blade swept something new since the
+    /// last drawing, at once if `now`, otherwise at most every [`PARTIAL_EVERY`] (stamped in
+    /// `drawn`).
+    fn draw_partial(&mut self, drawn: &mut std::time::Instant, now: bool) {
+        let Some(shown) = &mut self.shown else { return };
+        let facets = self.online.cut().map_or(&[][..], |c| c.facets());
+        if facets.len() == self.swept.len() || (!now && drawn.elapsed() < PARTIAL_EVERY) {
+            return;
+        }
+        *drawn = std::time::Instant::now();
+        if facets.len() < self.swept.len() {
+            // a cut that started over (this thread's cut only grows)
+            self.swept.clear();
+            if let Some(fresh) = PartialSurface::new(&self.mesh) {
+                *shown = fresh;
+            }
+        }
+        let start = self.swept.len();
+        self.swept.extend(facets[start..].iter().map(|f| f.vertices));
+        let mut is_cut = vec![false; self.mesh.n_cells()];
+        for &(c, _) in &self.online.model().enrichment().cut_cells {
+            if let Some(x) = is_cut.get_mut(c) {
+                *x = true;
+            }
+        }
+        let triangles = shown.update(&self.mesh, &self.swept, |c| is_cut[c]);
+        let mut slot = self.status.partial.lock().unwrap_or_else(|p| p.into_inner());
+        let seq = slot.seq + 1;
+        // the old one is freed here or on the frame thread, never on the tick's
+        *slot = Arc::new(PartialCut { seq, triangles });
     }
 }

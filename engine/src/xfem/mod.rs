@@ -15,6 +15,8 @@
 //!   it crosses, the model bordered.
 //! - [`progressive`]: semi-progressive cutting (seed 003 §3.3): the blade's swept quads
 //!   crossed with the cells' edges, a cell cut once crossed entirely.
+//! - [`partial`]: the swept surface inside cells the blade entered but has not cut, shown
+//!   (never simulated) so the incision follows the blade continuously.
 //! - [`reduced`]: the online model: PGD modes as a Ritz basis (PRB, SRB) bordered with the
 //!   enriched nodes, the factor updated as the cut grows.
 //! - [`corotational`]: co-rotational XFEM (seed 003 §3.1): each side of a cut cell turns with
@@ -29,6 +31,7 @@ pub mod blade;
 pub mod corotational;
 pub mod enrichment;
 pub mod online;
+pub mod partial;
 pub mod progressive;
 pub mod reduced;
 pub mod subcell;

@@ -114,18 +114,7 @@ impl ProgressiveCut {
         if mesh.kind != CellKind::Tet4 {
             return Err(NotTetrahedra(mesh.kind));
         }
-        let boxes = (0..mesh.n_cells())
-            .map(|c| {
-                let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-                for &a in mesh.cell(c) {
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(mesh.nodes[a][k]);
-                        hi[k] = hi[k].max(mesh.nodes[a][k]);
-                    }
-                }
-                (lo, hi)
-            })
-            .collect();
+        let boxes = cell_boxes(mesh);
         Ok(Self {
             cells: BTreeMap::new(),
             cut: Vec::new(),
@@ -240,6 +229,22 @@ impl ProgressiveCut {
     pub fn crossings(&self, c: usize) -> Option<&Crossings> {
         self.cells.get(&c)
     }
+}
+
+/// The bounding box (min, max) of every cell of `mesh`.
+pub(crate) fn cell_boxes(mesh: &Mesh) -> Vec<([f64; 3], [f64; 3])> {
+    (0..mesh.n_cells())
+        .map(|c| {
+            let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for &a in mesh.cell(c) {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(mesh.nodes[a][k]);
+                    hi[k] = hi[k].max(mesh.nodes[a][k]);
+                }
+            }
+            (lo, hi)
+        })
+        .collect()
 }
 
 /// The least-squares plane through `points` (at least three): through their centre, the normal

@@ -103,6 +103,23 @@ pub struct Frame {
     /// The visual mesh of a co-rotational cutting organ, split along the cut (`None`: the
     /// session draws the simulation surfaces only).
     pub visual: Option<VisualFrame>,
+    /// The surface the blade swept in the cells it entered and has not cut yet, displaced
+    /// (co-rotational cutting; `None`: there is none).
+    pub partial: Option<PartialFrame>,
+}
+
+/// The partial cut of a co-rotational cutting organ in one frame
+/// ([`vademecum_engine::pipeline::cutting::PartialCut`]): triangles of three vertices each.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartialFrame {
+    /// The organ.
+    pub organ: usize,
+    /// The partial cut's number (changes with its triangles).
+    pub seq: u64,
+    /// Reference position of every vertex (m), 3 per vertex, 3 vertices per triangle.
+    pub positions_m: Arc<[f32]>,
+    /// Displacement of every vertex (m), 3 per vertex.
+    pub displacements_m: Vec<f32>,
 }
 
 /// An organ's visual mesh in one frame (co-rotational cutting, `[organs.visual]`): split
@@ -166,6 +183,7 @@ impl Frame {
             cuts: vec![None; g.organs.len()],
             damage: vec![None; g.organs.len()],
             visual: None,
+            partial: None,
         }
     }
 }
@@ -262,7 +280,17 @@ impl TearView {
 struct Corotational {
     deformation: CorotationalDeformation,
     visual: Option<(u64, Arc<[f32]>, Arc<[u32]>)>,
+    /// The partial cut's geometry: its number, vertices, their embedding, positions.
+    partial: Option<PartialGeometry>,
     scratch: Vec<f64>,
+}
+
+/// The partial cut of one number, embedded in the organ.
+struct PartialGeometry {
+    seq: u64,
+    points: Vec<[f64; 3]>,
+    embedding: vademecum_engine::xfem::visual::Embedding,
+    positions_m: Arc<[f32]>,
 }
 
 pub(super) struct FrameProducer {
@@ -324,6 +352,7 @@ impl FrameProducer {
         self.corotational = Some(Corotational {
             deformation,
             visual: None,
+            partial: None,
             scratch: Vec::new(),
         });
         self
@@ -467,6 +496,31 @@ impl FrameProducer {
                     triangles: triangles.clone(),
                     displacements_m: c.scratch.iter().map(|&x| x as f32).collect(),
                 });
+            }
+        }
+        // the partial cut, embedded once per number, displaced every frame
+        let part = self.cut.as_ref().map(|s| s.partial()).filter(|p| !p.triangles.is_empty());
+        match part {
+            None => c.partial = None,
+            Some(part) => {
+                if c.partial.as_ref().is_none_or(|g| g.seq != part.seq) {
+                    let points: Vec<[f64; 3]> = part.triangles.iter().flatten().copied().collect();
+                    c.partial = def.embed_points(&points).ok().map(|embedding| PartialGeometry {
+                        seq: part.seq,
+                        positions_m: points.iter().flat_map(|p| p.map(|x| x as f32)).collect(),
+                        points,
+                        embedding,
+                    });
+                }
+                if let Some(g) = &c.partial {
+                    def.point_displacements(&g.embedding, &g.points, &mut c.scratch);
+                    frame.partial = Some(PartialFrame {
+                        organ: o,
+                        seq: g.seq,
+                        positions_m: g.positions_m.clone(),
+                        displacements_m: c.scratch.iter().map(|&x| x as f32).collect(),
+                    });
+                }
             }
         }
         frame

@@ -6,7 +6,9 @@
 //! the other): the force log gains the blade's force split, the summary the cut (its path,
 //! cells, cracked nodes), and the recording the organ opened by the session's cut — the
 //! full-order XFEM of the cut the session made, under the scene's loads, split along the cut —
-//! as the last step of the organ's `.pvd`, with the blade's swept surface beside it.
+//! as the last step of the organ's `.pvd`, with the blade's swept surface beside it. A
+//! co-rotational cutting scene adds the visual surface's series and the partial cut's (the
+//! swept surface in the cells the blade entered and had not cut yet).
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -87,6 +89,10 @@ struct CorotationalSummary {
     blend_step_max_n: f64,
     /// The visual surface's series (`None`: the organ has no visual mesh).
     visual_pvd: Option<PathBuf>,
+    /// Frames that showed a partial cut (the swept surface in cells the blade entered and had
+    /// not cut yet), and their series.
+    partial_frames: u64,
+    partial_pvd: Option<PathBuf>,
 }
 
 /// What a tearing run did: when the jaws took hold, when the tissue tore, when they let go.
@@ -398,6 +404,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     // the visual mesh (co-rotational cutting): its steps, and its geometry per revision
     let mut visual_steps: Vec<(f64, String)> = Vec::new();
     let mut visual_geometry: Option<(u64, Vec<[f64; 3]>, Vec<usize>)> = None;
+    let (mut partial_steps, mut partial_frames): (Vec<(f64, String)>, u64) = (Vec::new(), 0);
     let session_stats = session.stats().clone();
     // the recorder is no real-time work: it yields the cores to the tick thread (frames it
     // falls behind on are skipped, as a slow viewer's are)
@@ -463,6 +470,33 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 visual_steps.push((frame.time_s, format!("frames/{file}")));
             }
         }
+        // the partial cut: from its first appearance on, one file per frame (empty when the
+        // blade is in no cell it has not cut, so that ParaView does not keep the last one)
+        if frame.partial.is_some() || !partial_steps.is_empty() {
+            let name = &geometry.organs[frame.partial.as_ref().map_or(0, |p| p.organ)].name;
+            let file = format!("{name}_partial_{:05}.vtu", frame.seq);
+            let (positions, u): (Vec<[f64; 3]>, Vec<f64>) = match &frame.partial {
+                Some(p) => {
+                    partial_frames += 1;
+                    (
+                        p.positions_m
+                            .chunks_exact(3)
+                            .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
+                            .collect(),
+                        p.displacements_m.iter().map(|&x| x as f64).collect(),
+                    )
+                }
+                None => (Vec::new(), Vec::new()),
+            };
+            let tris: Vec<usize> = (0..positions.len()).collect();
+            let point_data = [Field {
+                name: "displacement",
+                components: 3,
+                values: &u,
+            }];
+            vtk::write_surface_vtu(&frames_dir.join(&file), &positions, &tris, &point_data, &[])?;
+            partial_steps.push((frame.time_s, format!("frames/{file}")));
+        }
     }
     bar.finish_and_clear();
     let stats = session.wait();
@@ -499,7 +533,17 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                     Some(path)
                 }
             };
-            Ok(corotational_summary(&session_stats, cut_status.as_deref(), visual_pvd))
+            let partial_pvd = match partial_steps.is_empty() {
+                true => None,
+                false => {
+                    let path = record.join(format!("{}_partial.pvd", geometry.organs[0].name));
+                    vtk::write_pvd(&path, &partial_steps)?;
+                    Some(path)
+                }
+            };
+            let mut summary = corotational_summary(&session_stats, cut_status.as_deref(), visual_pvd);
+            (summary.partial_frames, summary.partial_pvd) = (partial_frames, partial_pvd);
+            Ok(summary)
         })
         .transpose()?;
     let summary = Summary {
@@ -599,6 +643,14 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             )?;
             if let Some(v) = &c.visual_pvd {
                 writeln!(out, "  visual mesh    {}", v.display())?;
+            }
+            if let Some(p) = &c.partial_pvd {
+                writeln!(
+                    out,
+                    "  partial cut    shown in {} frames (the swept surface in cells the blade entered and had not cut yet): {}",
+                    c.partial_frames,
+                    p.display()
+                )?;
             }
         }
         if let Some(t) = &s.tear {
@@ -727,6 +779,8 @@ fn corotational_summary(
         landing_jump_mean_n: counter(|s| &s.landing_jump_sum_un) as f64 * 1e-6 / landings.max(1) as f64,
         blend_step_max_n: counter(|s| &s.blend_step_max_un) as f64 * 1e-6,
         visual_pvd,
+        partial_frames: 0,
+        partial_pvd: None,
     }
 }
 
