@@ -272,3 +272,53 @@ fn a_piece_cut_loose_is_held_where_it_came_loose_and_the_rest_goes_on() {
     assert_eq!(v.revision, 1);
     assert!(v.unsplit.is_none(), "{:?}", v.unsplit);
 }
+
+#[test]
+fn strokes_meeting_split_the_visual_mesh_along_the_larger_one_and_say_so() {
+    // a cut up from the bottom in the plane x = 0.53 (the larger), and one along z = 0.47 from
+    // the left face to it: not one plane
+    let (mesh, problem, visual) = block();
+    let (mut def, _out) = CorotationalDeformation::new(0, mesh.clone(), materials(&mesh), problem, Some(visual.clone())).unwrap();
+    for _ in 0..20 {
+        def.step(None, None).unwrap();
+    }
+    let centre = |c: usize, k: usize| mesh.cell(c).iter().map(|&a| mesh.nodes[a][k]).sum::<f64>() / 4.0;
+    let up = Plane {
+        point: [0.53, 0.0, 0.0],
+        normal: [1.0, 0.0, 0.0],
+    };
+    let across = Plane {
+        point: [0.0, 0.0, 0.47],
+        normal: [0.0, 0.0, 1.0],
+    };
+    let mut cells: Vec<(usize, Plane)> = Enrichment::cells_crossed_by(&mesh, &up)
+        .into_iter()
+        .filter(|(c, _)| centre(*c, 2) < 0.7)
+        .collect();
+    let larger = cells.len();
+    cells.extend(
+        Enrichment::cells_crossed_by(&mesh, &across)
+            .into_iter()
+            .filter(|(c, _)| centre(*c, 0) < 0.5),
+    );
+    let enr = Arc::new(Enrichment::from_cut_cells(&mesh, &cells, &XfemParams::default()).unwrap());
+    let o = def.step(Some((1, &enr)), None).unwrap();
+    assert!(o.rebuilt && def.revision() == 1, "{o:?}");
+    let v = def.visual().unwrap().clone();
+    let why = v.unsplit.clone().expect("the split says it is partial");
+    assert!(why.contains(&format!("({larger} of {} cut cells)", cells.len())), "{why}");
+    // split along the larger stroke: more vertices, still a closed, oriented surface
+    assert!(v.mesh.vertices.len() > visual.vertices.len());
+    assert!(v.mesh.edges().is_closed_manifold(), "{:?}", v.mesh.edges());
+    let mut residual = f64::INFINITY;
+    for _ in 0..200 {
+        residual = def.step(None, None).unwrap().report.unwrap().residual;
+        if residual < 1e-9 {
+            break;
+        }
+    }
+    assert!(residual < 1e-9, "{residual:e}");
+    let mut u = Vec::new();
+    def.visual_displacements(&mut u);
+    assert!(u.len() == 3 * v.mesh.vertices.len() && u.iter().all(|x| x.is_finite()));
+}

@@ -420,3 +420,43 @@ fn a_blade_that_backs_out_and_comes_back_leaves_the_same_split() {
     assert!(through.report.cap_area > first.report.cap_area);
     assert_eq!(pieces(&through.surface).len(), 2);
 }
+
+#[test]
+fn strokes_meeting_split_the_surface_along_the_larger_one_which_stays_closed() {
+    // a T: a cut through the cube down x = 0.37 (the larger), and one along z = 0.53 from the
+    // left face that meets it
+    let surface = cube_surface(5);
+    let mesh = procedural::block_tet([-0.1; 3], [1.2; 3], [6, 6, 6]);
+    let (a, b) = (
+        x_plane(0.37),
+        Plane {
+            point: [0.5, 0.5, 0.53],
+            normal: [0.0, 0.0, 1.0],
+        },
+    );
+    let centre = |c: usize, k: usize| mesh.cell(c).iter().map(|&v| mesh.nodes[v][k]).sum::<f64>() / 4.0;
+    let mut cut: Vec<(usize, Plane)> = Enrichment::cells_crossed_by(&mesh, &a);
+    let along_a = cut.len();
+    let more: Vec<(usize, Plane)> = Enrichment::cells_crossed_by(&mesh, &b)
+        .into_iter()
+        .filter(|(c, _)| centre(*c, 0) < 0.3 && !cut.iter().any(|(d, _)| d == c))
+        .collect();
+    cut.extend(more);
+    assert!(cut.len() > along_a);
+    // not one plane; its largest planar part is the stroke down x = 0.37
+    let e = visual_split::cut_plane_of_cells(&mesh, &cut, visual_split::SESSION_PLANARITY).unwrap_err();
+    assert!(matches!(e, SplitError::NotPlanar { .. }));
+    let (plane, part) = visual_split::largest_planar_part(&mesh, &cut, visual_split::SESSION_PLANARITY).unwrap();
+    assert_eq!(part.len(), along_a);
+    assert!(
+        (plane.normal[0].abs() - 1.0).abs() < 1e-9 && (plane.phi([0.37, 0.2, 0.9])).abs() < 1e-9,
+        "{plane:?}"
+    );
+    // split along it: two closed pieces, the invariants hold
+    let cells: Vec<usize> = part.iter().map(|c| c.0).collect();
+    let split = visual_split::split(&surface, &mesh, &plane, &cells).unwrap();
+    check_invariants(&surface, &split);
+    assert_eq!(pieces(&split.surface).len(), 2);
+    // a cut with no planar part of three cells gives none
+    assert!(visual_split::largest_planar_part(&mesh, &cut[..2], visual_split::SESSION_PLANARITY).is_none());
+}

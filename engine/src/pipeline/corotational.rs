@@ -154,7 +154,8 @@ pub struct VisualSurface {
     pub mesh: Arc<VisualMesh>,
     /// Per vertex, which side of the cut it follows.
     pub side: Arc<[VertexSide]>,
-    /// Why the surface could not be split at this revision (drawn unsplit), if it could not.
+    /// Why the surface is not split along the whole cut at this revision (a cut of several
+    /// planes: split along its largest planar part only, or drawn unsplit), if it is not.
     pub unsplit: Option<String>,
     embedding: Embedding,
 }
@@ -340,35 +341,51 @@ impl CorotationalDeformation {
         })
     }
 
-    /// The visual mesh split along the cut `enr` (drawn unsplit, each vertex following the
-    /// side it lies on, when the cut is not one plane).
+    /// The visual mesh split along the cut `enr`: along its plane when it is one; along its
+    /// largest planar part when it is several (strokes meeting), the rest drawn unsplit, each
+    /// vertex following the side it lies on; wholly unsplit when no part is planar.
     fn split_surface(&self, revision: u64, enr: &Enrichment) -> Result<Option<VisualSurface>, String> {
         let Some(visual) = &self.visual else { return Ok(None) };
-        let cells: Vec<usize> = enr.cut_cells.iter().map(|c| c.0).collect();
-        let split = visual_split::cut_plane_of_cells(&self.mesh, &enr.cut_cells, visual_split::SESSION_PLANARITY)
-            .and_then(|plane| plane.map(|p| visual_split::split(visual, &self.mesh, &p, &cells)).transpose());
-        let surface = match split {
-            Ok(Some(s)) => {
-                let mut embedding = Embedding::new(&self.mesh, &s.surface.vertices)
-                    .map_err(|e| format!("the split visual mesh cannot be embedded: {e}"))?
-                    .with_sides(&s.side);
-                embedding.follow_cut(&self.mesh, enr, &s.surface.vertices);
-                VisualSurface {
-                    revision,
-                    mesh: Arc::new(s.surface),
-                    side: s.side.into(),
-                    unsplit: None,
-                    embedding,
+        let split_along = |plane: &crate::xfem::Plane, cut: &[(usize, crate::xfem::Plane)]| {
+            let cells: Vec<usize> = cut.iter().map(|c| c.0).collect();
+            visual_split::split(visual, &self.mesh, plane, &cells)
+        };
+        let whole = visual_split::cut_plane_of_cells(&self.mesh, &enr.cut_cells, visual_split::SESSION_PLANARITY)
+            .and_then(|plane| plane.map(|p| split_along(&p, &enr.cut_cells)).transpose());
+        let (split, why) = match whole {
+            Ok(Some(s)) => (Some(s), None),
+            Ok(None) => (None, None),
+            Err(e) => {
+                let part = visual_split::largest_planar_part(&self.mesh, &enr.cut_cells, visual_split::SESSION_PLANARITY)
+                    .and_then(|(plane, group)| split_along(&plane, &group).ok().map(|s| (s, group.len())));
+                match part {
+                    Some((s, n)) => {
+                        let why = format!(
+                            "split along the largest planar part of the cut only ({n} of {} cut cells): {e}",
+                            enr.cut_cells.len()
+                        );
+                        (Some(s), Some(why))
+                    }
+                    None => (None, Some(format!("drawn unsplit: {e}"))),
                 }
             }
-            Ok(None) => Self::unsplit_surface(&self.mesh, visual, revision, None)?,
-            Err(e) => {
-                tracing::warn!("the visual mesh is drawn unsplit: {e}");
-                let mut s = Self::unsplit_surface(&self.mesh, visual, revision, Some(e.to_string()))?;
-                s.embedding.follow_cut(&self.mesh, enr, &visual.vertices);
-                s
-            }
         };
+        if let Some(w) = &why {
+            tracing::warn!("the visual mesh is {w}");
+        }
+        let mut surface = match split {
+            Some(s) => VisualSurface {
+                revision,
+                embedding: Embedding::new(&self.mesh, &s.surface.vertices)
+                    .map_err(|e| format!("the split visual mesh cannot be embedded: {e}"))?
+                    .with_sides(&s.side),
+                mesh: Arc::new(s.surface),
+                side: s.side.into(),
+                unsplit: why,
+            },
+            None => Self::unsplit_surface(&self.mesh, visual, revision, why)?,
+        };
+        surface.embedding.follow_cut(&self.mesh, enr, &surface.mesh.vertices);
         Ok(Some(surface))
     }
 

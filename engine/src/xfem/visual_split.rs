@@ -37,7 +37,8 @@
 //!
 //! # Limits
 //! One plane per cut: a cut whose crossings stray from their best plane by more than 1 % of a
-//! cell is refused ([`SplitError::NotPlanar`]) rather than split wrongly. A surface face lying
+//! cell is refused ([`SplitError::NotPlanar`]) rather than split wrongly; a session then splits
+//! along the cut's largest planar part ([`largest_planar_part`]). A surface face lying
 //! in the cut plane stays whole, on the side its normal leaves the material on.
 
 use std::collections::HashMap;
@@ -944,6 +945,39 @@ pub fn cut_plane_of_cells(mesh: &Mesh, cut_cells: &[(usize, Plane)], tolerance: 
 /// How far from one plane a session's cut may stray to be split as one, in mean cut cell
 /// sizes ([`cut_plane_of_cells`]).
 pub const SESSION_PLANARITY: f64 = 0.25;
+
+/// Normals within this angle (rad, 15°) count as one family of planes in
+/// [`largest_planar_part`].
+const SAME_PLANE_ANGLE: f64 = 0.2618;
+
+/// The largest part of a cut made of several planes (two strokes meeting) that is one plane:
+/// the cells whose own planes turn less than 15° from one another, grouped around each cell's
+/// plane in turn, the largest group that [`cut_plane_of_cells`] accepts with `tolerance`, with
+/// its plane. `None` when no group of at least three cells is planar. What a session splits the
+/// visual surface along when the whole cut is not one plane.
+pub fn largest_planar_part(mesh: &Mesh, cut_cells: &[(usize, Plane)], tolerance: f64) -> Option<(Plane, Vec<(usize, Plane)>)> {
+    let unit = |p: &Plane| {
+        let n = p.normal;
+        let l = dot(n, n).sqrt();
+        n.map(|v| v / l)
+    };
+    let normals: Vec<[f64; 3]> = cut_cells.iter().map(|(_, p)| unit(p)).collect();
+    let same = SAME_PLANE_ANGLE.cos();
+    let mut tried: Vec<Vec<usize>> = Vec::new();
+    let mut best: Option<(Plane, Vec<(usize, Plane)>)> = None;
+    for n in &normals {
+        let members: Vec<usize> = (0..cut_cells.len()).filter(|&j| dot(*n, normals[j]).abs() >= same).collect();
+        if members.len() < 3 || tried.contains(&members) || best.as_ref().is_some_and(|b| b.1.len() >= members.len()) {
+            continue;
+        }
+        let group: Vec<(usize, Plane)> = members.iter().map(|&j| cut_cells[j]).collect();
+        tried.push(members);
+        if let Ok(Some(plane)) = cut_plane_of_cells(mesh, &group, tolerance) {
+            best = Some((plane, group));
+        }
+    }
+    best
+}
 
 /// The least-squares plane of `points` on the cells `cells`, refused when a point lies
 /// farther from it than `tolerance` times the cells' mean size.
