@@ -185,10 +185,11 @@ fn the_cut_compliance_at_a_node_is_the_full_xfem_displacement_per_unit_force() {
     }
 }
 
-#[test]
-fn a_piece_cut_loose_is_a_typed_error_and_leaves_the_model_at_the_previous_cut() {
-    // a bar clamped at x = 0, its free end loaded; cutting it through at x = 2 frees the end
-    let scene = Scene::from_toml(
+/// A 4 × 1 × 1 bar of hexahedra with `divisions` cells, clamped at x = 0, its free end's
+/// upper corner loaded downwards by 1 N.
+fn bar(divisions: [usize; 3]) -> Scene {
+    let [i, j, k] = divisions;
+    let text = format!(
         r#"
 [scene]
 name = "bar"
@@ -198,24 +199,29 @@ density = 1.0
 [organs.mesh]
 builtin = "block"
 size = [4.0, 1.0, 1.0]
-divisions = [4, 1, 1]
+divisions = [{i}, {j}, {k}]
 cell = "hex8"
 [[organs.materials]]
 model = "linear"
 young = 100.0
 poisson = 0.3
 [organs.fixed]
-box = { min = [0.0, 0.0, 0.0], max = [0.0, 1.0, 1.0] }
+box = {{ min = [0.0, 0.0, 0.0], max = [0.0, 1.0, 1.0] }}
 [organs.accessible]
-half_space = { point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }
+half_space = {{ point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }}
 [[organs.loads]]
 kind = "point"
 at = [4.0, 0.0, 1.0]
 force = [0.0, 0.0, -1.0]
-"#,
-        "bar.toml",
-    )
-    .unwrap();
+"#
+    );
+    Scene::from_toml(&text, "bar.toml").unwrap()
+}
+
+#[test]
+fn a_piece_cut_loose_is_a_typed_error_and_leaves_the_model_at_the_previous_cut() {
+    // a bar clamped at x = 0, its free end loaded; cutting it through at x = 2 frees the end
+    let scene = bar([4, 1, 1]);
     let b = built(&scene, 1e-6);
     let m = &b.model;
     let params = XfemParams::default();
@@ -463,34 +469,7 @@ fn the_walls_a_viewer_draws_part_as_the_full_xfem_opens() {
 fn a_piece_with_uncut_nodes_cut_loose_is_refused_or_bounded() {
     // the bar of eight cells clamped at x = 0, cut through at x = 2.25 (through cells, not
     // nodes): the free end, with uncut nodes inside it, holds on to nothing
-    let scene = Scene::from_toml(
-        r#"
-[scene]
-name = "bar"
-[[organs]]
-name = "bar"
-density = 1.0
-[organs.mesh]
-builtin = "block"
-size = [4.0, 1.0, 1.0]
-divisions = [8, 2, 2]
-cell = "hex8"
-[[organs.materials]]
-model = "linear"
-young = 100.0
-poisson = 0.3
-[organs.fixed]
-box = { min = [0.0, 0.0, 0.0], max = [0.0, 1.0, 1.0] }
-[organs.accessible]
-half_space = { point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }
-[[organs.loads]]
-kind = "point"
-at = [4.0, 0.0, 1.0]
-force = [0.0, 0.0, -1.0]
-"#,
-        "bar.toml",
-    )
-    .unwrap();
+    let scene = bar([8, 2, 2]);
     let b = built(&scene, 1e-6);
     let m = &b.model;
     let params = XfemParams::default();

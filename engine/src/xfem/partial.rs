@@ -12,7 +12,7 @@
 //! the cut.
 
 use crate::mesh::{CellKind, Mesh};
-use crate::vec3::{cross, dot, sub};
+use crate::vec3::{cross, dot, lerp, norm, sub};
 
 /// The part of `polygon` (planar, convex or not, its vertices in order) on the side of the
 /// plane `dot(n, x) <= offset` (Sutherland–Hodgman against one plane).
@@ -25,8 +25,7 @@ fn clip_half_space(polygon: &[[f64; 3]], n: [f64; 3], offset: f64) -> Vec<[f64; 
             out.push(p);
         }
         if (dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0) {
-            let t = dp / (dp - dq);
-            out.push(std::array::from_fn(|k| p[k] + t * (q[k] - p[k])));
+            out.push(lerp(p, q, dp / (dp - dq)));
         }
     }
     out
@@ -51,8 +50,7 @@ pub fn clip_triangle_to_tet(t: &[[f64; 3]; 3], tet: &[[f64; 3]; 4]) -> Vec<[f64;
 }
 
 fn area(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> f64 {
-    let n = cross(sub(b, a), sub(c, a));
-    0.5 * dot(n, n).sqrt()
+    0.5 * norm(cross(sub(b, a), sub(c, a)))
 }
 
 /// The swept surface inside the cells a blade reached and has not cut (module docs).

@@ -617,7 +617,8 @@ pub fn assemble(
     let mut detached = Vec::new();
     for (copies, free) in loose_pieces(mesh, enr, &mut pieces, &supported, &constrained) {
         for &a in &copies {
-            hold_copy(&mut k, &dofs, enr, n, a, k_hold);
+            // the foundation ½ k |u_copy|²
+            add_copy_spring(&mut k, &dofs, &copy_terms(enr, n, a), k_hold);
             if params.detached == Detached::Remove && a < n {
                 for i in 0..3 {
                     forces[3 * a + i] = 0.0;
@@ -799,11 +800,6 @@ pub fn enriched_rows(
         });
     }
     Ok(out)
-}
-
-/// Adds the foundation `½ k |u_copy|²` of one copy ([`copy_terms`]).
-fn hold_copy(k: &mut SymmetricMatrix, dofs: &DofMap, enr: &Enrichment, n: usize, copy: usize, stiffness: f64) {
-    add_copy_spring(k, dofs, &copy_terms(enr, n, copy), stiffness);
 }
 
 /// Adds the stiffness of a spring `½ k |Σ_j c_j d_j|²` on a copy made of `terms`
