@@ -152,6 +152,43 @@ fn every_tool_state_is_answered_in_order_with_the_pipelines_force() {
     assert!(stats.ticks > 0 && stats.work_us.count > 0);
 }
 
+/// A tool state is answered when it arrives, not at the session's next deadline: with a
+/// period of a minute, every state sent is answered before the first deadline, each in order
+/// and equal to the pipeline's, numbered with the tissue's step (one per answer).
+#[test]
+fn tool_states_are_answered_on_arrival_not_at_the_next_deadline() {
+    let (scene, bundles, _dir) = slab();
+    let config = SessionConfig {
+        period: Duration::from_secs(60),
+        ..SessionConfig::default()
+    };
+    let session = Session::start("arrival".into(), scene.clone(), bundles.clone(), config).unwrap();
+    let mut direct = Pipeline::for_scene(&scene, &bundles).unwrap();
+    let mut rx = session.open_answers(64).unwrap();
+    let mut touching = 0;
+    for i in 0..40 {
+        session
+            .submit(ToolCommand {
+                input: tool(i),
+                seq: i as u64,
+                client_time_us: 7 * i as u64,
+                received: Instant::now(),
+                reply: rx.id(),
+            })
+            .expect("queue has room");
+        let a = recv(&mut rx);
+        check(&a, i, &mut direct, &mut touching);
+        assert_eq!(a.tick, i as u64, "one step of the tissue per answer, no deadline's between");
+    }
+    assert_eq!(
+        session.stats().ticks.load(Ordering::Relaxed),
+        0,
+        "no deadline has passed: the answers did not wait for one"
+    );
+    let stats = session.close();
+    assert_eq!((stats.answered, stats.dropped), (40, 0));
+}
+
 fn check(a: &Answer, i: usize, direct: &mut Pipeline, touching: &mut usize) {
     assert_eq!(a.seq, i as u64, "answers out of order");
     assert_eq!(a.client_time_us, 7 * i as u64);

@@ -85,7 +85,7 @@ impl SurfaceGeometry {
 pub struct Frame {
     /// Frame number, from 1, increasing by one per frame produced (0: the rest state).
     pub seq: u64,
-    /// The tick it shows.
+    /// The step (pipeline tick) it shows ([`super::Answer::tick`]).
     pub tick: u64,
     /// Session time of that tick (s).
     pub time_s: f64,

@@ -1,12 +1,16 @@
 //! Sessions: a scene, its loaded bundles (shared read-only with other sessions), the effect
 //! pipeline built from the scene's `[effects]`, and three threads.
 //!
-//! - The **tick thread** owns the pipeline. Every period (1 ms by default) it sleeps to its
-//!   deadline, drains the bounded command queue with `try_recv` (at most
-//!   [`MAX_COMMANDS_PER_TICK`] per tick) and answers each tool state in arrival order into the
-//!   session's preallocated answer ring (see [`answers`]), re-evaluates the last tool state
-//!   when none arrived (the force stays fresh for a device), and writes the tick's state into
-//!   a triple buffer (a wait-free latest-value slot). It never awaits, never allocates in the
+//! - The **tick thread** owns the pipeline. It keeps a period (1 ms by default) and, between
+//!   its deadlines, waits parked: [`Session::submit`] queues a tool state in the bounded
+//!   command queue and unparks it, and it answers at once — draining the queue with
+//!   `try_recv` (at most [`MAX_COMMANDS_PER_TICK`] per wake-up), each tool state in arrival
+//!   order, one pipeline tick each, into the session's preallocated answer ring (see
+//!   [`answers`]). At each deadline it re-evaluates the last tool state when the period
+//!   answered none (the force stays fresh for a device; the tissue advances one pipeline tick
+//!   per answer, or one per period without any) and writes the period's state into a triple
+//!   buffer (a wait-free latest-value slot) for the frame thread. A haptic session's tick
+//!   thread waits for its bridge instead and answers queued states when it wakes. It never awaits, never allocates in the
 //!   loop (a counting-allocator test holds it to that), and shares no lock with another
 //!   thread: histograms are handed over through lock-free queues ([`stats`]).
 //! - The **answer dispatcher** thread routes the ring's answers to each stream's tokio
@@ -75,7 +79,9 @@ pub struct Answer {
     pub received_us: u64,
     /// When the tick answered it (µs since the session started).
     pub answered_us: u64,
-    /// The tick that answered it.
+    /// The tissue's step (pipeline tick) that answered it, counted from 0: one per answer and
+    /// one per period that answered none, so the difference between two answers' numbers is
+    /// the steps the tissue took from one to the other.
     pub tick: u64,
     /// Force, contact and events.
     pub state: TickState,
@@ -181,6 +187,8 @@ pub struct Session {
     grasp_sites: Vec<GraspSite>,
     tool_kinds: Vec<ToolKind>,
     commands: SyncSender<Command>,
+    /// The tick thread, unparked when a tool state is queued (answers on arrival).
+    tick_thread: std::thread::Thread,
     router: Arc<answers::Router>,
     frames: watch::Sender<Arc<Frame>>,
     geometry: Arc<SurfaceGeometry>,
@@ -277,6 +285,7 @@ impl Session {
             epoch,
             script,
             owed: 0,
+            steps: 0,
         };
         // the haptic peer's ports belong to the thread that uses them: the tick thread opens
         // them before its loop and says whether it could
@@ -359,6 +368,7 @@ impl Session {
             grasp_sites,
             tool_kinds,
             commands,
+            tick_thread: tick_thread.thread().clone(),
             router,
             frames,
             geometry,
@@ -441,10 +451,15 @@ impl Session {
         AnswerStream::open(&self.router, capacity)
     }
 
-    /// Queues a tool state for the next tick; refuses at once when the queue is full.
+    /// Queues a tool state and wakes the tick thread, which answers it at once (a haptic
+    /// session's at its next wake-up: the bridge's next state or its deadline); refuses at
+    /// once when the queue is full.
     pub fn submit(&self, cmd: ToolCommand) -> Result<(), SubmitError> {
         match self.commands.try_send(Command::Tool(cmd)) {
-            Ok(()) => Ok(()),
+            Ok(()) => {
+                self.tick_thread.unpark();
+                Ok(())
+            }
             Err(TrySendError::Full(_)) => Err(SubmitError::Busy),
             Err(TrySendError::Disconnected(_)) => Err(SubmitError::Closed),
         }
@@ -469,6 +484,7 @@ impl Session {
     /// for them; they are joined when the session is dropped or closed.
     pub fn stop(&self) {
         self.stop.store(true, Ordering::Relaxed);
+        self.tick_thread.unpark();
     }
 
     /// Stops the threads (the tick thread finishes its current tick), joins them and returns
@@ -490,6 +506,7 @@ impl Session {
 
     fn shutdown(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
+        self.tick_thread.unpark();
         for t in self.threads.drain(..) {
             let _ = t.join();
         }

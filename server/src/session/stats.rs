@@ -30,7 +30,8 @@ fn histogram() -> Histogram<u64> {
 /// The latency histograms of a session.
 #[derive(Debug, Clone)]
 pub struct Histograms {
-    /// Work done in a tick, from its start to its end (ns).
+    /// Work done in a tick period (ns): the deadline tick from its start to its end, plus
+    /// the answers given on arrival during the period.
     pub work: Histogram<u64>,
     /// How late a tick started after its deadline (ns): the OS wake-up floor plus any
     /// overrun of the previous tick.

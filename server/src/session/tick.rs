@@ -20,15 +20,17 @@ const PUBLISH_EVERY: u64 = 64;
 /// instead of running the missed ticks back to back (they are counted as misses).
 const MAX_CATCH_UP: u32 = 10;
 
-/// Most queued tool states one tick answers. A client at the tick rate sends one per tick; 16
-/// absorbs a burst of 16 ms of network jitter in one tick while bounding the tick's work to 16
-/// pipeline ticks (tens of µs). A longer backlog is answered over the next ticks, in order.
+/// Most queued tool states one wake-up of the tick thread answers (on arrival, or at a
+/// deadline). A client at the tick rate sends one per tick; 16 absorbs a burst of 16 ms of
+/// network jitter at once while bounding one stretch of work to 16 pipeline ticks (tens of
+/// µs). A longer backlog is answered right after (or over the next ticks of a haptic
+/// session), in order.
 pub const MAX_COMMANDS_PER_TICK: usize = 16;
 
 /// What the tick thread leaves for the frame thread.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub(super) struct Latest {
-    /// Tick number.
+    /// The step (pipeline tick) number of the state.
     pub tick: u64,
     /// Session time (µs).
     pub time_us: u64,
@@ -55,6 +57,9 @@ pub(super) struct TickLoop {
     /// One-shot events ([`Events::ONE_SHOT`]) of ticks that answered no one, owed to the next
     /// answer.
     pub owed: u32,
+    /// Pipeline ticks so far: the tissue's steps, one per answer and one per period that
+    /// answered none. Answers and frames carry the number of the step they show.
+    pub steps: u64,
 }
 
 impl TickLoop {
@@ -62,16 +67,23 @@ impl TickLoop {
         t.saturating_duration_since(self.epoch).as_micros() as u64
     }
 
-    /// One pipeline tick that answers someone: it carries the happenings owed by the ticks
-    /// that answered no one.
-    fn tick_answered(&mut self, input: &ToolInput) -> TickState {
-        let mut state = self.pipeline.tick(input);
-        state.events.0 |= std::mem::take(&mut self.owed);
-        state
+    /// One pipeline tick: the tissue's next step, and its number.
+    fn step(&mut self, input: &ToolInput) -> (u64, TickState) {
+        let step = self.steps;
+        self.steps += 1;
+        (step, self.pipeline.tick(input))
     }
 
-    fn answer(&mut self, tick: u64, input: &ToolInput, seq: u64, client_time_us: u64, received: Instant) -> Answer {
-        let state = self.tick_answered(input);
+    /// One pipeline tick that answers someone: it carries the happenings owed by the ticks
+    /// that answered no one.
+    fn tick_answered(&mut self, input: &ToolInput) -> (u64, TickState) {
+        let (step, mut state) = self.step(input);
+        state.events.0 |= std::mem::take(&mut self.owed);
+        (step, state)
+    }
+
+    fn answer(&mut self, input: &ToolInput, seq: u64, client_time_us: u64, received: Instant) -> Answer {
+        let (tick, state) = self.tick_answered(input);
         if state.events.has(Events::REJECTED_INPUT) {
             self.stats.rejected.fetch_add(1, Ordering::Relaxed);
         }
@@ -89,7 +101,7 @@ impl TickLoop {
     /// Answers a state from the haptic channel at once.
     fn answer_haptic(&mut self, peer: &mut HapticPeer, s: &HapticState, local: &mut Histograms) -> (ToolInput, TickState) {
         let input = tool_input(s);
-        let state = self.tick_answered(&input);
+        let (_, state) = self.tick_answered(&input);
         if state.events.has(Events::REJECTED_INPUT) {
             self.stats.rejected.fetch_add(1, Ordering::Relaxed);
         }
@@ -102,8 +114,62 @@ impl TickLoop {
         (input, state)
     }
 
+    /// Answers the queued tool states, in arrival order, at most [`MAX_COMMANDS_PER_TICK`]:
+    /// each answer is one pipeline tick, the period's latest state and input kept in
+    /// `period`. `Err` when every sender is gone.
+    fn answer_queued(&mut self, period: &mut Period, local: &mut Histograms) -> Result<usize, ()> {
+        let mut n = 0;
+        while n < MAX_COMMANDS_PER_TICK {
+            match self.commands.try_recv() {
+                Ok(Command::Tool(c)) => {
+                    let a = self.answer(&c.input, c.seq, c.client_time_us, c.received);
+                    Histograms::record(
+                        &mut local.response,
+                        Instant::now().saturating_duration_since(c.received).as_nanos() as u64,
+                    );
+                    // counted before it leaves, so a reader that has the answer sees it counted
+                    self.stats.answered.fetch_add(1, Ordering::Relaxed);
+                    self.answers.push(c.reply, a);
+                    period.state = Some(a.state);
+                    if c.input.is_valid() {
+                        period.last_input = Some(c.input);
+                    }
+                    n += 1;
+                }
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => return Err(()),
+            }
+        }
+        Ok(n)
+    }
+
+    /// Waits for the deadline `next` parked, answering every tool state at once as it arrives
+    /// ([`super::Session::submit`] unparks this thread after queueing it): a state is answered
+    /// within the thread's wake-up, not at the next deadline. The work of each arrival is
+    /// added to the period's, recorded with its deadline tick. `Err` when every sender is gone.
+    fn wait_answering(&mut self, next: Instant, period: &mut Period, local: &mut Histograms) -> Result<(), ()> {
+        let mut backlog = false;
+        loop {
+            let now = Instant::now();
+            if now >= next || self.stop.load(Ordering::Relaxed) {
+                return Ok(());
+            }
+            if !backlog {
+                std::thread::park_timeout(next - now);
+            }
+            let start = Instant::now();
+            let n = self.answer_queued(period, local)?;
+            backlog = n == MAX_COMMANDS_PER_TICK;
+            if n > 0 {
+                self.answers.wake();
+                period.work_ns += start.elapsed().as_nanos() as u64;
+            }
+        }
+    }
+
     /// Runs until stopped (or the script ends); with a haptic `peer`, the tick also answers
-    /// the device bridge (see [`vademecum_bridge::peer`] for how it waits).
+    /// the device bridge (see [`vademecum_bridge::peer`] for how it waits), without one it
+    /// answers tool states on arrival between its deadlines ([`Self::wait_answering`]).
     pub fn run(mut self, mut peer: Option<HapticPeer>) {
         let mut local = Box::<Histograms>::default();
         if peer.is_some() {
@@ -113,14 +179,13 @@ impl TickLoop {
         let period = self.period;
         let mut next = Instant::now() + period;
         let mut tick: u64 = 0;
-        let mut last_input: Option<ToolInput> = None;
+        let mut this = Period::default();
         'ticks: while !self.stop.load(Ordering::Relaxed) {
             let arrived = match peer.as_mut() {
                 Some(p) => p.wait_for_state(next),
                 None => {
-                    let now = Instant::now();
-                    if next > now {
-                        std::thread::sleep(next - now);
+                    if self.wait_answering(next, &mut this, &mut local).is_err() {
+                        break 'ticks;
                     }
                     None
                 }
@@ -134,13 +199,12 @@ impl TickLoop {
                     self.stats.misses.fetch_add(1, Ordering::Relaxed);
                 }
             }
-            let mut state: Option<TickState> = None;
             let mut answered = false;
             if let (Some(p), Some(s)) = (peer.as_mut(), arrived.as_ref()) {
                 let (input, st) = self.answer_haptic(p, s, &mut local);
-                state = Some(st);
+                this.state = Some(st);
                 if input.is_valid() {
-                    last_input = Some(input);
+                    this.last_input = Some(input);
                 }
             }
             if let Some(script) = self.script.take() {
@@ -153,51 +217,36 @@ impl TickLoop {
                 if input.kind == ToolKind::Probe && !self.pipeline.accepts(ToolKind::Probe) && self.pipeline.accepts(ToolKind::Grasper) {
                     input.kind = ToolKind::Grasper;
                 }
-                let a = self.answer(tick, &input, tick, self.micros(start), start);
+                let a = self.answer(&input, tick, self.micros(start), start);
                 Histograms::record(&mut local.response, (a.answered_us - a.received_us) * 1000);
                 // counted before it leaves, so a reader that has the answer sees it counted
                 self.stats.answered.fetch_add(1, Ordering::Relaxed);
                 self.answers.push(script.to, a);
                 answered = true;
-                state = Some(a.state);
-                last_input = Some(input);
+                this.state = Some(a.state);
+                this.last_input = Some(input);
                 self.script = Some(script);
             }
-            for _ in 0..MAX_COMMANDS_PER_TICK {
-                match self.commands.try_recv() {
-                    Ok(Command::Tool(c)) => {
-                        let a = self.answer(tick, &c.input, c.seq, c.client_time_us, c.received);
-                        Histograms::record(
-                            &mut local.response,
-                            Instant::now().saturating_duration_since(c.received).as_nanos() as u64,
-                        );
-                        self.stats.answered.fetch_add(1, Ordering::Relaxed);
-                        self.answers.push(c.reply, a);
-                        answered = true;
-                        state = Some(a.state);
-                        if c.input.is_valid() {
-                            last_input = Some(c.input);
-                        }
-                    }
-                    Err(TryRecvError::Empty) => break,
-                    Err(TryRecvError::Disconnected) => break 'ticks,
-                }
+            match self.answer_queued(&mut this, &mut local) {
+                Ok(n) => answered |= n > 0,
+                Err(()) => break 'ticks,
             }
             if answered {
                 // one wake-up of the dispatcher per tick, however many answers it carries
                 self.answers.wake();
             }
-            if state.is_none()
-                && let Some(input) = last_input
-            {
-                // time goes on for the tissue; what happened is owed to the next answer
-                let st = self.pipeline.tick(&input);
-                self.owed |= st.events.0 & Events::ONE_SHOT;
-                state = Some(st);
-            }
+            let state = match this.state.take() {
+                Some(state) => Some(state),
+                None => this.last_input.map(|input| {
+                    // time goes on for the tissue; what happened is owed to the next answer
+                    let (_, st) = self.step(&input);
+                    self.owed |= st.events.0 & Events::ONE_SHOT;
+                    st
+                }),
+            };
             if let Some(state) = state {
                 self.latest.write(Latest {
-                    tick,
+                    tick: self.steps.saturating_sub(1),
                     time_us: self.micros(start),
                     state,
                 });
@@ -217,7 +266,9 @@ impl TickLoop {
                     self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
                 }
             }
-            Histograms::record(&mut local.work, start.elapsed().as_nanos() as u64);
+            // the period's work: its deadline tick and its answers on arrival
+            let work = start.elapsed().as_nanos() as u64 + std::mem::take(&mut this.work_ns);
+            Histograms::record(&mut local.work, work);
             next = match &peer {
                 Some(p) => p.next_deadline(next, start, arrived.is_some()),
                 None => next + period,
@@ -235,6 +286,18 @@ impl TickLoop {
         self.stats.finish(&local);
         self.answers.finish();
     }
+}
+
+/// What a period of the tick loop has answered so far: the tissue advances one pipeline tick
+/// per answer, and one at the deadline only when the period answered nothing.
+#[derive(Debug, Default)]
+struct Period {
+    /// The latest state of the period's answers (`None`: nothing answered yet).
+    state: Option<TickState>,
+    /// The last valid tool state received, re-evaluated at deadlines that answered nothing.
+    last_input: Option<ToolInput>,
+    /// The work of its answers on arrival so far (ns).
+    work_ns: u64,
 }
 
 /// The engine's tool state for a haptic sample.

@@ -4,7 +4,8 @@
 //!
 //! 1. null loop; 2. a session's ticks with no viewer, then 3. with two 30 Hz viewers and one
 //!    5 Hz viewer; 4. the gRPC round trip on loopback at 1 kHz (a client sends a tool state
-//!    every millisecond and waits for its answer); 5. N concurrent sessions, each playing the
+//!    every millisecond and waits for its answer), beside tonic's echo of the same stream;
+//!    5. N concurrent sessions, each playing the
 //!    built-in palpation: deadline misses per N.
 
 use std::io::Write;
@@ -18,6 +19,7 @@ use crate::session::{Script, Session, SessionConfig, ToolCommand};
 use anyhow::{Context, bail};
 use hdrhistogram::Histogram;
 use serde::Serialize;
+use vademecum_client::pb;
 use vademecum_engine::scene::Scene;
 
 use crate::cli_main::cli::BenchSessionArgs;
@@ -138,10 +140,15 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
         ));
     }
     // gRPC round trip on loopback at 1 kHz
-    let rtt = grpc_round_trip(&dir, a.seconds)?;
+    let (rtt, echo) = grpc_round_trip(&dir, a.seconds)?;
     rows.push(row(
         "gRPC round trip on loopback, 1 tool state per ms (client send → response received)",
         rtt,
+        0,
+    ));
+    rows.push(row(
+        "… tonic echo on loopback, same stream and pacing (no session behind it)",
+        echo,
         0,
     ));
     // concurrent scripted sessions
@@ -205,9 +212,48 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The tool state sent `i`-th: a circle over the organ, pressing in and out.
+fn bench_tool(i: u64) -> vademecum_client::pb::ToolState {
+    let s = (i % 5000) as f64 * 1e-3;
+    vademecum_client::tool_at(
+        i,
+        [
+            0.02 * (3.0 * s).cos(),
+            0.015 * (3.0 * s).sin(),
+            0.030 - 0.006 * (5.0 * s).sin().abs(),
+        ],
+    )
+}
+
+/// Calls `round_trip(i)` once per millisecond (paced by sleeping to deadlines) for `secs`,
+/// timing each call (ns).
+async fn paced(secs: f64, mut round_trip: impl AsyncFnMut(u64) -> anyhow::Result<()>) -> anyhow::Result<Percentiles> {
+    let mut h = hist();
+    let period = Duration::from_millis(1);
+    let end = Instant::now() + Duration::from_secs_f64(secs);
+    let mut next = Instant::now();
+    let mut i = 0u64;
+    while Instant::now() < end {
+        let now = Instant::now();
+        if next > now {
+            tokio::time::sleep(next - now).await;
+        }
+        let t0 = Instant::now();
+        round_trip(i).await?;
+        let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
+        i += 1;
+        next += period;
+        if Instant::now() > next + period * 10 {
+            next = Instant::now();
+        }
+    }
+    Ok(Percentiles::of(&h))
+}
+
 /// A server in this process on a free loopback port, and a client sending one tool state
-/// per millisecond (paced by sleeping to deadlines), timing each answer.
-fn grpc_round_trip(bundle_dir: &std::path::Path, secs: f64) -> anyhow::Result<Percentiles> {
+/// per millisecond and waiting for its answer; then, in the same runtime, the same stream
+/// against tonic's echo ([`Echo`]): the floor of a gRPC round trip on this host.
+fn grpc_round_trip(bundle_dir: &std::path::Path, secs: f64) -> anyhow::Result<(Percentiles, Percentiles)> {
     let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
     rt.block_on(async {
         let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
@@ -227,41 +273,82 @@ fn grpc_round_trip(bundle_dir: &std::path::Path, secs: f64) -> anyhow::Result<Pe
             .create_session(vademecum_client::SceneSpec::Builtin("organ".into()), &name, "bench")
             .await?;
         let mut tools = session.interact().await?;
-        let mut h = hist();
-        let period = Duration::from_millis(1);
-        let end = Instant::now() + Duration::from_secs_f64(secs);
-        let mut next = Instant::now();
-        let mut i = 0u64;
-        while Instant::now() < end {
-            let now = Instant::now();
-            if next > now {
-                tokio::time::sleep(next - now).await;
-            }
-            let t0 = Instant::now();
-            let s = (i % 5000) as f64 * 1e-3;
-            tools
-                .send(vademecum_client::tool_at(
-                    i,
-                    [
-                        0.02 * (3.0 * s).cos(),
-                        0.015 * (3.0 * s).sin(),
-                        0.030 - 0.006 * (5.0 * s).sin().abs(),
-                    ],
-                ))
-                .await?;
+        let session_rtt = paced(secs, async |i| {
+            tools.send(bench_tool(i)).await?;
             let r = tools.next().await?.context("the server ended the stream")?;
             anyhow::ensure!(r.seq == i, "answer {} for tool state {i}", r.seq);
-            let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
-            i += 1;
-            next += period;
-            if Instant::now() > next + period * 10 {
-                next = Instant::now();
-            }
-        }
+            Ok(())
+        })
+        .await?;
         tools.finish();
         let _ = session.close().await;
         let _ = stop_tx.send(());
         let _ = server.await;
-        Ok(Percentiles::of(&h))
+        let echo_rtt = echo_round_trip(secs).await?;
+        Ok((session_rtt, echo_rtt))
     })
+}
+
+/// tonic's floor: an `Interaction` service that answers each tool state at once with its
+/// sequence number, no session behind it — the same stream shape as the real service (a task
+/// per stream forwarding through a bounded channel).
+#[derive(Debug, Clone, Copy)]
+struct Echo;
+
+type EchoStream = std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Result<pb::ToolResponse, tonic::Status>> + Send>>;
+
+#[tonic::async_trait]
+impl pb::interaction_server::Interaction for Echo {
+    type InteractStream = EchoStream;
+
+    async fn interact(
+        &self,
+        req: tonic::Request<tonic::Streaming<pb::ToolState>>,
+    ) -> Result<tonic::Response<Self::InteractStream>, tonic::Status> {
+        let mut inbound = req.into_inner();
+        let (out, rx) = tokio::sync::mpsc::channel(256);
+        tokio::spawn(async move {
+            while let Ok(Some(m)) = inbound.message().await {
+                let r = pb::ToolResponse {
+                    seq: m.seq,
+                    client_time_us: m.client_time_us,
+                    ..Default::default()
+                };
+                if out.send(Ok(r)).await.is_err() {
+                    break;
+                }
+            }
+        });
+        Ok(tonic::Response::new(Box::pin(tokio_stream::wrappers::ReceiverStream::new(rx))))
+    }
+}
+
+/// The round trip against [`Echo`] on a free loopback port, paced as the session's.
+async fn echo_round_trip(secs: f64) -> anyhow::Result<Percentiles> {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+    let addr = listener.local_addr()?;
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let server = tokio::spawn(
+        tonic::transport::Server::builder()
+            .add_service(pb::interaction_server::InteractionServer::new(Echo))
+            .serve_with_incoming_shutdown(tokio_stream::wrappers::TcpListenerStream::new(listener), async {
+                let _ = stop_rx.await;
+            }),
+    );
+    let mut client = pb::interaction_client::InteractionClient::connect(format!("http://{addr}")).await?;
+    let (tx, rx) = tokio::sync::mpsc::channel(1024);
+    tx.send(bench_tool(0)).await?;
+    let mut responses = client.interact(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
+    anyhow::ensure!(responses.message().await?.is_some(), "the echo ended its stream");
+    let rtt = paced(secs, async |i| {
+        tx.send(bench_tool(i + 1)).await?;
+        let r = responses.message().await?.context("the echo ended its stream")?;
+        anyhow::ensure!(r.seq == i + 1, "echo {} for tool state {}", r.seq, i + 1);
+        Ok(())
+    })
+    .await?;
+    drop(tx);
+    let _ = stop_tx.send(());
+    let _ = server.await;
+    Ok(rtt)
 }

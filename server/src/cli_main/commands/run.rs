@@ -296,9 +296,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             let mut cut_counts = [0u64; 3];
             let mut blade_rows = Vec::new();
             while let Some(a) = rx.blocking_recv() {
+                // a script's answer is numbered with its period (`Script`)
                 let row = Row {
-                    tick: a.tick,
-                    t_s: a.tick as f64 * period_s,
+                    tick: a.seq,
+                    t_s: a.seq as f64 * period_s,
                     a,
                 };
                 let f = row.a.state.force_n;
