@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::session::SessionConfig;
+use crate::session::{SchedulerConfig, SessionConfig};
 
 /// Settings of a server.
 #[derive(Debug, Clone)]
@@ -41,6 +41,9 @@ pub struct ServerConfig {
     pub tokens: Option<Vec<String>>,
     /// How sessions tick.
     pub session: SessionConfig,
+    /// The tick workers that tick the sessions (`workers = 0`: a thread per session), unless
+    /// `session.ticking` names workers already. A haptic session has a thread of its own.
+    pub tick_workers: SchedulerConfig,
 }
 
 impl Default for ServerConfig {
@@ -62,6 +65,7 @@ impl Default for ServerConfig {
             tokens: None,
             tls: None,
             session: SessionConfig::default(),
+            tick_workers: SchedulerConfig::default(),
         }
     }
 }

@@ -34,6 +34,8 @@ pub mod session;
 
 use std::future::Future;
 
+use anyhow::Context;
+
 use tokio_stream::wrappers::TcpListenerStream;
 use tonic::service::interceptor::InterceptedService;
 use vademecum_proto::v1 as pb;
@@ -51,6 +53,12 @@ pub async fn run(
     config: ServerConfig,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> anyhow::Result<()> {
+    let mut config = config;
+    if config.session.ticking.is_none() && config.tick_workers.workers > 0 {
+        let workers = session::TickScheduler::new(config.tick_workers).context("cannot start the tick workers")?;
+        tracing::info!(workers = config.tick_workers.workers, realtime = ?workers.realtime(), "tick workers started");
+        config.session.ticking = Some(std::sync::Arc::new(workers));
+    }
     let registry = Registry::new(config.clone());
     let auth = Auth::new(config.tokens.clone());
     let (health, health_service) = tonic_health::server::health_reporter();

@@ -14,23 +14,27 @@ use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
-use vademecum_server::session::{Answer, Script, Session, SessionConfig, SessionError, ToolCommand, Trajectory};
+use vademecum_server::session::{
+    Answer, SchedulerConfig, Script, Session, SessionConfig, SessionError, TickScheduler, ToolCommand, Trajectory,
+};
 
 /// Counts the allocations of threads that asked to be counted (the tick thread, through
-/// [`SessionConfig::on_tick_thread`]); every other thread allocates uncounted.
+/// [`SessionConfig::on_tick_thread`]; a tick worker, through [`SchedulerConfig::on_start`]),
+/// each into its test's counter; every other thread allocates uncounted.
 struct Counting;
 
 thread_local! {
-    static COUNTED: Cell<bool> = const { Cell::new(false) };
+    static COUNTED: Cell<Option<&'static AtomicU64>> = const { Cell::new(None) };
 }
 
 static TICK_ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+static WORKER_ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
 
 // SAFETY: forwards to the system allocator; only counts.
 unsafe impl GlobalAlloc for Counting {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        if COUNTED.with(|c| c.get()) {
-            TICK_ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+        if let Some(counter) = COUNTED.with(|c| c.get()) {
+            counter.fetch_add(1, Ordering::Relaxed);
         }
         unsafe { System.alloc(layout) }
     }
@@ -43,7 +47,11 @@ unsafe impl GlobalAlloc for Counting {
 static GLOBAL: Counting = Counting;
 
 fn count_this_thread() {
-    COUNTED.with(|c| c.set(true));
+    COUNTED.with(|c| c.set(Some(&TICK_ALLOCATIONS)));
+}
+
+fn count_this_worker() {
+    COUNTED.with(|c| c.set(Some(&WORKER_ALLOCATIONS)));
 }
 
 const SCENE: &str = r#"[scene]
@@ -449,4 +457,128 @@ fn the_session_tick_loop_allocates_nothing_per_tick() {
         long, short,
         "the tick thread allocated {long} times over 2,500 ticks and {short} times over 300"
     );
+}
+
+/// Allocations made by a tick worker ticking three scripted sessions of `ticks` ticks, each fed
+/// tool states by a client stream: the worker's loop, every session's turn, their periodic
+/// hand-overs.
+fn worker_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], ticks: usize) -> u64 {
+    WORKER_ALLOCATIONS.store(0, Ordering::Relaxed);
+    let workers = Arc::new(
+        TickScheduler::new(SchedulerConfig {
+            workers: 1,
+            on_start: Some(count_this_worker),
+            ..SchedulerConfig::default()
+        })
+        .unwrap(),
+    );
+    let keys: Vec<(f64, [f64; 3], f64)> = (0..=10)
+        .map(|k| (k as f64 * ticks as f64 * 1e-4, tool(k * 50).position_m, 0.0))
+        .collect();
+    let mut sessions = Vec::new();
+    for k in 0..3 {
+        let (tx, script_answers) = tokio::sync::mpsc::channel(2 * ticks);
+        let config = SessionConfig {
+            ticking: Some(workers.clone()),
+            ..SessionConfig::default()
+        };
+        let script = Script {
+            trajectory: Trajectory::new(keys.clone()).unwrap(),
+            answers: tx,
+        };
+        let session = Session::start_scripted(format!("pooled{k}"), scene.clone(), bundles.to_vec(), config, script).unwrap();
+        let answers = session.open_answers(64).unwrap();
+        sessions.push((session, answers, script_answers));
+    }
+    let mut i = 0;
+    let mut answered = 0;
+    while sessions.iter().any(|(s, _, _)| !s.finished()) {
+        for (session, answers, script_answers) in &mut sessions {
+            let _ = session.submit(ToolCommand {
+                input: tool(i),
+                seq: i as u64,
+                client_time_us: 0,
+                received: Instant::now(),
+                reply: answers.id(),
+            });
+            while answers.try_recv().is_ok() {
+                answered += 1;
+            }
+            while script_answers.try_recv().is_ok() {}
+            let _ = session.stats().histograms();
+        }
+        i += 1;
+        std::thread::sleep(Duration::from_micros(700));
+    }
+    assert!(answered > 0, "the streams were answered");
+    for (session, _, _) in sessions {
+        let stats = session.wait();
+        assert!(stats.ticks as usize >= ticks, "{} ticks", stats.ticks);
+    }
+    assert_eq!(workers.load(), [0], "every session left its worker");
+    drop(workers);
+    WORKER_ALLOCATIONS.load(Ordering::Relaxed)
+}
+
+#[test]
+fn a_tick_worker_allocates_nothing_per_tick_of_its_sessions() {
+    let (scene, bundles, _dir) = slab();
+    let short = worker_allocations(&scene, &bundles, 300);
+    let long = worker_allocations(&scene, &bundles, 2500);
+    assert!(short > 0, "the counting allocator watches the worker");
+    assert_eq!(
+        long, short,
+        "the worker allocated {long} times over 3 x 2,500 ticks and {short} times over 3 x 300"
+    );
+}
+
+/// Sessions on a pool of two tick workers are placed evenly, each answers its own stream in
+/// order with the pipeline's force (on arrival), and they leave their workers when closed.
+#[test]
+fn sessions_on_tick_workers_answer_their_own_streams_in_order() {
+    let (scene, bundles, _dir) = slab();
+    let workers = Arc::new(
+        TickScheduler::new(SchedulerConfig {
+            workers: 2,
+            ..SchedulerConfig::default()
+        })
+        .unwrap(),
+    );
+    let config = SessionConfig {
+        ticking: Some(workers.clone()),
+        ..SessionConfig::default()
+    };
+    let n = 6;
+    let sessions: Vec<Session> = (0..n)
+        .map(|k| Session::start(format!("w{k}"), scene.clone(), bundles.clone(), config.clone()).unwrap())
+        .collect();
+    assert_eq!(workers.load(), [3, 3], "placed on the worker with the fewest");
+    let mut streams: Vec<_> = sessions.iter().map(|s| s.open_answers(256).unwrap()).collect();
+    let mut direct: Vec<Pipeline> = (0..n).map(|_| Pipeline::for_scene(&scene, &bundles).unwrap()).collect();
+    let mut touching = 0;
+    for i in 0..600 {
+        for (k, s) in sessions.iter().enumerate() {
+            // each session gets its own path: shifted by k states
+            s.submit(ToolCommand {
+                input: tool(i + 37 * k),
+                seq: i as u64,
+                client_time_us: 7 * i as u64,
+                received: Instant::now(),
+                reply: streams[k].id(),
+            })
+            .expect("queue has room");
+        }
+        for k in 0..n {
+            let a = recv(&mut streams[k]);
+            assert_eq!(a.seq, i as u64, "session {k}: answers out of order");
+            assert_eq!(a.state, direct[k].tick(&tool(i + 37 * k)), "session {k}, state {i}");
+            touching += usize::from(a.state.events.has(Events::CONTACT));
+        }
+    }
+    assert!(touching > 600, "the paths touch the slab often ({touching})");
+    for s in sessions {
+        let stats = s.close();
+        assert_eq!((stats.answered, stats.dropped), (600, 0));
+    }
+    assert_eq!(workers.load(), [0, 0], "closed sessions leave their workers");
 }

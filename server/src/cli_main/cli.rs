@@ -244,6 +244,18 @@ pub struct ServeArgs {
     /// TLS private key (PEM).
     #[arg(long, value_name = "PEM", requires = "tls_cert")]
     pub tls_key: Option<PathBuf>,
+    /// Tick workers: threads that each tick many sessions, answering tool states on arrival
+    /// (default: one per CPU this process may use; 0: a thread per session). A session with a
+    /// device bridge ticks on a thread of its own.
+    #[arg(long, value_name = "N")]
+    pub tick_workers: Option<usize>,
+    /// Pin tick worker k to CPU k.
+    #[arg(long)]
+    pub pin_tick_workers: bool,
+    /// Ask SCHED_FIFO at this priority (1-99) for the tick workers; refused gracefully (and
+    /// logged) when the OS does not permit it.
+    #[arg(long, value_name = "PRIORITY", value_parser = clap::value_parser!(i32).range(1..=99))]
+    pub tick_fifo: Option<i32>,
 }
 
 /// Arguments of `vademecum inspect`.
@@ -316,8 +328,9 @@ beside a plain streaming read of the same bytes. Percentiles are of individual c
         long_about = "Real-time behaviour of sessions on the built-in organ, each figure beside a null loop \
 measured in the same run (a thread sleeping to the same 1 ms deadlines, doing nothing): \
 a session's tick work and lateness with no viewer and with three (2 x 30 Hz, 5 Hz); the \
-gRPC round trip on loopback with one tool state per millisecond; deadline misses of N \
-concurrent sessions each playing the built-in palpation.\n\n\
+gRPC round trip on loopback with one tool state per millisecond, beside tonic's echo of the \
+same stream; deadline misses of N concurrent sessions each playing the built-in palpation, \
+with a thread each and on the tick workers (one per CPU).\n\n\
 To measure what one core sustains, pin the process: taskset -c 0 vademecum bench session."
     )]
     Session(BenchSessionArgs),

@@ -27,13 +27,14 @@
 
 pub mod answers;
 pub mod frames;
+pub mod scheduler;
 pub mod script;
 pub mod stats;
 mod tick;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{self, SyncSender, TrySendError};
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -48,6 +49,7 @@ use vademecum_proto::shm::{HapticChannel, OpenError};
 
 pub use answers::{AnswerStream, StreamId};
 pub use frames::{Frame, SurfaceGeometry};
+pub use scheduler::{PlaceError, SchedulerConfig, TickScheduler};
 pub use script::{builtin_grasp, builtin_incisions, builtin_palpation, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
 pub use tick::MAX_COMMANDS_PER_TICK;
@@ -126,6 +128,9 @@ pub enum SessionError {
     /// The scene asks for what the pipeline cannot do.
     #[error(transparent)]
     Pipeline(#[from] PipelineError),
+    /// No tick worker could take the session.
+    #[error(transparent)]
+    Ticking(#[from] PlaceError),
     /// The haptic channel could not be opened.
     #[error("haptic channel '{channel}': {source}")]
     Haptic {
@@ -149,8 +154,12 @@ pub struct SessionConfig {
     /// The haptic channel, if a device bridge drives this session.
     pub haptic: Option<HapticConfig>,
     /// Called on the tick thread before anything else (CPU pinning, instrumentation such as
-    /// the counting-allocator test of the tick loop).
+    /// the counting-allocator test of the tick loop); the session then ticks on a thread of
+    /// its own.
     pub on_tick_thread: Option<fn()>,
+    /// The tick workers the session is ticked by ([`scheduler`]); `None`: a thread of its own.
+    /// A haptic session always has a thread of its own.
+    pub ticking: Option<Arc<TickScheduler>>,
 }
 
 impl Default for SessionConfig {
@@ -161,6 +170,7 @@ impl Default for SessionConfig {
             queue: 4096,
             haptic: None,
             on_tick_thread: None,
+            ticking: None,
         }
     }
 }
@@ -194,6 +204,12 @@ pub struct Session {
     geometry: Arc<SurfaceGeometry>,
     stats: Arc<TickStats>,
     stop: Arc<AtomicBool>,
+    /// Where the tick loop comes back when it has ended ([`scheduler::Job`]).
+    tick_done: std::sync::Mutex<Receiver<Box<tick::TickLoop>>>,
+    /// Whether the tick loop has ended.
+    tick_finished: Arc<AtomicBool>,
+    /// The answer dispatcher, the frame thread, and the tick thread of a session that has
+    /// one of its own.
     threads: Vec<JoinHandle<()>>,
     epoch: Instant,
     config: SessionConfig,
@@ -274,7 +290,7 @@ impl Session {
         let (frames, _) = watch::channel(Arc::new(Frame::rest(&geometry)));
         let stop = Arc::new(AtomicBool::new(false));
         let epoch = Instant::now();
-        let tick_loop = tick::TickLoop {
+        let tick_loop = Box::new(tick::TickLoop {
             pipeline,
             commands: rx,
             answers: ring.clone(),
@@ -286,48 +302,35 @@ impl Session {
             script,
             owed: 0,
             steps: 0,
+        });
+        let (done, tick_done) = mpsc::sync_channel(1);
+        let tick_finished = Arc::new(AtomicBool::new(false));
+        let job = scheduler::Job {
+            tick: tick_loop,
+            clock: tick::Clock::default(),
+            done,
+            finished: tick_finished.clone(),
         };
-        // the haptic peer's ports belong to the thread that uses them: the tick thread opens
-        // them before its loop and says whether it could
-        let haptic = config.haptic.clone();
-        let on_tick_thread = config.on_tick_thread;
-        let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<Option<RealtimeStatus>, OpenError>>(1);
-        let tick_thread = std::thread::Builder::new()
-            .name(format!("tick-{id}"))
-            .spawn(move || {
-                if let Some(init) = on_tick_thread {
-                    init();
+        let mut threads = Vec::with_capacity(3);
+        let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread) {
+            (Some(workers), None, None) => match workers.place(job) {
+                Ok(thread) => (thread, None),
+                Err(e) => {
+                    let _ = dispatcher.join();
+                    return Err(e.into());
                 }
-                let (peer, rt) = match haptic {
-                    None => (None, None),
-                    Some(h) => match HapticPeer::open(&h.channel, h.wait, h.spin_window, tick_loop.period) {
-                        Ok(p) => {
-                            let p = p.with_phase_source(h.phase);
-                            let fifo = h.fifo_priority.filter(|_| h.wait != WaitStrategy::Spin);
-                            (Some(p), Some(vademecum_bridge::timing::request_realtime(fifo, h.cpu)))
-                        }
-                        Err(e) => {
-                            tick_loop.answers.finish();
-                            let _ = opened_tx.send(Err(e));
-                            return;
-                        }
-                    },
-                };
-                let _ = opened_tx.send(Ok(rt));
-                tick_loop.run(peer)
-            })
-            .expect("the OS can start a thread");
-        let realtime = match opened_rx.recv() {
-            Ok(Ok(rt)) => rt,
-            Ok(Err(source)) => {
-                let _ = tick_thread.join();
-                let _ = dispatcher.join();
-                return Err(SessionError::Haptic {
-                    channel: config.haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
-                    source,
-                });
-            }
-            Err(_) => panic!("the tick thread ended before opening its haptic channel"),
+            },
+            _ => match Self::spawn_tick_thread(&id, job, &config) {
+                Ok((thread, realtime)) => {
+                    let t = thread.thread().clone();
+                    threads.push(thread);
+                    (t, realtime)
+                }
+                Err(e) => {
+                    let _ = dispatcher.join();
+                    return Err(e);
+                }
+            },
         };
         let tear = match (tear_pictures, tear_offline) {
             (Some(pictures), offline) if !offline.is_empty() => {
@@ -359,6 +362,8 @@ impl Session {
             .name(format!("frames-{id}"))
             .spawn(move || producer.run())
             .expect("the OS can start a thread");
+        threads.push(dispatcher);
+        threads.push(frame_thread);
         Ok(Self {
             id,
             scene,
@@ -368,18 +373,70 @@ impl Session {
             grasp_sites,
             tool_kinds,
             commands,
-            tick_thread: tick_thread.thread().clone(),
+            tick_thread,
             router,
             frames,
             geometry,
             stats,
             stop,
-            threads: vec![tick_thread, dispatcher, frame_thread],
+            tick_done: std::sync::Mutex::new(tick_done),
+            tick_finished,
+            threads,
             epoch,
             config,
             realtime,
             cut,
         })
+    }
+
+    /// A thread of the session's own for its tick loop: a haptic session's (it opens the
+    /// haptic channel's ports, which belong to the thread that uses them, and says whether it
+    /// could — what the OS granted it), or a worker of its own ([`scheduler::run_alone`]).
+    fn spawn_tick_thread(
+        id: &str,
+        job: scheduler::Job,
+        config: &SessionConfig,
+    ) -> Result<(JoinHandle<()>, Option<RealtimeStatus>), SessionError> {
+        let haptic = config.haptic.clone();
+        let on_tick_thread = config.on_tick_thread;
+        let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<Option<RealtimeStatus>, OpenError>>(1);
+        let thread = std::thread::Builder::new()
+            .name(format!("tick-{id}"))
+            .spawn(move || {
+                if let Some(init) = on_tick_thread {
+                    init();
+                }
+                let Some(h) = haptic else {
+                    let _ = opened_tx.send(Ok(None));
+                    return scheduler::run_alone(job);
+                };
+                let mut job = job;
+                match HapticPeer::open(&h.channel, h.wait, h.spin_window, job.tick.period) {
+                    Ok(p) => {
+                        let mut peer = p.with_phase_source(h.phase);
+                        let fifo = h.fifo_priority.filter(|_| h.wait != WaitStrategy::Spin);
+                        let _ = opened_tx.send(Ok(Some(vademecum_bridge::timing::request_realtime(fifo, h.cpu))));
+                        job.tick.run_haptic(&mut job.clock, &mut peer);
+                        job.end();
+                    }
+                    Err(e) => {
+                        job.end();
+                        let _ = opened_tx.send(Err(e));
+                    }
+                }
+            })
+            .expect("the OS can start a thread");
+        match opened_rx.recv() {
+            Ok(Ok(rt)) => Ok((thread, rt)),
+            Ok(Err(source)) => {
+                let _ = thread.join();
+                Err(SessionError::Haptic {
+                    channel: config.haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
+                    source,
+                })
+            }
+            Err(_) => panic!("the tick thread ended before opening its haptic channel"),
+        }
     }
 
     /// The session id.
@@ -475,9 +532,9 @@ impl Session {
         &self.stats
     }
 
-    /// Whether the tick thread has stopped (a script ended, or the session was closed).
+    /// Whether the tick loop has stopped (a script ended, or the session was closed).
     pub fn finished(&self) -> bool {
-        self.threads.first().is_none_or(|t| t.is_finished())
+        self.tick_finished.load(Ordering::Acquire)
     }
 
     /// Asks the threads to stop (the tick thread finishes its current tick) without waiting
@@ -497,16 +554,23 @@ impl Session {
     /// Waits for a scripted session's tick thread to reach the end of its script, then
     /// closes it.
     pub fn wait(mut self) -> StatsSnapshot {
-        if !self.threads.is_empty() {
-            let _ = self.threads.remove(0).join();
-        }
+        self.await_tick_loop();
         self.shutdown();
         self.stats.snapshot()
+    }
+
+    /// Blocks until the tick loop has ended and come back (dropped here, never on a worker).
+    fn await_tick_loop(&mut self) {
+        if let Ok(done) = self.tick_done.get_mut() {
+            // Err: it came back already, or its worker is gone
+            let _ = done.recv();
+        }
     }
 
     fn shutdown(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         self.tick_thread.unpark();
+        self.await_tick_loop();
         for t in self.threads.drain(..) {
             let _ = t.join();
         }

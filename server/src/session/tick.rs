@@ -62,6 +62,43 @@ pub(super) struct TickLoop {
     pub steps: u64,
 }
 
+/// A tick loop's clock and recordings: its next deadline, its period count, the current
+/// period's answers, its histograms until handed over. Kept beside the loop by whoever runs
+/// it, so that both can be borrowed at once.
+pub(super) struct Clock {
+    /// The next deadline (set when the loop starts).
+    next: Instant,
+    /// Periods (deadline ticks) so far.
+    tick: u64,
+    /// The current period.
+    this: Period,
+    /// The histograms recorded since the last hand-over.
+    local: Box<Histograms>,
+    /// Work done so far (ns): a pooled session's share of its worker's CPU.
+    work_total_ns: u64,
+}
+
+impl Default for Clock {
+    fn default() -> Self {
+        Self {
+            next: Instant::now(),
+            tick: 0,
+            this: Period::default(),
+            local: Box::default(),
+            work_total_ns: 0,
+        }
+    }
+}
+
+/// What a worker does next with a tick loop ([`TickLoop::poll`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Poll {
+    /// Wake it again at this instant (its next deadline, or now when a backlog waits).
+    At(Instant),
+    /// It has ended (stopped, its script over, or every sender gone).
+    Ended,
+}
+
 impl TickLoop {
     fn micros(&self, t: Instant) -> u64 {
         t.saturating_duration_since(self.epoch).as_micros() as u64
@@ -143,147 +180,164 @@ impl TickLoop {
         Ok(n)
     }
 
-    /// Waits for the deadline `next` parked, answering every tool state at once as it arrives
-    /// ([`super::Session::submit`] unparks this thread after queueing it): a state is answered
-    /// within the thread's wake-up, not at the next deadline. The work of each arrival is
-    /// added to the period's, recorded with its deadline tick. `Err` when every sender is gone.
-    fn wait_answering(&mut self, next: Instant, period: &mut Period, local: &mut Histograms) -> Result<(), ()> {
-        let mut backlog = false;
-        loop {
-            let now = Instant::now();
-            if now >= next || self.stop.load(Ordering::Relaxed) {
-                return Ok(());
+    /// Starts `clock`: the first deadline a period from now.
+    pub fn start(&self, clock: &mut Clock) {
+        clock.next = Instant::now() + self.period;
+    }
+
+    /// A worker's turn ([`super::scheduler`]): answers the tool states that arrived (at once,
+    /// not at the next deadline: [`super::Session::submit`] unparks the worker after queueing
+    /// one), then runs the deadline tick if it is due. Their work is added to the period's,
+    /// recorded with its deadline tick.
+    pub fn poll(&mut self, clock: &mut Clock) -> Poll {
+        if self.stop.load(Ordering::Relaxed) {
+            return Poll::Ended;
+        }
+        let start = Instant::now();
+        let Ok(n) = self.answer_queued(&mut clock.this, &mut clock.local) else {
+            return Poll::Ended;
+        };
+        if n > 0 {
+            self.answers.wake();
+            clock.this.work_ns += start.elapsed().as_nanos() as u64;
+        }
+        let now = Instant::now();
+        if now >= clock.next && !self.deadline(clock, now, None, None) {
+            return Poll::Ended;
+        }
+        if n == MAX_COMMANDS_PER_TICK {
+            // a backlog: answered right after, in order
+            return Poll::At(Instant::now());
+        }
+        Poll::At(clock.next)
+    }
+
+    /// Runs a haptic session until stopped (or its script ends) on its own thread: waits for
+    /// the device bridge's state (see [`vademecum_bridge::peer`] for how) and answers it at
+    /// once, the queued tool states with it.
+    pub fn run_haptic(&mut self, clock: &mut Clock, peer: &mut HapticPeer) {
+        // no tick of the haptic path takes a fault on a stack page seen for the first time
+        vademecum_bridge::timing::prefault_stack();
+        self.start(clock);
+        while !self.stop.load(Ordering::Relaxed) {
+            let arrived = peer.wait_for_state(clock.next);
+            if !self.deadline(clock, Instant::now(), Some(&mut *peer), arrived.as_ref()) {
+                break;
             }
-            if !backlog {
-                std::thread::park_timeout(next - now);
-            }
-            let start = Instant::now();
-            let n = self.answer_queued(period, local)?;
-            backlog = n == MAX_COMMANDS_PER_TICK;
-            if n > 0 {
-                self.answers.wake();
-                period.work_ns += start.elapsed().as_nanos() as u64;
-            }
+        }
+        if let Some(r) = peer.poll_report() {
+            self.stats.bridge.store(&r);
         }
     }
 
-    /// Runs until stopped (or the script ends); with a haptic `peer`, the tick also answers
-    /// the device bridge (see [`vademecum_bridge::peer`] for how it waits), without one it
-    /// answers tool states on arrival between its deadlines ([`Self::wait_answering`]).
-    pub fn run(mut self, mut peer: Option<HapticPeer>) {
-        let mut local = Box::<Histograms>::default();
-        if peer.is_some() {
-            // no tick of the haptic path takes a fault on a stack page seen for the first time
-            vademecum_bridge::timing::prefault_stack();
-        }
+    /// One tick at `start`: a deadline tick (the session's period), or, with a haptic `peer`,
+    /// the answer to the bridge's state `arrived`, which may come before the deadline. Plays
+    /// the script, answers the queued tool states, replays the last tool state when the
+    /// period answered none, hands the period's state to the frame thread and its histograms
+    /// to the readers. `false` when the loop has ended (script over, every sender gone).
+    fn deadline(&mut self, clock: &mut Clock, start: Instant, mut peer: Option<&mut HapticPeer>, arrived: Option<&HapticState>) -> bool {
         let period = self.period;
-        let mut next = Instant::now() + period;
-        let mut tick: u64 = 0;
-        let mut this = Period::default();
-        'ticks: while !self.stop.load(Ordering::Relaxed) {
-            let arrived = match peer.as_mut() {
-                Some(p) => p.wait_for_state(next),
-                None => {
-                    if self.wait_answering(next, &mut this, &mut local).is_err() {
-                        break 'ticks;
-                    }
-                    None
-                }
-            };
-            let start = Instant::now();
-            if start >= next {
-                // a deadline tick (not one woken early by the bridge)
-                let late = start.saturating_duration_since(next);
-                Histograms::record(&mut local.lateness, late.as_nanos() as u64);
-                if late > period {
-                    self.stats.misses.fetch_add(1, Ordering::Relaxed);
-                }
+        let next = clock.next;
+        if start >= next {
+            // a deadline tick (not one woken early by the bridge)
+            let late = start.saturating_duration_since(next);
+            Histograms::record(&mut clock.local.lateness, late.as_nanos() as u64);
+            if late > period {
+                self.stats.misses.fetch_add(1, Ordering::Relaxed);
             }
-            let mut answered = false;
-            if let (Some(p), Some(s)) = (peer.as_mut(), arrived.as_ref()) {
-                let (input, st) = self.answer_haptic(p, s, &mut local);
-                this.state = Some(st);
-                if input.is_valid() {
-                    this.last_input = Some(input);
-                }
+        }
+        let mut answered = false;
+        if let (Some(p), Some(s)) = (peer.as_deref_mut(), arrived) {
+            let (input, st) = self.answer_haptic(p, s, &mut clock.local);
+            clock.this.state = Some(st);
+            if input.is_valid() {
+                clock.this.last_input = Some(input);
             }
-            if let Some(script) = self.script.take() {
-                let t = tick as f64 * period.as_secs_f64();
-                if t > script.trajectory.duration_s() + 0.5 * period.as_secs_f64() {
-                    break 'ticks;
-                }
-                let mut input = super::tool_at(&script.trajectory, t);
-                // a scene whose only tool is a grasper plays its trajectory (and closure) with it
-                if input.kind == ToolKind::Probe && !self.pipeline.accepts(ToolKind::Probe) && self.pipeline.accepts(ToolKind::Grasper) {
-                    input.kind = ToolKind::Grasper;
-                }
-                let a = self.answer(&input, tick, self.micros(start), start);
-                Histograms::record(&mut local.response, (a.answered_us - a.received_us) * 1000);
-                // counted before it leaves, so a reader that has the answer sees it counted
-                self.stats.answered.fetch_add(1, Ordering::Relaxed);
-                self.answers.push(script.to, a);
-                answered = true;
-                this.state = Some(a.state);
-                this.last_input = Some(input);
+        }
+        if let Some(script) = self.script.take() {
+            let t = clock.tick as f64 * period.as_secs_f64();
+            if t > script.trajectory.duration_s() + 0.5 * period.as_secs_f64() {
                 self.script = Some(script);
+                return false;
             }
-            match self.answer_queued(&mut this, &mut local) {
-                Ok(n) => answered |= n > 0,
-                Err(()) => break 'ticks,
+            let mut input = super::tool_at(&script.trajectory, t);
+            // a scene whose only tool is a grasper plays its trajectory (and closure) with it
+            if input.kind == ToolKind::Probe && !self.pipeline.accepts(ToolKind::Probe) && self.pipeline.accepts(ToolKind::Grasper) {
+                input.kind = ToolKind::Grasper;
             }
-            if answered {
-                // one wake-up of the dispatcher per tick, however many answers it carries
-                self.answers.wake();
-            }
-            let state = match this.state.take() {
-                Some(state) => Some(state),
-                None => this.last_input.map(|input| {
-                    // time goes on for the tissue; what happened is owed to the next answer
-                    let (_, st) = self.step(&input);
-                    self.owed |= st.events.0 & Events::ONE_SHOT;
-                    st
-                }),
-            };
-            if let Some(state) = state {
-                self.latest.write(Latest {
-                    tick: self.steps.saturating_sub(1),
-                    time_us: self.micros(start),
-                    state,
-                });
-            }
-            self.stats.ticks.fetch_add(1, Ordering::Relaxed);
-            tick += 1;
-            // the periodic bookkeeping (histogram hand-over, the CPU-time syscall, the bridge's
-            // report) is part of the tick whose work it lengthens: timed with it below
-            if tick.is_multiple_of(PUBLISH_EVERY) {
-                self.stats.publish(&mut local);
-                let cpu = vademecum_bridge::timing::thread_cpu_time().as_nanos() as u64;
-                self.stats.tick_cpu_ns.store(cpu, Ordering::Relaxed);
-                if let Some(p) = peer.as_mut() {
+            let a = self.answer(&input, clock.tick, self.micros(start), start);
+            Histograms::record(&mut clock.local.response, (a.answered_us - a.received_us) * 1000);
+            // counted before it leaves, so a reader that has the answer sees it counted
+            self.stats.answered.fetch_add(1, Ordering::Relaxed);
+            self.answers.push(script.to, a);
+            answered = true;
+            clock.this.state = Some(a.state);
+            clock.this.last_input = Some(input);
+            self.script = Some(script);
+        }
+        match self.answer_queued(&mut clock.this, &mut clock.local) {
+            Ok(n) => answered |= n > 0,
+            Err(()) => return false,
+        }
+        if answered {
+            // one wake-up of the dispatcher per tick, however many answers it carries
+            self.answers.wake();
+        }
+        let state = match clock.this.state.take() {
+            Some(state) => Some(state),
+            None => clock.this.last_input.map(|input| {
+                // time goes on for the tissue; what happened is owed to the next answer
+                let (_, st) = self.step(&input);
+                self.owed |= st.events.0 & Events::ONE_SHOT;
+                st
+            }),
+        };
+        if let Some(state) = state {
+            self.latest.write(Latest {
+                tick: self.steps.saturating_sub(1),
+                time_us: self.micros(start),
+                state,
+            });
+        }
+        self.stats.ticks.fetch_add(1, Ordering::Relaxed);
+        clock.tick += 1;
+        // the periodic bookkeeping (histogram hand-over, the CPU figure, the bridge's report)
+        // is part of the tick whose work it lengthens: timed with it below
+        if clock.tick.is_multiple_of(PUBLISH_EVERY) {
+            self.stats.publish(&mut clock.local);
+            let cpu = match peer.as_deref_mut() {
+                // a haptic session's own thread: its CPU time, waiting for the bridge included
+                Some(p) => {
                     if let Some(r) = p.poll_report() {
                         self.stats.bridge.store(&r);
                     }
                     self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
+                    vademecum_bridge::timing::thread_cpu_time().as_nanos() as u64
                 }
-            }
-            // the period's work: its deadline tick and its answers on arrival
-            let work = start.elapsed().as_nanos() as u64 + std::mem::take(&mut this.work_ns);
-            Histograms::record(&mut local.work, work);
-            next = match &peer {
-                Some(p) => p.next_deadline(next, start, arrived.is_some()),
-                None => next + period,
+                // a worker's session: the work done for it
+                None => clock.work_total_ns,
             };
-            let now = Instant::now();
-            if now > next + period * MAX_CATCH_UP {
-                next = now;
-            }
+            self.stats.tick_cpu_ns.store(cpu, Ordering::Relaxed);
         }
-        if let Some(p) = peer.as_mut()
-            && let Some(r) = p.poll_report()
-        {
-            self.stats.bridge.store(&r);
+        // the period's work: its deadline tick and its answers on arrival
+        let work = start.elapsed().as_nanos() as u64 + std::mem::take(&mut clock.this.work_ns);
+        Histograms::record(&mut clock.local.work, work);
+        clock.work_total_ns += work;
+        let mut next = match peer.as_deref() {
+            Some(p) => p.next_deadline(next, start, arrived.is_some()),
+            None => next + period,
+        };
+        let now = Instant::now();
+        if now > next + period * MAX_CATCH_UP {
+            next = now;
         }
-        self.stats.finish(&local);
+        clock.next = next;
+        true
+    }
+
+    /// Hands the last recordings to the readers and closes the answers: the loop has ended.
+    pub fn finish(&mut self, clock: &Clock) {
+        self.stats.finish(&clock.local);
         self.answers.finish();
     }
 }

@@ -5,8 +5,8 @@
 //! 1. null loop; 2. a session's ticks with no viewer, then 3. with two 30 Hz viewers and one
 //!    5 Hz viewer; 4. the gRPC round trip on loopback at 1 kHz (a client sends a tool state
 //!    every millisecond and waits for its answer), beside tonic's echo of the same stream;
-//!    5. N concurrent sessions, each playing the
-//!    built-in palpation: deadline misses per N.
+//!    5. N concurrent sessions, each playing the built-in palpation, with a thread each and
+//!    on the tick workers (one per CPU): deadline misses per N.
 
 use std::io::Write;
 use std::path::PathBuf;
@@ -15,7 +15,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::session::stats::Percentiles;
-use crate::session::{Script, Session, SessionConfig, ToolCommand};
+use crate::session::{SchedulerConfig, Script, Session, SessionConfig, TickScheduler, ToolCommand};
 use anyhow::{Context, bail};
 use hdrhistogram::Histogram;
 use serde::Serialize;
@@ -151,46 +151,24 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
         echo,
         0,
     ));
-    // concurrent scripted sessions
+    // concurrent scripted sessions: a thread each, then on the tick workers
+    let workers = Arc::new(TickScheduler::new(SchedulerConfig::default())?);
     for n in a.concurrent.iter().copied() {
         let (p, m) = null_loop(a.seconds.min(5.0));
         rows.push(row(format!("null loop before {n} concurrent sessions"), p, m));
-        let mut sessions = Vec::new();
-        for k in 0..n {
-            let (tx, mut rx) = tokio::sync::mpsc::channel(16384);
-            std::thread::spawn(move || while rx.blocking_recv().is_some() {});
-            sessions.push(Session::start_scripted(
-                format!("c{k}"),
-                scene.clone(),
-                bundles.clone(),
-                SessionConfig::default(),
-                Script {
-                    trajectory: traj.clone(),
-                    answers: tx,
-                },
-            )?);
+        for ticking in [None, Some(workers.clone())] {
+            let how = match &ticking {
+                None => "a thread each".to_string(),
+                Some(w) => format!("on {} tick workers", w.config().workers),
+            };
+            let (work, late, misses) = concurrent(n, &scene, &bundles, &traj, ticking)?;
+            rows.push(row(
+                format!("{n} concurrent sessions, {how} (5 s palpation each): tick work"),
+                work,
+                misses,
+            ));
+            rows.push(row(format!("{n} concurrent sessions, {how}: tick lateness"), late, misses));
         }
-        let mut work = hist();
-        let mut late = hist();
-        let mut misses = 0;
-        for s in sessions {
-            let st = s.stats().clone();
-            let _ = s.wait();
-            let h = st.histograms();
-            let _ = work.add(&h.work);
-            let _ = late.add(&h.lateness);
-            misses += st.misses.load(std::sync::atomic::Ordering::Relaxed);
-        }
-        rows.push(row(
-            format!("{n} concurrent sessions (5 s palpation each): tick work"),
-            Percentiles::of(&work),
-            misses,
-        ));
-        rows.push(row(
-            format!("{n} concurrent sessions: tick lateness"),
-            Percentiles::of(&late),
-            misses,
-        ));
     }
     let mut out = std::io::stdout().lock();
     if a.json {
@@ -210,6 +188,47 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `n` sessions each playing `traj` at once, ticked by `ticking` (`None`: a thread each):
+/// their tick work and lateness, and their deadline misses.
+fn concurrent(
+    n: usize,
+    scene: &Arc<Scene>,
+    bundles: &[Arc<vademecum_engine::pgd::offline::LoadedBundle>],
+    traj: &crate::session::Trajectory,
+    ticking: Option<Arc<TickScheduler>>,
+) -> anyhow::Result<(Percentiles, Percentiles, u64)> {
+    let mut sessions = Vec::new();
+    for k in 0..n {
+        let (tx, mut rx) = tokio::sync::mpsc::channel(16384);
+        std::thread::spawn(move || while rx.blocking_recv().is_some() {});
+        sessions.push(Session::start_scripted(
+            format!("c{k}"),
+            scene.clone(),
+            bundles.to_vec(),
+            SessionConfig {
+                ticking: ticking.clone(),
+                ..SessionConfig::default()
+            },
+            Script {
+                trajectory: traj.clone(),
+                answers: tx,
+            },
+        )?);
+    }
+    let mut work = hist();
+    let mut late = hist();
+    let mut misses = 0;
+    for s in sessions {
+        let st = s.stats().clone();
+        let _ = s.wait();
+        let h = st.histograms();
+        let _ = work.add(&h.work);
+        let _ = late.add(&h.lateness);
+        misses += st.misses.load(std::sync::atomic::Ordering::Relaxed);
+    }
+    Ok((Percentiles::of(&work), Percentiles::of(&late), misses))
 }
 
 /// The tool state sent `i`-th: a circle over the organ, pressing in and out.

@@ -55,6 +55,12 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         (None, None) => None,
         _ => bail!("--tls-cert and --tls-key go together"),
     };
+    if a.tick_workers.is_some_and(|n| n > 256) {
+        bail!(
+            "--tick-workers {} is more than 256: one per CPU is the default",
+            a.tick_workers.unwrap_or(0)
+        );
+    }
     let config = ServerConfig {
         tls,
         scene_root: a.scene_root.clone(),
@@ -67,6 +73,12 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         client_streams: a.client_streams,
         max_frame_rate_hz: a.max_frame_rate,
         tokens: tokens(&a)?,
+        tick_workers: crate::session::SchedulerConfig {
+            workers: a.tick_workers.unwrap_or(crate::session::SchedulerConfig::default().workers),
+            pin: a.pin_tick_workers,
+            fifo_priority: a.tick_fifo,
+            on_start: None,
+        },
         ..ServerConfig::default()
     };
     let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
