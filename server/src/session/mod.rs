@@ -1,8 +1,10 @@
 //! Sessions: a scene, its loaded bundles (shared read-only with other sessions), the effect
-//! pipeline built from the scene's `[effects]`, and three threads.
+//! pipeline built from the scene's `[effects]`, a tick loop and two threads.
 //!
-//! - The **tick thread** owns the pipeline. It keeps a period (1 ms by default) and, between
-//!   its deadlines, waits parked: [`Session::submit`] queues a tool state in the bounded
+//! - The **tick loop** owns the pipeline. It runs on a tick worker shared with other sessions
+//!   ([`scheduler`], [`SessionConfig::ticking`]) or on a thread of its own (the same loop,
+//!   with one session; always for a haptic session) — "the tick thread" below is whichever
+//!   runs it. It keeps a period (1 ms by default) and, between its deadlines, waits parked: [`Session::submit`] queues a tool state in the bounded
 //!   command queue and unparks it, and it answers at once — draining the queue with
 //!   `try_recv` (at most [`MAX_COMMANDS_PER_TICK`] per wake-up), each tool state in arrival
 //!   order, one pipeline tick each, into the session's preallocated answer ring (see

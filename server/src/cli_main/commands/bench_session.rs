@@ -161,9 +161,9 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
                 None => "a thread each".to_string(),
                 Some(w) => format!("on {} tick workers", w.config().workers),
             };
-            let (work, late, misses) = concurrent(n, &scene, &bundles, &traj, ticking)?;
+            let (work, late, misses, cores) = concurrent(n, &scene, &bundles, &traj, ticking)?;
             rows.push(row(
-                format!("{n} concurrent sessions, {how} (5 s palpation each): tick work"),
+                format!("{n} concurrent sessions, {how} (5 s palpation each; process CPU {cores:.2} cores): tick work"),
                 work,
                 misses,
             ));
@@ -191,14 +191,16 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// `n` sessions each playing `traj` at once, ticked by `ticking` (`None`: a thread each):
-/// their tick work and lateness, and their deadline misses.
+/// their tick work and lateness, their deadline misses, and the process's CPU time over the
+/// run in cores (every thread: ticks, answer dispatchers, frame threads, the answers' readers).
 fn concurrent(
     n: usize,
     scene: &Arc<Scene>,
     bundles: &[Arc<vademecum_engine::pgd::offline::LoadedBundle>],
     traj: &crate::session::Trajectory,
     ticking: Option<Arc<TickScheduler>>,
-) -> anyhow::Result<(Percentiles, Percentiles, u64)> {
+) -> anyhow::Result<(Percentiles, Percentiles, u64, f64)> {
+    let (wall, cpu) = (Instant::now(), vademecum_bridge::timing::process_cpu_time());
     let mut sessions = Vec::new();
     for k in 0..n {
         let (tx, mut rx) = tokio::sync::mpsc::channel(16384);
@@ -228,7 +230,8 @@ fn concurrent(
         let _ = late.add(&h.lateness);
         misses += st.misses.load(std::sync::atomic::Ordering::Relaxed);
     }
-    Ok((Percentiles::of(&work), Percentiles::of(&late), misses))
+    let cores = (vademecum_bridge::timing::process_cpu_time() - cpu).as_secs_f64() / wall.elapsed().as_secs_f64();
+    Ok((Percentiles::of(&work), Percentiles::of(&late), misses, cores))
 }
 
 /// The tool state sent `i`-th: a circle over the organ, pressing in and out.
