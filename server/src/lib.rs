@@ -36,7 +36,6 @@ use std::future::Future;
 
 use anyhow::Context;
 
-use tokio_stream::wrappers::TcpListenerStream;
 use tonic::service::interceptor::InterceptedService;
 use vademecum_proto::v1 as pb;
 
@@ -116,10 +115,17 @@ pub async fn run(
         .add_service(InterceptedService::new(sessions, auth.clone()))
         .add_service(InterceptedService::new(interaction, auth.clone()))
         .add_service(InterceptedService::new(viewing, auth))
-        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), on_shutdown)
+        .serve_with_incoming_shutdown(incoming(listener), on_shutdown)
         .await?;
     if let Some(t) = metrics_task {
         let _ = t.await;
     }
     Ok(())
+}
+
+/// The connections accepted on `listener`, with `TCP_NODELAY` set: a tool state's answer is a
+/// small write that Nagle's algorithm would hold until the client's delayed ACK (up to 40 ms).
+/// (tonic applies its own `tcp_nodelay` only to listeners it binds itself.)
+pub fn incoming(listener: tokio::net::TcpListener) -> tonic::transport::server::TcpIncoming {
+    tonic::transport::server::TcpIncoming::from(listener).with_nodelay(Some(true))
 }

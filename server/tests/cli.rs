@@ -575,3 +575,43 @@ fn run_liver_cut_opens_the_smooth_liver_along_the_incision_with_the_co_rotationa
         .count();
     assert_eq!(shown as u64, c["partial_frames"].as_u64().unwrap(), "{s}");
 }
+
+#[test]
+fn bench_load_drives_a_server_over_grpc_and_accounts_for_every_tool_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("load.json");
+    let o = vademecum(
+        &[
+            "bench",
+            "load",
+            "--sessions",
+            "2",
+            "--seconds",
+            "1",
+            "--rate",
+            "200",
+            "--bundles",
+            "organ",
+            "--json",
+            "load.json",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert!(stdout(&o).contains("tonic echo"), "{}", stdout(&o));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let n = |k: &str| r[k].as_u64().unwrap_or_else(|| panic!("{k} in {r}"));
+    assert!(n("states_answered") > 0, "{r}");
+    assert_eq!(
+        n("states_sent"),
+        n("states_answered") + n("states_refused") + n("states_lost"),
+        "{r}"
+    );
+    assert_eq!((n("states_refused"), n("states_lost")), (0, 0), "{r}");
+    assert!(n("session_ticks") > 0 && n("frames_received") > 0, "{r}");
+    assert!(r["round_trip_us"]["count"].as_u64() == Some(n("states_answered")), "{r}");
+    assert!(r["echo_round_trip_us"]["count"].as_u64().unwrap() > 0, "{r}");
+    assert!(r["server_rss_mib"].as_f64().unwrap() > 1.0, "{r}");
+    let o = vademecum(&["bench", "load", "--sessions", "0"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("--sessions"), "{}", stderr(&o));
+}

@@ -334,6 +334,19 @@ with a thread each and on the tick workers (one per CPU).\n\n\
 To measure what one core sustains, pin the process: taskset -c 0 vademecum bench session."
     )]
     Session(BenchSessionArgs),
+    /// A server under many sessions over real gRPC: tick misses beside a null loop, round trips
+    /// beside tonic's echo, CPU and RSS.
+    #[command(
+        long_about = "Starts `vademecum serve` (this executable) on a free loopback port, creates --sessions \
+sessions of the built-in organ and drives each, for --seconds, with --clients-per-session interaction \
+streams sending tool states at --rate (each after the previous answer, as a frontend does) and \
+--viewers viewers at 30 Hz. Reported from the same run: the sessions' deadline misses beside a null \
+loop in this process (a thread sleeping to 1 ms deadlines), every client's round trip beside a tonic \
+echo of the same stream and pacing, every tool state accounted for (sent = answered + refused + \
+lost), the server's CPU and RSS. Prints a table; --json FILE writes the figures.\n\n\
+Example: vademecum bench load --sessions 32 --seconds 30 --json out/load.json"
+    )]
+    Load(BenchLoadArgs),
     /// The 1 kHz haptic path over shared memory: null loop, iceoryx2 round trip, full tick.
     #[command(
         long_about = "The 1 kHz haptic path on this machine, each figure beside a null loop measured in the \
@@ -672,6 +685,35 @@ pub struct BenchSessionArgs {
     /// Print JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Arguments of `vademecum bench load`.
+#[derive(Debug, Args)]
+pub struct BenchLoadArgs {
+    /// Sessions on the server.
+    #[arg(long, default_value_t = 32)]
+    pub sessions: usize,
+    /// Interaction streams per session.
+    #[arg(long, default_value_t = 1)]
+    pub clients_per_session: usize,
+    /// Viewers (30 Hz) per session.
+    #[arg(long, default_value_t = 1)]
+    pub viewers: usize,
+    /// Seconds under load.
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Tool states per second each client sends (each after the previous answer).
+    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    pub rate: f64,
+    /// Tick workers of the server (its default: one per CPU; 0: a thread per session).
+    #[arg(long, value_name = "N")]
+    pub tick_workers: Option<usize>,
+    /// Folder of the organ's bundle (built there when missing). Default: out/organ.
+    #[arg(long, value_name = "DIR")]
+    pub bundles: Option<PathBuf>,
+    /// Also write the figures as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 /// Arguments of `vademecum bench pgd`.

@@ -48,24 +48,37 @@ fn row(what: impl Into<String>, p: Percentiles, misses: u64) -> Row {
     }
 }
 
-fn hist() -> Histogram<u64> {
+pub(super) fn hist() -> Histogram<u64> {
     Histogram::new_with_bounds(1, 10_000_000_000, 3).expect("valid bounds")
 }
 
 /// The null loop: sleep to 1 ms deadlines for `secs`, recording lateness (ns).
 fn null_loop(secs: f64) -> (Percentiles, u64) {
+    let end = Instant::now() + Duration::from_secs_f64(secs);
+    let (p, misses, _) = null_loop_while(|| Instant::now() < end);
+    (p, misses)
+}
+
+/// The null loop until `stop` is set: its lateness (ns), misses and ticks.
+pub(super) fn null_loop_until(stop: &std::sync::atomic::AtomicBool) -> (Percentiles, u64, u64) {
+    null_loop_while(|| !stop.load(std::sync::atomic::Ordering::Relaxed))
+}
+
+/// Sleeps to 1 ms deadlines while `going()`, recording lateness (ns): its percentiles, its
+/// misses (a tick more than a period late) and its ticks.
+fn null_loop_while(going: impl Fn() -> bool) -> (Percentiles, u64, u64) {
     let period = Duration::from_millis(1);
     let mut h = hist();
-    let mut misses = 0;
-    let end = Instant::now() + Duration::from_secs_f64(secs);
+    let (mut misses, mut ticks) = (0, 0);
     let mut next = Instant::now() + period;
-    while Instant::now() < end {
+    while going() {
         let now = Instant::now();
         if next > now {
             std::thread::sleep(next - now);
         }
         let late = Instant::now().saturating_duration_since(next);
         let _ = h.record((late.as_nanos() as u64).max(1));
+        ticks += 1;
         if late > period {
             misses += 1;
         }
@@ -74,7 +87,7 @@ fn null_loop(secs: f64) -> (Percentiles, u64) {
             next = Instant::now();
         }
     }
-    (Percentiles::of(&h), misses)
+    (Percentiles::of(&h), misses, ticks)
 }
 
 pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
@@ -235,7 +248,7 @@ fn concurrent(
 }
 
 /// The tool state sent `i`-th: a circle over the organ, pressing in and out.
-fn bench_tool(i: u64) -> vademecum_client::pb::ToolState {
+pub(super) fn bench_tool(i: u64) -> vademecum_client::pb::ToolState {
     let s = (i % 5000) as f64 * 1e-3;
     vademecum_client::tool_at(
         i,
@@ -315,7 +328,7 @@ fn grpc_round_trip(bundle_dir: &std::path::Path, secs: f64) -> anyhow::Result<(P
 /// sequence number, no session behind it — the same stream shape as the real service (a task
 /// per stream forwarding through a bounded channel).
 #[derive(Debug, Clone, Copy)]
-struct Echo;
+pub(super) struct Echo;
 
 type EchoStream = std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Result<pb::ToolResponse, tonic::Status>> + Send>>;
 
@@ -353,7 +366,7 @@ async fn echo_round_trip(secs: f64) -> anyhow::Result<Percentiles> {
     let server = tokio::spawn(
         tonic::transport::Server::builder()
             .add_service(pb::interaction_server::InteractionServer::new(Echo))
-            .serve_with_incoming_shutdown(tokio_stream::wrappers::TcpListenerStream::new(listener), async {
+            .serve_with_incoming_shutdown(crate::incoming(listener), async {
                 let _ = stop_rx.await;
             }),
     );

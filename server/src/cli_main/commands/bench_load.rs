@@ -1,0 +1,477 @@
+//! `vademecum bench load`: a server under many sessions, driven over real gRPC.
+//!
+//! Starts `vademecum serve` (this executable) as a child process on a free loopback port,
+//! creates `--sessions` sessions of the built-in organ, and for `--seconds` drives each with
+//! `--clients-per-session` interaction streams sending tool states at `--rate` (each waits
+//! for its answer before the next: a frontend's round trip) and `--viewers` viewers at 30 Hz.
+//! Measured in the same run, side by side:
+//!
+//! - a **null loop** in this process (a thread sleeping to 1 ms deadlines, doing nothing):
+//!   the OS wake-up floor under this load, against the sessions' own tick lateness and misses
+//!   (from each session's statistics);
+//! - a **tonic echo** (the same stream against a service that answers at once, in this
+//!   process) paced as the clients: the floor of a gRPC round trip under this load, against
+//!   the clients' round trips;
+//! - the server's **CPU** (`/proc/PID/stat`) and **RSS** (`/proc/PID/status`), and every
+//!   client's account: states sent = answered + refused + lost.
+//!
+//! Prints a table, writes the figures as JSON (`--json FILE`).
+
+use std::io::{BufRead, BufReader, Write};
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitCode, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, bail};
+use hdrhistogram::Histogram;
+use serde::Serialize;
+use vademecum_client::pb;
+use vademecum_engine::scene::Scene;
+
+use super::bench_session::{Echo, bench_tool, hist, null_loop_until};
+use crate::cli_main::cli::BenchLoadArgs;
+use crate::cli_main::commands::build::ensure_bundles;
+use crate::session::stats::Percentiles;
+
+/// What one client stream did.
+#[derive(Debug, Default)]
+struct ClientAccount {
+    sent: u64,
+    answered: u64,
+    /// Refused: the stream could not be opened, a send failed, or it ended with an error
+    /// status (the state sent then is counted here, not answered).
+    refused: u64,
+    rtt: Option<Histogram<u64>>,
+}
+
+/// The figures of a run, as written to the JSON file.
+#[derive(Debug, Serialize)]
+struct Report {
+    sessions: usize,
+    clients_per_session: usize,
+    viewers_per_session: usize,
+    seconds: f64,
+    rate_hz: f64,
+    tick_workers: Option<usize>,
+    null_loop_lateness_us: Percentiles,
+    null_loop_misses: u64,
+    null_loop_ticks: u64,
+    session_ticks: u64,
+    session_misses: u64,
+    session_miss_rate_worst: f64,
+    session_tick_work_p99_us_worst: f64,
+    round_trip_us: Percentiles,
+    echo_round_trip_us: Percentiles,
+    states_sent: u64,
+    states_answered: u64,
+    states_refused: u64,
+    states_lost: u64,
+    frames_received: u64,
+    server_cpu_cores: f64,
+    /// The server's CPU by kind of thread (cores).
+    server_cpu_cores_by_thread: std::collections::BTreeMap<String, f64>,
+    server_rss_mib: f64,
+    server_peak_rss_mib: f64,
+}
+
+/// The server child: killed when dropped.
+struct Server {
+    child: Child,
+    addr: String,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Server {
+    /// `vademecum serve` on a free loopback port, bundles under `bundle_root`.
+    fn start(a: &BenchLoadArgs, bundle_root: &std::path::Path) -> anyhow::Result<Self> {
+        let exe = std::env::current_exe().context("cannot find this executable to start the server")?;
+        let mut cmd = Command::new(exe);
+        cmd.args(["serve", "--listen", "127.0.0.1:0", "--no-auth", "--bundle-root"])
+            .arg(bundle_root)
+            .args(["--max-sessions", &a.sessions.to_string()])
+            .args([
+                "--max-streams",
+                &(a.sessions * (a.clients_per_session + a.viewers)).max(1).to_string(),
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null());
+        if let Some(n) = a.tick_workers {
+            cmd.args(["--tick-workers", &n.to_string()]);
+        }
+        let mut child = cmd.spawn().context("cannot start the server")?;
+        let stdout = child.stdout.take().context("the server's output")?;
+        let mut lines = BufReader::new(stdout).lines();
+        let addr = loop {
+            match lines.next() {
+                Some(Ok(l)) => {
+                    if let Some(a) = l.strip_prefix("listening on ") {
+                        break a.trim().to_string();
+                    }
+                }
+                _ => {
+                    let _ = child.kill();
+                    bail!("the server ended before listening");
+                }
+            }
+        };
+        // keep draining its output so it never blocks on a full pipe
+        std::thread::spawn(move || for _ in lines {});
+        Ok(Self { child, addr })
+    }
+
+    /// CPU time the server has used (user + system), from `/proc/PID/stat`.
+    fn cpu(&self) -> Option<Duration> {
+        stat_cpu(&std::fs::read_to_string(format!("/proc/{}/stat", self.child.id())).ok()?)
+    }
+
+    /// CPU time used by each kind of the server's threads (the name up to its first `-`:
+    /// `tick` workers, `frames` threads, `answers` dispatchers, `tokio` runtime workers…),
+    /// from `/proc/PID/task/*/stat`.
+    fn cpu_by_thread_kind(&self) -> std::collections::BTreeMap<String, Duration> {
+        let mut kinds = std::collections::BTreeMap::new();
+        let Ok(tasks) = std::fs::read_dir(format!("/proc/{}/task", self.child.id())) else {
+            return kinds;
+        };
+        for t in tasks.flatten() {
+            let Ok(comm) = std::fs::read_to_string(t.path().join("comm")) else {
+                continue;
+            };
+            let Some(cpu) = std::fs::read_to_string(t.path().join("stat")).ok().and_then(|s| stat_cpu(&s)) else {
+                continue;
+            };
+            let kind = comm.trim().split('-').next().unwrap_or("").to_string();
+            *kinds.entry(kind).or_insert(Duration::ZERO) += cpu;
+        }
+        kinds
+    }
+
+    /// Resident and peak resident memory (MiB), from `/proc/PID/status`.
+    fn rss(&self) -> (f64, f64) {
+        let status = std::fs::read_to_string(format!("/proc/{}/status", self.child.id())).unwrap_or_default();
+        let field = |name: &str| {
+            status
+                .lines()
+                .find_map(|l| l.strip_prefix(name))
+                .and_then(|v| v.split_whitespace().next()?.parse::<f64>().ok())
+                .map_or(0.0, |kib| kib / 1024.0)
+        };
+        (field("VmRSS:"), field("VmHWM:"))
+    }
+}
+
+/// Session `id` on a connection of its own to `addr`, as a separate frontend has.
+async fn connect(addr: &str, id: &str) -> Option<vademecum_client::Session> {
+    vademecum_client::Client::connect(addr.to_string())
+        .await
+        .ok()?
+        .session(id)
+        .await
+        .ok()
+}
+
+/// User + system CPU time from a `/proc/…/stat` line.
+fn stat_cpu(stat: &str) -> Option<Duration> {
+    // fields after the command name (which may hold spaces) closed by ')'
+    let rest = stat.get(stat.rfind(')')? + 2..)?;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: u64 = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) }.max(1) as u64;
+    Some(Duration::from_nanos(ticks * 1_000_000_000 / hz))
+}
+
+/// One interaction stream on a connection of its own: a tool state every `period` (each after
+/// the previous answer), until `stop`.
+async fn client(addr: String, id: String, period: Duration, stop: Arc<AtomicBool>) -> ClientAccount {
+    let mut account = ClientAccount::default();
+    let mut h = hist();
+    let Some(session) = connect(&addr, &id).await else {
+        account.refused = 1;
+        return account;
+    };
+    let Ok(mut tools) = session.interact().await else {
+        account.refused = 1;
+        return account;
+    };
+    let mut ticker = tokio::time::interval(period);
+    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut i = 0u64;
+    while !stop.load(Ordering::Relaxed) {
+        ticker.tick().await;
+        let t0 = Instant::now();
+        account.sent += 1;
+        if tools.send(bench_tool(i)).await.is_err() {
+            account.refused += 1;
+            break;
+        }
+        match tools.next().await {
+            Ok(Some(r)) if r.seq == i => {
+                account.answered += 1;
+                let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
+            }
+            _ => {
+                account.refused += 1;
+                break;
+            }
+        }
+        i += 1;
+    }
+    tools.finish();
+    account.rtt = Some(h);
+    account
+}
+
+/// One viewer at 30 Hz on a connection of its own until `stop`: the frames it received.
+async fn viewer(addr: String, id: String, stop: Arc<AtomicBool>) -> u64 {
+    let Some(session) = connect(&addr, &id).await else {
+        return 0;
+    };
+    let Ok(mut frames) = session.watch(30.0).await else {
+        return 0;
+    };
+    let mut n = 0;
+    while !stop.load(Ordering::Relaxed) {
+        match tokio::time::timeout(Duration::from_millis(100), frames.message()).await {
+            Ok(Ok(Some(_))) => n += 1,
+            Ok(_) => break,
+            Err(_) => {}
+        }
+    }
+    n
+}
+
+/// The echo's round trips at `period` until `stop`.
+async fn echo_client(addr: String, period: Duration, stop: Arc<AtomicBool>) -> anyhow::Result<Histogram<u64>> {
+    let mut client = pb::interaction_client::InteractionClient::connect(addr).await?;
+    let (tx, rx) = tokio::sync::mpsc::channel(16);
+    tx.send(bench_tool(0)).await?;
+    let mut responses = client.interact(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
+    responses.message().await?;
+    let mut h = hist();
+    let mut ticker = tokio::time::interval(period);
+    ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    let mut i = 1u64;
+    while !stop.load(Ordering::Relaxed) {
+        ticker.tick().await;
+        let t0 = Instant::now();
+        tx.send(bench_tool(i)).await?;
+        responses.message().await?.context("the echo ended its stream")?;
+        let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
+        i += 1;
+    }
+    Ok(h)
+}
+
+pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
+    if !(a.seconds > 0.0 && a.seconds <= 3600.0) {
+        bail!("--seconds must lie in (0, 3600], got {}", a.seconds);
+    }
+    if !(a.rate > 0.0 && a.rate <= 2000.0) {
+        bail!("--rate must lie in (0, 2000] Hz, got {}", a.rate);
+    }
+    if a.sessions == 0 || a.sessions > 1024 {
+        bail!("--sessions must lie in 1..=1024, got {}", a.sessions);
+    }
+    let scene = Scene::builtin("organ")?;
+    let dir = a.bundles.clone().unwrap_or_else(|| PathBuf::from("out/organ"));
+    ensure_bundles(&scene, &dir)?;
+    let dir = std::fs::canonicalize(&dir).with_context(|| format!("cannot resolve {}", dir.display()))?;
+    let root = dir.parent().map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/"));
+    let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let server = Server::start(&a, &root)?;
+    let period = Duration::from_secs_f64(1.0 / a.rate);
+    let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
+    let report = rt.block_on(async {
+        let c = vademecum_client::Client::connect(format!("http://{}", server.addr)).await?;
+        let mut sessions = Vec::new();
+        for k in 0..a.sessions {
+            let s = c
+                .create_session(vademecum_client::SceneSpec::Builtin("organ".into()), &name, &format!("load{k}"))
+                .await
+                .with_context(|| format!("session {k} of {}", a.sessions))?;
+            sessions.push(s);
+        }
+        // the echo, in this process
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+        let echo_addr = format!("http://{}", listener.local_addr()?);
+        let (echo_stop_tx, echo_stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let echo_server = tokio::spawn(
+            tonic::transport::Server::builder()
+                .add_service(pb::interaction_server::InteractionServer::new(Echo))
+                .serve_with_incoming_shutdown(crate::incoming(listener), async {
+                    let _ = echo_stop_rx.await;
+                }),
+        );
+        let stop = Arc::new(AtomicBool::new(false));
+        let cpu0 = server.cpu();
+        let kinds0 = server.cpu_by_thread_kind();
+        let wall = Instant::now();
+        let mut clients = Vec::new();
+        let mut viewers = Vec::new();
+        let addr = format!("http://{}", server.addr);
+        for s in &sessions {
+            for _ in 0..a.clients_per_session {
+                clients.push(tokio::spawn(client(addr.clone(), s.id().to_string(), period, stop.clone())));
+            }
+            for _ in 0..a.viewers {
+                viewers.push(tokio::spawn(viewer(addr.clone(), s.id().to_string(), stop.clone())));
+            }
+        }
+        let echo = tokio::spawn(echo_client(echo_addr, period, stop.clone()));
+        let null = {
+            let stop = stop.clone();
+            std::thread::spawn(move || null_loop_until(&stop))
+        };
+        let progress = indicatif::ProgressBar::new(a.seconds.ceil() as u64).with_message("under load");
+        let end = wall + Duration::from_secs_f64(a.seconds);
+        while Instant::now() < end {
+            tokio::time::sleep(Duration::from_millis(250).min(end.saturating_duration_since(Instant::now()))).await;
+            progress.set_position(wall.elapsed().as_secs());
+        }
+        progress.finish_and_clear();
+        let cpu = match (cpu0, server.cpu()) {
+            (Some(a0), Some(a1)) => (a1 - a0).as_secs_f64() / wall.elapsed().as_secs_f64(),
+            _ => f64::NAN,
+        };
+        let (rss, peak) = server.rss();
+        let secs = wall.elapsed().as_secs_f64();
+        let cpu_by_thread: std::collections::BTreeMap<String, f64> = server
+            .cpu_by_thread_kind()
+            .into_iter()
+            .map(|(k, t)| {
+                let before = kinds0.get(&k).copied().unwrap_or(Duration::ZERO);
+                (k, t.saturating_sub(before).as_secs_f64() / secs)
+            })
+            .filter(|(_, c)| *c > 0.0)
+            .collect();
+        stop.store(true, Ordering::Relaxed);
+        let mut rtt = hist();
+        let (mut sent, mut answered, mut refused) = (0, 0, 0);
+        for c in clients {
+            let acc = c.await?;
+            sent += acc.sent;
+            answered += acc.answered;
+            refused += acc.refused;
+            if let Some(h) = acc.rtt {
+                let _ = rtt.add(&h);
+            }
+        }
+        let mut frames = 0;
+        for v in viewers {
+            frames += v.await?;
+        }
+        let echo = echo.await??;
+        let (null_p, null_misses, null_ticks) = null.join().map_err(|_| anyhow::anyhow!("the null loop panicked"))?;
+        let _ = echo_stop_tx.send(());
+        let _ = echo_server.await;
+        let (mut ticks, mut misses, mut worst_rate, mut worst_work) = (0, 0, 0.0f64, 0.0f64);
+        for s in sessions {
+            let st = s.close().await?;
+            ticks += st.ticks;
+            misses += st.deadline_misses;
+            worst_rate = worst_rate.max(st.deadline_misses as f64 / st.ticks.max(1) as f64);
+            worst_work = worst_work.max(st.tick_work_p99_us);
+        }
+        anyhow::Ok(Report {
+            sessions: a.sessions,
+            clients_per_session: a.clients_per_session,
+            viewers_per_session: a.viewers,
+            seconds: a.seconds,
+            rate_hz: a.rate,
+            tick_workers: a.tick_workers,
+            null_loop_lateness_us: null_p,
+            null_loop_misses: null_misses,
+            null_loop_ticks: null_ticks,
+            session_ticks: ticks,
+            session_misses: misses,
+            session_miss_rate_worst: worst_rate,
+            session_tick_work_p99_us_worst: worst_work,
+            round_trip_us: Percentiles::of(&rtt),
+            echo_round_trip_us: Percentiles::of(&echo),
+            states_sent: sent,
+            states_answered: answered,
+            states_refused: refused,
+            states_lost: sent.saturating_sub(answered + refused),
+            frames_received: frames,
+            server_cpu_cores: cpu,
+            server_cpu_cores_by_thread: cpu_by_thread,
+            server_rss_mib: rss,
+            server_peak_rss_mib: peak,
+        })
+    })?;
+    drop(server);
+    print_report(&report)?;
+    if let Some(path) = &a.json {
+        std::fs::write(path, serde_json::to_string_pretty(&report)?).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_report(r: &Report) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    let pct = |n: u64, of: u64| 100.0 * n as f64 / of.max(1) as f64;
+    writeln!(
+        out,
+        "{} sessions x {} client(s) at {} Hz + {} viewer(s) at 30 Hz, {} s, tick workers: {}",
+        r.sessions,
+        r.clients_per_session,
+        r.rate_hz,
+        r.viewers_per_session,
+        r.seconds,
+        r.tick_workers.map_or("default (one per CPU)".to_string(), |n| n.to_string())
+    )?;
+    writeln!(out, "| what | samples | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) | misses |")?;
+    writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;
+    let row = |out: &mut std::io::StdoutLock, what: &str, p: &Percentiles, misses: String| {
+        writeln!(
+            out,
+            "| {what} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {misses} |",
+            p.count, p.p50, p.p99, p.p999, p.max
+        )
+    };
+    row(
+        &mut out,
+        "null loop in the load generator: lateness of a 1 ms sleep",
+        &r.null_loop_lateness_us,
+        format!("{} ({:.3} %)", r.null_loop_misses, pct(r.null_loop_misses, r.null_loop_ticks)),
+    )?;
+    row(
+        &mut out,
+        "gRPC round trip, every client (send → answer)",
+        &r.round_trip_us,
+        "—".into(),
+    )?;
+    row(&mut out, "… tonic echo, same stream and pacing", &r.echo_round_trip_us, "—".into())?;
+    writeln!(
+        out,
+        "sessions: {} ticks, {} deadline misses ({:.3} %; worst session {:.3} %); worst tick work p99 {:.1} µs",
+        r.session_ticks,
+        r.session_misses,
+        pct(r.session_misses, r.session_ticks),
+        100.0 * r.session_miss_rate_worst,
+        r.session_tick_work_p99_us_worst
+    )?;
+    writeln!(
+        out,
+        "tool states: {} sent = {} answered + {} refused + {} lost; {} frames to viewers",
+        r.states_sent, r.states_answered, r.states_refused, r.states_lost, r.frames_received
+    )?;
+    let by: Vec<String> = r.server_cpu_cores_by_thread.iter().map(|(k, c)| format!("{k} {c:.2}")).collect();
+    writeln!(
+        out,
+        "server: {:.2} cores of CPU ({}), RSS {:.1} MiB (peak {:.1} MiB)",
+        r.server_cpu_cores,
+        by.join(", "),
+        r.server_rss_mib,
+        r.server_peak_rss_mib
+    )?;
+    Ok(())
+}
