@@ -50,6 +50,8 @@ type FrameStream = Pin<Box<dyn Stream<Item = Result<pb::Frame, Status>> + Send>>
 struct Pacer {
     entry: Arc<Entry>,
     frames: watch::Receiver<Arc<Frame>>,
+    /// The viewer's rate, asked of the session's frame thread while it watches.
+    _demand: crate::session::demand::DemandGuard,
     /// The session frame last sent.
     last: u64,
     /// Frames (with displacements) sent.
@@ -59,11 +61,12 @@ struct Pacer {
 }
 
 impl Pacer {
-    fn new(entry: Arc<Entry>) -> Self {
-        let frames = entry.session.subscribe_frames();
+    fn new(entry: Arc<Entry>, rate_hz: f64) -> Self {
+        let (frames, demand) = entry.session.subscribe_frames_at(rate_hz);
         Self {
             entry,
             frames,
+            _demand: demand,
             last: 0,
             sent: 0,
             message: 0,
@@ -142,7 +145,7 @@ async fn serve(
     let _permit = permit;
     let _guard = StreamGuard::new(&entry.viewers);
     let mut closed = entry.closed.subscribe();
-    let mut pacer = Pacer::new(entry.clone());
+    let mut pacer = Pacer::new(entry.clone(), rate);
     if tx.send(Ok(pacer.geometry())).await.is_err() {
         return;
     }

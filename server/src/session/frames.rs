@@ -17,6 +17,7 @@ use vademecum_engine::pipeline::cutting::{CutPicture, CutStatus};
 use vademecum_engine::pipeline::{TearPicture, TearPictures};
 use vademecum_engine::scene::Scene;
 
+use super::demand::FrameDemand;
 use super::stats::TickStats;
 use super::tick::Latest;
 
@@ -305,7 +306,10 @@ pub(super) struct FrameProducer {
     tx: watch::Sender<Arc<Frame>>,
     stats: Arc<TickStats>,
     stop: Arc<AtomicBool>,
+    /// The shortest interval between frames (the session's frame rate).
     interval: Duration,
+    /// The rates its viewers ask.
+    demand: Arc<FrameDemand>,
     period: Duration,
 }
 
@@ -342,8 +346,16 @@ impl FrameProducer {
             stats,
             stop,
             interval: Duration::from_secs_f64(1.0 / rate),
+            demand: Arc::default(),
             period,
         }
+    }
+
+    /// The same producer making frames at the rate its viewers ask ([`FrameDemand`]), at most
+    /// its own.
+    pub fn with_demand(mut self, demand: Arc<FrameDemand>) -> Self {
+        self.demand = demand;
+        self
     }
 
     /// The same producer drawing the co-rotational `deformation` of a cut organ (advanced
@@ -376,9 +388,15 @@ impl FrameProducer {
                 std::thread::sleep((next - now).min(self.period * 20));
                 continue;
             }
-            next += self.interval;
+            // a co-rotational deformation advances at the session's rate, watched or not
+            let interval = if self.corotational.is_some() {
+                self.interval
+            } else {
+                self.demand.interval(self.interval)
+            };
+            next += interval;
             if next < now {
-                next = now + self.interval;
+                next = now + interval;
             }
             if let Some(c) = &mut self.corotational {
                 let l = *self.latest.read();

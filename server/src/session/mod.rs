@@ -28,6 +28,7 @@
 //! queueing latency.
 
 pub mod answers;
+pub mod demand;
 pub mod frames;
 pub mod scheduler;
 pub mod script;
@@ -203,6 +204,8 @@ pub struct Session {
     tick_thread: std::thread::Thread,
     router: Arc<answers::Router>,
     frames: watch::Sender<Arc<Frame>>,
+    /// The rates viewers ask frames at.
+    frame_demand: Arc<demand::FrameDemand>,
     geometry: Arc<SurfaceGeometry>,
     stats: Arc<TickStats>,
     stop: Arc<AtomicBool>,
@@ -356,6 +359,8 @@ impl Session {
             cut.clone(),
             tear,
         );
+        let frame_demand = Arc::new(demand::FrameDemand::default());
+        let producer = producer.with_demand(frame_demand.clone());
         let producer = match corotational {
             Some(c) => producer.with_corotational(c),
             None => producer,
@@ -378,6 +383,7 @@ impl Session {
             tick_thread,
             router,
             frames,
+            frame_demand,
             geometry,
             stats,
             stop,
@@ -524,9 +530,16 @@ impl Session {
         }
     }
 
-    /// A receiver of the latest frames.
+    /// A receiver of the latest frames, made at the session's frame rate (or at the rate
+    /// of the fastest viewer that said its rate: [`Self::subscribe_frames_at`]).
     pub fn subscribe_frames(&self) -> watch::Receiver<Arc<Frame>> {
         self.frames.subscribe()
+    }
+
+    /// A receiver of the latest frames for a viewer at `rate_hz`: frames are made at the
+    /// fastest such viewer's rate (at most the session's) while the guard lives.
+    pub fn subscribe_frames_at(&self, rate_hz: f64) -> (watch::Receiver<Arc<Frame>>, demand::DemandGuard) {
+        (self.frames.subscribe(), self.frame_demand.ask(rate_hz))
     }
 
     /// Live statistics.
