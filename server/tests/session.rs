@@ -582,3 +582,20 @@ fn sessions_on_tick_workers_answer_their_own_streams_in_order() {
     }
     assert_eq!(workers.load(), [0, 0], "closed sessions leave their workers");
 }
+
+/// The modes a session's frames evaluate at the surface are made once per bundle and shared by
+/// its sessions (megabytes each on an organ), and a field at other nodes is a field of its own.
+#[test]
+fn sessions_of_one_bundle_share_the_modes_their_frames_evaluate() {
+    let (scene, bundles, _dir) = slab();
+    let a = Session::start("share-a".into(), scene.clone(), bundles.clone(), SessionConfig::default()).unwrap();
+    let b = Session::start("share-b".into(), scene.clone(), bundles.clone(), SessionConfig::default()).unwrap();
+    let nodes = a.geometry().organs[0].nodes.clone();
+    let field = bundles[0].surface_field(&nodes);
+    assert_eq!(field.nodes(), &nodes[..]);
+    assert_eq!(Arc::strong_count(&field), 4, "the bundle's, each session's and this one");
+    drop((a, b));
+    assert_eq!(Arc::strong_count(&field), 2, "the sessions' copies were the bundle's");
+    let other = bundles[0].surface_field(&nodes[..3]);
+    assert!(!Arc::ptr_eq(&other, &field) && other.nodes() == &nodes[..3]);
+}

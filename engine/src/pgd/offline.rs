@@ -9,7 +9,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::build::{self, PgdInfo, PgdParams};
-use super::vademecum::{LocalCompliance, Vademecum};
+use super::vademecum::{LocalCompliance, NodeMajorField, Vademecum};
 use super::{brute, compress};
 use crate::bundle::{self, ArrayData, BundleError, Manifest};
 use crate::damage::store::TearArrays;
@@ -774,6 +774,26 @@ pub struct LoadedBundle {
     /// scene): the scene's grasp, then the other grasp sites; checked against the scene's
     /// model when a session starts.
     pub tear: Vec<Arc<TearArrays>>,
+    /// The modes at the surface nodes in node-major f32 (what a session's frames evaluate),
+    /// made once for every session of this bundle ([`Self::surface_field`]).
+    pub surface_field: std::sync::OnceLock<Arc<NodeMajorField>>,
+}
+
+impl LoadedBundle {
+    /// The vademecum's modes at `nodes` in node-major f32 ([`NodeMajorField`]): shared by
+    /// every session of the bundle (made by the first that asks), so each session's frames do
+    /// not keep a copy of their own (`3·modes·4` bytes per node: megabytes on an organ).
+    /// Nodes other than the first caller's get a field of their own.
+    pub fn surface_field(&self, nodes: &[usize]) -> Arc<NodeMajorField> {
+        let shared = self
+            .surface_field
+            .get_or_init(|| Arc::new(NodeMajorField::new(&self.vademecum, nodes)));
+        if shared.nodes() == nodes {
+            shared.clone()
+        } else {
+            Arc::new(NodeMajorField::new(&self.vademecum, nodes))
+        }
+    }
 }
 
 /// The arrays of a grasp site's tearing stage, after its prefix ([`tear_prefix`]).
@@ -983,6 +1003,7 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
         vademecum,
         nodes: nodes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
         surface: surface_idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        surface_field: std::sync::OnceLock::new(),
     })
 }
 

@@ -300,7 +300,7 @@ pub(super) struct FrameProducer {
     cut: Option<Arc<CutStatus>>,
     tear: Option<TearView>,
     walls: Option<WallGeometry>,
-    fields: Vec<NodeMajorField>,
+    fields: Vec<Arc<NodeMajorField>>,
     geometry: Arc<SurfaceGeometry>,
     latest: triple_buffer::Output<Latest>,
     tx: watch::Sender<Arc<Frame>>,
@@ -330,7 +330,7 @@ impl FrameProducer {
         let fields = bundles
             .iter()
             .zip(&geometry.organs)
-            .map(|(b, o)| NodeMajorField::new(&b.vademecum, &o.nodes))
+            .map(|(b, o)| b.surface_field(&o.nodes))
             .collect();
         let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
         Self {
