@@ -88,6 +88,22 @@ pub fn render(registry: &Registry) -> String {
         }
     }
     bridge_metrics(&mut out, &all);
+    if let Some(workers) = &registry.config().session.ticking {
+        let _ = writeln!(
+            out,
+            "# HELP vademecum_tick_worker_utilisation CPU time over wall time of each tick worker (last quarter second).\n# TYPE vademecum_tick_worker_utilisation gauge"
+        );
+        for (k, u) in workers.utilisation().iter().enumerate() {
+            let _ = writeln!(out, "vademecum_tick_worker_utilisation{{worker=\"{k}\"}} {u}");
+        }
+        let _ = writeln!(
+            out,
+            "# HELP vademecum_tick_worker_sessions Sessions each tick worker ticks.\n# TYPE vademecum_tick_worker_sessions gauge"
+        );
+        for (k, n) in workers.load().iter().enumerate() {
+            let _ = writeln!(out, "vademecum_tick_worker_sessions{{worker=\"{k}\"}} {n}");
+        }
+    }
     let _ = writeln!(
         out,
         "# HELP vademecum_tick_work_seconds Work per tick.\n# TYPE vademecum_tick_work_seconds histogram"

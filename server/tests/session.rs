@@ -15,7 +15,7 @@ use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_server::session::{
-    Answer, SchedulerConfig, Script, Session, SessionConfig, SessionError, TickScheduler, ToolCommand, Trajectory,
+    Answer, PlaceError, SchedulerConfig, Script, Session, SessionConfig, SessionError, TickScheduler, ToolCommand, Trajectory,
 };
 
 /// Counts the allocations of threads that asked to be counted (the tick thread, through
@@ -598,4 +598,56 @@ fn sessions_of_one_bundle_share_the_modes_their_frames_evaluate() {
     assert_eq!(Arc::strong_count(&field), 2, "the sessions' copies were the bundle's");
     let other = bundles[0].surface_field(&nodes[..3]);
     assert!(!Arc::ptr_eq(&other, &field) && other.nodes() == &nodes[..3]);
+}
+
+/// Admission control: once its worker has measured the work of its sessions, a session that
+/// would take it past the limit is refused, saying the load; when the load is gone, sessions
+/// are admitted again.
+#[test]
+fn a_session_that_would_overload_the_tick_workers_is_refused_saying_the_load() {
+    let (scene, bundles, _dir) = slab();
+    let workers = Arc::new(
+        TickScheduler::new(SchedulerConfig {
+            workers: 1,
+            max_utilisation: 1e-9,
+            ..SchedulerConfig::default()
+        })
+        .unwrap(),
+    );
+    let config = SessionConfig {
+        ticking: Some(workers.clone()),
+        ..SessionConfig::default()
+    };
+    let busy = Session::start("busy".into(), scene.clone(), bundles.clone(), config.clone()).expect("an idle worker admits");
+    let mut rx = busy.open_answers(64).unwrap();
+    let start = Instant::now();
+    let mut i = 0;
+    while workers.utilisation()[0] == 0.0 {
+        assert!(start.elapsed() < Duration::from_secs(20), "the worker never measured its work");
+        busy.submit(ToolCommand {
+            input: tool(i),
+            seq: i as u64,
+            client_time_us: 0,
+            received: Instant::now(),
+            reply: rx.id(),
+        })
+        .unwrap();
+        recv(&mut rx);
+        i += 1;
+    }
+    match Session::start("one-more".into(), scene.clone(), bundles.clone(), config.clone()) {
+        Err(e @ SessionError::Ticking(PlaceError::Overloaded { sessions: 1, .. })) => {
+            let msg = e.to_string();
+            assert!(msg.contains("limit") && msg.contains("close a session"), "{msg}");
+        }
+        other => panic!("admitted past the limit: {other:?}"),
+    }
+    assert_eq!(workers.load(), [1], "the refused session left nothing behind");
+    drop(busy);
+    let start = Instant::now();
+    while workers.utilisation()[0] > 0.0 {
+        assert!(start.elapsed() < Duration::from_secs(20), "the idle worker still reports a load");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    Session::start("again".into(), scene, bundles, config).expect("the idle worker admits again");
 }

@@ -294,6 +294,10 @@ fn metrics_export_tick_latency_histograms_misses_and_clients() {
     assert!(text.contains("vademecum_tick_work_seconds_bucket{session="), "{text}");
     assert!(text.contains("vademecum_deadline_misses_total{session="), "{text}");
     assert!(
+        text.contains("vademecum_tick_worker_sessions{worker=\"0\"}") && text.contains("vademecum_tick_worker_utilisation{worker=\"0\"}"),
+        "{text}"
+    );
+    assert!(
         text.contains("vademecum_interacting_clients{session=") && text.contains("} 1"),
         "{text}"
     );

@@ -256,6 +256,10 @@ pub struct ServeArgs {
     /// logged) when the OS does not permit it.
     #[arg(long, value_name = "PRIORITY", value_parser = clap::value_parser!(i32).range(1..=99))]
     pub tick_fifo: Option<i32>,
+    /// Admission control: refuse a new session (RESOURCE_EXHAUSTED, saying the load) when it
+    /// would take the least-loaded tick worker's measured utilisation above this fraction.
+    #[arg(long, default_value_t = 0.6, value_name = "FRACTION")]
+    pub max_tick_load: f64,
 }
 
 /// Arguments of `vademecum inspect`.

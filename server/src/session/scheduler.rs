@@ -16,17 +16,19 @@
 //! A session ended (stopped, its script over) is handed back to its owner through a one-slot
 //! channel and dropped there: a worker never frees a pipeline. Each session keeps its own
 //! period, deadlines, histograms and statistics, so what it observes is what it observed on a
-//! thread of its own. Sessions are placed on the worker with the fewest; a session stays on its
-//! worker. Sessions with a haptic channel keep a thread of their own (they wait on the bridge),
+//! thread of its own. A session is placed on the least-loaded worker (each measures its
+//! utilisation, its CPU time over wall time) and stays on it; it is refused, saying the load, when
+//! it would take that worker past [`SchedulerConfig::max_utilisation`] (admission control: a
+//! new session is refused rather than every session degraded). Sessions with a haptic channel keep a thread of their own (they wait on the bridge),
 //! and so does a session whose configuration has an `on_tick_thread` hook (the hook is
 //! per-thread: CPU pinning, the counting-allocator test) — on a worker of its own, the same
 //! loop.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::{Receiver, SyncSender, TryRecvError, TrySendError};
 use std::thread::{JoinHandle, Thread};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use vademecum_bridge::timing::{self, RealtimeStatus};
 
@@ -47,6 +49,10 @@ pub struct SchedulerConfig {
     /// Called on each worker thread before anything else (instrumentation such as the
     /// counting-allocator test of the worker loop).
     pub on_start: Option<fn()>,
+    /// Admission control: a session is refused when placing it would take the least-loaded
+    /// worker's measured utilisation (its CPU time over wall time) above this fraction (0.6:
+    /// headroom for the OS's late wake-ups and for bursts).
+    pub max_utilisation: f64,
 }
 
 impl Default for SchedulerConfig {
@@ -57,9 +63,16 @@ impl Default for SchedulerConfig {
             pin: false,
             fifo_priority: None,
             on_start: None,
+            max_utilisation: DEFAULT_MAX_UTILISATION,
         }
     }
 }
+
+/// The default [`SchedulerConfig::max_utilisation`].
+pub const DEFAULT_MAX_UTILISATION: f64 = 0.6;
+
+/// How often a worker measures its utilisation.
+const UTILISATION_WINDOW: Duration = Duration::from_millis(250);
 
 /// A session's tick loop on its way to a worker, and back.
 pub(super) struct Job {
@@ -82,8 +95,27 @@ impl Job {
 }
 
 /// Why a session could not be placed on a worker.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum PlaceError {
+    /// Admitting the session would push the least-loaded worker past the limit.
+    #[error(
+        "the server's tick workers are loaded: the least-loaded is busy {:.0} % of the time with \
+         {sessions} session(s), and a session there costs ~{:.1} % — over the {:.0} % limit; \
+         close a session, or add tick workers",
+        100.0 * utilisation,
+        100.0 * estimate,
+        100.0 * limit
+    )]
+    Overloaded {
+        /// The least-loaded worker's measured utilisation.
+        utilisation: f64,
+        /// What a session adds there (its sessions' mean).
+        estimate: f64,
+        /// The limit ([`SchedulerConfig::max_utilisation`]).
+        limit: f64,
+        /// Sessions on that worker.
+        sessions: usize,
+    },
     /// Every worker ticks [`MAX_SESSIONS_PER_WORKER`] sessions.
     #[error("every tick worker is full ({0} sessions each)")]
     Full(usize),
@@ -97,8 +129,23 @@ pub enum PlaceError {
 struct Worker {
     thread: Thread,
     inbox: SyncSender<Job>,
-    sessions: Arc<AtomicUsize>,
+    shared: Arc<WorkerShared>,
     realtime: RealtimeStatus,
+}
+
+/// What a worker publishes.
+#[derive(Debug, Default)]
+struct WorkerShared {
+    /// Sessions on it (counted when placed, until they end).
+    sessions: AtomicUsize,
+    /// Its utilisation over its last window, as `f64` bits.
+    utilisation: AtomicU64,
+}
+
+impl WorkerShared {
+    fn utilisation(&self) -> f64 {
+        f64::from_bits(self.utilisation.load(Ordering::Relaxed))
+    }
 }
 
 /// A pool of tick workers (module docs).
@@ -116,9 +163,9 @@ impl TickScheduler {
         let mut handles = Vec::new();
         for k in 0..config.workers.max(1) {
             let (inbox, rx) = std::sync::mpsc::sync_channel::<Job>(MAX_SESSIONS_PER_WORKER);
-            let sessions = Arc::new(AtomicUsize::new(0));
+            let shared = Arc::new(WorkerShared::default());
             let (granted_tx, granted_rx) = std::sync::mpsc::sync_channel(1);
-            let count = sessions.clone();
+            let published = shared.clone();
             let cpu = config.pin.then_some(k);
             let fifo = config.fifo_priority;
             let on_start = config.on_start;
@@ -127,7 +174,7 @@ impl TickScheduler {
                     init();
                 }
                 let _ = granted_tx.send(timing::request_realtime(fifo, cpu));
-                run_worker(&rx, &count);
+                run_worker(&rx, &published);
             })?;
             let realtime = granted_rx.recv().unwrap_or_else(|_| RealtimeStatus {
                 fifo: Err("the worker ended at once".into()),
@@ -136,7 +183,7 @@ impl TickScheduler {
             workers.push(Worker {
                 thread: handle.thread().clone(),
                 inbox,
-                sessions,
+                shared,
                 realtime,
             });
             handles.push(handle);
@@ -151,7 +198,13 @@ impl TickScheduler {
 
     /// Sessions on each worker.
     pub fn load(&self) -> Vec<usize> {
-        self.workers.iter().map(|w| w.sessions.load(Ordering::Relaxed)).collect()
+        self.workers.iter().map(|w| w.shared.sessions.load(Ordering::Relaxed)).collect()
+    }
+
+    /// Each worker's measured utilisation (its CPU time over wall time, over its last quarter
+    /// second).
+    pub fn utilisation(&self) -> Vec<f64> {
+        self.workers.iter().map(|w| w.shared.utilisation()).collect()
     }
 
     /// What the OS granted each worker (pinning, priority).
@@ -159,16 +212,38 @@ impl TickScheduler {
         self.workers.iter().map(|w| w.realtime.clone()).collect()
     }
 
-    /// Hands `job` to the worker with the fewest sessions; returns the thread to unpark when
-    /// a tool state is queued for it. When it cannot be placed, the job is ended (its answers
-    /// closed, the loop handed back) and the reason returned.
+    /// Hands `job` to the least-loaded worker (by measured utilisation in steps of 5 %, then by
+    /// sessions)
+    /// unless admitting it would take that worker past
+    /// [`SchedulerConfig::max_utilisation`] — a new session is estimated to cost what that
+    /// worker's sessions cost on average —; returns the thread to unpark when a tool state is
+    /// queued for it. When it cannot be placed, the job is ended (its answers closed, the loop
+    /// handed back) and the reason returned.
     pub(super) fn place(&self, job: Job) -> Result<Thread, PlaceError> {
-        let Some(w) = self.workers.iter().min_by_key(|w| w.sessions.load(Ordering::Relaxed)) else {
+        // utilisations within a step of 5 % count as equal: then the fewer sessions
+        let Some(w) = self
+            .workers
+            .iter()
+            .min_by_key(|w| ((w.shared.utilisation() / 0.05) as u64, w.shared.sessions.load(Ordering::Relaxed)))
+        else {
             job.end();
             return Err(PlaceError::Stopped);
         };
-        if w.sessions.fetch_add(1, Ordering::Relaxed) >= MAX_SESSIONS_PER_WORKER {
-            w.sessions.fetch_sub(1, Ordering::Relaxed);
+        let sessions = w.shared.sessions.load(Ordering::Relaxed);
+        let utilisation = w.shared.utilisation();
+        let estimate = if sessions > 0 { utilisation / sessions as f64 } else { 0.0 };
+        let limit = self.config.max_utilisation;
+        if utilisation + estimate > limit {
+            job.end();
+            return Err(PlaceError::Overloaded {
+                utilisation,
+                estimate,
+                limit,
+                sessions,
+            });
+        }
+        if w.shared.sessions.fetch_add(1, Ordering::Relaxed) >= MAX_SESSIONS_PER_WORKER {
+            w.shared.sessions.fetch_sub(1, Ordering::Relaxed);
             job.end();
             return Err(PlaceError::Full(MAX_SESSIONS_PER_WORKER));
         }
@@ -178,7 +253,7 @@ impl TickScheduler {
                 Ok(w.thread.clone())
             }
             Err(e) => {
-                w.sessions.fetch_sub(1, Ordering::Relaxed);
+                w.shared.sessions.fetch_sub(1, Ordering::Relaxed);
                 let (TrySendError::Full(job) | TrySendError::Disconnected(job)) = e;
                 job.end();
                 Err(PlaceError::Stopped)
@@ -205,13 +280,19 @@ pub(super) fn run_alone(job: Job) {
     let (tx, rx) = std::sync::mpsc::sync_channel(1);
     let _ = tx.send(job);
     drop(tx);
-    run_worker(&rx, &AtomicUsize::new(1));
+    let shared = WorkerShared::default();
+    shared.sessions.store(1, Ordering::Relaxed);
+    run_worker(&rx, &shared);
 }
 
 /// A worker's loop (module docs): until its inbox is closed and its last session ended.
-fn run_worker(inbox: &Receiver<Job>, sessions: &AtomicUsize) {
+/// It measures its utilisation — its thread's CPU time over wall time, every quarter second
+/// (one clock read then: CPU time, unlike wake-to-park time, does not count the time the OS
+/// gave to others) — and publishes it for admission control.
+fn run_worker(inbox: &Receiver<Job>, shared: &WorkerShared) {
     let mut jobs: Vec<Job> = Vec::with_capacity(MAX_SESSIONS_PER_WORKER);
     let mut open = true;
+    let (mut window_start, mut cpu_start) = (Instant::now(), timing::thread_cpu_time());
     loop {
         while open && jobs.len() < MAX_SESSIONS_PER_WORKER {
             match inbox.try_recv() {
@@ -234,9 +315,17 @@ fn run_worker(inbox: &Receiver<Job>, sessions: &AtomicUsize) {
                 }
                 Poll::Ended => {
                     jobs.swap_remove(k).end();
-                    sessions.fetch_sub(1, Ordering::Relaxed);
+                    shared.sessions.fetch_sub(1, Ordering::Relaxed);
                 }
             }
+        }
+        let now = Instant::now();
+        let window = now - window_start;
+        if window >= UTILISATION_WINDOW {
+            let cpu = timing::thread_cpu_time();
+            let u = (cpu.saturating_sub(cpu_start)).as_secs_f64() / window.as_secs_f64();
+            shared.utilisation.store(u.to_bits(), Ordering::Relaxed);
+            (window_start, cpu_start) = (now, cpu);
         }
         match wake {
             Some(t) => {
@@ -245,7 +334,12 @@ fn run_worker(inbox: &Receiver<Job>, sessions: &AtomicUsize) {
                     std::thread::park_timeout(t - now);
                 }
             }
-            None if open => std::thread::park(),
+            None if open => {
+                // idle: nothing to measure until a session comes
+                shared.utilisation.store(0f64.to_bits(), Ordering::Relaxed);
+                std::thread::park();
+                (window_start, cpu_start) = (Instant::now(), timing::thread_cpu_time());
+            }
             None => return,
         }
     }

@@ -55,6 +55,9 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         (None, None) => None,
         _ => bail!("--tls-cert and --tls-key go together"),
     };
+    if !(a.max_tick_load > 0.0 && a.max_tick_load <= 1.0) {
+        bail!("--max-tick-load must lie in (0, 1], got {}", a.max_tick_load);
+    }
     if a.tick_workers.is_some_and(|n| n > 256) {
         bail!(
             "--tick-workers {} is more than 256: one per CPU is the default",
@@ -78,6 +81,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             pin: a.pin_tick_workers,
             fifo_priority: a.tick_fifo,
             on_start: None,
+            max_utilisation: a.max_tick_load,
         },
         ..ServerConfig::default()
     };
