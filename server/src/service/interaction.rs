@@ -24,6 +24,10 @@ use crate::session::{StreamId, SubmitError, ToolCommand};
 /// awaited this long at most.
 const DRAIN: Duration = Duration::from_secs(2);
 
+/// When a session closes under a stream, the states still arriving are counted as unanswered
+/// until the client pauses this long.
+const INBOUND_PAUSE: Duration = Duration::from_millis(100);
+
 /// Answers a stream holds before its consumer reads them (beyond: dropped, counted).
 const ANSWER_CAPACITY: usize = 4096;
 
@@ -181,6 +185,16 @@ async fn pump(
                     answered += 1;
                     if out.send(Ok(convert::tool_response(&a))).await.is_err() {
                         return;
+                    }
+                }
+                // the states the client sent before the close that this stream had not read
+                // yet are unanswered too: count those that arrive without a pause
+                if drain_until.is_none() {
+                    while let Ok(Ok(Some(_))) = tokio::time::timeout(INBOUND_PAUSE, inbound.message()).await {
+                        sent += 1;
+                        if tokio::time::Instant::now() >= until {
+                            break;
+                        }
                     }
                 }
                 fail_pending(&out, sent - answered).await;

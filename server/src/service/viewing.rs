@@ -12,6 +12,7 @@
 
 use std::pin::Pin;
 use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 
 use tokio::sync::{mpsc, watch};
@@ -87,9 +88,15 @@ impl Pacer {
             self.sent += 1;
             convert::frame(&f, self.sent)
         } else {
+            // the tissue's step now (frames and answers carry steps), the session's time
             let s = &self.entry.session;
-            let tick = s.stats().ticks.load(std::sync::atomic::Ordering::Relaxed);
-            convert::heartbeat(&f, self.sent, tick, tick as f64 * s.config().period.as_secs_f64())
+            let (ticks, steps) = (s.stats().ticks.load(Ordering::Relaxed), s.stats().steps.load(Ordering::Relaxed));
+            convert::heartbeat(
+                &f,
+                self.sent,
+                steps.saturating_sub(1).max(f.tick),
+                ticks as f64 * s.config().period.as_secs_f64(),
+            )
         };
         msg.message = self.message;
         self.message += 1;

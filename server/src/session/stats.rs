@@ -78,8 +78,11 @@ impl Histograms {
 /// Counters and histograms shared between the tick thread and readers.
 #[derive(Debug)]
 pub struct TickStats {
-    /// Ticks run.
+    /// Ticks run (deadline ticks: the session's periods).
     pub ticks: AtomicU64,
+    /// The tissue's steps so far (one per answer, one per period that answered none), as of
+    /// the last deadline tick: what a heartbeat says is the session's now.
+    pub steps: AtomicU64,
     /// Ticks that started more than one period after their deadline.
     pub misses: AtomicU64,
     /// Tool states answered.
@@ -118,6 +121,7 @@ impl Default for TickStats {
         let _ = empty.push(Box::default());
         Self {
             ticks: AtomicU64::new(0),
+            steps: AtomicU64::new(0),
             misses: AtomicU64::new(0),
             answered: AtomicU64::new(0),
             rejected: AtomicU64::new(0),

@@ -57,8 +57,9 @@ pub(super) struct TickLoop {
     /// One-shot events ([`Events::ONE_SHOT`]) of ticks that answered no one, owed to the next
     /// answer.
     pub owed: u32,
-    /// Pipeline ticks so far: the tissue's steps, one per answer and one per period that
-    /// answered none. Answers and frames carry the number of the step they show.
+    /// The tissue's steps so far: one per answer (a pipeline tick) and one per period that
+    /// answered none (a pipeline tick replaying the last tool state, or, before any tool, a
+    /// period at rest). Answers and frames carry the number of the step they show.
     pub steps: u64,
 }
 
@@ -283,14 +284,19 @@ impl TickLoop {
             // one wake-up of the dispatcher per tick, however many answers it carries
             self.answers.wake();
         }
-        let state = match clock.this.state.take() {
-            Some(state) => Some(state),
-            None => clock.this.last_input.map(|input| {
+        let state = match (clock.this.state.take(), clock.this.last_input) {
+            (Some(state), _) => Some(state),
+            (None, Some(input)) => {
                 // time goes on for the tissue; what happened is owed to the next answer
                 let (_, st) = self.step(&input);
                 self.owed |= st.events.0 & Events::ONE_SHOT;
-                st
-            }),
+                Some(st)
+            }
+            (None, None) => {
+                // no tool yet: the tissue rests through the period, a step all the same
+                self.steps += 1;
+                None
+            }
         };
         if let Some(state) = state {
             self.latest.write(Latest {
@@ -299,6 +305,7 @@ impl TickLoop {
                 state,
             });
         }
+        self.stats.steps.store(self.steps, Ordering::Relaxed);
         self.stats.ticks.fetch_add(1, Ordering::Relaxed);
         clock.tick += 1;
         // the periodic bookkeeping (histogram hand-over, the CPU figure, the bridge's report)
