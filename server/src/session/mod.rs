@@ -210,7 +210,7 @@ pub struct Session {
     stats: Arc<TickStats>,
     stop: Arc<AtomicBool>,
     /// Where the tick loop comes back when it has ended ([`scheduler::Job`]).
-    tick_done: std::sync::Mutex<Receiver<Box<tick::TickLoop>>>,
+    tick_done: std::sync::Mutex<Receiver<(Box<tick::TickLoop>, tick::Clock)>>,
     /// Whether the tick loop has ended.
     tick_finished: Arc<AtomicBool>,
     /// The answer dispatcher, the frame thread, and the tick thread of a session that has
@@ -574,11 +574,14 @@ impl Session {
         self.stats.snapshot()
     }
 
-    /// Blocks until the tick loop has ended and come back (dropped here, never on a worker).
+    /// Blocks until the tick loop has ended and come back, then hands its last recordings
+    /// over to the statistics (here, never on a worker) and drops it.
     fn await_tick_loop(&mut self) {
-        if let Ok(done) = self.tick_done.get_mut() {
+        if let Ok(done) = self.tick_done.get_mut()
             // Err: it came back already, or its worker is gone
-            let _ = done.recv();
+            && let Ok((tick, clock)) = done.recv()
+        {
+            tick.hand_over(&clock);
         }
     }
 

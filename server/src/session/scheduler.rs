@@ -14,7 +14,8 @@
 //!    [`super::Session::submit`] unparks it, so a tool state is answered on arrival.
 //!
 //! A session ended (stopped, its script over) is handed back to its owner through a one-slot
-//! channel and dropped there: a worker never frees a pipeline. Each session keeps its own
+//! channel, with its clock, and its last histograms are merged and both freed there: a worker
+//! never frees a pipeline nor takes the lock the statistics' readers take. Each session keeps its own
 //! period, deadlines, histograms and statistics, so what it observes is what it observed on a
 //! thread of its own. A session is placed on the least-loaded worker (each measures its
 //! utilisation, its CPU time over wall time) and stays on it; it is refused, saying the load, when
@@ -78,19 +79,21 @@ const UTILISATION_WINDOW: Duration = Duration::from_millis(250);
 pub(super) struct Job {
     pub tick: Box<TickLoop>,
     pub clock: Clock,
-    /// Where the ended loop goes back to its owner (one slot: never blocks).
-    pub done: SyncSender<Box<TickLoop>>,
+    /// Where the ended loop and its clock go back to their owner (one slot: never blocks).
+    pub done: SyncSender<(Box<TickLoop>, Clock)>,
     /// Set when the loop has ended.
     pub finished: Arc<AtomicBool>,
 }
 
 impl Job {
-    /// The loop has ended: its last recordings handed over, it goes back to its owner.
-    pub fn end(mut self) {
-        self.tick.finish(&self.clock);
+    /// The loop has ended: its answers closed, it goes back to its owner with its clock, who
+    /// hands its last recordings over ([`TickLoop::hand_over`]) and frees both — a worker
+    /// takes no lock a reader holds and frees nothing.
+    pub fn end(self) {
+        self.tick.close_answers();
         self.finished.store(true, Ordering::Release);
         // the owner may be gone (a session dropped mid-start): then it is dropped here
-        let _ = self.done.try_send(self.tick);
+        let _ = self.done.try_send((self.tick, self.clock));
     }
 }
 

@@ -342,10 +342,16 @@ impl TickLoop {
         true
     }
 
-    /// Hands the last recordings to the readers and closes the answers: the loop has ended.
-    pub fn finish(&mut self, clock: &Clock) {
-        self.stats.finish(&clock.local);
+    /// Closes the answers (an atomic and a wake-up: the dispatcher delivers what is left and
+    /// ends the streams) — on the worker, when the loop ends.
+    pub fn close_answers(&self) {
         self.answers.finish();
+    }
+
+    /// Hands the last recordings to the readers — by the loop's owner once the loop is back
+    /// from its worker: merging takes the lock the readers take.
+    pub fn hand_over(&self, clock: &Clock) {
+        self.stats.finish(&clock.local);
     }
 }
 

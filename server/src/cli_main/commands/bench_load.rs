@@ -27,10 +27,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, bail};
 use hdrhistogram::Histogram;
 use serde::Serialize;
-use vademecum_client::pb;
 use vademecum_engine::scene::Scene;
 
-use super::bench_session::{Echo, bench_tool, hist, null_loop_until};
+use super::bench_session::{EchoServer, bench_tool, echo_once, hist, null_loop_until};
 use crate::cli_main::cli::BenchLoadArgs;
 use crate::cli_main::commands::build::ensure_bundles;
 use crate::session::stats::Percentiles;
@@ -44,6 +43,16 @@ struct ClientAccount {
     /// status (the state sent then is counted here, not answered).
     refused: u64,
     rtt: Option<Histogram<u64>>,
+}
+
+impl ClientAccount {
+    /// A stream that could not be opened.
+    fn refused() -> Self {
+        Self {
+            refused: 1,
+            ..Self::default()
+        }
+    }
 }
 
 /// The figures of a run, as written to the JSON file.
@@ -194,12 +203,10 @@ async fn client(addr: String, id: String, period: Duration, stop: Arc<AtomicBool
     let mut account = ClientAccount::default();
     let mut h = hist();
     let Some(session) = connect(&addr, &id).await else {
-        account.refused = 1;
-        return account;
+        return ClientAccount::refused();
     };
     let Ok(mut tools) = session.interact().await else {
-        account.refused = 1;
-        return account;
+        return ClientAccount::refused();
     };
     let mut ticker = tokio::time::interval(period);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -249,21 +256,16 @@ async fn viewer(addr: String, id: String, stop: Arc<AtomicBool>) -> u64 {
 }
 
 /// The echo's round trips at `period` until `stop`.
-async fn echo_client(addr: String, period: Duration, stop: Arc<AtomicBool>) -> anyhow::Result<Histogram<u64>> {
-    let mut client = pb::interaction_client::InteractionClient::connect(addr).await?;
-    let (tx, rx) = tokio::sync::mpsc::channel(16);
-    tx.send(bench_tool(0)).await?;
-    let mut responses = client.interact(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
-    responses.message().await?;
+async fn echo_client(echo: Arc<EchoServer>, period: Duration, stop: Arc<AtomicBool>) -> anyhow::Result<Histogram<u64>> {
+    let (tx, mut responses) = echo.stream().await?;
     let mut h = hist();
     let mut ticker = tokio::time::interval(period);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    let mut i = 1u64;
+    let mut i = 0u64;
     while !stop.load(Ordering::Relaxed) {
         ticker.tick().await;
         let t0 = Instant::now();
-        tx.send(bench_tool(i)).await?;
-        responses.message().await?.context("the echo ended its stream")?;
+        echo_once(&tx, &mut responses, i).await?;
         let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
         i += 1;
     }
@@ -300,16 +302,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             sessions.push(s);
         }
         // the echo, in this process
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
-        let echo_addr = format!("http://{}", listener.local_addr()?);
-        let (echo_stop_tx, echo_stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let echo_server = tokio::spawn(
-            tonic::transport::Server::builder()
-                .add_service(pb::interaction_server::InteractionServer::new(Echo))
-                .serve_with_incoming_shutdown(crate::incoming(listener), async {
-                    let _ = echo_stop_rx.await;
-                }),
-        );
+        let echo_server = Arc::new(EchoServer::start().await?);
         let stop = Arc::new(AtomicBool::new(false));
         let cpu0 = server.cpu();
         let kinds0 = server.cpu_by_thread_kind();
@@ -325,7 +318,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
                 viewers.push(tokio::spawn(viewer(addr.clone(), s.id().to_string(), stop.clone())));
             }
         }
-        let echo = tokio::spawn(echo_client(echo_addr, period, stop.clone()));
+        let echo = tokio::spawn(echo_client(echo_server.clone(), period, stop.clone()));
         let null = {
             let stop = stop.clone();
             std::thread::spawn(move || null_loop_until(&stop))
@@ -370,8 +363,9 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         }
         let echo = echo.await??;
         let (null_p, null_misses, null_ticks) = null.join().map_err(|_| anyhow::anyhow!("the null loop panicked"))?;
-        let _ = echo_stop_tx.send(());
-        let _ = echo_server.await;
+        if let Ok(echo_server) = Arc::try_unwrap(echo_server) {
+            echo_server.stop().await;
+        }
         let (mut ticks, mut misses, mut worst_rate, mut worst_work) = (0, 0, 0.0f64, 0.0f64);
         for s in sessions {
             let st = s.close().await?;

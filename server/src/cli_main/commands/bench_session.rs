@@ -358,32 +358,64 @@ impl pb::interaction_server::Interaction for Echo {
     }
 }
 
+/// [`Echo`] served on a free loopback port in this runtime.
+pub(super) struct EchoServer {
+    /// Its URL.
+    pub url: String,
+    stop: tokio::sync::oneshot::Sender<()>,
+    task: tokio::task::JoinHandle<Result<(), tonic::transport::Error>>,
+}
+
+impl EchoServer {
+    pub async fn start() -> anyhow::Result<Self> {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+        let url = format!("http://{}", listener.local_addr()?);
+        let (stop, stop_rx) = tokio::sync::oneshot::channel::<()>();
+        let task = tokio::spawn(
+            tonic::transport::Server::builder()
+                .add_service(pb::interaction_server::InteractionServer::new(Echo))
+                .serve_with_incoming_shutdown(crate::incoming(listener), async {
+                    let _ = stop_rx.await;
+                }),
+        );
+        Ok(Self { url, stop, task })
+    }
+
+    /// An interaction stream to it, its first state (sequence 0) already echoed: send the
+    /// next from sequence 1.
+    pub async fn stream(&self) -> anyhow::Result<(tokio::sync::mpsc::Sender<pb::ToolState>, tonic::Streaming<pb::ToolResponse>)> {
+        let mut client = pb::interaction_client::InteractionClient::connect(self.url.clone()).await?;
+        let (tx, rx) = tokio::sync::mpsc::channel(16);
+        tx.send(bench_tool(0)).await?;
+        let mut responses = client.interact(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
+        anyhow::ensure!(responses.message().await?.is_some(), "the echo ended its stream");
+        Ok((tx, responses))
+    }
+
+    pub async fn stop(self) {
+        let _ = self.stop.send(());
+        let _ = self.task.await;
+    }
+}
+
+/// One round trip on an echo stream ([`EchoServer::stream`]): state `i + 1` out, its echo in.
+pub(super) async fn echo_once(
+    tx: &tokio::sync::mpsc::Sender<pb::ToolState>,
+    responses: &mut tonic::Streaming<pb::ToolResponse>,
+    i: u64,
+) -> anyhow::Result<()> {
+    tx.send(bench_tool(i + 1)).await?;
+    let r = responses.message().await?.context("the echo ended its stream")?;
+    anyhow::ensure!(r.seq == i + 1, "echo {} for tool state {}", r.seq, i + 1);
+    Ok(())
+}
+
 /// The round trip against [`Echo`] on a free loopback port, paced as the session's.
 async fn echo_round_trip(secs: f64) -> anyhow::Result<Percentiles> {
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
-    let addr = listener.local_addr()?;
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let server = tokio::spawn(
-        tonic::transport::Server::builder()
-            .add_service(pb::interaction_server::InteractionServer::new(Echo))
-            .serve_with_incoming_shutdown(crate::incoming(listener), async {
-                let _ = stop_rx.await;
-            }),
-    );
-    let mut client = pb::interaction_client::InteractionClient::connect(format!("http://{addr}")).await?;
-    let (tx, rx) = tokio::sync::mpsc::channel(1024);
-    tx.send(bench_tool(0)).await?;
-    let mut responses = client.interact(tokio_stream::wrappers::ReceiverStream::new(rx)).await?.into_inner();
-    anyhow::ensure!(responses.message().await?.is_some(), "the echo ended its stream");
-    let rtt = paced(secs, async |i| {
-        tx.send(bench_tool(i + 1)).await?;
-        let r = responses.message().await?.context("the echo ended its stream")?;
-        anyhow::ensure!(r.seq == i + 1, "echo {} for tool state {}", r.seq, i + 1);
-        Ok(())
-    })
-    .await?;
+    let echo = EchoServer::start().await?;
+    let (tx, mut responses) = echo.stream().await?;
+    let rtt = paced(secs, async |i| echo_once(&tx, &mut responses, i).await).await;
     drop(tx);
-    let _ = stop_tx.send(());
-    let _ = server.await;
-    Ok(rtt)
+    echo.stop().await;
+    rtt
 }
