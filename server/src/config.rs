@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::session::{SchedulerConfig, SessionConfig};
+use crate::session::{FrameWorkersConfig, SchedulerConfig, SessionConfig};
 
 /// Settings of a server.
 #[derive(Debug, Clone)]
@@ -44,6 +44,9 @@ pub struct ServerConfig {
     /// The tick workers that tick the sessions (`workers = 0`: a thread per session), unless
     /// `session.ticking` names workers already. A haptic session has a thread of its own.
     pub tick_workers: SchedulerConfig,
+    /// The frame workers that make the sessions' frames (`workers = 0`: a thread per session),
+    /// unless `session.framing` names workers already.
+    pub frame_workers: FrameWorkersConfig,
 }
 
 impl Default for ServerConfig {
@@ -66,6 +69,7 @@ impl Default for ServerConfig {
             tls: None,
             session: SessionConfig::default(),
             tick_workers: SchedulerConfig::default(),
+            frame_workers: FrameWorkersConfig::default(),
         }
     }
 }

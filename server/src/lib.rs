@@ -58,6 +58,11 @@ pub async fn run(
         tracing::info!(workers = config.tick_workers.workers, realtime = ?workers.realtime(), "tick workers started");
         config.session.ticking = Some(std::sync::Arc::new(workers));
     }
+    if config.session.framing.is_none() && config.frame_workers.workers > 0 {
+        let workers = session::FrameWorkers::new(config.frame_workers).context("cannot start the frame workers")?;
+        tracing::info!(workers = config.frame_workers.workers, "frame workers started");
+        config.session.framing = Some(std::sync::Arc::new(workers));
+    }
     let registry = Registry::new(config.clone());
     let auth = Auth::new(config.tokens.clone());
     let (health, health_service) = tonic_health::server::health_reporter();

@@ -88,21 +88,12 @@ pub fn render(registry: &Registry) -> String {
         }
     }
     bridge_metrics(&mut out, &all);
-    if let Some(workers) = &registry.config().session.ticking {
-        let _ = writeln!(
-            out,
-            "# HELP vademecum_tick_worker_utilisation CPU time over wall time of each tick worker (last quarter second).\n# TYPE vademecum_tick_worker_utilisation gauge"
-        );
-        for (k, u) in workers.utilisation().iter().enumerate() {
-            let _ = writeln!(out, "vademecum_tick_worker_utilisation{{worker=\"{k}\"}} {u}");
-        }
-        let _ = writeln!(
-            out,
-            "# HELP vademecum_tick_worker_sessions Sessions each tick worker ticks.\n# TYPE vademecum_tick_worker_sessions gauge"
-        );
-        for (k, n) in workers.load().iter().enumerate() {
-            let _ = writeln!(out, "vademecum_tick_worker_sessions{{worker=\"{k}\"}} {n}");
-        }
+    let config = &registry.config().session;
+    if let Some(w) = &config.ticking {
+        worker_metrics(&mut out, "tick", &w.utilisation(), &w.load());
+    }
+    if let Some(w) = &config.framing {
+        worker_metrics(&mut out, "frame", &w.utilisation(), &w.load());
     }
     let _ = writeln!(
         out,
@@ -120,6 +111,25 @@ pub fn render(registry: &Registry) -> String {
         histogram(&mut out, "vademecum_response_seconds", id, &h.response);
     }
     out
+}
+
+/// Each `kind` worker's utilisation and sessions (`vademecum_{kind}_worker_utilisation`,
+/// `vademecum_{kind}_worker_sessions`).
+fn worker_metrics(out: &mut String, kind: &str, utilisation: &[f64], sessions: &[usize]) {
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_{kind}_worker_utilisation CPU time over wall time of each {kind} worker (last quarter second).\n# TYPE vademecum_{kind}_worker_utilisation gauge"
+    );
+    for (k, u) in utilisation.iter().enumerate() {
+        let _ = writeln!(out, "vademecum_{kind}_worker_utilisation{{worker=\"{k}\"}} {u}");
+    }
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_{kind}_worker_sessions Sessions each {kind} worker serves.\n# TYPE vademecum_{kind}_worker_sessions gauge"
+    );
+    for (k, n) in sessions.iter().enumerate() {
+        let _ = writeln!(out, "vademecum_{kind}_worker_sessions{{worker=\"{k}\"}} {n}");
+    }
 }
 
 /// Per session with a haptic channel: states answered, and the device bridge's own figures

@@ -15,7 +15,8 @@ use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_server::session::{
-    Answer, PlaceError, SchedulerConfig, Script, Session, SessionConfig, SessionError, TickScheduler, ToolCommand, Trajectory,
+    Answer, FrameWorkers, FrameWorkersConfig, PlaceError, SchedulerConfig, Script, Session, SessionConfig, SessionError, TickScheduler,
+    ToolCommand, Trajectory,
 };
 
 /// Counts the allocations of threads that asked to be counted (the tick thread, through
@@ -272,38 +273,77 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
         ..SessionConfig::default()
     };
     let session = Session::start("s3".into(), scene, bundles, config).unwrap();
-    let mut frames = session.subscribe_frames();
     let g = session.geometry().clone();
     assert_eq!(g.organs.len(), 1);
     assert_eq!(g.organs[0].positions_m.len(), 3 * g.organs[0].nodes.len());
-    let mut rx = session.open_answers(64).unwrap();
-    let (mut last_seq, mut seen, mut moved) = (0u64, 0usize, false);
+    let (seen, moved) = watch_while_interacting(std::slice::from_ref(&session))[0];
+    assert!(seen >= 5, "only {seen} frames in 1.5 s");
+    assert!(moved, "frames in contact show the surface displaced");
+}
+
+/// Sessions whose frames are made by one frame worker each get their own frames, numbered in
+/// order and showing their own contact, and leave the worker when closed.
+#[test]
+fn sessions_on_a_frame_worker_each_get_their_frames() {
+    let (scene, bundles, _dir) = slab();
+    let framing = Arc::new(FrameWorkers::new(FrameWorkersConfig { workers: 1 }).unwrap());
+    let config = SessionConfig {
+        frame_rate_hz: 60.0,
+        framing: Some(framing.clone()),
+        ..SessionConfig::default()
+    };
+    let sessions: Vec<Session> = (0..3)
+        .map(|k| Session::start(format!("f{k}"), scene.clone(), bundles.clone(), config.clone()).unwrap())
+        .collect();
+    assert_eq!(framing.load(), [3]);
+    for (k, (seen, moved)) in watch_while_interacting(&sessions).into_iter().enumerate() {
+        assert!(seen >= 5, "session {k}: only {seen} frames in 1.5 s");
+        assert!(moved, "session {k}: frames in contact show the surface displaced");
+    }
+    for s in sessions {
+        let stats = s.close();
+        assert!(stats.frames >= 5, "{} frames counted", stats.frames);
+    }
+    assert_eq!(framing.load(), [0], "closed sessions leave their worker");
+}
+
+/// Drives each of `sessions` along its own path for 1.5 s while watching its frames: per
+/// session, the frames seen (numbered in increasing order, each the surface's size) and whether
+/// one in contact showed the surface displaced.
+fn watch_while_interacting(sessions: &[Session]) -> Vec<(usize, bool)> {
+    let mut frames: Vec<_> = sessions.iter().map(|s| s.subscribe_frames()).collect();
+    let mut rx: Vec<_> = sessions.iter().map(|s| s.open_answers(64).unwrap()).collect();
+    let mut last_seq = vec![0u64; sessions.len()];
+    let mut seen = vec![(0usize, false); sessions.len()];
     let start = Instant::now();
     let mut i = 0;
     while start.elapsed() < Duration::from_millis(1500) {
-        let _ = session.submit(ToolCommand {
-            input: tool(i),
-            seq: i as u64,
-            client_time_us: 0,
-            received: Instant::now(),
-            reply: rx.id(),
-        });
+        for (k, s) in sessions.iter().enumerate() {
+            let _ = s.submit(ToolCommand {
+                input: tool(i + 29 * k),
+                seq: i as u64,
+                client_time_us: 0,
+                received: Instant::now(),
+                reply: rx[k].id(),
+            });
+            while rx[k].try_recv().is_ok() {}
+        }
         i += 1;
-        while rx.try_recv().is_ok() {}
         std::thread::sleep(Duration::from_millis(2));
-        if frames.has_changed().unwrap() {
-            let f = frames.borrow_and_update().clone();
-            assert!(f.seq > last_seq, "frame {} after {last_seq}", f.seq);
-            last_seq = f.seq;
-            seen += 1;
-            assert_eq!(f.displacements_m[0].len(), g.organs[0].positions_m.len());
-            if f.contact.is_some() {
-                moved |= f.displacements_m[0].iter().any(|&u| u != 0.0);
+        for (k, s) in sessions.iter().enumerate() {
+            if frames[k].has_changed().unwrap() {
+                let f = frames[k].borrow_and_update().clone();
+                assert!(f.seq > last_seq[k], "session {k}: frame {} after {}", f.seq, last_seq[k]);
+                last_seq[k] = f.seq;
+                seen[k].0 += 1;
+                assert_eq!(f.displacements_m[0].len(), s.geometry().organs[0].positions_m.len());
+                if f.contact.is_some() {
+                    seen[k].1 |= f.displacements_m[0].iter().any(|&u| u != 0.0);
+                }
             }
         }
     }
-    assert!(seen >= 5, "only {seen} frames in 1.5 s");
-    assert!(moved, "frames in contact show the surface displaced");
+    seen
 }
 
 /// A scalpel at height `z` in the plane x = 4 of the patch_cut scene, its edge across the

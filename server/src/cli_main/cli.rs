@@ -260,6 +260,11 @@ pub struct ServeArgs {
     /// would take the least-loaded tick worker's measured utilisation above this fraction.
     #[arg(long, default_value_t = 0.6, value_name = "FRACTION")]
     pub max_tick_load: f64,
+    /// Frame workers: threads that each make the 30 Hz frames of many sessions (default: one
+    /// per CPU this process may use; 0: a thread per session). A co-rotational cutting session
+    /// makes its frames on a thread of its own.
+    #[arg(long, value_name = "N")]
+    pub frame_workers: Option<usize>,
 }
 
 /// Arguments of `vademecum inspect`.
@@ -712,6 +717,9 @@ pub struct BenchLoadArgs {
     /// Tick workers of the server (its default: one per CPU; 0: a thread per session).
     #[arg(long, value_name = "N")]
     pub tick_workers: Option<usize>,
+    /// Frame workers of the server (its default: one per CPU; 0: a thread per session).
+    #[arg(long, value_name = "N")]
+    pub frame_workers: Option<usize>,
     /// Folder of the organ's bundle (built there when missing). Default: out/organ.
     #[arg(long, value_name = "DIR")]
     pub bundles: Option<PathBuf>,

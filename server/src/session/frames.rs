@@ -4,6 +4,8 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::SyncSender;
+use std::thread::Thread;
 use std::time::{Duration, Instant};
 
 use tokio::sync::watch;
@@ -20,6 +22,7 @@ use vademecum_engine::scene::Scene;
 use super::demand::FrameDemand;
 use super::stats::TickStats;
 use super::tick::Latest;
+use super::workers::{PlaceError, Poll, Polled, Pool, PoolConfig};
 
 /// The reference surface of one organ.
 #[derive(Debug, Clone, PartialEq)]
@@ -310,7 +313,24 @@ pub(super) struct FrameProducer {
     interval: Duration,
     /// The rates its viewers ask.
     demand: Arc<FrameDemand>,
-    period: Duration,
+    /// The frames made so far.
+    seq: u64,
+    /// When the next frame is due.
+    next: Instant,
+    scratch: Scratch,
+}
+
+/// A producer's working arrays (kept between frames).
+#[derive(Default)]
+struct Scratch {
+    /// Each organ's vademecum coefficients under the contact.
+    coeffs: Vec<Vec<f64>>,
+    /// The same in `f32`, for the node-major field.
+    c32: Vec<Vec<f32>>,
+    /// The cut's enrichment coefficients.
+    cut_coeffs: Vec<f64>,
+    /// The uncut field at the cut's wall nodes.
+    uncut: Vec<f64>,
 }
 
 impl FrameProducer {
@@ -323,7 +343,6 @@ impl FrameProducer {
         stats: Arc<TickStats>,
         stop: Arc<AtomicBool>,
         rate_hz: f64,
-        period: Duration,
         cut: Option<Arc<CutStatus>>,
         tear: Option<TearView>,
     ) -> Self {
@@ -333,6 +352,11 @@ impl FrameProducer {
             .map(|(b, o)| b.surface_field(&o.nodes))
             .collect();
         let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
+        let scratch = Scratch {
+            coeffs: bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect(),
+            c32: bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect(),
+            ..Scratch::default()
+        };
         Self {
             corotational: None,
             bundles,
@@ -347,7 +371,9 @@ impl FrameProducer {
             stop,
             interval: Duration::from_secs_f64(1.0 / rate),
             demand: Arc::default(),
-            period,
+            seq: 0,
+            next: Instant::now(),
+            scratch,
         }
     }
 
@@ -370,88 +396,93 @@ impl FrameProducer {
         self
     }
 
-    /// Produces frames while someone watches and the tick state changes (a co-rotational
-    /// deformation advances every frame regardless).
-    pub fn run(mut self) {
-        if self.corotational.is_some() {
-            vademecum_engine::pipeline::lower_thread_priority();
+    /// A turn ([`super::workers`]): the next frame when it is due, made while someone
+    /// watches and the tick state changes (a co-rotational deformation advances every frame,
+    /// watched or not); when the next one is due.
+    pub fn poll(&mut self) -> Poll {
+        if self.stop.load(Ordering::Relaxed) {
+            return Poll::Ended;
         }
-        let mut seq = 0u64;
-        let mut coeffs: Vec<Vec<f64>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
-        let mut c32: Vec<Vec<f32>> = self.bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect();
-        let (mut cut_coeffs, mut uncut) = (Vec::new(), Vec::new());
-        let mut next = Instant::now();
-        while !self.stop.load(Ordering::Relaxed) {
-            let now = Instant::now();
-            if now < next {
-                // sleep in slices of a few ticks so a close is noticed promptly
-                std::thread::sleep((next - now).min(self.period * 20));
-                continue;
-            }
-            // a co-rotational deformation advances at the session's rate, watched or not
-            let interval = if self.corotational.is_some() {
-                self.interval
-            } else {
-                self.demand.interval(self.interval)
-            };
-            next += interval;
-            if next < now {
-                next = now + interval;
-            }
-            if let Some(c) = &mut self.corotational {
-                let l = *self.latest.read();
-                let picture = self.cut.as_ref().and_then(|s| s.picture());
-                let t = Instant::now();
-                match c.deformation.step_with_picture(picture.as_deref(), l.state.contact.as_ref()) {
-                    Ok(outcome) => self.stats.record_corotational(&outcome, t.elapsed()),
-                    Err(e) => {
-                        self.stats.corotational_failures.fetch_add(1, Ordering::Relaxed);
-                        tracing::warn!("a co-rotational frame failed: {e}");
-                    }
-                }
-                if self.tx.receiver_count() > 0 {
-                    let frame = self.corotational_frame(&l, seq + 1, picture.as_deref());
-                    seq += 1;
-                    self.tx.send_replace(Arc::new(frame));
-                    self.stats.frames.fetch_add(1, Ordering::Relaxed);
-                }
-                continue;
-            }
-            if self.tx.receiver_count() == 0 || !self.latest.updated() {
-                continue;
-            }
-            let l = *self.latest.read();
-            let mut frame = Frame::rest(&self.geometry);
-            seq += 1;
-            frame.seq = seq;
-            frame.tick = l.tick;
-            frame.time_s = l.time_us as f64 * 1e-6;
-            frame.force_n = l.state.force_n;
-            frame.contact = l.state.contact;
-            let mut loaded = None;
-            if let Some(c) = l.state.contact {
-                let v = &self.bundles[c.organ].vademecum;
-                // the deformable tissue's part of the load (the rest goes into the support)
-                if v.coefficients(c.nodes, c.weights, c.tissue_force_n, &mut coeffs[c.organ]) {
-                    for (a, b) in c32[c.organ].iter_mut().zip(&coeffs[c.organ]) {
-                        *a = *b as f32;
-                    }
-                    self.fields[c.organ].eval(&c32[c.organ], &mut frame.displacements_m[c.organ]);
-                    loaded = Some(c);
-                }
-            }
-            if let Some(p) = self.cut.as_ref().and_then(|s| s.picture()) {
-                self.draw_cut(&p, loaded, &coeffs, &mut cut_coeffs, &mut uncut, &mut frame);
-            }
-            if let Some(t) = &mut self.tear {
-                let o = t.pictures.peek_output_buffer().organ;
-                if let Some(surface) = self.geometry.organs.get(o) {
-                    t.draw(&surface.nodes, &mut frame);
-                }
-            }
+        let now = Instant::now();
+        if now < self.next {
+            return Poll::At(self.next);
+        }
+        // a co-rotational deformation advances at the session's rate, watched or not
+        let interval = if self.corotational.is_some() {
+            self.interval
+        } else {
+            self.demand.interval(self.interval)
+        };
+        self.next += interval;
+        if self.next < now {
+            self.next = now + interval;
+        }
+        if self.corotational.is_some() {
+            self.corotational_turn();
+        } else if self.tx.receiver_count() > 0 && self.latest.updated() {
+            let mut scratch = std::mem::take(&mut self.scratch);
+            let frame = self.frame(&mut scratch);
+            self.scratch = scratch;
             self.tx.send_replace(Arc::new(frame));
             self.stats.frames.fetch_add(1, Ordering::Relaxed);
         }
+        Poll::At(self.next)
+    }
+
+    /// Advances the co-rotational deformation one frame and publishes its frame when watched.
+    fn corotational_turn(&mut self) {
+        let Some(c) = &mut self.corotational else { return };
+        let l = *self.latest.read();
+        let picture = self.cut.as_ref().and_then(|s| s.picture());
+        let t = Instant::now();
+        match c.deformation.step_with_picture(picture.as_deref(), l.state.contact.as_ref()) {
+            Ok(outcome) => self.stats.record_corotational(&outcome, t.elapsed()),
+            Err(e) => {
+                self.stats.corotational_failures.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!("a co-rotational frame failed: {e}");
+            }
+        }
+        if self.tx.receiver_count() > 0 {
+            self.seq += 1;
+            let frame = self.corotational_frame(&l, self.seq, picture.as_deref());
+            self.tx.send_replace(Arc::new(frame));
+            self.stats.frames.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// The frame of the latest tick state: every organ's surface displaced by its
+    /// vademecum's field under the contact, with the cut and the damage drawn.
+    fn frame(&mut self, s: &mut Scratch) -> Frame {
+        let l = *self.latest.read();
+        let mut frame = Frame::rest(&self.geometry);
+        self.seq += 1;
+        frame.seq = self.seq;
+        frame.tick = l.tick;
+        frame.time_s = l.time_us as f64 * 1e-6;
+        frame.force_n = l.state.force_n;
+        frame.contact = l.state.contact;
+        let mut loaded = None;
+        if let Some(c) = l.state.contact {
+            let v = &self.bundles[c.organ].vademecum;
+            // the deformable tissue's part of the load (the rest goes into the support)
+            if v.coefficients(c.nodes, c.weights, c.tissue_force_n, &mut s.coeffs[c.organ]) {
+                for (a, b) in s.c32[c.organ].iter_mut().zip(&s.coeffs[c.organ]) {
+                    *a = *b as f32;
+                }
+                self.fields[c.organ].eval(&s.c32[c.organ], &mut frame.displacements_m[c.organ]);
+                loaded = Some(c);
+            }
+        }
+        if let Some(p) = self.cut.as_ref().and_then(|s| s.picture()) {
+            self.draw_cut(&p, loaded, &s.coeffs, &mut s.cut_coeffs, &mut s.uncut, &mut frame);
+        }
+        if let Some(t) = &mut self.tear {
+            let o = t.pictures.peek_output_buffer().organ;
+            if let Some(surface) = self.geometry.organs.get(o) {
+                t.draw(&surface.nodes, &mut frame);
+            }
+        }
+        frame
     }
 
     /// The frame of a co-rotational cutting session: the deformation's surface, cut walls
@@ -578,5 +609,91 @@ impl FrameProducer {
             side: w.side.clone(),
             displacements_m,
         });
+    }
+}
+
+/// A session's frame producer on its way to a frame worker (or a thread of its own), and the
+/// signal that it has ended.
+pub(super) struct FrameJob {
+    pub producer: FrameProducer,
+    /// Signalled once the producer has been dropped (one slot: never blocks).
+    pub done: SyncSender<()>,
+}
+
+impl Polled for FrameJob {
+    /// A co-rotational deformation (milliseconds per frame, on a thread of its own) yields to
+    /// the tick threads.
+    fn start(&mut self) {
+        if self.producer.corotational.is_some() {
+            vademecum_engine::pipeline::lower_thread_priority();
+        }
+        self.producer.next = Instant::now();
+    }
+
+    fn poll(&mut self) -> Poll {
+        self.producer.poll()
+    }
+
+    fn end(self) {
+        drop(self.producer);
+        let _ = self.done.try_send(());
+    }
+}
+
+/// How the frame workers run.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameWorkersConfig {
+    /// Worker threads (at least 1).
+    pub workers: usize,
+}
+
+impl Default for FrameWorkersConfig {
+    /// One worker per CPU the process may use.
+    fn default() -> Self {
+        Self {
+            workers: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        }
+    }
+}
+
+/// A pool of frame workers: a few threads that each make the frames of many sessions (a
+/// session's frames cost about a millisecond at 30 Hz on the liver — one thread sleeping per
+/// session would cost a thread and its wake-ups each). A co-rotational session's producer runs
+/// on a thread of its own at a lowered priority (its deformation costs milliseconds per frame,
+/// and would delay the other sessions' frames).
+#[derive(Debug)]
+pub struct FrameWorkers {
+    pool: Pool<FrameJob>,
+}
+
+impl FrameWorkers {
+    /// Starts `config.workers` workers at normal priority.
+    pub fn new(config: FrameWorkersConfig) -> std::io::Result<Self> {
+        let pool = Pool::new(
+            "frame-worker",
+            PoolConfig {
+                workers: config.workers,
+                pin: false,
+                fifo_priority: None,
+                on_start: None,
+            },
+        )?;
+        Ok(Self { pool })
+    }
+
+    /// Sessions on each worker.
+    pub fn load(&self) -> Vec<usize> {
+        self.pool.load()
+    }
+
+    /// Each worker's measured utilisation (CPU time over wall time, last quarter second).
+    pub fn utilisation(&self) -> Vec<f64> {
+        self.pool.utilisation()
+    }
+
+    /// Hands `job` to the least-loaded worker; returns the thread to unpark when the session
+    /// stops.
+    pub(super) fn place(&self, job: FrameJob) -> Result<Thread, PlaceError> {
+        self.pool.place(job, None)
     }
 }

@@ -21,7 +21,9 @@
 //! - The **frame thread** reads the latest tick state at the frame rate, turns it into the
 //!   displacement of every organ's surface (f32, node-major modes) and publishes it on a
 //!   `tokio::sync::watch` channel, where the latest frame wins: a slow viewer skips frames
-//!   and never delays a force.
+//!   and never delays a force. It is a frame worker shared with other sessions
+//!   ([`frames::FrameWorkers`], [`SessionConfig::framing`]) or a thread of the session's own
+//!   (always for a co-rotational cutting session, whose deformation costs milliseconds a frame).
 //!
 //! Backpressure: the command queue is bounded ([`SessionConfig::queue`]); when it is full,
 //! [`Session::submit`] refuses the tool state at once ([`SubmitError::Busy`]) instead of
@@ -34,6 +36,7 @@ pub mod scheduler;
 pub mod script;
 pub mod stats;
 mod tick;
+mod workers;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -49,9 +52,10 @@ use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pipeline::{GraspSite, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
+use workers::Polled;
 
 pub use answers::{AnswerStream, StreamId};
-pub use frames::{Frame, SurfaceGeometry};
+pub use frames::{Frame, FrameWorkers, FrameWorkersConfig, SurfaceGeometry};
 pub use scheduler::{PlaceError, SchedulerConfig, TickScheduler};
 pub use script::{builtin_grasp, builtin_incisions, builtin_palpation, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
@@ -163,6 +167,9 @@ pub struct SessionConfig {
     /// The tick workers the session is ticked by ([`scheduler`]); `None`: a thread of its own.
     /// A haptic session always has a thread of its own.
     pub ticking: Option<Arc<TickScheduler>>,
+    /// The frame workers that make the session's frames ([`frames::FrameWorkers`]); `None`: a
+    /// thread of its own. A co-rotational cutting session always has a thread of its own.
+    pub framing: Option<Arc<FrameWorkers>>,
 }
 
 impl Default for SessionConfig {
@@ -174,6 +181,7 @@ impl Default for SessionConfig {
             haptic: None,
             on_tick_thread: None,
             ticking: None,
+            framing: None,
         }
     }
 }
@@ -202,6 +210,10 @@ pub struct Session {
     commands: SyncSender<Command>,
     /// The tick thread, unparked when a tool state is queued (answers on arrival).
     tick_thread: std::thread::Thread,
+    /// The thread making its frames (a frame worker's, or its own), unparked when it stops.
+    frame_thread: std::thread::Thread,
+    /// Signalled when its frame producer has ended and been dropped.
+    frames_done: std::sync::Mutex<Receiver<()>>,
     router: Arc<answers::Router>,
     frames: watch::Sender<Arc<Frame>>,
     /// The rates viewers ask frames at.
@@ -316,27 +328,6 @@ impl Session {
             done,
             finished: tick_finished.clone(),
         };
-        let mut threads = Vec::with_capacity(3);
-        let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread) {
-            (Some(workers), None, None) => match workers.place(job) {
-                Ok(thread) => (thread, None),
-                Err(e) => {
-                    let _ = dispatcher.join();
-                    return Err(e.into());
-                }
-            },
-            _ => match Self::spawn_tick_thread(&id, job, &config) {
-                Ok((thread, realtime)) => {
-                    let t = thread.thread().clone();
-                    threads.push(thread);
-                    (t, realtime)
-                }
-                Err(e) => {
-                    let _ = dispatcher.join();
-                    return Err(e);
-                }
-            },
-        };
         let tear = match (tear_pictures, tear_offline) {
             (Some(pictures), offline) if !offline.is_empty() => {
                 let o = pictures.peek_output_buffer().organ;
@@ -347,6 +338,7 @@ impl Session {
             }
             _ => None,
         };
+        let frame_demand = Arc::new(demand::FrameDemand::default());
         let producer = frames::FrameProducer::new(
             bundles.clone(),
             geometry.clone(),
@@ -355,22 +347,67 @@ impl Session {
             stats.clone(),
             stop.clone(),
             config.frame_rate_hz,
-            config.period,
             cut.clone(),
             tear,
-        );
-        let frame_demand = Arc::new(demand::FrameDemand::default());
-        let producer = producer.with_demand(frame_demand.clone());
+        )
+        .with_demand(frame_demand.clone());
+        let own_frame_thread = corotational.is_some() || config.framing.is_none();
         let producer = match corotational {
             Some(c) => producer.with_corotational(c),
             None => producer,
         };
-        let frame_thread = std::thread::Builder::new()
-            .name(format!("frames-{id}"))
-            .spawn(move || producer.run())
-            .expect("the OS can start a thread");
+        let (frames_done_tx, frames_done) = mpsc::sync_channel(1);
+        let frame_job = frames::FrameJob {
+            producer,
+            done: frames_done_tx,
+        };
+        let mut threads = Vec::with_capacity(3);
         threads.push(dispatcher);
-        threads.push(frame_thread);
+        let frame_thread = match &config.framing {
+            Some(workers) if !own_frame_thread => match workers.place(frame_job) {
+                Ok(thread) => thread,
+                Err(e) => {
+                    job.end(); // closes its answers: the dispatcher ends
+                    threads.drain(..).for_each(|t| drop(t.join()));
+                    return Err(e.into());
+                }
+            },
+            _ => {
+                let t = std::thread::Builder::new()
+                    .name(format!("frames-{id}"))
+                    .spawn(move || workers::run_alone(frame_job))
+                    .expect("the OS can start a thread");
+                let thread = t.thread().clone();
+                threads.push(t);
+                thread
+            }
+        };
+        let abandon = |threads: &mut Vec<JoinHandle<()>>| {
+            stop.store(true, Ordering::Relaxed);
+            frame_thread.unpark();
+            let _ = frames_done.recv();
+            threads.drain(..).for_each(|t| drop(t.join()));
+        };
+        let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread) {
+            (Some(workers), None, None) => match workers.place(job) {
+                Ok(thread) => (thread, None),
+                Err(e) => {
+                    abandon(&mut threads);
+                    return Err(e.into());
+                }
+            },
+            _ => match Self::spawn_tick_thread(&id, job, &config) {
+                Ok((thread, realtime)) => {
+                    let t = thread.thread().clone();
+                    threads.push(thread);
+                    (t, realtime)
+                }
+                Err(e) => {
+                    abandon(&mut threads);
+                    return Err(e);
+                }
+            },
+        };
         Ok(Self {
             id,
             scene,
@@ -381,6 +418,8 @@ impl Session {
             tool_kinds,
             commands,
             tick_thread,
+            frame_thread,
+            frames_done: std::sync::Mutex::new(frames_done),
             router,
             frames,
             frame_demand,
@@ -399,7 +438,7 @@ impl Session {
 
     /// A thread of the session's own for its tick loop: a haptic session's (it opens the
     /// haptic channel's ports, which belong to the thread that uses them, and says whether it
-    /// could — what the OS granted it), or a worker of its own ([`scheduler::run_alone`]).
+    /// could — what the OS granted it), or a worker of its own ([`workers::run_alone`]).
     fn spawn_tick_thread(
         id: &str,
         job: scheduler::Job,
@@ -416,7 +455,7 @@ impl Session {
                 }
                 let Some(h) = haptic else {
                     let _ = opened_tx.send(Ok(None));
-                    return scheduler::run_alone(job);
+                    return workers::run_alone(job);
                 };
                 let mut job = job;
                 match HapticPeer::open(&h.channel, h.wait, h.spin_window, job.tick.period) {
@@ -557,6 +596,7 @@ impl Session {
     pub fn stop(&self) {
         self.stop.store(true, Ordering::Relaxed);
         self.tick_thread.unpark();
+        self.frame_thread.unpark();
     }
 
     /// Stops the threads (the tick thread finishes its current tick), joins them and returns
@@ -586,9 +626,12 @@ impl Session {
     }
 
     fn shutdown(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        self.tick_thread.unpark();
+        self.stop();
         self.await_tick_loop();
+        if let Ok(done) = self.frames_done.get_mut() {
+            // Err: it ended already
+            let _ = done.recv();
+        }
         for t in self.threads.drain(..) {
             let _ = t.join();
         }

@@ -11,6 +11,7 @@ use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_PROBE, TOOL_SCA
 
 use super::answers::{AnswerRing, StreamId};
 use super::stats::{Histograms, TickStats};
+use super::workers::Poll;
 use super::{Answer, Command, Trajectory};
 
 /// How many ticks between hand-overs of the tick thread's histograms to the readers.
@@ -89,15 +90,6 @@ impl Default for Clock {
             work_total_ns: 0,
         }
     }
-}
-
-/// What a worker does next with a tick loop ([`TickLoop::poll`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Poll {
-    /// Wake it again at this instant (its next deadline, or now when a backlog waits).
-    At(Instant),
-    /// It has ended (stopped, its script over, or every sender gone).
-    Ended,
 }
 
 impl TickLoop {

@@ -64,6 +64,7 @@ struct Report {
     seconds: f64,
     rate_hz: f64,
     tick_workers: Option<usize>,
+    frame_workers: Option<usize>,
     null_loop_lateness_us: Percentiles,
     null_loop_misses: u64,
     null_loop_ticks: u64,
@@ -114,6 +115,9 @@ impl Server {
             .stderr(Stdio::null());
         if let Some(n) = a.tick_workers {
             cmd.args(["--tick-workers", &n.to_string()]);
+        }
+        if let Some(n) = a.frame_workers {
+            cmd.args(["--frame-workers", &n.to_string()]);
         }
         let mut child = cmd.spawn().context("cannot start the server")?;
         let stdout = child.stdout.take().context("the server's output")?;
@@ -381,6 +385,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             seconds: a.seconds,
             rate_hz: a.rate,
             tick_workers: a.tick_workers,
+            frame_workers: a.frame_workers,
             null_loop_lateness_us: null_p,
             null_loop_misses: null_misses,
             null_loop_ticks: null_ticks,
@@ -414,13 +419,14 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
     let pct = |n: u64, of: u64| 100.0 * n as f64 / of.max(1) as f64;
     writeln!(
         out,
-        "{} sessions x {} client(s) at {} Hz + {} viewer(s) at 30 Hz, {} s, tick workers: {}",
+        "{} sessions x {} client(s) at {} Hz + {} viewer(s) at 30 Hz, {} s, tick workers: {}, frame workers: {}",
         r.sessions,
         r.clients_per_session,
         r.rate_hz,
         r.viewers_per_session,
         r.seconds,
-        r.tick_workers.map_or("default (one per CPU)".to_string(), |n| n.to_string())
+        r.tick_workers.map_or("default (one per CPU)".to_string(), |n| n.to_string()),
+        r.frame_workers.map_or("default (one per CPU)".to_string(), |n| n.to_string())
     )?;
     writeln!(out, "| what | samples | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) | misses |")?;
     writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;

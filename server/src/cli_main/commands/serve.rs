@@ -58,11 +58,10 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     if !(a.max_tick_load > 0.0 && a.max_tick_load <= 1.0) {
         bail!("--max-tick-load must lie in (0, 1], got {}", a.max_tick_load);
     }
-    if a.tick_workers.is_some_and(|n| n > 256) {
-        bail!(
-            "--tick-workers {} is more than 256: one per CPU is the default",
-            a.tick_workers.unwrap_or(0)
-        );
+    for (flag, n) in [("--tick-workers", a.tick_workers), ("--frame-workers", a.frame_workers)] {
+        if let Some(n) = n.filter(|&n| n > 256) {
+            bail!("{flag} {n} is more than 256: one per CPU is the default");
+        }
     }
     let config = ServerConfig {
         tls,
@@ -82,6 +81,9 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             fifo_priority: a.tick_fifo,
             on_start: None,
             max_utilisation: a.max_tick_load,
+        },
+        frame_workers: crate::session::FrameWorkersConfig {
+            workers: a.frame_workers.unwrap_or(crate::session::FrameWorkersConfig::default().workers),
         },
         ..ServerConfig::default()
     };
