@@ -32,6 +32,7 @@ pub mod damage;
 pub mod dense;
 pub mod fem;
 pub mod material;
+pub mod memory;
 pub mod mesh;
 pub mod meshless;
 pub mod pgd;

@@ -241,6 +241,7 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
     use std::sync::atomic::Ordering::Relaxed;
     let st = e.session.stats().snapshot();
     let b = st.bridge.unwrap_or_default();
+    let memory = e.session.memory();
     pb::SessionStats {
         ticks: st.ticks,
         deadline_misses: st.misses,
@@ -260,6 +261,12 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
         bridge_deadline_misses: b.deadline_misses,
         bridge_watchdog_ticks: b.watchdog_ticks,
         bridge_input_rejections: b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+        memory_bytes: memory.total(),
+        memory: memory
+            .parts
+            .into_iter()
+            .map(|(part, bytes)| pb::MemoryPart { part, bytes })
+            .collect(),
     }
 }
 

@@ -88,6 +88,15 @@ pub fn render(registry: &Registry) -> String {
         }
     }
     bridge_metrics(&mut out, &all);
+    let _ = writeln!(
+        out,
+        "# HELP vademecum_session_memory_bytes Memory a session holds of its own, by part (shared bundles not counted).\n# TYPE vademecum_session_memory_bytes gauge"
+    );
+    for e in &all {
+        for (part, bytes) in e.session.memory().parts {
+            let _ = writeln!(out, "vademecum_session_memory_bytes{{{},part=\"{part}\"}} {bytes}", series(e));
+        }
+    }
     let config = &registry.config().session;
     if let Some(w) = &config.ticking {
         worker_metrics(&mut out, "tick", &w.utilisation(), &w.load());

@@ -281,6 +281,30 @@ fn viewers_get_monotonically_numbered_frames_while_interaction_continues() {
     assert!(moved, "frames in contact show the surface displaced");
 }
 
+/// A session reports the memory it holds of its own by part: its one effect's (at least its
+/// contact surface: triangles, their geometry and adjacency), its queues, histograms and
+/// frames; an effect the scene does not name has no part; a second session of the same bundle
+/// reports the same.
+#[test]
+fn a_session_reports_the_memory_it_holds_by_part() {
+    let (scene, bundles, _dir) = slab();
+    let a = Session::start("mem-a".into(), scene.clone(), bundles.clone(), SessionConfig::default()).unwrap();
+    let m = a.memory();
+    let parts: Vec<&str> = m.parts.iter().map(|p| p.0.as_str()).collect();
+    assert_eq!(parts, ["effect:palpation", "queues", "histograms", "frames"]);
+    let bytes = |part: &str| m.parts.iter().find(|p| p.0 == part).unwrap().1;
+    let triangles = (a.geometry().organs[0].triangles.len() / 3) as u64;
+    // per triangle: its nodes (24 B), geometry (96 B) and neighbours (12 B)
+    assert!(bytes("effect:palpation") >= 132 * triangles, "{m:?}");
+    // the command queue alone: 4,096 tool states of ~100 B
+    assert!(bytes("queues") > 4096 * 100, "{m:?}");
+    let nodes = a.geometry().organs[0].nodes.len() as u64;
+    assert!(bytes("frames") >= 2 * 12 * nodes, "{m:?}");
+    assert_eq!(m.total(), m.parts.iter().map(|p| p.1).sum::<u64>());
+    let b = Session::start("mem-b".into(), scene, bundles, SessionConfig::default()).unwrap();
+    assert_eq!(b.memory(), m, "sessions of one bundle hold the same");
+}
+
 /// Sessions whose frames are made by one frame worker each get their own frames, numbered in
 /// order and showing their own contact, and leave the worker when closed.
 #[test]
@@ -369,6 +393,9 @@ fn happenings_of_ticks_that_answer_no_one_come_with_the_next_answer() {
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
     let bundles = vec![Arc::new(offline::load_bundle(dir.path()).unwrap())];
     let session = Session::start("s5".into(), Arc::new(scene), bundles, SessionConfig::default()).unwrap();
+    let uncut = session.memory();
+    let cutting = |m: &vademecum_server::session::SessionMemory| m.parts.iter().find(|p| p.0 == "effect:cutting").map(|p| p.1);
+    assert!(cutting(&uncut).is_some_and(|b| b > 0), "{uncut:?}");
     let mut rx = session.open_answers(16).unwrap();
     let mut events = 0;
     let mut seq = 0;
@@ -402,6 +429,13 @@ fn happenings_of_ticks_that_answer_no_one_come_with_the_next_answer() {
     // a happening is reported once, not latched: the blade held still advances nothing more
     let later = (0..5).fold(u32::MAX, |all, _| all & send(blade(3.9)));
     assert!(later & Events::CUT_ADVANCED == 0 && later & Events::CONTACT != 0, "events {later}");
+    // the cut's enriched unknowns are the session's memory too
+    assert!(
+        cutting(&session.memory()) > cutting(&uncut),
+        "{:?} then {:?}",
+        uncut,
+        session.memory()
+    );
     session.close();
 }
 

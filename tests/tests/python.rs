@@ -251,7 +251,7 @@ fn a_python_grpcio_client_creates_a_session_and_receives_forces() {
             .iter()
             .find(|x| x.label.is_empty())
             .expect("the killed client's session is listed");
-        let mut interacting = orphan.stats.unwrap_or_default().interacting_clients;
+        let mut interacting = orphan.stats.as_ref().map_or(0, |s| s.interacting_clients);
         for _ in 0..100 {
             if interacting == 0 {
                 break;

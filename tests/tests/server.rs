@@ -298,6 +298,23 @@ fn metrics_export_tick_latency_histograms_misses_and_clients() {
         "{text}"
     );
     assert!(
+        text.contains("vademecum_frame_worker_sessions{worker=\"0\"}") && text.contains("vademecum_frame_worker_utilisation{worker=\"0\"}"),
+        "{text}"
+    );
+    // a palpation session's memory by part, its effect's among them and nothing for effects
+    // it does not have
+    let memory: Vec<(&str, u64)> = text
+        .lines()
+        .filter(|l| l.starts_with("vademecum_session_memory_bytes{"))
+        .filter_map(|l| {
+            let part = l.split("part=\"").nth(1)?.split('"').next()?;
+            Some((part, l.rsplit(' ').next()?.parse().ok()?))
+        })
+        .collect();
+    let parts: Vec<&str> = memory.iter().map(|m| m.0).collect();
+    assert_eq!(parts, ["effect:palpation", "queues", "histograms", "frames"], "{text}");
+    assert!(memory.iter().all(|m| m.1 > 0), "{memory:?}");
+    assert!(
         text.contains("vademecum_interacting_clients{session=") && text.contains("} 1"),
         "{text}"
     );

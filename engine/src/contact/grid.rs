@@ -34,6 +34,12 @@ pub struct Grid {
 }
 
 impl Grid {
+    /// Bytes of its buffers.
+    pub fn heap_bytes(&self) -> usize {
+        use crate::memory::vec_bytes;
+        vec_bytes(&self.ptr) + vec_bytes(&self.tris) + vec_bytes(&self.class)
+    }
+
     /// Bins triangles given by their bounding boxes `(lo, hi)`.
     pub fn new(boxes: &[([f64; 3], [f64; 3])]) -> Self {
         let lo = [0, 1, 2].map(|k| boxes.iter().map(|b| b.0[k]).fold(f64::INFINITY, f64::min));

@@ -53,6 +53,12 @@ fn unit(a: [f64; 3]) -> Option<[f64; 3]> {
 }
 
 impl Surface {
+    /// Bytes of its buffers (triangles, geometry, normals, adjacency, grid).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::memory::vec_bytes;
+        vec_bytes(&self.tris) + vec_bytes(&self.geom) + vec_bytes(&self.vertex_normals) + vec_bytes(&self.across) + self.grid.heap_bytes()
+    }
+
     /// Prepares the triangles `tris` (outward-oriented, indices into `nodes`) of a closed
     /// surface.
     pub fn new(nodes: &[[f64; 3]], tris: Vec<[usize; 3]>) -> Self {

@@ -391,6 +391,27 @@ pub struct OnlineTear {
 }
 
 impl OnlineTear {
+    /// Bytes of its state and working arrays (the offline data it reads are shared).
+    pub fn heap_bytes(&self) -> usize {
+        use crate::memory::vec_bytes;
+        let amplitudes = |a: &TearAmplitudes| vec_bytes(&a.vad) + vec_bytes(&a.ritz);
+        vec_bytes(&self.state)
+            + vec_bytes(&self.u)
+            + amplitudes(&self.amplitudes)
+            + vec_bytes(&self.sigma0)
+            + vec_bytes(&self.saved_state)
+            + vec_bytes(&self.saved_u)
+            + amplitudes(&self.saved_amplitudes)
+            + vec_bytes(&self.saved_sigma0)
+            + [
+                &self.g, &self.xi, &self.a, &self.coef, &self.du, &self.mat, &self.rhs, &self.y, &self.bv,
+            ]
+            .into_iter()
+            .map(vec_bytes)
+            .sum::<usize>()
+            + vec_bytes(&self.eqs)
+    }
+
     /// A virgin integrator.
     pub fn new(off: Arc<TearOffline>, variant: Variant, limits: StepLimits) -> Self {
         let m = &off.model;

@@ -26,6 +26,11 @@ pub struct DofMap {
 }
 
 impl DofMap {
+    /// Bytes of its equation numbers.
+    pub fn heap_bytes(&self) -> usize {
+        crate::memory::vec_bytes(&self.eq)
+    }
+
     /// Numbers the unconstrained degrees of freedom in order.
     pub fn new(constrained: &[bool]) -> Self {
         let mut eq = Vec::with_capacity(constrained.len());

@@ -98,6 +98,9 @@ pub const PARTIAL_EVERY: Duration = Duration::from_millis(33);
 /// lock), and the cut's shape behind a mutex the tick never touches.
 #[derive(Debug, Default)]
 pub struct CutStatus {
+    /// Bytes the cutting effect holds with the latest view the cut thread offered (0 before
+    /// the first cut; see `Effect::memory_bytes`).
+    pub memory_bytes: AtomicU64,
     /// Cells cut so far.
     pub cells: AtomicU64,
     /// Nodes cracked so far.
@@ -254,6 +257,11 @@ struct BladeSample {
     pushed: [f64; 3],
 }
 
+/// Bytes a cutting effect holds with the reduced model's view `view` ([`Effect::memory_bytes`]).
+fn memory_bytes(view: &CutView) -> usize {
+    view.shared_bytes() + 3 * view.own_bytes() + SAMPLES * std::mem::size_of::<BladeSample>()
+}
+
 /// How often the cut thread looks for new blade states.
 const POLL: Duration = Duration::from_micros(500);
 
@@ -382,6 +390,14 @@ impl Drop for Cutting {
 impl Effect for Cutting {
     fn name(&self) -> &'static str {
         "cutting"
+    }
+
+    /// The reduced cut model's view: the arrays its copies share once, and what each of the
+    /// three copies in flight holds (the tick's, one on its way, the cut thread's), and the
+    /// queue of blade states. Not counted: the cut thread's working model beyond its view
+    /// (the enrichment and, with local fields, the uncut stiffness's factorization).
+    fn memory_bytes(&self) -> usize {
+        memory_bytes(&self.view)
     }
 
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
@@ -531,6 +547,7 @@ impl CutThread {
             }
             if pending && !out {
                 let view = Box::new(self.online.model().view());
+                self.status.memory_bytes.store(memory_bytes(&view) as u64, Ordering::Relaxed);
                 if self.fresh.push(view).is_ok() {
                     out = true;
                     pending = false;

@@ -221,6 +221,9 @@ pub trait Effect: Send {
     /// Advances the effect by one tick for tool input `tool`, reading and updating `state`.
     /// Must not allocate, block or log.
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState);
+    /// Bytes of the state this effect holds for its session ([`crate::memory`]): its own
+    /// buffers, not the bundles it shares with other sessions.
+    fn memory_bytes(&self) -> usize;
     /// Forgets the state carried from tick to tick (the contact proxy): the next tick starts
     /// as if the tool had just appeared.
     fn reset(&mut self) {}
@@ -466,6 +469,11 @@ impl Pipeline {
     /// Names of the effects, in tick order.
     pub fn effect_names(&self) -> Vec<&'static str> {
         self.effects.iter().map(|e| e.name()).collect()
+    }
+
+    /// Bytes each effect holds for this session ([`Effect::memory_bytes`]), in tick order.
+    pub fn memory_bytes(&self) -> Vec<(&'static str, usize)> {
+        self.effects.iter().map(|e| (e.name(), e.memory_bytes())).collect()
     }
 
     /// The tool kinds this pipeline simulates (a palpation scene: the probe; a cutting

@@ -135,6 +135,14 @@ impl Effect for Palpation {
         "palpation"
     }
 
+    /// Each organ's contact surface (triangles, their geometry, the search grid) and the
+    /// scratch of the lattice blend.
+    fn memory_bytes(&self) -> usize {
+        crate::memory::vec_bytes(&self.organs)
+            + self.organs.iter().map(|o| o.surface.heap_bytes()).sum::<usize>()
+            + crate::memory::vec_bytes(&self.scratch)
+    }
+
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
         if tool.kind == super::ToolKind::Grasper {
             // the grasper's effect is tearing's; it does not palpate

@@ -267,6 +267,8 @@ pub struct Tearing {
     s: [f64; 3],
     tick: u64,
     picture: triple_buffer::Input<TearPicture>,
+    /// Bytes of one picture (the buffer holds three).
+    picture_bytes: usize,
 }
 
 /// A tearing effect could not be prepared.
@@ -330,6 +332,10 @@ impl Tearing {
             grasped: false,
             dissipated_j: 0.0,
         };
+        let picture_bytes = std::mem::size_of::<TearPicture>()
+            + crate::memory::vec_bytes(&picture.amplitudes.vad)
+            + crate::memory::vec_bytes(&picture.amplitudes.ritz)
+            + crate::memory::vec_bytes(&picture.cell_damage);
         let (input, output) = triple_buffer::triple_buffer(&picture);
         Ok((
             Self {
@@ -345,6 +351,7 @@ impl Tearing {
                 s: [0.0; 3],
                 tick: 0,
                 picture: input,
+                picture_bytes,
             },
             output,
         ))
@@ -431,6 +438,18 @@ impl Tearing {
 impl Effect for Tearing {
     fn name(&self) -> &'static str {
         "tearing"
+    }
+
+    /// Each grasp site's integrator (damage state, displacement, working arrays) and pull
+    /// patterns, the tearable cells, and the three pictures of the frame thread's buffer.
+    fn memory_bytes(&self) -> usize {
+        use crate::memory::vec_bytes;
+        let sites: usize = self
+            .sites
+            .iter()
+            .map(|s| s.online.heap_bytes() + vec_bytes(&s.loads) + s.loads.iter().map(vec_bytes).sum::<usize>() + vec_bytes(&s.grasp_modes))
+            .sum();
+        vec_bytes(&self.sites) + sites + vec_bytes(&self.cells) + 3 * self.picture_bytes
     }
 
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {

@@ -556,6 +556,19 @@ impl ReducedCut {
 }
 
 impl CutView {
+    /// Bytes of the arrays its copies share (the local fields' columns, the basis, the
+    /// degree-of-freedom map): counted once however many copies are in flight.
+    pub fn shared_bytes(&self) -> usize {
+        use crate::memory::{slice_bytes, vec_bytes};
+        vec_bytes(&self.w) + self.w.iter().map(|c| slice_bytes(c)).sum::<usize>() + slice_bytes(&self.x) + self.dofs.heap_bytes()
+    }
+
+    /// Bytes of what each copy holds of its own (the bordered factor, the workspace).
+    pub fn own_bytes(&self) -> usize {
+        use crate::memory::vec_bytes;
+        vec_bytes(&self.factor.l) + vec_bytes(&self.factor.row_start) + vec_bytes(&self.scratch)
+    }
+
     /// Dimension of the bordered system.
     pub fn dim(&self) -> usize {
         self.nb + self.enriched_unknowns()

@@ -75,6 +75,11 @@ impl AnswerRing {
         }
     }
 
+    /// How many answers it holds.
+    pub fn capacity(&self) -> usize {
+        self.queue.capacity()
+    }
+
     /// Queues an answer for `to` (tick thread). A full ring drops it, counted.
     pub fn push(&self, to: StreamId, a: Answer) {
         if self.queue.push((to, a)).is_err() {

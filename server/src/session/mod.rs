@@ -32,6 +32,7 @@
 pub mod answers;
 pub mod demand;
 pub mod frames;
+pub mod memory;
 pub mod scheduler;
 pub mod script;
 pub mod stats;
@@ -56,6 +57,7 @@ use workers::Polled;
 
 pub use answers::{AnswerStream, StreamId};
 pub use frames::{Frame, FrameWorkers, FrameWorkersConfig, SurfaceGeometry};
+pub use memory::SessionMemory;
 pub use scheduler::{PlaceError, SchedulerConfig, TickScheduler};
 pub use script::{builtin_grasp, builtin_incisions, builtin_palpation, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
@@ -232,6 +234,8 @@ pub struct Session {
     config: SessionConfig,
     realtime: Option<RealtimeStatus>,
     cut: Option<Arc<vademecum_engine::pipeline::cutting::CutStatus>>,
+    /// Its memory at start (a cut's part grows: [`Self::memory`]).
+    memory: SessionMemory,
 }
 
 /// What the tick thread receives.
@@ -276,6 +280,7 @@ impl Session {
     ) -> Result<Self, SessionError> {
         let mut pipeline = Pipeline::for_scene(&scene, &bundles)?;
         let effects = pipeline.effect_names();
+        let effects_memory = pipeline.memory_bytes();
         let tear_pictures = pipeline.take_tear_pictures();
         let tear_offline = pipeline.tear_offline().to_vec();
         let cut = pipeline.cut_status();
@@ -294,6 +299,7 @@ impl Session {
             config.queue.max(1) + MAX_COMMANDS_PER_TICK + 1,
             stats.clone(),
         ));
+        let memory = SessionMemory::of(&effects_memory, config.queue.max(1), ring.capacity(), &geometry);
         let router = Arc::new(answers::Router::new());
         let dispatcher = answers::spawn_dispatcher(format!("answers-{id}"), ring.clone(), router.clone());
         let script = match script {
@@ -433,6 +439,7 @@ impl Session {
             config,
             realtime,
             cut,
+            memory,
         })
     }
 
@@ -579,6 +586,19 @@ impl Session {
     /// fastest such viewer's rate (at most the session's) while the guard lives.
     pub fn subscribe_frames_at(&self, rate_hz: f64) -> (watch::Receiver<Arc<Frame>>, demand::DemandGuard) {
         (self.frames.subscribe(), self.frame_demand.ask(rate_hz))
+    }
+
+    /// The memory the session holds of its own, by part ([`memory`]): the bundles it shares
+    /// are not counted.
+    pub fn memory(&self) -> SessionMemory {
+        let mut m = self.memory.clone();
+        if let Some(c) = &self.cut {
+            let bytes = c.memory_bytes.load(Ordering::Relaxed);
+            if bytes > 0 {
+                m.set("effect:cutting", bytes);
+            }
+        }
+        m
     }
 
     /// Live statistics.

@@ -55,6 +55,14 @@ impl Default for Histograms {
 }
 
 impl Histograms {
+    /// Bytes of the four histograms' counts.
+    pub fn heap_bytes(&self) -> usize {
+        [&self.work, &self.lateness, &self.response, &self.haptic]
+            .iter()
+            .map(|h| h.distinct_values() * std::mem::size_of::<u64>())
+            .sum()
+    }
+
     /// Records a value (ns), clamped to the tracked range.
     pub fn record(h: &mut Histogram<u64>, ns: u64) {
         let _ = h.record(ns.clamp(1, MAX_NS));

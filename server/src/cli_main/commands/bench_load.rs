@@ -84,6 +84,10 @@ struct Report {
     server_cpu_cores_by_thread: std::collections::BTreeMap<String, f64>,
     server_rss_mib: f64,
     server_peak_rss_mib: f64,
+    /// The server's RSS before any session was created.
+    server_idle_rss_mib: f64,
+    /// What each session reports it holds of its own (mean, MiB; `SessionStats.memory_bytes`).
+    session_memory_mib: f64,
 }
 
 /// The server child: killed when dropped.
@@ -297,6 +301,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
     let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
     let report = rt.block_on(async {
         let c = vademecum_client::Client::connect(format!("http://{}", server.addr)).await?;
+        let (idle_rss, _) = server.rss();
         let mut sessions = Vec::new();
         for k in 0..a.sessions {
             let s = c
@@ -371,8 +376,10 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             echo_server.stop().await;
         }
         let (mut ticks, mut misses, mut worst_rate, mut worst_work) = (0, 0, 0.0f64, 0.0f64);
+        let mut memory = 0;
         for s in sessions {
             let st = s.close().await?;
+            memory += st.memory_bytes;
             ticks += st.ticks;
             misses += st.deadline_misses;
             worst_rate = worst_rate.max(st.deadline_misses as f64 / st.ticks.max(1) as f64);
@@ -404,6 +411,8 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             server_cpu_cores_by_thread: cpu_by_thread,
             server_rss_mib: rss,
             server_peak_rss_mib: peak,
+            server_idle_rss_mib: idle_rss,
+            session_memory_mib: memory as f64 / a.sessions as f64 / 1048576.0,
         })
     })?;
     drop(server);
@@ -472,6 +481,13 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
         by.join(", "),
         r.server_rss_mib,
         r.server_peak_rss_mib
+    )?;
+    writeln!(
+        out,
+        "memory: each session reports {:.2} MiB of its own; the server's RSS grew {:.2} MiB per session (from {:.1} MiB idle; the bundle's shared data once)",
+        r.session_memory_mib,
+        (r.server_rss_mib - r.server_idle_rss_mib) / r.sessions as f64,
+        r.server_idle_rss_mib
     )?;
     Ok(())
 }

@@ -57,6 +57,8 @@ struct Summary {
     /// The co-rotational deformation and its coupling to the force (co-rotational cutting).
     #[serde(skip_serializing_if = "Option::is_none")]
     corotational: Option<CorotationalSummary>,
+    /// The memory the session held of its own, by part (at the end of the run).
+    memory: crate::session::SessionMemory,
 }
 
 /// What the frame thread's co-rotational deformation did, and how the force followed it.
@@ -500,6 +502,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         }
     }
     bar.finish_and_clear();
+    let memory = session.memory();
     let stats = session.wait();
     let (peak, peak_t, contacts, cut_counts, blade_rows, mut tear) =
         writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
@@ -569,6 +572,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         cut,
         tear,
         corotational,
+        memory,
     };
     std::fs::write(record.join("summary.json"), serde_json::to_string_pretty(&summary)?)
         .with_context(|| format!("cannot write {}", record.join("summary.json").display()))?;
@@ -603,6 +607,18 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             out,
             "  force          peak {:.3} N at {:.3} s; in contact {} of {} ticks",
             s.peak_force_n, s.peak_force_time_s, s.contact_ticks, s.ticks
+        )?;
+        let parts: Vec<String> = s
+            .memory
+            .parts
+            .iter()
+            .map(|(p, b)| format!("{p} {:.2}", *b as f64 / 1048576.0))
+            .collect();
+        writeln!(
+            out,
+            "  memory         {:.2} MiB of its own ({} MiB; the bundle's shared data not counted)",
+            s.memory.total() as f64 / 1048576.0,
+            parts.join(", ")
         )?;
         if let Some(c) = &s.cut {
             writeln!(
