@@ -615,3 +615,51 @@ fn bench_load_drives_a_server_over_grpc_and_accounts_for_every_tool_state() {
     let o = vademecum(&["bench", "load", "--sessions", "0"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("--sessions"), "{}", stderr(&o));
 }
+
+/// Chaos: clients of their own process killed with SIGKILL while the load runs; every state
+/// their replacements and the others sent is still accounted for, and the time series has its
+/// windows.
+#[test]
+fn bench_load_kills_clients_and_still_accounts_for_every_tool_state() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "bench",
+        "load",
+        "--sessions",
+        "3",
+        "--seconds",
+        "3",
+        "--rate",
+        "200",
+        "--window",
+        "1",
+        "--chaos-every",
+        "0.5",
+        "--chaos-clients",
+        "2",
+        "--bundles",
+        "organ",
+        "--json",
+        "load.json",
+    ];
+    let o = vademecum(&args, dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("load.json")).unwrap()).unwrap();
+    let n = |k: &str| r[k].as_u64().unwrap_or_else(|| panic!("{k} in {r}"));
+    let c = &r["chaos"];
+    assert!(c["kills"].as_u64().unwrap() >= 2, "{r}");
+    assert!(c["states_answered"].as_u64().unwrap() > 0, "the chaos clients' states count: {r}");
+    assert_eq!(
+        n("states_sent"),
+        n("states_answered") + n("states_refused") + n("states_in_flight_at_kill") + n("states_lost"),
+        "{r}"
+    );
+    assert_eq!((n("states_refused"), n("states_lost")), (0, 0), "{r}");
+    let windows = r["windows"].as_array().unwrap();
+    assert!(windows.len() >= 3, "{r}");
+    assert!(windows.iter().all(|w| w["server_rss_mib"].as_f64().unwrap() > 1.0), "{r}");
+    assert!(windows.iter().all(|w| w["chaos_sessions_miss_pct"].is_number()), "{r}");
+    assert!(stdout(&o).contains("SIGKILL"), "{}", stdout(&o));
+    let o = vademecum(&["bench", "load", "--chaos-every", "1", "--chaos-clients", "40"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("--chaos-clients"), "{}", stderr(&o));
+}

@@ -356,6 +356,9 @@ lost), the server's CPU and RSS. Prints a table; --json FILE writes the figures.
 Example: vademecum bench load --sessions 32 --seconds 30 --json out/load.json"
     )]
     Load(BenchLoadArgs),
+    /// One client of `bench load --chaos-every` (a process of its own, to be killed).
+    #[command(hide = true)]
+    LoadClient(LoadClientArgs),
     /// The 1 kHz haptic path over shared memory: null loop, iceoryx2 round trip, full tick.
     #[command(
         long_about = "The 1 kHz haptic path on this machine, each figure beside a null loop measured in the \
@@ -720,12 +723,38 @@ pub struct BenchLoadArgs {
     /// Frame workers of the server (its default: one per CPU; 0: a thread per session).
     #[arg(long, value_name = "N")]
     pub frame_workers: Option<usize>,
+    /// Sample the server's RSS and the misses of sessions and null loop every this many
+    /// seconds (a soak's time series: growth shows as a trend across windows).
+    #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
+    pub window: f64,
+    /// Chaos: after the first window, kill -9 a random client every this many seconds (the
+    /// clients of the first --chaos-clients sessions run as processes of their own) and start
+    /// a new one on its session; the other sessions' misses are reported apart.
+    #[arg(long, value_name = "SECONDS")]
+    pub chaos_every: Option<f64>,
+    /// Sessions whose client runs as a killable process, with --chaos-every.
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub chaos_clients: usize,
     /// Folder of the organ's bundle (built there when missing). Default: out/organ.
     #[arg(long, value_name = "DIR")]
     pub bundles: Option<PathBuf>,
     /// Also write the figures as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+}
+
+/// Arguments of `vademecum bench load-client` (hidden).
+#[derive(Debug, Args)]
+pub struct LoadClientArgs {
+    /// The server (http://host:port).
+    #[arg(long)]
+    pub addr: String,
+    /// The session to drive.
+    #[arg(long)]
+    pub session: String,
+    /// Tool states per second.
+    #[arg(long, default_value_t = 1000.0, value_name = "HZ")]
+    pub rate: f64,
 }
 
 /// Arguments of `vademecum bench pgd`.

@@ -29,19 +29,20 @@ use hdrhistogram::Histogram;
 use serde::Serialize;
 use vademecum_engine::scene::Scene;
 
-use super::bench_session::{EchoServer, bench_tool, echo_once, hist, null_loop_until};
+use super::bench_load_chaos::Chaos;
+use super::bench_session::{EchoServer, NullCounts, bench_tool, echo_once, hist, null_loop_until};
 use crate::cli_main::cli::BenchLoadArgs;
 use crate::cli_main::commands::build::ensure_bundles;
 use crate::session::stats::Percentiles;
 
 /// What one client stream did.
 #[derive(Debug, Default)]
-struct ClientAccount {
-    sent: u64,
-    answered: u64,
+pub(super) struct ClientAccount {
+    pub sent: u64,
+    pub answered: u64,
     /// Refused: the stream could not be opened, a send failed, or it ended with an error
     /// status (the state sent then is counted here, not answered).
-    refused: u64,
+    pub refused: u64,
     rtt: Option<Histogram<u64>>,
 }
 
@@ -88,6 +89,40 @@ struct Report {
     server_idle_rss_mib: f64,
     /// What each session reports it holds of its own (mean, MiB; `SessionStats.memory_bytes`).
     session_memory_mib: f64,
+    /// States sent by killed clients and not answered when they died (chaos).
+    states_in_flight_at_kill: u64,
+    /// The time series, one entry per `--window`.
+    windows: Vec<Window>,
+    /// What the chaos did (`--chaos-every`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    chaos: Option<ChaosReport>,
+}
+
+/// One window of the time series.
+#[derive(Debug, Serialize)]
+struct Window {
+    /// End of the window (s since the load started).
+    t_s: f64,
+    server_rss_mib: f64,
+    /// Deadline misses in the window (% of ticks): the null loop's, the sessions' without a
+    /// chaos client, the chaos clients' sessions'.
+    null_miss_pct: f64,
+    sessions_miss_pct: f64,
+    chaos_sessions_miss_pct: Option<f64>,
+    /// Clients killed in the window.
+    kills: u64,
+}
+
+/// The chaos of a run.
+#[derive(Debug, Serialize)]
+struct ChaosReport {
+    clients: usize,
+    every_s: f64,
+    kills: u64,
+    states_sent: u64,
+    states_answered: u64,
+    states_refused: u64,
+    states_in_flight_at_kill: u64,
 }
 
 /// The server child: killed when dropped.
@@ -113,7 +148,10 @@ impl Server {
             .args(["--max-sessions", &a.sessions.to_string()])
             .args([
                 "--max-streams",
-                &(a.sessions * (a.clients_per_session + a.viewers)).max(1).to_string(),
+                // a killed chaos client's stream may linger until the server notices the reset
+                &(a.sessions * (a.clients_per_session + a.viewers) + a.chaos_clients)
+                    .max(1)
+                    .to_string(),
             ])
             .stdout(Stdio::piped())
             .stderr(Stdio::null());
@@ -205,9 +243,12 @@ fn stat_cpu(stat: &str) -> Option<Duration> {
     Some(Duration::from_nanos(ticks * 1_000_000_000 / hz))
 }
 
+/// Called with a client's account after every state it sends and every answer.
+pub(super) type Progress = Box<dyn FnMut(&ClientAccount) + Send>;
+
 /// One interaction stream on a connection of its own: a tool state every `period` (each after
-/// the previous answer), until `stop`.
-async fn client(addr: String, id: String, period: Duration, stop: Arc<AtomicBool>) -> ClientAccount {
+/// the previous answer), until `stop`; `progress` is told the account as it changes.
+pub(super) async fn client(addr: String, id: String, period: Duration, stop: Arc<AtomicBool>, mut progress: Progress) -> ClientAccount {
     let mut account = ClientAccount::default();
     let mut h = hist();
     let Some(session) = connect(&addr, &id).await else {
@@ -223,6 +264,7 @@ async fn client(addr: String, id: String, period: Duration, stop: Arc<AtomicBool
         ticker.tick().await;
         let t0 = Instant::now();
         account.sent += 1;
+        progress(&account);
         if tools.send(bench_tool(i)).await.is_err() {
             account.refused += 1;
             break;
@@ -230,6 +272,7 @@ async fn client(addr: String, id: String, period: Duration, stop: Arc<AtomicBool
         match tools.next().await {
             Ok(Some(r)) if r.seq == i => {
                 account.answered += 1;
+                progress(&account);
                 let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
             }
             _ => {
@@ -290,6 +333,22 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
     if a.sessions == 0 || a.sessions > 1024 {
         bail!("--sessions must lie in 1..=1024, got {}", a.sessions);
     }
+    if !(a.window > 0.0 && a.window.is_finite()) {
+        bail!("--window must be a positive number of seconds, got {}", a.window);
+    }
+    if let Some(e) = a.chaos_every {
+        if !(e > 0.0 && e.is_finite()) {
+            bail!("--chaos-every must be a positive number of seconds, got {e}");
+        }
+        if a.chaos_clients == 0 || a.chaos_clients > a.sessions {
+            bail!(
+                "--chaos-clients must lie in 1..={} (the sessions), got {}",
+                a.sessions,
+                a.chaos_clients
+            );
+        }
+    }
+    let chaos_sessions = if a.chaos_every.is_some() { a.chaos_clients } else { 0 };
     let scene = Scene::builtin("organ")?;
     let dir = a.bundles.clone().unwrap_or_else(|| PathBuf::from("out/organ"));
     ensure_bundles(&scene, &dir)?;
@@ -319,24 +378,49 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         let mut clients = Vec::new();
         let mut viewers = Vec::new();
         let addr = format!("http://{}", server.addr);
-        for s in &sessions {
-            for _ in 0..a.clients_per_session {
-                clients.push(tokio::spawn(client(addr.clone(), s.id().to_string(), period, stop.clone())));
+        let ids: Vec<String> = sessions.iter().map(|s| s.id().to_string()).collect();
+        let mut chaos = match chaos_sessions {
+            0 => None,
+            k => Some(Chaos::start(&addr, &ids[..k], a.rate)?),
+        };
+        for (k, s) in sessions.iter().enumerate() {
+            // a chaos session's client is a process of its own
+            for _ in 0..a.clients_per_session * usize::from(k >= chaos_sessions) {
+                let quiet: super::bench_load::Progress = Box::new(|_| {});
+                clients.push(tokio::spawn(client(addr.clone(), s.id().to_string(), period, stop.clone(), quiet)));
             }
             for _ in 0..a.viewers {
                 viewers.push(tokio::spawn(viewer(addr.clone(), s.id().to_string(), stop.clone())));
             }
         }
         let echo = tokio::spawn(echo_client(echo_server.clone(), period, stop.clone()));
+        let null_counts = Arc::new(NullCounts::default());
         let null = {
-            let stop = stop.clone();
-            std::thread::spawn(move || null_loop_until(&stop))
+            let (stop, counts) = (stop.clone(), null_counts.clone());
+            std::thread::spawn(move || null_loop_until(&stop, &counts))
         };
         let progress = indicatif::ProgressBar::new(a.seconds.ceil() as u64).with_message("under load");
         let end = wall + Duration::from_secs_f64(a.seconds);
+        let window = Duration::from_secs_f64(a.window);
+        let (mut next_window, mut windows, mut kills) = (wall + window, Vec::new(), 0);
+        let mut next_kill = a.chaos_every.map(|e| wall + window + Duration::from_secs_f64(e));
+        let mut before = sample(&sessions, &null_counts).await?;
         while Instant::now() < end {
             tokio::time::sleep(Duration::from_millis(250).min(end.saturating_duration_since(Instant::now()))).await;
             progress.set_position(wall.elapsed().as_secs());
+            if let (Some(c), Some(t)) = (&mut chaos, next_kill)
+                && Instant::now() >= t
+            {
+                c.kill_one()?;
+                kills += 1;
+                next_kill = a.chaos_every.map(|e| t + Duration::from_secs_f64(e));
+            }
+            if Instant::now() >= next_window || Instant::now() >= end {
+                let now = sample(&sessions, &null_counts).await?;
+                windows.push(now.window_since(&before, wall.elapsed().as_secs_f64(), server.rss().0, chaos_sessions, kills));
+                (before, kills) = (now, 0);
+                next_window += window;
+            }
         }
         progress.finish_and_clear();
         let cpu = match (cpu0, server.cpu()) {
@@ -355,6 +439,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             .filter(|(_, c)| *c > 0.0)
             .collect();
         stop.store(true, Ordering::Relaxed);
+        let chaos = chaos.map(Chaos::finish);
         let mut rtt = hist();
         let (mut sent, mut answered, mut refused) = (0, 0, 0);
         for c in clients {
@@ -366,6 +451,12 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
                 let _ = rtt.add(&h);
             }
         }
+        if let Some(c) = &chaos {
+            sent += c.sent;
+            answered += c.answered;
+            refused += c.refused;
+        }
+        let in_flight = chaos.map_or(0, |c| c.in_flight_at_kill);
         let mut frames = 0;
         for v in viewers {
             frames += v.await?;
@@ -405,7 +496,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             states_sent: sent,
             states_answered: answered,
             states_refused: refused,
-            states_lost: sent.saturating_sub(answered + refused),
+            states_lost: sent.saturating_sub(answered + refused + in_flight),
             frames_received: frames,
             server_cpu_cores: cpu,
             server_cpu_cores_by_thread: cpu_by_thread,
@@ -413,6 +504,17 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             server_peak_rss_mib: peak,
             server_idle_rss_mib: idle_rss,
             session_memory_mib: memory as f64 / a.sessions as f64 / 1048576.0,
+            states_in_flight_at_kill: in_flight,
+            windows,
+            chaos: chaos.map(|c| ChaosReport {
+                clients: chaos_sessions,
+                every_s: a.chaos_every.unwrap_or(0.0),
+                kills: c.kills,
+                states_sent: c.sent,
+                states_answered: c.answered,
+                states_refused: c.refused,
+                states_in_flight_at_kill: c.in_flight_at_kill,
+            }),
         })
     })?;
     drop(server);
@@ -421,6 +523,49 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         std::fs::write(path, serde_json::to_string_pretty(&report)?).with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The counts a window is measured between: each session's ticks and misses, the null loop's.
+struct Sample {
+    sessions: Vec<(u64, u64)>,
+    null: (u64, u64),
+}
+
+/// Samples every session's statistics (over gRPC) and the null loop's counts.
+async fn sample(sessions: &[vademecum_client::Session], null: &NullCounts) -> anyhow::Result<Sample> {
+    let mut counts = Vec::with_capacity(sessions.len());
+    for s in sessions {
+        let st = s.stats().await.with_context(|| format!("the statistics of session {}", s.id()))?;
+        counts.push((st.ticks, st.deadline_misses));
+    }
+    Ok(Sample {
+        sessions: counts,
+        null: (null.ticks.load(Ordering::Relaxed), null.misses.load(Ordering::Relaxed)),
+    })
+}
+
+impl Sample {
+    /// The window from `before` to this sample, ending at `t_s`, with the server's RSS then; the
+    /// first `chaos` sessions' misses apart.
+    fn window_since(&self, before: &Self, t_s: f64, rss_mib: f64, chaos: usize, kills: u64) -> Window {
+        let pct = |(t, m): (u64, u64)| 100.0 * m as f64 / t.max(1) as f64;
+        let delta = |range: std::ops::Range<usize>| {
+            range.fold((0, 0), |(t, m), k| {
+                let (a, b) = (before.sessions[k], self.sessions[k]);
+                (t + b.0.saturating_sub(a.0), m + b.1.saturating_sub(a.1))
+            })
+        };
+        let n = self.sessions.len().min(before.sessions.len());
+        let chaos = chaos.min(n);
+        Window {
+            t_s,
+            server_rss_mib: rss_mib,
+            null_miss_pct: pct((self.null.0.saturating_sub(before.null.0), self.null.1.saturating_sub(before.null.1))),
+            sessions_miss_pct: pct(delta(chaos..n)),
+            chaos_sessions_miss_pct: (chaos > 0).then(|| pct(delta(0..chaos))),
+            kills,
+        }
+    }
 }
 
 fn print_report(r: &Report) -> anyhow::Result<()> {
@@ -470,8 +615,8 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
     )?;
     writeln!(
         out,
-        "tool states: {} sent = {} answered + {} refused + {} lost; {} frames to viewers",
-        r.states_sent, r.states_answered, r.states_refused, r.states_lost, r.frames_received
+        "tool states: {} sent = {} answered + {} refused + {} in flight when a client was killed + {} lost; {} frames to viewers",
+        r.states_sent, r.states_answered, r.states_refused, r.states_in_flight_at_kill, r.states_lost, r.frames_received
     )?;
     let by: Vec<String> = r.server_cpu_cores_by_thread.iter().map(|(k, c)| format!("{k} {c:.2}")).collect();
     writeln!(
@@ -489,5 +634,42 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
         (r.server_rss_mib - r.server_idle_rss_mib) / r.sessions as f64,
         r.server_idle_rss_mib
     )?;
+    if let Some(c) = &r.chaos {
+        writeln!(
+            out,
+            "chaos: {} clients as processes, one killed (SIGKILL) every {} s: {} kills; their states {} sent = {} answered + {} refused + {} in flight when killed",
+            c.clients, c.every_s, c.kills, c.states_sent, c.states_answered, c.states_refused, c.states_in_flight_at_kill
+        )?;
+    }
+    if r.windows.len() > 1 {
+        writeln!(
+            out,
+            "| t (s) | RSS (MiB) | null loop misses | sessions' misses | chaos sessions' misses | kills |"
+        )?;
+        writeln!(out, "|---:|---:|---:|---:|---:|---:|")?;
+        for w in &r.windows {
+            writeln!(
+                out,
+                "| {:.0} | {:.1} | {:.3} % | {:.3} % | {} | {} |",
+                w.t_s,
+                w.server_rss_mib,
+                w.null_miss_pct,
+                w.sessions_miss_pct,
+                w.chaos_sessions_miss_pct.map_or("—".into(), |p| format!("{p:.3} %")),
+                w.kills
+            )?;
+        }
+        let (first, last) = (&r.windows[0], &r.windows[r.windows.len() - 1]);
+        let half = r.windows.len() / 2;
+        let mean = |ws: &[Window]| ws.iter().map(|w| w.sessions_miss_pct).sum::<f64>() / ws.len().max(1) as f64;
+        writeln!(
+            out,
+            "trend: RSS {:.1} → {:.1} MiB from the first window to the last; sessions' misses {:.3} % in the first half, {:.3} % in the second",
+            first.server_rss_mib,
+            last.server_rss_mib,
+            mean(&r.windows[..half]),
+            mean(&r.windows[half..])
+        )?;
+    }
     Ok(())
 }

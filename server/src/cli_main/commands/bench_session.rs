@@ -55,18 +55,26 @@ pub(super) fn hist() -> Histogram<u64> {
 /// The null loop: sleep to 1 ms deadlines for `secs`, recording lateness (ns).
 fn null_loop(secs: f64) -> (Percentiles, u64) {
     let end = Instant::now() + Duration::from_secs_f64(secs);
-    let (p, misses, _) = null_loop_while(|| Instant::now() < end);
+    let (p, misses, _) = null_loop_while(|| Instant::now() < end, &NullCounts::default());
     (p, misses)
 }
 
-/// The null loop until `stop` is set: its lateness (ns), misses and ticks.
-pub(super) fn null_loop_until(stop: &std::sync::atomic::AtomicBool) -> (Percentiles, u64, u64) {
-    null_loop_while(|| !stop.load(std::sync::atomic::Ordering::Relaxed))
+/// A null loop's ticks and misses so far, for a reader sampling them while it runs.
+#[derive(Debug, Default)]
+pub(super) struct NullCounts {
+    pub ticks: std::sync::atomic::AtomicU64,
+    pub misses: std::sync::atomic::AtomicU64,
+}
+
+/// The null loop until `stop` is set, publishing its counts in `counts`: its lateness (ns),
+/// misses and ticks.
+pub(super) fn null_loop_until(stop: &std::sync::atomic::AtomicBool, counts: &NullCounts) -> (Percentiles, u64, u64) {
+    null_loop_while(|| !stop.load(std::sync::atomic::Ordering::Relaxed), counts)
 }
 
 /// Sleeps to 1 ms deadlines while `going()`, recording lateness (ns): its percentiles, its
 /// misses (a tick more than a period late) and its ticks.
-fn null_loop_while(going: impl Fn() -> bool) -> (Percentiles, u64, u64) {
+fn null_loop_while(going: impl Fn() -> bool, counts: &NullCounts) -> (Percentiles, u64, u64) {
     let period = Duration::from_millis(1);
     let mut h = hist();
     let (mut misses, mut ticks) = (0, 0);
@@ -82,6 +90,8 @@ fn null_loop_while(going: impl Fn() -> bool) -> (Percentiles, u64, u64) {
         if late > period {
             misses += 1;
         }
+        counts.ticks.store(ticks, std::sync::atomic::Ordering::Relaxed);
+        counts.misses.store(misses, std::sync::atomic::Ordering::Relaxed);
         next += period;
         if Instant::now() > next + period * 10 {
             next = Instant::now();

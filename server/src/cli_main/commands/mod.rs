@@ -9,6 +9,7 @@ mod bench_cut_session;
 mod bench_efg;
 mod bench_haptic;
 mod bench_load;
+mod bench_load_chaos;
 mod bench_pgd;
 mod bench_session;
 mod bench_tear;
@@ -39,6 +40,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Pgd(a)) => bench_pgd::run(a),
         Command::Bench(BenchCommand::Session(a)) => bench_session::run(a),
         Command::Bench(BenchCommand::Load(a)) => bench_load::run(a),
+        Command::Bench(BenchCommand::LoadClient(a)) => bench_load_chaos::run(a),
         Command::Bench(BenchCommand::Haptic(a)) => bench_haptic::run(a),
         Command::Bench(BenchCommand::Cube(a)) => bench_cube::run(a),
         Command::Bench(BenchCommand::Anm(a)) => bench_anm::run(a),
