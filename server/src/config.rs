@@ -42,7 +42,8 @@ pub struct ServerConfig {
     /// How sessions tick.
     pub session: SessionConfig,
     /// The tick workers that tick the sessions (`workers = 0`: a thread per session), unless
-    /// `session.ticking` names workers already. A haptic session has a thread of its own.
+    /// `session.ticking` names workers already; as many answer workers route their answers
+    /// (unless `session.answering` names some). A haptic session has a thread of its own.
     pub tick_workers: SchedulerConfig,
     /// The frame workers that make the sessions' frames (`workers = 0`: a thread per session),
     /// unless `session.framing` names workers already.

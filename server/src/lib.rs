@@ -57,6 +57,11 @@ pub async fn run(
         let workers = session::TickScheduler::new(config.tick_workers).context("cannot start the tick workers")?;
         tracing::info!(workers = config.tick_workers.workers, realtime = ?workers.realtime(), "tick workers started");
         config.session.ticking = Some(std::sync::Arc::new(workers));
+        if config.session.answering.is_none() {
+            // as many answer workers as tick workers: each wakes on its sessions' answers
+            let answering = session::AnswerWorkers::new(config.tick_workers.workers).context("cannot start the answer workers")?;
+            config.session.answering = Some(std::sync::Arc::new(answering));
+        }
     }
     if config.session.framing.is_none() && config.frame_workers.workers > 0 {
         let workers = session::FrameWorkers::new(config.frame_workers).context("cannot start the frame workers")?;

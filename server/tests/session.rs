@@ -15,8 +15,8 @@ use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_server::session::{
-    Answer, FrameWorkers, FrameWorkersConfig, PlaceError, SchedulerConfig, Script, Session, SessionConfig, SessionError, TickScheduler,
-    ToolCommand, Trajectory,
+    Answer, AnswerWorkers, FrameWorkers, FrameWorkersConfig, PlaceError, SchedulerConfig, Script, Session, SessionConfig, SessionError,
+    TickScheduler, ToolCommand, Trajectory,
 };
 
 /// Counts the allocations of threads that asked to be counted (the tick thread, through
@@ -606,8 +606,9 @@ fn a_tick_worker_allocates_nothing_per_tick_of_its_sessions() {
     );
 }
 
-/// Sessions on a pool of two tick workers are placed evenly, each answers its own stream in
-/// order with the pipeline's force (on arrival), and they leave their workers when closed.
+/// Sessions on a pool of two tick workers (and one answer worker) are placed evenly, each
+/// answers its own stream in order with the pipeline's force (on arrival), and they leave their
+/// workers when closed.
 #[test]
 fn sessions_on_tick_workers_answer_their_own_streams_in_order() {
     let (scene, bundles, _dir) = slab();
@@ -618,8 +619,11 @@ fn sessions_on_tick_workers_answer_their_own_streams_in_order() {
         })
         .unwrap(),
     );
+    // one answer worker routes every session's answers
+    let answering = Arc::new(AnswerWorkers::new(1).unwrap());
     let config = SessionConfig {
         ticking: Some(workers.clone()),
+        answering: Some(answering.clone()),
         ..SessionConfig::default()
     };
     let n = 6;
@@ -627,6 +631,7 @@ fn sessions_on_tick_workers_answer_their_own_streams_in_order() {
         .map(|k| Session::start(format!("w{k}"), scene.clone(), bundles.clone(), config.clone()).unwrap())
         .collect();
     assert_eq!(workers.load(), [3, 3], "placed on the worker with the fewest");
+    assert_eq!(answering.load(), [6]);
     let mut streams: Vec<_> = sessions.iter().map(|s| s.open_answers(256).unwrap()).collect();
     let mut direct: Vec<Pipeline> = (0..n).map(|_| Pipeline::for_scene(&scene, &bundles).unwrap()).collect();
     let mut touching = 0;
@@ -655,6 +660,7 @@ fn sessions_on_tick_workers_answer_their_own_streams_in_order() {
         assert_eq!((stats.answered, stats.dropped), (600, 0));
     }
     assert_eq!(workers.load(), [0, 0], "closed sessions leave their workers");
+    assert_eq!(answering.load(), [0], "and their answer worker");
 }
 
 /// The modes a session's frames evaluate at the surface are made once per bundle and shared by

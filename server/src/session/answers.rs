@@ -11,7 +11,8 @@
 //! 2. once per tick that answered anything, `unpark` the dispatcher thread (one atomic swap;
 //!    one `futex` wake-up when the dispatcher sleeps — a syscall timed inside the tick's work).
 //!
-//! The **dispatcher** (one thread per session, not real-time) pops the ring and hands each
+//! The **dispatcher** (a session's turn on an answer worker shared with other sessions,
+//! [`AnswerWorkers`], or a thread of the session's own; not real-time) pops the ring and hands each
 //! answer to its stream's tokio channel with `try_send` — the allocation, the runtime's lock
 //! and the task wake-up all happen there. A stream that stops reading loses answers (counted in
 //! [`TickStats::dropped`]) and never slows another stream or the tick. Streams register and
@@ -35,15 +36,17 @@
 use std::collections::HashMap;
 use std::ops::{Deref, DerefMut};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::SyncSender;
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
-use std::thread::{JoinHandle, Thread};
-use std::time::Duration;
+use std::thread::Thread;
+use std::time::{Duration, Instant};
 
 use crossbeam_queue::ArrayQueue;
 use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TrySendError;
 
 use super::stats::TickStats;
+use super::workers::{PlaceError, Poll, Polled, Pool, PoolConfig};
 use super::{Answer, SubmitError};
 
 /// The longest the dispatcher sleeps without being woken: a safety net (a lost wake-up
@@ -143,23 +146,36 @@ impl Router {
     }
 }
 
-/// Starts the dispatcher thread of a session.
-pub(super) fn spawn_dispatcher(name: String, ring: Arc<AnswerRing>, router: Arc<Router>) -> JoinHandle<()> {
-    let handle = std::thread::Builder::new()
-        .name(name)
-        .spawn({
-            let ring = ring.clone();
-            move || dispatch(&ring, &router)
-        })
-        .expect("the OS can start a thread");
-    let _ = ring.dispatcher.set(handle.thread().clone());
-    handle
+/// A session's dispatcher on its way to an answer worker (or a thread of its own), and the
+/// signal that it has ended.
+pub(super) struct Dispatcher {
+    pub ring: Arc<AnswerRing>,
+    pub router: Arc<Router>,
+    /// Signalled once it has delivered every answer and closed every stream.
+    pub done: SyncSender<()>,
 }
 
-/// The dispatcher's loop: route everything in the ring, sleep until woken; after the tick
-/// loop has finished, route what is left and close every stream.
-fn dispatch(ring: &AnswerRing, router: &Router) {
-    loop {
+impl Dispatcher {
+    /// Runs it on a thread of its own named `name` (it signals `done` when it ends).
+    pub fn spawn(self, name: String) {
+        let ring = self.ring.clone();
+        let handle = std::thread::Builder::new()
+            .name(name)
+            .spawn(move || super::workers::run_alone(self))
+            .expect("the OS can start a thread");
+        let _ = ring.dispatcher.set(handle.thread().clone());
+    }
+}
+
+impl Polled for Dispatcher {
+    fn start(&mut self) {}
+
+    /// Routes everything in the ring; after the tick loop has finished, routes what is left
+    /// and closes every stream (dropping the senders ends every stream's receiver, after its
+    /// last answer). Woken by the tick ([`AnswerRing::wake`]); looks again after a nap anyway
+    /// (a lost wake-up would delay answers by that much, never lose them).
+    fn poll(&mut self) -> Poll {
+        let (ring, router) = (&self.ring, &self.router);
         let finished = ring.finished.load(Ordering::Acquire);
         if !ring.queue.is_empty() {
             let routes = router.routes();
@@ -176,12 +192,45 @@ fn dispatch(ring: &AnswerRing, router: &Router) {
             }
         }
         if finished {
-            break;
+            router.routes().take();
+            return Poll::Ended;
         }
-        std::thread::park_timeout(DISPATCHER_NAP);
+        Poll::At(Instant::now() + DISPATCHER_NAP)
     }
-    // dropping the senders ends every stream's receiver, after its last answer
-    router.routes().take();
+
+    fn end(self) {
+        // placed but its pool stopped: close the streams all the same
+        self.router.routes().take();
+        let _ = self.done.try_send(());
+    }
+}
+
+/// A pool of answer workers: a few threads that each dispatch the answers of many sessions
+/// (module docs), instead of a thread per session.
+#[derive(Debug)]
+pub struct AnswerWorkers {
+    pool: Pool<Dispatcher>,
+}
+
+impl AnswerWorkers {
+    /// Starts `workers` workers at normal priority.
+    pub fn new(workers: usize) -> std::io::Result<Self> {
+        let pool = Pool::new("answer-worker", PoolConfig::plain(workers))?;
+        Ok(Self { pool })
+    }
+
+    /// Sessions on each worker.
+    pub fn load(&self) -> Vec<usize> {
+        self.pool.load()
+    }
+
+    /// Hands `d` to the least-loaded worker, which the ring then wakes.
+    pub(super) fn place(&self, d: Dispatcher) -> Result<(), PlaceError> {
+        let ring = d.ring.clone();
+        let thread = self.pool.place(d, None)?;
+        let _ = ring.dispatcher.set(thread);
+        Ok(())
+    }
 }
 
 /// A stream's answers: a tokio receiver, unregistered when dropped. Its receiver ends

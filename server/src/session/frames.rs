@@ -669,15 +669,7 @@ pub struct FrameWorkers {
 impl FrameWorkers {
     /// Starts `config.workers` workers at normal priority.
     pub fn new(config: FrameWorkersConfig) -> std::io::Result<Self> {
-        let pool = Pool::new(
-            "frame-worker",
-            PoolConfig {
-                workers: config.workers,
-                pin: false,
-                fifo_priority: None,
-                on_start: None,
-            },
-        )?;
+        let pool = Pool::new("frame-worker", PoolConfig::plain(config.workers))?;
         Ok(Self { pool })
     }
 

@@ -15,7 +15,8 @@
 //!   thread waits for its bridge instead and answers queued states when it wakes. It never awaits, never allocates in the
 //!   loop (a counting-allocator test holds it to that), and shares no lock with another
 //!   thread: histograms are handed over through lock-free queues ([`stats`]).
-//! - The **answer dispatcher** thread routes the ring's answers to each stream's tokio
+//! - The **answer dispatcher** (an answer worker's turn, [`answers::AnswerWorkers`], or a
+//!   thread of the session's own) routes the ring's answers to each stream's tokio
 //!   channel, so the wake-up of async tasks costs the tick nothing; a consumer that stops
 //!   reading loses answers (counted) and never blocks the tick.
 //! - The **frame thread** reads the latest tick state at the frame rate, turns it into the
@@ -55,7 +56,7 @@ use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
 use workers::Polled;
 
-pub use answers::{AnswerStream, StreamId};
+pub use answers::{AnswerStream, AnswerWorkers, StreamId};
 pub use frames::{Frame, FrameWorkers, FrameWorkersConfig, SurfaceGeometry};
 pub use memory::SessionMemory;
 pub use scheduler::{PlaceError, SchedulerConfig, TickScheduler};
@@ -172,6 +173,9 @@ pub struct SessionConfig {
     /// The frame workers that make the session's frames ([`frames::FrameWorkers`]); `None`: a
     /// thread of its own. A co-rotational cutting session always has a thread of its own.
     pub framing: Option<Arc<FrameWorkers>>,
+    /// The answer workers that route the session's answers to its streams
+    /// ([`answers::AnswerWorkers`]); `None`: a dispatcher thread of its own.
+    pub answering: Option<Arc<AnswerWorkers>>,
 }
 
 impl Default for SessionConfig {
@@ -184,6 +188,7 @@ impl Default for SessionConfig {
             on_tick_thread: None,
             ticking: None,
             framing: None,
+            answering: None,
         }
     }
 }
@@ -216,6 +221,9 @@ pub struct Session {
     frame_thread: std::thread::Thread,
     /// Signalled when its frame producer has ended and been dropped.
     frames_done: std::sync::Mutex<Receiver<()>>,
+    /// Signalled when its answer dispatcher has delivered the last answer and closed the
+    /// streams.
+    answers_done: std::sync::Mutex<Receiver<()>>,
     router: Arc<answers::Router>,
     frames: watch::Sender<Arc<Frame>>,
     /// The rates viewers ask frames at.
@@ -227,8 +235,7 @@ pub struct Session {
     tick_done: std::sync::Mutex<Receiver<(Box<tick::TickLoop>, tick::Clock)>>,
     /// Whether the tick loop has ended.
     tick_finished: Arc<AtomicBool>,
-    /// The answer dispatcher, the frame thread, and the tick thread of a session that has
-    /// one of its own.
+    /// The frame thread and the tick thread of a session that has them of its own.
     threads: Vec<JoinHandle<()>>,
     epoch: Instant,
     config: SessionConfig,
@@ -301,7 +308,6 @@ impl Session {
         ));
         let memory = SessionMemory::of(&effects_memory, config.queue.max(1), ring.capacity(), &geometry);
         let router = Arc::new(answers::Router::new());
-        let dispatcher = answers::spawn_dispatcher(format!("answers-{id}"), ring.clone(), router.clone());
         let script = match script {
             None => None,
             Some(s) => Some(tick::ScriptRun {
@@ -309,6 +315,16 @@ impl Session {
                 trajectory: s.trajectory,
             }),
         };
+        let (answers_done_tx, answers_done) = mpsc::sync_channel(1);
+        let dispatcher = answers::Dispatcher {
+            ring: ring.clone(),
+            router: router.clone(),
+            done: answers_done_tx,
+        };
+        match &config.answering {
+            Some(workers) => workers.place(dispatcher)?,
+            None => dispatcher.spawn(format!("answers-{id}")),
+        }
         let (latest_in, latest_out) = triple_buffer::triple_buffer(&tick::Latest::default());
         let (frames, _) = watch::channel(Arc::new(Frame::rest(&geometry)));
         let stop = Arc::new(AtomicBool::new(false));
@@ -367,14 +383,13 @@ impl Session {
             producer,
             done: frames_done_tx,
         };
-        let mut threads = Vec::with_capacity(3);
-        threads.push(dispatcher);
+        let mut threads = Vec::with_capacity(2);
         let frame_thread = match &config.framing {
             Some(workers) if !own_frame_thread => match workers.place(frame_job) {
                 Ok(thread) => thread,
                 Err(e) => {
                     job.end(); // closes its answers: the dispatcher ends
-                    threads.drain(..).for_each(|t| drop(t.join()));
+                    let _ = answers_done.recv();
                     return Err(e.into());
                 }
             },
@@ -392,6 +407,8 @@ impl Session {
             stop.store(true, Ordering::Relaxed);
             frame_thread.unpark();
             let _ = frames_done.recv();
+            // the tick job was ended, its answers closed
+            let _ = answers_done.recv();
             threads.drain(..).for_each(|t| drop(t.join()));
         };
         let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread) {
@@ -426,6 +443,7 @@ impl Session {
             tick_thread,
             frame_thread,
             frames_done: std::sync::Mutex::new(frames_done),
+            answers_done: std::sync::Mutex::new(answers_done),
             router,
             frames,
             frame_demand,
@@ -648,9 +666,11 @@ impl Session {
     fn shutdown(&mut self) {
         self.stop();
         self.await_tick_loop();
-        if let Ok(done) = self.frames_done.get_mut() {
-            // Err: it ended already
-            let _ = done.recv();
+        for done in [&mut self.frames_done, &mut self.answers_done] {
+            if let Ok(done) = done.get_mut() {
+                // Err: it ended already
+                let _ = done.recv();
+            }
         }
         for t in self.threads.drain(..) {
             let _ = t.join();

@@ -61,6 +61,18 @@ pub(super) struct PoolConfig {
     pub on_start: Option<fn()>,
 }
 
+impl PoolConfig {
+    /// `workers` unpinned workers at normal priority.
+    pub fn plain(workers: usize) -> Self {
+        Self {
+            workers,
+            pin: false,
+            fifo_priority: None,
+            on_start: None,
+        }
+    }
+}
+
 /// Why a job could not be placed on a worker.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
 pub enum PlaceError {
