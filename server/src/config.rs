@@ -48,6 +48,9 @@ pub struct ServerConfig {
     /// The frame workers that make the sessions' frames (`workers = 0`: a thread per session),
     /// unless `session.framing` names workers already.
     pub frame_workers: FrameWorkersConfig,
+    /// How a session driven by a device bridge waits for its states (`None`: the hybrid
+    /// wait), unless `session.haptic` gives the whole haptic configuration.
+    pub haptic_wait: Option<vademecum_bridge::timing::WaitStrategy>,
 }
 
 impl Default for ServerConfig {
@@ -71,6 +74,7 @@ impl Default for ServerConfig {
             session: SessionConfig::default(),
             tick_workers: SchedulerConfig::default(),
             frame_workers: FrameWorkersConfig::default(),
+            haptic_wait: None,
         }
     }
 }

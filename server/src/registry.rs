@@ -377,7 +377,10 @@ impl Registry {
             }
             session_cfg.haptic = Some(match &cfg.session.haptic {
                 Some(h) => HapticConfig { channel, ..h.clone() },
-                None => HapticConfig::new(channel),
+                None => HapticConfig {
+                    wait: cfg.haptic_wait.unwrap_or_default(),
+                    ..HapticConfig::new(channel)
+                },
             });
         }
         let session = Session::start(id.clone(), scene, bundles, session_cfg).map_err(|e| match e {

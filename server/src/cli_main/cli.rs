@@ -265,6 +265,13 @@ pub struct ServeArgs {
     /// makes its frames on a thread of its own.
     #[arg(long, value_name = "N")]
     pub frame_workers: Option<usize>,
+    /// How the tick thread of a session driven by a device bridge waits for the bridge's
+    /// states: `hybrid` (sleep, then poll the last 200 µs before a state is due; default: the
+    /// lowest latency, a fifth of a core per session), `event` (block on the event the bridge
+    /// raises after each state: no spinning — for many device sessions on one host), `spin`,
+    /// `sleep` (see `vademecum run --haptic-wait`).
+    #[arg(long, value_name = "WAIT")]
+    pub haptic_wait: Option<vademecum_bridge::timing::WaitStrategy>,
 }
 
 /// Arguments of `vademecum inspect`.
@@ -735,6 +742,18 @@ pub struct BenchLoadArgs {
     /// Sessions whose client runs as a killable process, with --chaos-every.
     #[arg(long, default_value_t = 4, value_name = "N")]
     pub chaos_clients: usize,
+    /// Of the sessions, this many are driven by a device bridge (`vademecum-bridge`, a
+    /// simulated stylus over shared memory, one process each; built beside this executable)
+    /// instead of a gRPC client. With --chaos-every, one bridge is killed (SIGKILL) once, half
+    /// way through, and restarted.
+    #[arg(long, default_value_t = 0, value_name = "K")]
+    pub haptic: usize,
+    /// How the server's device sessions wait for their bridges (serve --haptic-wait).
+    #[arg(long, default_value = "event", value_name = "WAIT")]
+    pub haptic_wait: vademecum_bridge::timing::WaitStrategy,
+    /// The device bridge executable for --haptic (default: `vademecum-bridge` beside this one).
+    #[arg(long, value_name = "PATH")]
+    pub bridge: Option<PathBuf>,
     /// Folder of the organ's bundle (built there when missing). Default: out/organ.
     #[arg(long, value_name = "DIR")]
     pub bundles: Option<PathBuf>,

@@ -29,8 +29,8 @@ use hdrhistogram::Histogram;
 use serde::Serialize;
 use vademecum_engine::scene::Scene;
 
-use super::bench_load_chaos::Chaos;
-use super::bench_session::{EchoServer, NullCounts, bench_tool, echo_once, hist, null_loop_until};
+use super::bench_load_chaos::{Bridges, Chaos};
+use super::bench_session::{EchoServer, NullCounts, bench_path, bench_tool, echo_once, hist, null_loop_until};
 use crate::cli_main::cli::BenchLoadArgs;
 use crate::cli_main::commands::build::ensure_bundles;
 use crate::session::stats::Percentiles;
@@ -93,9 +93,50 @@ struct Report {
     states_in_flight_at_kill: u64,
     /// The time series, one entry per `--window`.
     windows: Vec<Window>,
+    /// The sessions driven by device bridges (`--haptic`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    haptic: Option<HapticReport>,
     /// What the chaos did (`--chaos-every`).
     #[serde(skip_serializing_if = "Option::is_none")]
     chaos: Option<ChaosReport>,
+}
+
+/// The device sessions of a run, from their statistics (their bridges' reports included).
+#[derive(Debug, Serialize)]
+struct HapticReport {
+    sessions: usize,
+    /// How their tick threads waited for the bridges.
+    wait: String,
+    /// Tool states from the bridges answered, all sessions.
+    answered: u64,
+    /// Their ticks and deadline misses.
+    ticks: u64,
+    misses: u64,
+    /// The bridges' device read → force written (µs): the worst session's median and p99.
+    bridge_latency_p50_us_worst: f64,
+    bridge_latency_p99_us_worst: f64,
+    /// The bridges' own deadline misses, and ticks their watchdog held or faded the force.
+    bridge_deadline_misses: u64,
+    bridge_watchdog_ticks: u64,
+    /// Bridges killed (SIGKILL) and restarted.
+    bridge_kills: u64,
+}
+
+impl HapticReport {
+    fn of(stats: &[vademecum_client::pb::SessionStats], wait: String, bridge_kills: u64) -> Self {
+        Self {
+            sessions: stats.len(),
+            wait,
+            answered: stats.iter().map(|s| s.haptic_answered).sum(),
+            ticks: stats.iter().map(|s| s.ticks).sum(),
+            misses: stats.iter().map(|s| s.deadline_misses).sum(),
+            bridge_latency_p50_us_worst: stats.iter().map(|s| s.bridge_latency_p50_us).fold(0.0, f64::max),
+            bridge_latency_p99_us_worst: stats.iter().map(|s| s.bridge_latency_p99_us).fold(0.0, f64::max),
+            bridge_deadline_misses: stats.iter().map(|s| s.bridge_deadline_misses).sum(),
+            bridge_watchdog_ticks: stats.iter().map(|s| s.bridge_watchdog_ticks).sum(),
+            bridge_kills,
+        }
+    }
 }
 
 /// One window of the time series.
@@ -109,6 +150,8 @@ struct Window {
     null_miss_pct: f64,
     sessions_miss_pct: f64,
     chaos_sessions_miss_pct: Option<f64>,
+    /// The device sessions' misses (`--haptic`).
+    haptic_sessions_miss_pct: Option<f64>,
     /// Clients killed in the window.
     kills: u64,
 }
@@ -160,6 +203,9 @@ impl Server {
         }
         if let Some(n) = a.frame_workers {
             cmd.args(["--frame-workers", &n.to_string()]);
+        }
+        if a.haptic > 0 {
+            cmd.args(["--haptic-wait", &a.haptic_wait.to_string()]);
         }
         let mut child = cmd.spawn().context("cannot start the server")?;
         let stdout = child.stdout.take().context("the server's output")?;
@@ -349,6 +395,15 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         }
     }
     let chaos_sessions = if a.chaos_every.is_some() { a.chaos_clients } else { 0 };
+    if chaos_sessions + a.haptic > a.sessions {
+        bail!(
+            "--haptic {} with {chaos_sessions} chaos clients is more than the {} sessions",
+            a.haptic,
+            a.sessions
+        );
+    }
+    // the device sessions are the last --haptic ones
+    let first_haptic = a.sessions - a.haptic;
     let scene = Scene::builtin("organ")?;
     let dir = a.bundles.clone().unwrap_or_else(|| PathBuf::from("out/organ"));
     ensure_bundles(&scene, &dir)?;
@@ -363,10 +418,15 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         let (idle_rss, _) = server.rss();
         let mut sessions = Vec::new();
         for k in 0..a.sessions {
-            let s = c
-                .create_session(vademecum_client::SceneSpec::Builtin("organ".into()), &name, &format!("load{k}"))
-                .await
-                .with_context(|| format!("session {k} of {}", a.sessions))?;
+            let scene = vademecum_client::SceneSpec::Builtin("organ".into());
+            let label = format!("load{k}");
+            let s = if k >= first_haptic {
+                let channel = format!("load-{}-h{k}", std::process::id());
+                c.create_haptic_session(scene, &name, &label, &channel).await
+            } else {
+                c.create_session(scene, &name, &label).await
+            }
+            .with_context(|| format!("session {k} of {}", a.sessions))?;
             sessions.push(s);
         }
         // the echo, in this process
@@ -379,13 +439,32 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         let mut viewers = Vec::new();
         let addr = format!("http://{}", server.addr);
         let ids: Vec<String> = sessions.iter().map(|s| s.id().to_string()).collect();
+        let script_dir = tempfile::tempdir().context("cannot make a folder for the bridges' script")?;
+        let mut bridges = match a.haptic {
+            0 => None,
+            _ => {
+                let script = script_dir.path().join("hand.csv");
+                let keys = (0..=((a.seconds + 10.0) * 100.0) as u64)
+                    .map(|j| (j as f64 * 0.01, bench_path(10 * j), 0.0))
+                    .collect();
+                vademecum_bridge::trajectory::Trajectory::new(keys)
+                    .map_err(|e| anyhow::anyhow!("the bridges' hand script: {e}"))?
+                    .write(&script)
+                    .context("cannot write the bridges' hand script")?;
+                let channels: Vec<String> = (first_haptic..a.sessions)
+                    .map(|k| format!("load-{}-h{k}", std::process::id()))
+                    .collect();
+                Some(Bridges::start(a.bridge.as_deref(), &channels, &script, a.seconds + 10.0)?)
+            }
+        };
+        let mut bridge_kill = a.chaos_every.map(|_| wall + Duration::from_secs_f64(a.seconds / 2.0));
         let mut chaos = match chaos_sessions {
             0 => None,
             k => Some(Chaos::start(&addr, &ids[..k], a.rate)?),
         };
         for (k, s) in sessions.iter().enumerate() {
             // a chaos session's client is a process of its own
-            for _ in 0..a.clients_per_session * usize::from(k >= chaos_sessions) {
+            for _ in 0..a.clients_per_session * usize::from(k >= chaos_sessions && k < first_haptic) {
                 let quiet: super::bench_load::Progress = Box::new(|_| {});
                 clients.push(tokio::spawn(client(addr.clone(), s.id().to_string(), period, stop.clone(), quiet)));
             }
@@ -415,9 +494,20 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
                 kills += 1;
                 next_kill = a.chaos_every.map(|e| t + Duration::from_secs_f64(e));
             }
+            if let (Some(b), Some(t)) = (&mut bridges, bridge_kill)
+                && Instant::now() >= t
+            {
+                b.kill_one()?;
+                bridge_kill = None;
+                kills += 1;
+            }
             if Instant::now() >= next_window || Instant::now() >= end {
                 let now = sample(&sessions, &null_counts).await?;
-                windows.push(now.window_since(&before, wall.elapsed().as_secs_f64(), server.rss().0, chaos_sessions, kills));
+                let groups = Groups {
+                    chaos: chaos_sessions,
+                    haptic: a.haptic,
+                };
+                windows.push(now.window_since(&before, wall.elapsed().as_secs_f64(), server.rss().0, groups, kills));
                 (before, kills) = (now, 0);
                 next_window += window;
             }
@@ -440,6 +530,15 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             .collect();
         stop.store(true, Ordering::Relaxed);
         let chaos = chaos.map(Chaos::finish);
+        let bridge_kills = bridges.as_ref().map_or(0, |b| b.kills);
+        // the device sessions' figures while their bridges still run
+        let mut haptic_stats = Vec::new();
+        for s in &sessions[first_haptic..] {
+            haptic_stats.push(s.stats().await?);
+        }
+        if let Some(b) = bridges {
+            b.finish();
+        }
         let mut rtt = hist();
         let (mut sent, mut answered, mut refused) = (0, 0, 0);
         for c in clients {
@@ -506,6 +605,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             session_memory_mib: memory as f64 / a.sessions as f64 / 1048576.0,
             states_in_flight_at_kill: in_flight,
             windows,
+            haptic: (a.haptic > 0).then(|| HapticReport::of(&haptic_stats, a.haptic_wait.to_string(), bridge_kills)),
             chaos: chaos.map(|c| ChaosReport {
                 clients: chaos_sessions,
                 every_s: a.chaos_every.unwrap_or(0.0),
@@ -523,6 +623,14 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         std::fs::write(path, serde_json::to_string_pretty(&report)?).with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Which sessions a window reports apart: the first `chaos` (clients killed), the last
+/// `haptic` (device bridges).
+#[derive(Debug, Clone, Copy)]
+struct Groups {
+    chaos: usize,
+    haptic: usize,
 }
 
 /// The counts a window is measured between: each session's ticks and misses, the null loop's.
@@ -546,8 +654,8 @@ async fn sample(sessions: &[vademecum_client::Session], null: &NullCounts) -> an
 
 impl Sample {
     /// The window from `before` to this sample, ending at `t_s`, with the server's RSS then; the
-    /// first `chaos` sessions' misses apart.
-    fn window_since(&self, before: &Self, t_s: f64, rss_mib: f64, chaos: usize, kills: u64) -> Window {
+    /// chaos sessions' misses and the device sessions' apart.
+    fn window_since(&self, before: &Self, t_s: f64, rss_mib: f64, groups: Groups, kills: u64) -> Window {
         let pct = |(t, m): (u64, u64)| 100.0 * m as f64 / t.max(1) as f64;
         let delta = |range: std::ops::Range<usize>| {
             range.fold((0, 0), |(t, m), k| {
@@ -556,13 +664,15 @@ impl Sample {
             })
         };
         let n = self.sessions.len().min(before.sessions.len());
-        let chaos = chaos.min(n);
+        let chaos = groups.chaos.min(n);
+        let first_haptic = n.saturating_sub(groups.haptic).max(chaos);
         Window {
             t_s,
             server_rss_mib: rss_mib,
             null_miss_pct: pct((self.null.0.saturating_sub(before.null.0), self.null.1.saturating_sub(before.null.1))),
-            sessions_miss_pct: pct(delta(chaos..n)),
+            sessions_miss_pct: pct(delta(chaos..first_haptic)),
             chaos_sessions_miss_pct: (chaos > 0).then(|| pct(delta(0..chaos))),
+            haptic_sessions_miss_pct: (first_haptic < n).then(|| pct(delta(first_haptic..n))),
             kills,
         }
     }
@@ -641,21 +751,40 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
             c.clients, c.every_s, c.kills, c.states_sent, c.states_answered, c.states_refused, c.states_in_flight_at_kill
         )?;
     }
+    if let Some(h) = &r.haptic {
+        writeln!(
+            out,
+            "device sessions: {} driven by bridges (server waits: {}): {} states answered, {} deadline misses of {} ticks ({:.3} %); bridges' read → force p50/p99 (worst) {:.1}/{:.1} µs, {} bridge deadline misses, {} watchdog ticks, {} bridge(s) killed and restarted",
+            h.sessions,
+            h.wait,
+            h.answered,
+            h.misses,
+            h.ticks,
+            pct(h.misses, h.ticks),
+            h.bridge_latency_p50_us_worst,
+            h.bridge_latency_p99_us_worst,
+            h.bridge_deadline_misses,
+            h.bridge_watchdog_ticks,
+            h.bridge_kills
+        )?;
+    }
     if r.windows.len() > 1 {
         writeln!(
             out,
-            "| t (s) | RSS (MiB) | null loop misses | sessions' misses | chaos sessions' misses | kills |"
+            "| t (s) | RSS (MiB) | null loop misses | sessions' misses | chaos sessions' misses | device sessions' misses | kills |"
         )?;
-        writeln!(out, "|---:|---:|---:|---:|---:|---:|")?;
+        writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|")?;
+        let opt = |p: Option<f64>| p.map_or("—".into(), |p| format!("{p:.3} %"));
         for w in &r.windows {
             writeln!(
                 out,
-                "| {:.0} | {:.1} | {:.3} % | {:.3} % | {} | {} |",
+                "| {:.0} | {:.1} | {:.3} % | {:.3} % | {} | {} | {} |",
                 w.t_s,
                 w.server_rss_mib,
                 w.null_miss_pct,
                 w.sessions_miss_pct,
-                w.chaos_sessions_miss_pct.map_or("—".into(), |p| format!("{p:.3} %")),
+                opt(w.chaos_sessions_miss_pct),
+                opt(w.haptic_sessions_miss_pct),
                 w.kills
             )?;
         }

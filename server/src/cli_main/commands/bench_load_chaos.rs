@@ -187,3 +187,94 @@ impl Drop for Chaos {
         }
     }
 }
+
+/// The device bridges of `bench load --haptic K`: a `vademecum-bridge` process per haptic
+/// session, its simulated stylus following `script`; one can be killed and restarted.
+pub(super) struct Bridges {
+    exe: std::path::PathBuf,
+    script: std::path::PathBuf,
+    seconds: f64,
+    children: Vec<(String, Child)>,
+    /// Bridges killed.
+    pub kills: u64,
+}
+
+impl Bridges {
+    /// A bridge on each of `channels`, running for `seconds` at most: the executable `exe`, or
+    /// `vademecum-bridge` beside this one.
+    pub fn start(exe: Option<&std::path::Path>, channels: &[String], script: &std::path::Path, seconds: f64) -> anyhow::Result<Self> {
+        let exe = match exe {
+            Some(e) => e.to_path_buf(),
+            None => std::env::current_exe()
+                .context("cannot find this executable")?
+                .with_file_name("vademecum-bridge"),
+        };
+        if !exe.exists() {
+            anyhow::bail!(
+                "--haptic needs the device bridge at {}: build it with `cargo build --release -p vademecum-bridge`, or say where it is with --bridge",
+                exe.display()
+            );
+        }
+        let mut b = Self {
+            exe,
+            script: script.to_path_buf(),
+            seconds,
+            children: Vec::new(),
+            kills: 0,
+        };
+        for c in channels {
+            let child = b.spawn(c)?;
+            b.children.push((c.clone(), child));
+        }
+        Ok(b)
+    }
+
+    /// A bridge on `channel`: a simulated stylus, sleeping to its deadlines (many bridges
+    /// share the host's cores: no spinning).
+    fn spawn(&self, channel: &str) -> anyhow::Result<Child> {
+        Command::new(&self.exe)
+            .args(["--session", channel, "--device", "sim", "--script"])
+            .arg(&self.script)
+            .args(["--wait", "sleep", "--duration", &format!("{:.1}", self.seconds)])
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .context("cannot start a device bridge")
+    }
+
+    /// Kills the first bridge with SIGKILL and starts a new one on its channel.
+    pub fn kill_one(&mut self) -> anyhow::Result<()> {
+        let Some((channel, child)) = self.children.first_mut() else {
+            return Ok(());
+        };
+        let _ = child.kill();
+        let _ = child.wait();
+        self.kills += 1;
+        let channel = channel.clone();
+        let fresh = self.spawn(&channel)?;
+        self.children[0].1 = fresh;
+        Ok(())
+    }
+
+    /// Stops every bridge (SIGTERM: each fades its force and exits).
+    pub fn finish(mut self) {
+        for (_, c) in &mut self.children {
+            // SAFETY: kill(2) with a child's pid and a valid signal has no memory effects.
+            unsafe { libc::kill(c.id() as libc::pid_t, libc::SIGTERM) };
+        }
+        for (_, c) in &mut self.children {
+            let _ = c.wait();
+        }
+        self.children.clear();
+    }
+}
+
+impl Drop for Bridges {
+    fn drop(&mut self) {
+        for (_, c) in &mut self.children {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}

@@ -259,15 +259,18 @@ fn concurrent(
 
 /// The tool state sent `i`-th: a circle over the organ, pressing in and out.
 pub(super) fn bench_tool(i: u64) -> vademecum_client::pb::ToolState {
+    vademecum_client::tool_at(i, bench_path(i))
+}
+
+/// Where the benchmarks' probe is at its `i`-th state (1 ms apart): circles over the built-in
+/// organ, pressing in and out, repeating every 5 s.
+pub(super) fn bench_path(i: u64) -> [f64; 3] {
     let s = (i % 5000) as f64 * 1e-3;
-    vademecum_client::tool_at(
-        i,
-        [
-            0.02 * (3.0 * s).cos(),
-            0.015 * (3.0 * s).sin(),
-            0.030 - 0.006 * (5.0 * s).sin().abs(),
-        ],
-    )
+    [
+        0.02 * (3.0 * s).cos(),
+        0.015 * (3.0 * s).sin(),
+        0.030 - 0.006 * (5.0 * s).sin().abs(),
+    ]
 }
 
 /// Calls `round_trip(i)` once per millisecond (paced by sleeping to deadlines) for `secs`,

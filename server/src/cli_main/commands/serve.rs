@@ -82,6 +82,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             on_start: None,
             max_utilisation: a.max_tick_load,
         },
+        haptic_wait: a.haptic_wait,
         frame_workers: crate::session::FrameWorkersConfig {
             workers: a.frame_workers.unwrap_or(crate::session::FrameWorkersConfig::default().workers),
         },
