@@ -320,7 +320,7 @@ impl HapticPeer {
             }
             match &self.wake {
                 Some(l) => {
-                    if l.timed_wait(|_| {}, left).is_err() {
+                    if l.timed_wait(|_| {}, event_timeout(left)).is_err() {
                         std::thread::sleep(left);
                     }
                 }
@@ -370,9 +370,34 @@ impl HapticPeer {
     }
 }
 
+/// The timeout to give iceoryx2's event wait for `left` still to wait: `left` rounded up to
+/// whole microseconds. The wait sets the socket's `SO_RCVTIMEO` from a `timeval`, where a
+/// timeout under a microsecond becomes zero — which the kernel reads as *wait forever*: a
+/// session waiting for a bridge that has gone would then never see its deadline, nor its
+/// close.
+fn event_timeout(left: Duration) -> Duration {
+    Duration::from_micros(left.as_nanos().div_ceil(1000) as u64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::BridgePhase;
+    use std::time::Duration;
+
+    /// A wait of less than a microsecond left must not become a zero socket timeout (the
+    /// kernel's "forever"): the event wait of a session whose bridge had gone hung its close.
+    #[test]
+    fn an_event_wait_never_asks_the_socket_for_a_zero_timeout() {
+        for ns in [1, 400, 999, 1000, 1001, 250_000, 1_500_000] {
+            let t = super::event_timeout(Duration::from_nanos(ns));
+            assert!(t >= Duration::from_micros(1), "{ns} ns → {t:?}");
+            assert!(
+                t >= Duration::from_nanos(ns) && t < Duration::from_nanos(ns) + Duration::from_micros(1),
+                "{ns} ns → {t:?}"
+            );
+            assert_eq!(t.subsec_nanos() % 1000, 0, "whole microseconds: {t:?}");
+        }
+    }
 
     const P: u64 = 1_000_000;
 
