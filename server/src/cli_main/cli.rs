@@ -358,9 +358,16 @@ sessions of the built-in organ and drives each, for --seconds, with --clients-pe
 streams sending tool states at --rate (each after the previous answer, as a frontend does) and \
 --viewers viewers at 30 Hz. Reported from the same run: the sessions' deadline misses beside a null \
 loop in this process (a thread sleeping to 1 ms deadlines), every client's round trip beside a tonic \
-echo of the same stream and pacing, every tool state accounted for (sent = answered + refused + \
-lost), the server's CPU and RSS. Prints a table; --json FILE writes the figures.\n\n\
-Example: vademecum bench load --sessions 32 --seconds 30 --json out/load.json"
+echo of the same stream and pacing, every tool state accounted for (sent = answered + refused + in flight when a killed client died + \
+lost), the server's CPU and RSS, and what each session reports it holds in memory. Every --window \
+seconds it samples the RSS and the misses (a soak's time series). --chaos-every S kills a random \
+client with SIGKILL every S seconds (the clients of --chaos-clients sessions run as processes of \
+their own) and restarts it. --haptic K drives K of the sessions with device bridges \
+(vademecum-bridge, a simulated stylus over shared memory) instead of gRPC clients. Prints a \
+table; --json FILE writes the figures.\n\n\
+Examples:\n  vademecum bench load --sessions 32 --seconds 30 --json out/load.json\n  \
+vademecum bench load --seconds 600 --window 30 --chaos-every 5     # a soak with chaos\n  \
+vademecum bench load --sessions 16 --haptic 4                      # with device sessions"
     )]
     Load(BenchLoadArgs),
     /// One client of `bench load --chaos-every` (a process of its own, to be killed).
