@@ -1,5 +1,6 @@
 //! Sessions: a scene, its loaded bundles (shared read-only with other sessions), the effect
-//! pipeline built from the scene's `[effects]`, a tick loop and two threads.
+//! pipeline built from the scene's `[effects]`, a tick loop, an answer dispatcher and a frame
+//! producer — each a turn on a pool's worker or a thread of its own.
 //!
 //! - The **tick loop** owns the pipeline. It runs on a tick worker shared with other sessions
 //!   ([`scheduler`], [`SessionConfig::ticking`]) or on a thread of its own (the same loop,
