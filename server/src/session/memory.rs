@@ -7,7 +7,6 @@
 use serde::Serialize;
 
 use super::frames::{Frame, SurfaceGeometry};
-use super::stats::Histograms;
 use super::tick::Latest;
 use super::{Answer, Command, StreamId};
 
@@ -26,8 +25,9 @@ impl SessionMemory {
     }
 
     /// The parts of a session with these effects (`(name, bytes)`), a command queue of
-    /// `queue` states, an answer ring of `ring` answers, and frames of `geometry`.
-    pub(super) fn of(effects: &[(&'static str, usize)], queue: usize, ring: usize, geometry: &SurfaceGeometry) -> Self {
+    /// `queue` states, an answer ring of `ring` answers, histograms of `histograms` bytes
+    /// ([`super::TickStats::histogram_bytes`]), and frames of `geometry`.
+    pub(super) fn of(effects: &[(&'static str, usize)], queue: usize, ring: usize, histograms: usize, geometry: &SurfaceGeometry) -> Self {
         let mut parts: Vec<(String, u64)> = effects.iter().map(|(n, b)| (format!("effect:{n}"), *b as u64)).collect();
         // the command channel's slots, the answer ring's (each with its stamp), the triple
         // buffer of the latest state
@@ -35,8 +35,7 @@ impl SessionMemory {
             + ring * (std::mem::size_of::<(StreamId, Answer)>() + std::mem::size_of::<usize>())
             + 3 * std::mem::size_of::<Latest>();
         parts.push(("queues".into(), queues as u64));
-        // the tick's set, the two that travel, the readers' merged set (`stats` module docs)
-        parts.push(("histograms".into(), 4 * Histograms::default().heap_bytes() as u64));
+        parts.push(("histograms".into(), histograms as u64));
         // the surface geometry, the frame published and the one being made
         let surface: usize = geometry
             .organs

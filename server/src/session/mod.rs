@@ -307,7 +307,13 @@ impl Session {
             config.queue.max(1) + MAX_COMMANDS_PER_TICK + 1,
             stats.clone(),
         ));
-        let memory = SessionMemory::of(&effects_memory, config.queue.max(1), ring.capacity(), &geometry);
+        let memory = SessionMemory::of(
+            &effects_memory,
+            config.queue.max(1),
+            ring.capacity(),
+            stats.histogram_bytes(),
+            &geometry,
+        );
         let router = Arc::new(answers::Router::new());
         let script = match script {
             None => None,

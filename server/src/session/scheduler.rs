@@ -3,8 +3,9 @@
 //! A session's tick work is a few µs per period, but a sleeping thread per session that
 //! shares a core with others wakes late (`BENCHMARKS.md`): the threads, not the work, limit
 //! how many sessions a core holds. A [`TickScheduler`] runs a fixed pool of workers (by
-//! default one per core the process may use). Each worker owns the tick loops of the
-//! sessions placed on it and runs one loop of its own:
+//! default one per core the process may use; the pool is `session::workers`, shared with the
+//! frame and answer workers). Each worker owns the tick loops of the sessions placed on it and
+//! runs one loop of its own:
 //!
 //! 1. take the sessions handed to it (a bounded channel; its session list is allocated once,
 //!    [`MAX_SESSIONS_PER_WORKER`] long, so taking one allocates nothing);

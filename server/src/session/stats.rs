@@ -328,6 +328,12 @@ impl TickStats {
         self.histograms.lock().map(|h| h.clone()).unwrap_or_default()
     }
 
+    /// Bytes of the session's histograms: the three sets the tick and the readers pass
+    /// between them (module docs) and the readers' merged set, all of one size.
+    pub fn histogram_bytes(&self) -> usize {
+        4 * self.histograms.lock().map_or(0, |h| h.heap_bytes())
+    }
+
     /// A summary of everything so far.
     pub fn snapshot(&self) -> StatsSnapshot {
         let h = self.histograms();
