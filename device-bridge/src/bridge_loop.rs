@@ -7,8 +7,9 @@
 //! 2. read the device at the tick's scheduled time; pass the sample through the
 //!    [`InputGuard`] (non-finite held, excursions and jumps clamped, counted);
 //! 3. publish the [`HapticState`] (organ frame);
-//! 4. take the newest force; if it does not yet answer this tick's state, poll for it up to
-//!    [`BridgeParams::answer_wait`] (unless eight ticks in a row went unanswered in time: then
+//! 4. take the newest force; if it does not yet answer this tick's state, wait for it up to
+//!    [`BridgeParams::answer_wait`] — polling, or blocked on the server's `answered` event
+//!    ([`AnswerWake`]) — (unless eight ticks in a row went unanswered in time: then
 //!    only on every 16th tick, so a server that answers a tick late, or is gone, costs no
 //!    spinning);
 //! 5. a force is *fresh* when it arrived since the last tick and answers a state read less
@@ -45,6 +46,30 @@ const GIVE_UP_WAITING: u32 = 8;
 /// (the missed ticks are counted as misses, not run back to back).
 const MAX_CATCH_UP: u32 = 10;
 
+/// How a tick waits for the answer to its own state (step 4 of the [module docs](self)).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum AnswerWake {
+    /// Poll the force subscriber until the answer arrives or the wait is over: the answer is
+    /// taken microseconds after it is published, at the cost of a busy CPU for up to
+    /// [`BridgeParams::answer_wait`] a tick — the right choice for one device on its own core.
+    #[default]
+    Poll,
+    /// Block on the server's `answered` event (a kernel wake-up per answer, tens of µs on a
+    /// busy host) and spend no CPU while waiting: the choice when several bridges share a
+    /// host's cores, where polling bridges would take the cores the server needs.
+    Event,
+}
+
+impl std::fmt::Display for AnswerWake {
+    /// The command-line name (`poll`, `event`).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Poll => "poll",
+            Self::Event => "event",
+        })
+    }
+}
+
 /// How the loop runs.
 #[derive(Debug, Clone)]
 pub struct BridgeParams {
@@ -54,8 +79,10 @@ pub struct BridgeParams {
     pub strategy: WaitStrategy,
     /// Spin window of the hybrid strategy.
     pub window: Duration,
-    /// How long a tick polls for the answer to its own state (0: use whatever is there).
+    /// How long a tick waits for the answer to its own state (0: use whatever is there).
     pub answer_wait: Duration,
+    /// How it waits for it.
+    pub answer_wake: AnswerWake,
     /// Stop after this long (None: until stopped, or the device is done).
     pub duration: Option<Duration>,
     /// Give up when no fresh force arrived for this long (None: wait for the server forever).
@@ -86,6 +113,7 @@ impl Default for BridgeParams {
             strategy: WaitStrategy::Hybrid,
             window: timing::DEFAULT_SPIN_WINDOW,
             answer_wait: Duration::from_micros(300),
+            answer_wake: AnswerWake::Poll,
             duration: None,
             server_timeout: None,
             trace_limit: 600_000,
@@ -357,13 +385,25 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         let wait = !p.answer_wait.is_zero() && (missed_in_tick < GIVE_UP_WAITING || tick.is_multiple_of(16));
         if wait && newest.is_none_or(|c| c.state_seq != tick || c.t_read_ns != t_read_ns) {
             let until = Instant::now() + p.answer_wait;
-            timing::wait_between(Instant::now(), until, || {
+            let mut answered = |link: &mut L| {
                 if let Some(c) = link.poll_command() {
                     keep_late(&c);
                     newest = Some(c);
                 }
                 newest.is_some_and(|c| c.state_seq == tick && c.t_read_ns == t_read_ns)
-            });
+            };
+            let mut blocked = p.answer_wake == AnswerWake::Event;
+            while blocked && !answered(link) {
+                let left = until.saturating_duration_since(Instant::now());
+                if left.is_zero() {
+                    break;
+                }
+                // a link that cannot block falls back to polling
+                blocked = link.wait_command(left);
+            }
+            if !blocked {
+                timing::wait_between(Instant::now(), until, || answered(link));
+            }
         }
         // 5. fresh, or aged by the watchdog
         let fresh = newest.filter(|c| c.t_read_ns >= t0_ns && t_read_ns.saturating_sub(c.t_read_ns) < STALE_AFTER_TICKS * period_ns);

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
-use crate::bridge_loop::{self, BridgeOutcome, BridgeParams, EndReason};
+use crate::bridge_loop::{self, AnswerWake, BridgeOutcome, BridgeParams, EndReason};
 use crate::device::replay::Replay;
 use crate::device::sim::{HandModel, SimStylus};
 use crate::device::{Device, NullDevice};
@@ -95,6 +95,12 @@ struct Args {
     /// received, one tick late.
     #[arg(long, default_value_t = 300, value_name = "US")]
     answer_wait_us: u64,
+    /// How a tick waits for its answer: `poll` the force subscriber (taken microseconds
+    /// after it is published; a busy CPU up to --answer-wait-us a tick — one device on its
+    /// own core), or block on the server's `event` (no CPU while waiting, a kernel wake-up
+    /// per answer — several bridges sharing a host's cores).
+    #[arg(long, value_enum, default_value_t = AnswerWake::Poll)]
+    answer_wake: AnswerWake,
     /// Stop after this many seconds (default: until the script ends or a signal).
     #[arg(long, value_name = "S")]
     duration: Option<f64>,
@@ -309,6 +315,7 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
         strategy: a.wait,
         window: Duration::from_micros(a.spin_window_us),
         answer_wait: Duration::from_micros(a.answer_wait_us),
+        answer_wake: a.answer_wake,
         duration,
         server_timeout,
         trace_limit: if a.record.is_some() { a.record_limit } else { 0 },

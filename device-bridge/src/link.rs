@@ -33,6 +33,13 @@ pub trait Link {
     fn send_report(&mut self, report: &BridgeReport) -> Result<(), LinkError>;
     /// Forces received but superseded by a newer one before the bridge used them.
     fn skipped(&self) -> u64;
+    /// Blocks until the server signals a force published, or `timeout` passes; `false` when
+    /// this link cannot block on such a signal (the caller polls [`Link::poll_command`]
+    /// instead). A signal already pending returns at once.
+    fn wait_command(&mut self, timeout: std::time::Duration) -> bool {
+        let _ = timeout;
+        false
+    }
     /// Asks for housekeeping off the hot path, when the server seems gone: the shared-memory
     /// leftovers of crashed processes are removed (on another thread) so that a restarted
     /// server can take the channel. Must cost the calling thread no more than a flag and a
@@ -50,6 +57,7 @@ pub struct ShmLink {
     commands: ShmSubscriber<HapticCommand>,
     reports: ShmPublisher<BridgeReport>,
     wake: iceoryx2::port::notifier::Notifier<iceoryx2::prelude::ipc::Service>,
+    answered: iceoryx2::port::listener::Listener<iceoryx2::prelude::ipc::Service>,
     skipped: u64,
 }
 
@@ -69,6 +77,7 @@ impl ShmLink {
             .map_err(|e| port("command", &e))?;
         let reports = services.report.publisher_builder().create().map_err(|e| port("report", &e))?;
         let wake = services.wake.notifier_builder().create().map_err(|e| port("wake", &e))?;
+        let answered = services.answered.listener_builder().create().map_err(|e| port("answered", &e))?;
         Ok(Self {
             _node: node,
             _services: services,
@@ -77,6 +86,7 @@ impl ShmLink {
             commands,
             reports,
             wake,
+            answered,
             skipped: 0,
         })
     }
@@ -111,6 +121,10 @@ impl Link for ShmLink {
 
     fn skipped(&self) -> u64 {
         self.skipped
+    }
+
+    fn wait_command(&mut self, timeout: std::time::Duration) -> bool {
+        self.answered.timed_wait(|_| {}, shm::event_timeout(timeout)).is_ok()
     }
 
     fn maintain(&mut self) {

@@ -127,6 +127,7 @@ pub struct HapticPeer {
     commands: ShmPublisher<HapticCommand>,
     reports: ShmSubscriber<BridgeReport>,
     wake: Option<iceoryx2::port::listener::Listener<iceoryx2::prelude::ipc::Service>>,
+    answer_event: iceoryx2::port::notifier::Notifier<iceoryx2::prelude::ipc::Service>,
     strategy: WaitStrategy,
     window: Duration,
     period: Duration,
@@ -138,6 +139,18 @@ pub struct HapticPeer {
     answered: u64,
     skipped: u64,
 }
+
+// SAFETY: iceoryx2's `ipc` ports are not `Send` because they share state through `Rc`s
+// (its single-threaded arc policy), among the node, the services and the ports made from
+// them. A peer owns all of them — its fields are private and no method hands out an iceoryx2
+// object (samples are copied out and dropped, or loaned and sent, within the call) — so every
+// `Rc` of that graph is reachable only through the peer, and moving the peer moves the whole
+// graph: no reference count is ever touched by two threads. iceoryx2 keeps no thread-local
+// state (no `thread_local!` in iceoryx2, its cal and posix layers, 0.10) and its sockets and
+// shared memory belong to the process. `HapticPeer` is not `Sync`. This lets a session open
+// its channel on the thread that starts it (milliseconds: files, sockets) and hand the peer to
+// the worker that ticks it, and get it back to close it there: the worker does neither.
+unsafe impl Send for HapticPeer {}
 
 impl HapticPeer {
     /// Opens `channel` and creates the server's ports. Fails when another server already
@@ -164,6 +177,7 @@ impl HapticPeer {
             WaitStrategy::Event => Some(services.wake.listener_builder().create().map_err(|e| port("wake", &e))?),
             _ => None,
         };
+        let answer_event = services.answered.notifier_builder().create().map_err(|e| port("answered", &e))?;
         Ok(Self {
             _node: node,
             _services: services,
@@ -171,6 +185,7 @@ impl HapticPeer {
             commands,
             reports,
             wake,
+            answer_event,
             strategy,
             window,
             period,
@@ -307,6 +322,30 @@ impl HapticPeer {
         }
     }
 
+    /// The file descriptor the bridge's wake event makes readable (the event wait's only): a
+    /// worker that serves many channels waits on all of theirs at once (`poll(2)`), then takes
+    /// each channel's state with [`Self::try_state`].
+    pub fn wake_fd(&self) -> Option<std::os::fd::RawFd> {
+        use iceoryx2::prelude::FileDescriptorBased;
+        // SAFETY: the number is only used to wait for readability while the listener lives
+        // (it is neither closed nor read through it)
+        self.wake.as_ref().map(|l| unsafe { l.file_descriptor().native_handle() })
+    }
+
+    /// The bridge's newest state if one arrived, without waiting; `woken`: the wake event
+    /// fired (its notifications are consumed, so that the descriptor is not readable again
+    /// for them).
+    pub fn try_state(&mut self, woken: bool) -> Option<HapticState> {
+        if woken && let Some(l) = &self.wake {
+            let _ = l.try_wait(|_| {});
+        }
+        self.trace = WaitTrace::default();
+        let s = self.poll()?;
+        self.trace.polling_ns = shm::monotonic_ns();
+        self.arrived(&s);
+        Some(s)
+    }
+
     /// Blocks on the bridge's wake event until a state arrives or `deadline` passes.
     fn wait_for_event(&mut self, deadline: Instant) -> Option<HapticState> {
         loop {
@@ -320,7 +359,7 @@ impl HapticPeer {
             }
             match &self.wake {
                 Some(l) => {
-                    if l.timed_wait(|_| {}, event_timeout(left)).is_err() {
+                    if l.timed_wait(|_| {}, shm::event_timeout(left)).is_err() {
                         std::thread::sleep(left);
                     }
                 }
@@ -347,7 +386,9 @@ impl HapticPeer {
             t_peer_received_ns: w.received_ns,
         };
         let sample = self.commands.loan_uninit().map_err(|_| LinkError::Loan)?;
-        sample.write_payload(cmd).send().map(|_| ()).map_err(|_| LinkError::Send)
+        sample.write_payload(cmd).send().map_err(|_| LinkError::Send)?;
+        // wakes a bridge that blocks on the event for its answer; free when nobody listens
+        self.answer_event.notify().map(|_| ()).map_err(|_| LinkError::Send)
     }
 
     /// The newest bridge report since the last call.
@@ -370,26 +411,18 @@ impl HapticPeer {
     }
 }
 
-/// The timeout to give iceoryx2's event wait for `left` still to wait: `left` rounded up to
-/// whole microseconds. The wait sets the socket's `SO_RCVTIMEO` from a `timeval`, where a
-/// timeout under a microsecond becomes zero — which the kernel reads as *wait forever*: a
-/// session waiting for a bridge that has gone would then never see its deadline, nor its
-/// close.
-fn event_timeout(left: Duration) -> Duration {
-    Duration::from_micros(left.as_nanos().div_ceil(1000) as u64)
-}
-
 #[cfg(test)]
 mod tests {
     use super::BridgePhase;
     use std::time::Duration;
+    use vademecum_proto::shm;
 
     /// A wait of less than a microsecond left must not become a zero socket timeout (the
     /// kernel's "forever"): the event wait of a session whose bridge had gone hung its close.
     #[test]
     fn an_event_wait_never_asks_the_socket_for_a_zero_timeout() {
         for ns in [1, 400, 999, 1000, 1001, 250_000, 1_500_000] {
-            let t = super::event_timeout(Duration::from_nanos(ns));
+            let t = shm::event_timeout(Duration::from_nanos(ns));
             assert!(t >= Duration::from_micros(1), "{ns} ns → {t:?}");
             assert!(
                 t >= Duration::from_nanos(ns) && t < Duration::from_nanos(ns) + Duration::from_micros(1),

@@ -9,8 +9,9 @@
 //! - [`BridgeReport`]: bridge → server, a few per second: the bridge's own counters and
 //!   latency percentiles, exported by the server's metrics.
 //! - [`HapticChannel`]: a validated channel name and the service names under it.
-//! - [`HapticServices`]: the services, opened or created with the shared settings (plus the
-//!   `wake` event a peer may block on instead of polling).
+//! - [`HapticServices`]: the services, opened or created with the shared settings (plus two
+//!   events a side may block on instead of polling: `wake`, a state was published, and
+//!   `answered`, a force was).
 //!
 //! Times are `CLOCK_MONOTONIC` nanoseconds ([`monotonic_ns`]), one clock for every process
 //! on the host, so a latency can be measured across the two processes.
@@ -148,7 +149,8 @@ impl std::fmt::Display for ChannelNameError {
 impl std::error::Error for ChannelNameError {}
 
 /// A haptic channel: the name a session and a bridge agree on (by default the session id),
-/// under which its services live: `vademecum/haptic/<name>/{state,command,report,wake}`.
+/// under which its services live:
+/// `vademecum/haptic/<name>/{state,command,report,wake,answered}`.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 pub struct HapticChannel {
     name: String,
@@ -228,6 +230,9 @@ pub struct HapticServices {
     /// "A state was published", bridge → server: an event for peers that block on it
     /// instead of polling (notifying costs the bridge nothing while nobody listens).
     pub wake: EventFactory<ipc::Service>,
+    /// "A force was published", server → bridge: an event for bridges that block on it while
+    /// they wait for the answer to their state, instead of polling for it.
+    pub answered: EventFactory<ipc::Service>,
 }
 
 /// Samples a subscriber keeps before the oldest is overwritten.
@@ -274,8 +279,17 @@ impl HapticServices {
             command: open(node, &channel.service_name("command"))?,
             report: open(node, &channel.service_name("report"))?,
             wake: open_event(node, &channel.service_name("wake"))?,
+            answered: open_event(node, &channel.service_name("answered"))?,
         })
     }
+}
+
+/// The timeout to give iceoryx2's event wait for `left` still to wait: `left` rounded up to
+/// whole microseconds. The wait sets the socket's `SO_RCVTIMEO` from a `timeval`, where a
+/// timeout under a microsecond becomes zero — which the kernel reads as *wait forever*: a
+/// side waiting for a peer that has gone would then never see its deadline.
+pub fn event_timeout(left: std::time::Duration) -> std::time::Duration {
+    std::time::Duration::from_micros(left.as_nanos().div_ceil(1000) as u64)
 }
 
 /// A publisher of `T` on the ipc service.

@@ -43,8 +43,13 @@ pub struct ServerConfig {
     pub session: SessionConfig,
     /// The tick workers that tick the sessions (`workers = 0`: a thread per session), unless
     /// `session.ticking` names workers already; as many answer workers route their answers
-    /// (unless `session.answering` names some). A haptic session has a thread of its own.
+    /// (unless `session.answering` names some). A haptic session is ticked by a device worker
+    /// or has a thread of its own.
     pub tick_workers: SchedulerConfig,
+    /// Device workers that tick the sessions driven by device bridges with the event wait,
+    /// each blocked on many bridges' events at once (0: a thread per device session), unless
+    /// `session.devices` names workers already.
+    pub device_workers: usize,
     /// The frame workers that make the sessions' frames (`workers = 0`: a thread per session),
     /// unless `session.framing` names workers already.
     pub frame_workers: FrameWorkersConfig,
@@ -74,6 +79,7 @@ impl Default for ServerConfig {
             session: SessionConfig::default(),
             tick_workers: SchedulerConfig::default(),
             frame_workers: FrameWorkersConfig::default(),
+            device_workers: 0,
             haptic_wait: None,
         }
     }

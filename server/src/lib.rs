@@ -63,6 +63,16 @@ pub async fn run(
             config.session.answering = Some(std::sync::Arc::new(answering));
         }
     }
+    if config.session.devices.is_none() && config.device_workers > 0 {
+        let workers = session::DeviceWorkers::new(session::DeviceWorkersConfig {
+            workers: config.device_workers,
+            fifo_priority: Some(session::DEVICE_FIFO_PRIORITY),
+            on_start: None,
+        })
+        .context("cannot start the device workers")?;
+        tracing::info!(workers = config.device_workers, realtime = ?workers.realtime(), "device workers started");
+        config.session.devices = Some(std::sync::Arc::new(workers));
+    }
     if config.session.framing.is_none() && config.frame_workers.workers > 0 {
         let workers = session::FrameWorkers::new(config.frame_workers).context("cannot start the frame workers")?;
         tracing::info!(workers = config.frame_workers.workers, "frame workers started");

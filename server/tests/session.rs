@@ -606,6 +606,142 @@ fn a_tick_worker_allocates_nothing_per_tick_of_its_sessions() {
     );
 }
 
+static DEVICE_WORKER_ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+fn count_this_device_worker() {
+    COUNTED.with(|c| c.set(Some(&DEVICE_WORKER_ALLOCATIONS)));
+}
+
+/// Allocations made by a device worker ticking two scripted device sessions of `ticks` ticks,
+/// each fed states by a bridge's side of its haptic channel in this process (and one a gRPC
+/// stream too): the worker's wait on both bridges' events, every answer to a bridge, the
+/// deadline ticks, the periodic hand-overs and bridge reports; and the bridges' states it
+/// answered.
+fn device_worker_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], ticks: usize) -> (u64, u64) {
+    use vademecum_bridge::link::{Link, ShmLink};
+    use vademecum_bridge::timing::WaitStrategy;
+    use vademecum_proto::shm::{HapticChannel, HapticState, TOOL_PROBE};
+    use vademecum_server::session::{DeviceWorkers, DeviceWorkersConfig, HapticConfig};
+    DEVICE_WORKER_ALLOCATIONS.store(0, Ordering::Relaxed);
+    let workers = Arc::new(
+        DeviceWorkers::new(DeviceWorkersConfig {
+            workers: 1,
+            fifo_priority: None,
+            on_start: Some(count_this_device_worker),
+        })
+        .unwrap(),
+    );
+    let keys: Vec<(f64, [f64; 3], f64)> = (0..=10)
+        .map(|k| (k as f64 * ticks as f64 * 1e-4, tool(k * 50).position_m, 0.0))
+        .collect();
+    let mut sessions = Vec::new();
+    for k in 0..2 {
+        let channel = HapticChannel::new(&format!("devalloc-{}-{ticks}-{k}", std::process::id())).unwrap();
+        let (tx, script_answers) = tokio::sync::mpsc::channel(4 * ticks);
+        let config = SessionConfig {
+            haptic: Some(HapticConfig {
+                wait: WaitStrategy::Event,
+                fifo_priority: None,
+                ..HapticConfig::new(channel.clone())
+            }),
+            devices: Some(workers.clone()),
+            ..SessionConfig::default()
+        };
+        let script = Script {
+            trajectory: Trajectory::new(keys.clone()).unwrap(),
+            answers: tx,
+        };
+        let session = Session::start_scripted(format!("device{k}"), scene.clone(), bundles.to_vec(), config, script).unwrap();
+        let link = ShmLink::open(&channel).unwrap();
+        let answers = session.open_answers(64).unwrap();
+        sessions.push((session, link, answers, script_answers));
+    }
+    assert_eq!(workers.load(), [2], "both sessions tick on the device worker");
+    let (mut i, mut forces, mut answered) = (0u64, 0, 0);
+    while sessions.iter().any(|(s, ..)| !s.finished()) {
+        for (k, (session, link, answers, script_answers)) in sessions.iter_mut().enumerate() {
+            let input = tool(i as usize);
+            let state = HapticState {
+                seq: i,
+                t_read_ns: vademecum_proto::shm::monotonic_ns(),
+                position_m: input.position_m,
+                tool: TOOL_PROBE,
+                ..HapticState::default()
+            };
+            let _ = link.send_state(&state);
+            forces += usize::from(link.poll_command().is_some());
+            if k == 0 {
+                let _ = session.submit(ToolCommand {
+                    input,
+                    seq: i,
+                    client_time_us: 0,
+                    received: Instant::now(),
+                    reply: answers.id(),
+                });
+            }
+            while answers.try_recv().is_ok() {
+                answered += 1;
+            }
+            while script_answers.try_recv().is_ok() {}
+            let _ = session.stats().histograms();
+        }
+        i += 1;
+        std::thread::sleep(Duration::from_micros(700));
+    }
+    assert!(
+        forces > 0 && answered > 0,
+        "the bridges got forces ({forces}) and the stream answers ({answered})"
+    );
+    let mut haptic_answered = 0;
+    for (session, ..) in sessions {
+        let stats = session.wait();
+        assert!(stats.ticks as usize >= ticks, "{} ticks", stats.ticks);
+        assert!(stats.haptic_answered > 0, "{stats:?}");
+        haptic_answered += stats.haptic_answered;
+    }
+    assert_eq!(workers.load(), [0], "every session left its worker");
+    drop(workers);
+    (DEVICE_WORKER_ALLOCATIONS.load(Ordering::Relaxed), haptic_answered)
+}
+
+static SAMPLE_ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+/// iceoryx2 0.10 itself allocates a small shared state per loaned sample
+/// (`ChunkMutSharedState`); measured here on a publisher of a haptic channel.
+fn allocations_per_published_sample() -> u64 {
+    use vademecum_proto::shm::{self, HapticChannel, HapticCommand, HapticServices};
+    let ch = HapticChannel::new(&format!("devalloc-probe-{}", std::process::id())).unwrap();
+    let node = shm::node("devalloc-probe").unwrap();
+    let services = HapticServices::open(&node, &ch).unwrap();
+    let commands = services.command.publisher_builder().create().unwrap();
+    SAMPLE_ALLOCATIONS.store(0, Ordering::Relaxed);
+    COUNTED.with(|c| c.set(Some(&SAMPLE_ALLOCATIONS)));
+    for _ in 0..100 {
+        let s = commands.loan_uninit().unwrap();
+        s.write_payload(HapticCommand::default()).send().unwrap();
+    }
+    COUNTED.with(|c| c.set(None));
+    let n = SAMPLE_ALLOCATIONS.load(Ordering::Relaxed);
+    assert_eq!(n % 100, 0, "{n} allocations for 100 samples");
+    n / 100
+}
+
+#[test]
+fn a_device_worker_allocates_only_what_iceoryx2_does_per_answer() {
+    let (scene, bundles, _dir) = slab();
+    let (short, short_answers) = device_worker_allocations(&scene, &bundles, 300);
+    let (long, long_answers) = device_worker_allocations(&scene, &bundles, 2500);
+    assert!(short > 0, "the counting allocator watches the worker");
+    // every answer to a bridge is one published sample; nothing else grows with the ticks
+    let per_sample = allocations_per_published_sample();
+    assert_eq!(
+        long - short,
+        per_sample * (long_answers - short_answers),
+        "the device worker allocated {long} times over 2 x 2,500 ticks ({long_answers} answers to the bridges) and \
+         {short} times over 2 x 300 ({short_answers}); iceoryx2 makes {per_sample} per sample"
+    );
+}
+
 /// Sessions on a pool of two tick workers (and one answer worker) are placed evenly, each
 /// answers its own stream in order with the pipeline's force (on arrival), and they leave their
 /// workers when closed.

@@ -81,6 +81,12 @@ fn the_server_never_starts_open_by_accident() {
         (&[][..], None, "--no-auth"),
         (&["--no-auth"][..], Some("t"), "choose one"),
         (&["--no-auth", "--metrics", "0.0.0.0:0"][..], None, "--metrics-public"),
+        // (not about auth: a contradiction in the flags is refused the same way)
+        (
+            &["--no-auth", "--device-workers", "1", "--haptic-wait", "hybrid"][..],
+            None,
+            "--haptic-wait event",
+        ),
     ] {
         let o = run(args, tokens);
         let err = String::from_utf8_lossy(&o.stderr);

@@ -246,9 +246,15 @@ pub struct ServeArgs {
     pub tls_key: Option<PathBuf>,
     /// Tick workers: threads that each tick many sessions, answering tool states on arrival
     /// (default: one per CPU this process may use; 0: a thread per session). A session with a
-    /// device bridge ticks on a thread of its own.
+    /// device bridge ticks on a device worker (--device-workers) or a thread of its own.
     #[arg(long, value_name = "N")]
     pub tick_workers: Option<usize>,
+    /// Device workers: threads that each tick many sessions driven by device bridges, blocked
+    /// on all their bridges' events at once (the event wait: implies --haptic-wait event) —
+    /// for many devices on one host. Default 0: a thread per device session, which lets
+    /// one device use the lower-latency hybrid wait.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub device_workers: usize,
     /// Pin tick worker k to CPU k.
     #[arg(long)]
     pub pin_tick_workers: bool,
@@ -758,6 +764,14 @@ pub struct BenchLoadArgs {
     /// How the server's device sessions wait for their bridges (serve --haptic-wait).
     #[arg(long, default_value = "event", value_name = "WAIT")]
     pub haptic_wait: vademecum_bridge::timing::WaitStrategy,
+    /// Device workers of the server (serve --device-workers; its default 0: a thread per
+    /// device session). Needs --haptic-wait event.
+    #[arg(long, value_name = "N")]
+    pub device_workers: Option<usize>,
+    /// How the bridges wait for each answer (vademecum-bridge --answer-wake): `event`
+    /// (blocked on the server's event: many bridges share the cores) or `poll`.
+    #[arg(long, value_enum, default_value_t = vademecum_bridge::bridge_loop::AnswerWake::Event)]
+    pub bridge_answer_wake: vademecum_bridge::bridge_loop::AnswerWake,
     /// The device bridge executable for --haptic (default: `vademecum-bridge` beside this one).
     #[arg(long, value_name = "PATH")]
     pub bridge: Option<PathBuf>,

@@ -49,8 +49,11 @@ impl pb::sessions_server::Sessions for SessionsService {
         let owner = caller(&req)?;
         let e = self.registry.close(&owner, &req.get_ref().session_id)?;
         tracing::info!(session = e.session.id(), "session closed");
-        Ok(Response::new(pb::CloseSessionResponse {
-            stats: Some(convert::session_stats(&e)),
-        }))
+        let stats = convert::session_stats(&e);
+        // the last reference to a session may be this one: dropping it waits for the
+        // session's last tick, answers and frame, which belongs on a blocking thread, not on
+        // a tokio worker that other sessions' streams run on
+        tokio::task::spawn_blocking(move || drop(e));
+        Ok(Response::new(pb::CloseSessionResponse { stats: Some(stats) }))
     }
 }

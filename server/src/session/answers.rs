@@ -46,7 +46,7 @@ use tokio::sync::mpsc;
 use tokio::sync::mpsc::error::TrySendError;
 
 use super::stats::TickStats;
-use super::workers::{PlaceError, Poll, Polled, Pool, PoolConfig};
+use super::workers::{PlaceError, Placed, Poll, Polled, Pool, PoolConfig};
 use super::{Answer, SubmitError};
 
 /// The longest the dispatcher sleeps without being woken: a safety net (a lost wake-up
@@ -197,7 +197,9 @@ impl Polled for Dispatcher {
         }
         Poll::At(Instant::now() + DISPATCHER_NAP)
     }
+}
 
+impl Placed for Dispatcher {
     fn end(self) {
         // placed but its pool stopped: close the streams all the same
         self.router.routes().take();

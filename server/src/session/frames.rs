@@ -22,7 +22,7 @@ use vademecum_engine::scene::Scene;
 use super::demand::FrameDemand;
 use super::stats::TickStats;
 use super::tick::Latest;
-use super::workers::{PlaceError, Poll, Polled, Pool, PoolConfig};
+use super::workers::{PlaceError, Placed, Poll, Polled, Pool, PoolConfig};
 
 /// The reference surface of one organ.
 #[derive(Debug, Clone, PartialEq)]
@@ -633,7 +633,9 @@ impl Polled for FrameJob {
     fn poll(&mut self) -> Poll {
         self.producer.poll()
     }
+}
 
+impl Placed for FrameJob {
     fn end(self) {
         drop(self.producer);
         let _ = self.done.try_send(());

@@ -33,6 +33,7 @@
 
 pub mod answers;
 pub mod demand;
+pub mod devices;
 pub mod frames;
 pub mod memory;
 pub mod scheduler;
@@ -55,9 +56,10 @@ use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pipeline::{GraspSite, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_proto::shm::{HapticChannel, OpenError};
-use workers::Polled;
+use workers::Placed;
 
 pub use answers::{AnswerStream, AnswerWorkers, StreamId};
+pub use devices::{DeviceWorkers, DeviceWorkersConfig};
 pub use frames::{Frame, FrameWorkers, FrameWorkersConfig, SurfaceGeometry};
 pub use memory::SessionMemory;
 pub use scheduler::{PlaceError, SchedulerConfig, TickScheduler};
@@ -100,6 +102,9 @@ pub struct Answer {
     pub state: TickState,
 }
 
+/// The `SCHED_FIFO` priority a device session's tick thread (or device worker) asks for.
+pub const DEVICE_FIFO_PRIORITY: i32 = 70;
+
 /// A session's haptic channel: where its device bridge sends tool states (see
 /// [`vademecum_bridge::peer`]).
 #[derive(Debug, Clone, PartialEq)]
@@ -126,7 +131,7 @@ impl HapticConfig {
             channel,
             wait: WaitStrategy::Hybrid,
             spin_window: vademecum_bridge::timing::DEFAULT_SPIN_WINDOW,
-            fifo_priority: Some(70),
+            fifo_priority: Some(DEVICE_FIFO_PRIORITY),
             cpu: None,
             phase: vademecum_bridge::peer::PhaseSource::Schedule,
         }
@@ -169,8 +174,11 @@ pub struct SessionConfig {
     /// its own.
     pub on_tick_thread: Option<fn()>,
     /// The tick workers the session is ticked by ([`scheduler`]); `None`: a thread of its own.
-    /// A haptic session always has a thread of its own.
+    /// A haptic session is ticked by a device worker or has a thread of its own.
     pub ticking: Option<Arc<TickScheduler>>,
+    /// The device workers a haptic session with the event wait is ticked by
+    /// ([`devices`]); `None`: a haptic session has a thread of its own.
+    pub devices: Option<Arc<DeviceWorkers>>,
     /// The frame workers that make the session's frames ([`frames::FrameWorkers`]); `None`: a
     /// thread of its own. A co-rotational cutting session always has a thread of its own.
     pub framing: Option<Arc<FrameWorkers>>,
@@ -188,6 +196,7 @@ impl Default for SessionConfig {
             haptic: None,
             on_tick_thread: None,
             ticking: None,
+            devices: None,
             framing: None,
             answering: None,
         }
@@ -348,6 +357,7 @@ impl Session {
             script,
             owed: 0,
             steps: 0,
+            peer: None,
         });
         let (done, tick_done) = mpsc::sync_channel(1);
         let tick_finished = Arc::new(AtomicBool::new(false));
@@ -419,6 +429,29 @@ impl Session {
             threads.drain(..).for_each(|t| drop(t.join()));
         };
         let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread) {
+            (_, Some(h), None) if h.wait == WaitStrategy::Event && config.devices.is_some() => {
+                let devices = config.devices.as_ref().expect("matched");
+                // opened here, not on the worker: opening a channel takes milliseconds
+                let mut job = job;
+                match HapticPeer::open(&h.channel, WaitStrategy::Event, h.spin_window, config.period) {
+                    Ok(peer) => job.tick.peer = Some(peer),
+                    Err(source) => {
+                        job.end();
+                        abandon(&mut threads);
+                        return Err(SessionError::Haptic {
+                            channel: h.channel.name().to_string(),
+                            source,
+                        });
+                    }
+                }
+                match devices.place(job) {
+                    Ok((thread, realtime)) => (thread, Some(realtime)),
+                    Err(e) => {
+                        abandon(&mut threads);
+                        return Err(e.into());
+                    }
+                }
+            }
             (Some(workers), None, None) => match workers.place(job) {
                 Ok(thread) => (thread, None),
                 Err(e) => {

@@ -35,7 +35,7 @@ use vademecum_bridge::timing::RealtimeStatus;
 
 use super::tick::{Clock, TickLoop};
 pub use super::workers::{MAX_JOBS_PER_WORKER as MAX_SESSIONS_PER_WORKER, PlaceError};
-use super::workers::{Poll, Polled, Pool, PoolConfig};
+use super::workers::{Placed, Poll, Polled, Pool, PoolConfig};
 
 /// How the tick workers run.
 #[derive(Debug, Clone, Copy)]
@@ -89,7 +89,9 @@ impl Polled for Job {
     fn poll(&mut self) -> Poll {
         self.tick.poll(&mut self.clock)
     }
+}
 
+impl Placed for Job {
     /// The loop has ended: its answers closed, it goes back to its owner with its clock, who
     /// hands its last recordings over ([`TickLoop::hand_over`]) and frees both — a worker
     /// takes no lock a reader holds and frees nothing.

@@ -62,6 +62,9 @@ pub(super) struct TickLoop {
     /// answered none (a pipeline tick replaying the last tool state, or, before any tool, a
     /// period at rest). Answers and frames carry the number of the step they show.
     pub steps: u64,
+    /// The haptic channel of a session a device worker ticks (opened by whoever starts the
+    /// loop; it goes back to the session's owner with the loop, and is closed there).
+    pub peer: Option<HapticPeer>,
 }
 
 /// A tick loop's clock and recordings: its next deadline, its period count, the current
@@ -78,6 +81,9 @@ pub(super) struct Clock {
     local: Box<Histograms>,
     /// Work done so far (ns): a pooled session's share of its worker's CPU.
     work_total_ns: u64,
+    /// The loop has a thread of its own that waits for its bridge: its CPU figure is the
+    /// thread's CPU time (the wait included), not the work done.
+    cpu_of_thread: bool,
 }
 
 impl Default for Clock {
@@ -88,6 +94,7 @@ impl Default for Clock {
             this: Period::default(),
             local: Box::default(),
             work_total_ns: 0,
+            cpu_of_thread: false,
         }
     }
 }
@@ -212,12 +219,37 @@ impl TickLoop {
         // no tick of the haptic path takes a fault on a stack page seen for the first time
         vademecum_bridge::timing::prefault_stack();
         self.start(clock);
+        clock.cpu_of_thread = true;
         while !self.stop.load(Ordering::Relaxed) {
             let arrived = peer.wait_for_state(clock.next);
             if !self.deadline(clock, Instant::now(), Some(&mut *peer), arrived.as_ref()) {
                 break;
             }
         }
+        self.take_bridge_report(peer);
+    }
+
+    /// A device worker's turn ([`super::devices`]) for a haptic session: answers the
+    /// bridge's state if one arrived (`woken`: its wake event fired, to be consumed) — at
+    /// once, a tick of its own as on a thread of its own —, or runs the deadline tick when it
+    /// is due; says when the next deadline is. Never blocks: the worker waits on the events
+    /// of all its sessions at once.
+    pub fn poll_device(&mut self, clock: &mut Clock, woken: bool) -> Poll {
+        if self.stop.load(Ordering::Relaxed) {
+            return Poll::Ended;
+        }
+        let Some(mut peer) = self.peer.take() else {
+            return Poll::Ended;
+        };
+        let arrived = peer.try_state(woken);
+        let now = Instant::now();
+        let go_on = !(arrived.is_some() || now >= clock.next) || self.deadline(clock, now, Some(&mut peer), arrived.as_ref());
+        self.peer = Some(peer);
+        if go_on { Poll::At(clock.next) } else { Poll::Ended }
+    }
+
+    /// Keeps the bridge's last report in the statistics (when the loop ends).
+    pub fn take_bridge_report(&self, peer: &mut HapticPeer) {
         if let Some(r) = peer.poll_report() {
             self.stats.bridge.store(&r);
         }
@@ -304,17 +336,18 @@ impl TickLoop {
         // is part of the tick whose work it lengthens: timed with it below
         if clock.tick.is_multiple_of(PUBLISH_EVERY) {
             self.stats.publish(&mut clock.local);
-            let cpu = match peer.as_deref_mut() {
-                // a haptic session's own thread: its CPU time, waiting for the bridge included
-                Some(p) => {
-                    if let Some(r) = p.poll_report() {
-                        self.stats.bridge.store(&r);
-                    }
-                    self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
-                    vademecum_bridge::timing::thread_cpu_time().as_nanos() as u64
+            if let Some(p) = peer.as_deref_mut() {
+                if let Some(r) = p.poll_report() {
+                    self.stats.bridge.store(&r);
                 }
+                self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
+            }
+            let cpu = if clock.cpu_of_thread {
+                // a haptic session's own thread: its CPU time, waiting for the bridge included
+                vademecum_bridge::timing::thread_cpu_time().as_nanos() as u64
+            } else {
                 // a worker's session: the work done for it
-                None => clock.work_total_ns,
+                clock.work_total_ns
             };
             self.stats.tick_cpu_ns.store(cpu, Ordering::Relaxed);
         }

@@ -38,15 +38,23 @@ pub(super) enum Poll {
     Ended,
 }
 
+/// A job a pool can place on a worker.
+pub(super) trait Placed: Send + 'static {
+    /// The job has ended, or could not be placed: hand it back to its owner.
+    fn end(self);
+}
+
 /// A job a worker runs in turns.
-pub(super) trait Polled: Send + 'static {
+pub(super) trait Polled: Placed {
     /// Called once on the worker that takes the job, before its first turn.
     fn start(&mut self);
     /// A turn: do what is due, say when the next turn is.
     fn poll(&mut self) -> Poll;
-    /// The job has ended, or could not be placed: hand it back to its owner.
-    fn end(self);
 }
+
+/// A worker's loop: runs the jobs its inbox hands it, publishing what [`WorkerShared`] holds,
+/// until the inbox is closed and its last job ended.
+pub(super) type WorkerLoop<J> = fn(&Receiver<J>, &WorkerShared);
 
 /// How a pool's workers run.
 #[derive(Debug, Clone, Copy)]
@@ -113,7 +121,7 @@ struct Worker<J> {
 
 /// What a worker publishes.
 #[derive(Debug, Default)]
-struct WorkerShared {
+pub(super) struct WorkerShared {
     /// Jobs on it (counted when placed, until they end).
     jobs: AtomicUsize,
     /// Its utilisation over its last window, as `f64` bits.
@@ -123,6 +131,47 @@ struct WorkerShared {
 impl WorkerShared {
     fn utilisation(&self) -> f64 {
         f64::from_bits(self.utilisation.load(Ordering::Relaxed))
+    }
+
+    /// A job of this worker has ended.
+    pub fn ended(&self) {
+        self.jobs.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
+/// A worker's utilisation measurement: its thread's CPU time over wall time, published every
+/// [`UTILISATION_WINDOW`] (one clock read in between).
+pub(super) struct Utilisation {
+    window_start: Instant,
+    cpu_start: Duration,
+}
+
+impl Utilisation {
+    /// Starts a window now.
+    pub fn start() -> Self {
+        Self {
+            window_start: Instant::now(),
+            cpu_start: timing::thread_cpu_time(),
+        }
+    }
+
+    /// Publishes the utilisation when a window has passed.
+    pub fn update(&mut self, shared: &WorkerShared) {
+        let now = Instant::now();
+        let window = now - self.window_start;
+        if window >= UTILISATION_WINDOW {
+            let cpu = timing::thread_cpu_time();
+            let u = (cpu.saturating_sub(self.cpu_start)).as_secs_f64() / window.as_secs_f64();
+            shared.utilisation.store(u.to_bits(), Ordering::Relaxed);
+            (self.window_start, self.cpu_start) = (now, cpu);
+        }
+    }
+
+    /// The worker has no job: publishes 0 and parks until one comes, then starts a new window.
+    pub fn idle(&mut self, shared: &WorkerShared) {
+        shared.utilisation.store(0f64.to_bits(), Ordering::Relaxed);
+        std::thread::park();
+        *self = Self::start();
     }
 }
 
@@ -158,11 +207,26 @@ impl<J> Pool<J> {
     pub fn realtime(&self) -> Vec<RealtimeStatus> {
         self.workers.iter().map(|w| w.realtime.clone()).collect()
     }
+
+    /// What the OS granted the worker running on `thread`.
+    pub fn realtime_of(&self, thread: &Thread) -> Option<RealtimeStatus> {
+        self.workers
+            .iter()
+            .find(|w| w.thread.id() == thread.id())
+            .map(|w| w.realtime.clone())
+    }
 }
 
 impl<J: Polled> Pool<J> {
-    /// Starts `config.workers` workers, named `{name}-{k}`.
+    /// Starts `config.workers` workers running [`run_worker`], named `{name}-{k}`.
     pub fn new(name: &str, config: PoolConfig) -> std::io::Result<Self> {
+        Self::with_loop(name, config, run_worker::<J>)
+    }
+}
+
+impl<J: Placed> Pool<J> {
+    /// Starts `config.workers` workers running `body`, named `{name}-{k}`.
+    pub fn with_loop(name: &str, config: PoolConfig, body: WorkerLoop<J>) -> std::io::Result<Self> {
         let mut workers = Vec::new();
         let mut handles = Vec::new();
         for k in 0..config.workers.max(1) {
@@ -177,7 +241,7 @@ impl<J: Polled> Pool<J> {
                     init();
                 }
                 let _ = granted_tx.send(timing::request_realtime(fifo, cpu));
-                run_worker(&rx, &published);
+                body(&rx, &published);
             })?;
             let realtime = granted_rx.recv().unwrap_or_else(|_| RealtimeStatus {
                 fifo: Err("the worker ended at once".into()),
@@ -270,7 +334,7 @@ pub(super) fn run_alone<J: Polled>(job: J) {
 fn run_worker<J: Polled>(inbox: &Receiver<J>, shared: &WorkerShared) {
     let mut jobs: Vec<J> = Vec::with_capacity(MAX_JOBS_PER_WORKER);
     let mut open = true;
-    let (mut window_start, mut cpu_start) = (Instant::now(), timing::thread_cpu_time());
+    let mut utilisation = Utilisation::start();
     loop {
         while open && jobs.len() < MAX_JOBS_PER_WORKER {
             match inbox.try_recv() {
@@ -292,18 +356,11 @@ fn run_worker<J: Polled>(inbox: &Receiver<J>, shared: &WorkerShared) {
                 }
                 Poll::Ended => {
                     jobs.swap_remove(k).end();
-                    shared.jobs.fetch_sub(1, Ordering::Relaxed);
+                    shared.ended();
                 }
             }
         }
-        let now = Instant::now();
-        let window = now - window_start;
-        if window >= UTILISATION_WINDOW {
-            let cpu = timing::thread_cpu_time();
-            let u = (cpu.saturating_sub(cpu_start)).as_secs_f64() / window.as_secs_f64();
-            shared.utilisation.store(u.to_bits(), Ordering::Relaxed);
-            (window_start, cpu_start) = (now, cpu);
-        }
+        utilisation.update(shared);
         match wake {
             Some(t) => {
                 let now = Instant::now();
@@ -311,12 +368,8 @@ fn run_worker<J: Polled>(inbox: &Receiver<J>, shared: &WorkerShared) {
                     std::thread::park_timeout(t - now);
                 }
             }
-            None if open => {
-                // idle: nothing to measure until a job comes
-                shared.utilisation.store(0f64.to_bits(), Ordering::Relaxed);
-                std::thread::park();
-                (window_start, cpu_start) = (Instant::now(), timing::thread_cpu_time());
-            }
+            // idle: nothing to measure until a job comes
+            None if open => utilisation.idle(shared),
             None => return,
         }
     }

@@ -105,7 +105,8 @@ struct Report {
 #[derive(Debug, Serialize)]
 struct HapticReport {
     sessions: usize,
-    /// How their tick threads waited for the bridges.
+    /// How their tick loops waited for the bridges (and on which threads), and how the
+    /// bridges waited for the answers.
     wait: String,
     /// Tool states from the bridges answered, all sessions.
     answered: u64,
@@ -206,6 +207,9 @@ impl Server {
         }
         if a.haptic > 0 {
             cmd.args(["--haptic-wait", &a.haptic_wait.to_string()]);
+            if let Some(n) = a.device_workers {
+                cmd.args(["--device-workers", &n.to_string()]);
+            }
         }
         let mut child = cmd.spawn().context("cannot start the server")?;
         let stdout = child.stdout.take().context("the server's output")?;
@@ -454,7 +458,13 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
                 let channels: Vec<String> = (first_haptic..a.sessions)
                     .map(|k| format!("load-{}-h{k}", std::process::id()))
                     .collect();
-                Some(Bridges::start(a.bridge.as_deref(), &channels, &script, a.seconds + 10.0)?)
+                Some(Bridges::start(
+                    a.bridge.as_deref(),
+                    &channels,
+                    &script,
+                    a.seconds + 10.0,
+                    a.bridge_answer_wake,
+                )?)
             }
         };
         let mut bridge_kill = a.chaos_every.map(|_| wall + Duration::from_secs_f64(a.seconds / 2.0));
@@ -605,7 +615,14 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             session_memory_mib: memory as f64 / a.sessions as f64 / 1048576.0,
             states_in_flight_at_kill: in_flight,
             windows,
-            haptic: (a.haptic > 0).then(|| HapticReport::of(&haptic_stats, a.haptic_wait.to_string(), bridge_kills)),
+            haptic: (a.haptic > 0).then(|| {
+                let threads = match a.device_workers.unwrap_or(0) {
+                    0 => "a thread each".to_string(),
+                    n => format!("{n} device worker(s)"),
+                };
+                let wait = format!("{} ({threads}); bridges: answer wait {}", a.haptic_wait, a.bridge_answer_wake);
+                HapticReport::of(&haptic_stats, wait, bridge_kills)
+            }),
             chaos: chaos.map(|c| ChaosReport {
                 clients: chaos_sessions,
                 every_s: a.chaos_every.unwrap_or(0.0),

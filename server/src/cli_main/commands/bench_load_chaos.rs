@@ -194,6 +194,7 @@ pub(super) struct Bridges {
     exe: std::path::PathBuf,
     script: std::path::PathBuf,
     seconds: f64,
+    answer_wake: vademecum_bridge::bridge_loop::AnswerWake,
     children: Vec<(String, Child)>,
     /// Bridges killed.
     pub kills: u64,
@@ -202,7 +203,13 @@ pub(super) struct Bridges {
 impl Bridges {
     /// A bridge on each of `channels`, running for `seconds` at most: the executable `exe`, or
     /// `vademecum-bridge` beside this one.
-    pub fn start(exe: Option<&std::path::Path>, channels: &[String], script: &std::path::Path, seconds: f64) -> anyhow::Result<Self> {
+    pub fn start(
+        exe: Option<&std::path::Path>,
+        channels: &[String],
+        script: &std::path::Path,
+        seconds: f64,
+        answer_wake: vademecum_bridge::bridge_loop::AnswerWake,
+    ) -> anyhow::Result<Self> {
         let exe = match exe {
             Some(e) => e.to_path_buf(),
             None => std::env::current_exe()
@@ -219,6 +226,7 @@ impl Bridges {
             exe,
             script: script.to_path_buf(),
             seconds,
+            answer_wake,
             children: Vec::new(),
             kills: 0,
         };
@@ -230,12 +238,13 @@ impl Bridges {
     }
 
     /// A bridge on `channel`: a simulated stylus, sleeping to its deadlines (many bridges
-    /// share the host's cores: no spinning).
+    /// share the host's cores: no spinning), waiting for its answers as asked.
     fn spawn(&self, channel: &str) -> anyhow::Result<Child> {
         Command::new(&self.exe)
             .args(["--session", channel, "--device", "sim", "--script"])
             .arg(&self.script)
             .args(["--wait", "sleep", "--duration", &format!("{:.1}", self.seconds)])
+            .args(["--answer-wake", &self.answer_wake.to_string()])
             .stdin(Stdio::null())
             .stdout(Stdio::null())
             .stderr(Stdio::null())

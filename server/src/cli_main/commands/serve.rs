@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use crate::config::ServerConfig;
 use anyhow::{Context, bail};
+use vademecum_bridge::timing::WaitStrategy;
 
 use crate::cli_main::cli::ServeArgs;
 
@@ -58,7 +59,18 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     if !(a.max_tick_load > 0.0 && a.max_tick_load <= 1.0) {
         bail!("--max-tick-load must lie in (0, 1], got {}", a.max_tick_load);
     }
-    for (flag, n) in [("--tick-workers", a.tick_workers), ("--frame-workers", a.frame_workers)] {
+    let haptic_wait = match (a.device_workers, a.haptic_wait) {
+        (0, w) => w,
+        (_, None | Some(WaitStrategy::Event)) => Some(WaitStrategy::Event),
+        (_, Some(w)) => {
+            bail!("--device-workers waits for the bridges' events (--haptic-wait event), not --haptic-wait {w}: drop one of the two")
+        }
+    };
+    for (flag, n) in [
+        ("--tick-workers", a.tick_workers),
+        ("--frame-workers", a.frame_workers),
+        ("--device-workers", Some(a.device_workers)),
+    ] {
         if let Some(n) = n.filter(|&n| n > 256) {
             bail!("{flag} {n} is more than 256: one per CPU is the default");
         }
@@ -82,7 +94,8 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             on_start: None,
             max_utilisation: a.max_tick_load,
         },
-        haptic_wait: a.haptic_wait,
+        haptic_wait,
+        device_workers: a.device_workers,
         frame_workers: crate::session::FrameWorkersConfig {
             workers: a.frame_workers.unwrap_or(crate::session::FrameWorkersConfig::default().workers),
         },

@@ -1,0 +1,182 @@
+//! Device workers: a few threads that each tick many sessions driven by device bridges,
+//! blocked on all their bridges' events at once — instead of a thread per device session.
+//!
+//! A device session answers its bridge's tool state the moment it arrives (the force goes back
+//! in the same bridge tick), so its tick loop cannot sleep to a deadline like a gRPC session
+//! on a tick worker ([`super::scheduler`]): it waits for the bridge. On a thread of its own
+//! it waits with the session's strategy (polling, or blocked on the bridge's `wake` event:
+//! [`vademecum_bridge::peer`]). Many device sessions on one host want the event wait —
+//! polling threads take the cores the ticks need — and then a thread each is only a blocked
+//! thread each. A device worker runs the event wait for many sessions at once:
+//!
+//! 1. take the sessions handed to it, their haptic channels opened by whoever started them
+//!    (opening one takes milliseconds of file and socket work: never on the worker); its
+//!    session list and wait list are allocated once, [`MAX_DEVICES_PER_WORKER`] long, so
+//!    taking one allocates nothing;
+//! 2. give every session its turn (`TickLoop::poll_device`): the bridge's state that
+//!    arrived is answered at once, a tick of its own (as on a thread of its own); otherwise
+//!    the deadline tick runs when it is due (the force stays fresh while the bridge pauses,
+//!    queued gRPC tool states are answered);
+//! 3. block in `ppoll(2)` on the wake events of all its sessions until the earliest of their
+//!    deadlines — a bridge's state wakes it at once.
+//!
+//! A session placed, or stopped, is seen at the worker's next wake-up: within a period and a
+//! half (every device session has a deadline that close). A stopped session's loop goes back
+//! to its owner with its channel (`Job::end`), which closes it there. A session is placed on the
+//! least-loaded worker (utilisation, then sessions) and stays there; the workers ask for
+//! `SCHED_FIFO` like a device session's own thread (refused gracefully).
+
+use std::sync::mpsc::{Receiver, TryRecvError};
+use std::thread::Thread;
+use std::time::Instant;
+
+use vademecum_bridge::timing::RealtimeStatus;
+
+use super::scheduler::Job;
+use super::workers::{PlaceError, Placed, Poll, Polled, Pool, PoolConfig, Utilisation, WorkerShared};
+
+/// Most device sessions one worker runs.
+pub const MAX_DEVICES_PER_WORKER: usize = 64;
+
+/// How the device workers run.
+#[derive(Debug, Clone, Copy)]
+pub struct DeviceWorkersConfig {
+    /// Worker threads (at least 1).
+    pub workers: usize,
+    /// `SCHED_FIFO` priority asked for the workers (refused gracefully when not permitted).
+    pub fifo_priority: Option<i32>,
+    /// Called on each worker thread before anything else (instrumentation such as the
+    /// counting-allocator test of the worker loop).
+    pub on_start: Option<fn()>,
+}
+
+/// A pool of device workers (module docs).
+#[derive(Debug)]
+pub struct DeviceWorkers {
+    pool: Pool<Job>,
+}
+
+impl DeviceWorkers {
+    /// Starts `config.workers` workers.
+    pub fn new(config: DeviceWorkersConfig) -> std::io::Result<Self> {
+        let pool = Pool::with_loop(
+            "device-worker",
+            PoolConfig {
+                workers: config.workers,
+                pin: false,
+                fifo_priority: config.fifo_priority,
+                on_start: config.on_start,
+            },
+            run_device_worker,
+        )?;
+        Ok(Self { pool })
+    }
+
+    /// Device sessions on each worker.
+    pub fn load(&self) -> Vec<usize> {
+        self.pool.load()
+    }
+
+    /// Each worker's measured utilisation (its CPU time over wall time).
+    pub fn utilisation(&self) -> Vec<f64> {
+        self.pool.utilisation()
+    }
+
+    /// What the OS granted each worker.
+    pub fn realtime(&self) -> Vec<RealtimeStatus> {
+        self.pool.realtime()
+    }
+
+    /// Hands a device session's tick loop (its haptic peer opened with the event wait) to the
+    /// least-loaded worker; returns that worker's thread and what the OS granted it. When it
+    /// cannot be placed, the job is ended and the reason returned.
+    pub(super) fn place(&self, job: Job) -> Result<(Thread, RealtimeStatus), PlaceError> {
+        if job.tick.peer.as_ref().and_then(|p| p.wake_fd()).is_none() {
+            // without the wake event the worker would never hear its bridge
+            job.end();
+            return Err(PlaceError::Stopped);
+        }
+        let thread = self.pool.place(job, None)?;
+        let realtime = self.pool.realtime_of(&thread).unwrap_or(RealtimeStatus {
+            fifo: Err("unknown worker".into()),
+            cpu: Ok(None),
+        });
+        Ok((thread, realtime))
+    }
+}
+
+/// A device worker's loop (module docs): until its inbox is closed and its last session ended.
+fn run_device_worker(inbox: &Receiver<Job>, shared: &WorkerShared) {
+    // no tick of the haptic path takes a fault on a stack page seen for the first time
+    vademecum_bridge::timing::prefault_stack();
+    let mut jobs: Vec<Job> = Vec::with_capacity(MAX_DEVICES_PER_WORKER);
+    let mut fds: Vec<libc::pollfd> = Vec::with_capacity(MAX_DEVICES_PER_WORKER);
+    let mut open = true;
+    let mut utilisation = Utilisation::start();
+    loop {
+        while open && jobs.len() < MAX_DEVICES_PER_WORKER {
+            match inbox.try_recv() {
+                Ok(mut job) => {
+                    job.start();
+                    fds.push(libc::pollfd {
+                        // checked by `place`; a negative descriptor is ignored by poll(2)
+                        fd: job.tick.peer.as_ref().and_then(|p| p.wake_fd()).unwrap_or(-1),
+                        events: libc::POLLIN,
+                        revents: 0,
+                    });
+                    jobs.push(job);
+                }
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => open = false,
+            }
+        }
+        let mut wake: Option<Instant> = None;
+        let mut k = 0;
+        while k < jobs.len() {
+            let woken = std::mem::take(&mut fds[k].revents) != 0;
+            let job = &mut jobs[k];
+            match job.tick.poll_device(&mut job.clock, woken) {
+                Poll::At(t) => {
+                    wake = Some(wake.map_or(t, |w| w.min(t)));
+                    k += 1;
+                }
+                Poll::Ended => {
+                    fds.swap_remove(k);
+                    let mut job = jobs.swap_remove(k);
+                    if let Some(mut peer) = job.tick.peer.take() {
+                        job.tick.take_bridge_report(&mut peer);
+                        // back to the owner with the loop, closed there
+                        job.tick.peer = Some(peer);
+                    }
+                    job.end();
+                    shared.ended();
+                }
+            }
+        }
+        utilisation.update(shared);
+        match wake {
+            Some(t) => wait_for_bridges(&mut fds, t),
+            None if open => utilisation.idle(shared),
+            None => return,
+        }
+    }
+}
+
+/// Blocks until one of `fds` is readable (a bridge's state arrived) or `until`: `ppoll(2)`,
+/// whose timeout has nanosecond resolution (`poll(2)`'s milliseconds would miss deadlines).
+fn wait_for_bridges(fds: &mut [libc::pollfd], until: Instant) {
+    let left = until.saturating_duration_since(Instant::now());
+    if left.is_zero() {
+        return;
+    }
+    let timeout = libc::timespec {
+        tv_sec: left.as_secs() as libc::time_t,
+        tv_nsec: left.subsec_nanos() as libc::c_long,
+    };
+    // SAFETY: `fds` is a live, exclusively borrowed slice of `pollfd` for the whole call, and
+    // `timeout` outlives it; no signal mask is given. An interrupted wait (EINTR) or any
+    // error just returns: every session is polled again, and its deadline still holds.
+    unsafe {
+        libc::ppoll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, &timeout, std::ptr::null());
+    }
+}
