@@ -9,29 +9,9 @@ mod util;
 
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use util::{HapticRun, TraceRow, bridge_bin, bundles, channel, read_trace};
-use vademecum_engine::pgd::offline::load_bundle;
-use vademecum_engine::pipeline::{Pipeline, ToolInput, ToolKind};
-use vademecum_engine::scene::Scene;
-
-/// The engine's force for each position, evaluated in this process from the same bundle.
-fn engine() -> Pipeline {
-    let scene = Scene::builtin("organ").unwrap();
-    let bundle = Arc::new(load_bundle(&bundles().join("organ/lobe.bundle")).unwrap());
-    Pipeline::for_scene(&scene, &[bundle]).unwrap()
-}
-
-fn force_at(p: &mut Pipeline, x: [f64; 3]) -> [f64; 3] {
-    p.tick(&ToolInput {
-        kind: ToolKind::Probe,
-        position_m: x,
-        ..ToolInput::default()
-    })
-    .force_n
-}
+use util::{HapticRun, assert_forces_match_engine, bridge_bin, channel, engine, norm, read_trace};
 
 /// A hand script of `reps` built-in palpations back to back (5 s each).
 fn repeated_palpation(record: &Path, reps: usize, out: &Path) {
@@ -49,32 +29,6 @@ fn repeated_palpation(record: &Path, reps: usize, out: &Path) {
         }
     }
     std::fs::write(out, csv).unwrap();
-}
-
-fn norm(v: [f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
-}
-
-/// Every fresh force in `rows[range]` equals the engine's force at the position it answers
-/// (a position sent at most a few ticks earlier).
-fn assert_forces_match_engine(rows: &[TraceRow], range: std::ops::Range<usize>, engine: &mut Pipeline) -> usize {
-    let first = rows[0].tick;
-    let mut touching = 0;
-    for r in rows[range].iter().filter(|r| r.fresh) {
-        let answered = r.answers.expect("a fresh force answers a state");
-        let asked = rows[(answered - first) as usize];
-        assert_eq!(asked.tick, answered);
-        let want = force_at(engine, asked.position_m);
-        let err = norm([0, 1, 2].map(|k| r.received_n[k] - want[k]));
-        assert!(
-            err <= 1e-9 * (1.0 + norm(want)),
-            "tick {}: the server sent {:?} for the position of tick {answered}, the engine gives {want:?}",
-            r.tick,
-            r.received_n
-        );
-        touching += usize::from(norm(want) > 0.05);
-    }
-    touching
 }
 
 #[test]
@@ -333,61 +287,5 @@ fn a_grpc_session_opens_a_haptic_channel_named_after_its_id_and_exports_the_brid
         "vademecum_bridge_watchdog_ticks_total{session=",
     ] {
         assert!(text.contains(name), "{name} missing from:\n{text}");
-    }
-}
-
-/// Three device sessions on one device worker (`serve --device-workers 1`): the worker blocks
-/// on the three bridges' events at once and answers each bridge's state with the engine's
-/// force for that bridge's own position — no session answers another's bridge, none is
-/// starved — while the bridges block on the server's `answered` event instead of polling.
-#[test]
-fn device_sessions_sharing_a_device_worker_each_answer_their_own_bridge() {
-    use vademecum_client::{Client, SceneSpec};
-    let dir = tempfile::tempdir().unwrap();
-    let server = util::Server::start(&["--device-workers", "1"], &[]);
-    let rt = util::runtime();
-    let client = rt.block_on(Client::connect(server.url.clone())).unwrap();
-    let bundle = load_bundle(&bundles().join("organ/lobe.bundle")).unwrap();
-    let mut sessions = Vec::new();
-    let mut bridges = Vec::new();
-    for k in 0..3 {
-        let session = rt
-            .block_on(client.create_haptic_session(SceneSpec::Builtin("organ".into()), "organ", "", ""))
-            .unwrap();
-        // each bridge presses to its own depth: a force for another's position would show
-        let script = dir.path().join(format!("hand{k}.csv"));
-        vademecum_server::session::builtin_palpation(&bundle, 0.001 * k as f64, 0.004, 0.015)
-            .unwrap()
-            .write(&script)
-            .unwrap();
-        let trace = dir.path().join(format!("trace{k}.csv"));
-        let child = Command::new(bridge_bin())
-            .args(["--session", &session.info().session_id, "--device", "sim", "--no-realtime"])
-            .args(["--wait", "sleep", "--answer-wake", "event", "--duration", "6", "--script"])
-            .arg(&script)
-            .arg("--record")
-            .arg(&trace)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        sessions.push(session);
-        bridges.push((child, trace));
-    }
-    // the device sessions tick on the device worker, not on threads of their own
-    let threads = server.threads();
-    assert!(threads.iter().any(|t| t == "device-worker-0"), "{threads:?}");
-    assert!(!threads.iter().any(|t| t.starts_with("tick-s")), "{threads:?}");
-    let mut engine = engine();
-    for ((mut child, trace), session) in bridges.into_iter().zip(&sessions) {
-        assert!(child.wait().unwrap().success());
-        let rows = read_trace(&trace);
-        let fresh = rows.iter().filter(|r| r.fresh).count();
-        // plumbing, not timing: on a loaded machine many ticks may go stale
-        assert!(fresh >= 1000, "{fresh} fresh forces of {} ticks", rows.len());
-        let touching = assert_forces_match_engine(&rows, 0..rows.len(), &mut engine);
-        assert!(touching >= 100, "the palpation presses: {touching} forces above 0.05 N");
-        let stats = rt.block_on(session.stats()).unwrap();
-        assert!(stats.haptic_answered as usize >= fresh, "{stats:?}");
     }
 }

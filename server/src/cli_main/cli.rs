@@ -255,6 +255,14 @@ pub struct ServeArgs {
     /// one device use the lower-latency hybrid wait.
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub device_workers: usize,
+    /// Hold a PM QoS request for CPU wake-ups within US microseconds while serving
+    /// (`/dev/cpu_dma_latency`, as `cyclictest` and the bridge hold one; needs root): idle CPUs
+    /// stay in shallow idle states (0: they poll), so a worker woken by a tool state or an
+    /// answer does not also wait for a halted CPU to come back. Its price is the idle CPUs'
+    /// polling on every core, which no thread's CPU figure includes. Refused gracefully
+    /// (said at start).
+    #[arg(long, value_name = "US")]
+    pub wake_latency_us: Option<u32>,
     /// Pin tick worker k to CPU k.
     #[arg(long)]
     pub pin_tick_workers: bool,
@@ -772,6 +780,9 @@ pub struct BenchLoadArgs {
     /// (blocked on the server's event: many bridges share the cores) or `poll`.
     #[arg(long, value_enum, default_value_t = vademecum_bridge::bridge_loop::AnswerWake::Event)]
     pub bridge_answer_wake: vademecum_bridge::bridge_loop::AnswerWake,
+    /// Have the server hold a CPU wake-up latency request (serve --wake-latency-us).
+    #[arg(long, value_name = "US")]
+    pub server_wake_latency_us: Option<u32>,
     /// The device bridge executable for --haptic (default: `vademecum-bridge` beside this one).
     #[arg(long, value_name = "PATH")]
     pub bridge: Option<PathBuf>,

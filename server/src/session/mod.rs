@@ -366,6 +366,7 @@ impl Session {
             clock: tick::Clock::default(),
             done,
             finished: tick_finished.clone(),
+            phase: None,
         };
         let tear = match (tear_pictures, tear_offline) {
             (Some(pictures), offline) if !offline.is_empty() => {

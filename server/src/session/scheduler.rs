@@ -14,6 +14,10 @@
 //! 3. park until the earliest deadline of its sessions — or until a session's
 //!    [`super::Session::submit`] unparks it, so a tool state is answered on arrival.
 //!
+//! The sessions' deadlines are spread over the period: each session placed gets the next
+//! fraction of a low-discrepancy sequence ([`spread`]) as its phase on a grid shared by the
+//! scheduler, so a worker's deadline ticks do not all fall at the same instant.
+//!
 //! A session ended (stopped, its script over) is handed back to its owner through a one-slot
 //! channel, with its clock, and its last histograms are merged and both freed there: a worker
 //! never frees a pipeline nor takes the lock the statistics' readers take. Each session keeps its own
@@ -27,9 +31,10 @@
 //! loop.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::SyncSender;
 use std::thread::Thread;
+use std::time::Instant;
 
 use vademecum_bridge::timing::RealtimeStatus;
 
@@ -79,11 +84,33 @@ pub(super) struct Job {
     pub done: SyncSender<(Box<TickLoop>, Clock)>,
     /// Set when the loop has ended.
     pub finished: Arc<AtomicBool>,
+    /// Where its deadlines fall in the period, set by the scheduler that places it (`None`: a
+    /// period from its start).
+    pub phase: Option<Phase>,
+}
+
+/// A tick loop's place in the period: its deadlines at `epoch + (m + fraction) · period`.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Phase {
+    pub epoch: Instant,
+    pub fraction: f64,
+}
+
+/// The `k`-th session's phase fraction: `k · (√5 − 1)/2` modulo 1, a low-discrepancy sequence
+/// — however many sessions have come (and gone), the fractions given stay spread over the
+/// period (the closest two of the first `n` are more than `0.44 / n` apart, against `1 / n`
+/// for an even spacing that would have to be redone at every arrival).
+pub fn spread(k: u64) -> f64 {
+    const GOLDEN: f64 = 0.618_033_988_749_894_9;
+    (k as f64 * GOLDEN).fract()
 }
 
 impl Polled for Job {
     fn start(&mut self) {
-        self.tick.start(&mut self.clock);
+        match self.phase {
+            Some(p) => self.tick.start_at_phase(&mut self.clock, p.epoch, p.fraction),
+            None => self.tick.start(&mut self.clock),
+        }
     }
 
     fn poll(&mut self) -> Poll {
@@ -108,6 +135,10 @@ impl Placed for Job {
 pub struct TickScheduler {
     pool: Pool<Job>,
     config: SchedulerConfig,
+    /// The origin of every session's phase.
+    epoch: Instant,
+    /// Sessions placed so far (the next one's phase: [`spread`]).
+    placed: AtomicU64,
 }
 
 impl TickScheduler {
@@ -122,7 +153,12 @@ impl TickScheduler {
                 on_start: config.on_start,
             },
         )?;
-        Ok(Self { pool, config })
+        Ok(Self {
+            pool,
+            config,
+            epoch: Instant::now(),
+            placed: AtomicU64::new(0),
+        })
     }
 
     /// How it was configured.
@@ -152,7 +188,54 @@ impl TickScheduler {
     /// worker's sessions cost on average —; returns the thread to unpark when a tool state is
     /// queued for it. When it cannot be placed, the job is ended (its answers closed, the loop
     /// handed back) and the reason returned.
-    pub(super) fn place(&self, job: Job) -> Result<Thread, PlaceError> {
+    pub(super) fn place(&self, mut job: Job) -> Result<Thread, PlaceError> {
+        job.phase = Some(Phase {
+            epoch: self.epoch,
+            fraction: spread(self.placed.fetch_add(1, Ordering::Relaxed)),
+        });
         self.pool.place(job, Some(self.config.max_utilisation))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::{Duration, Instant};
+
+    use super::super::tick::phased_deadline;
+    use super::spread;
+
+    /// However many sessions have been placed, the phases given so far stay spread over the
+    /// period: the closest two of the first n are more than 0.44 of an even spacing apart
+    /// (the golden-ratio sequence's worst up to a thousand sessions is 0.4477, at n = 988).
+    #[test]
+    fn the_phases_given_stay_spread_over_the_period() {
+        for n in 2..=1024u64 {
+            let mut f: Vec<f64> = (0..n).map(spread).collect();
+            f.sort_by(f64::total_cmp);
+            let closest = (0..f.len())
+                .map(|i| (f[(i + 1) % f.len()] - f[i]).rem_euclid(1.0))
+                .fold(1.0, f64::min);
+            assert!(closest > 0.44 / n as f64, "{n} sessions: closest phases {closest}");
+            assert!(f.iter().all(|x| (0.0..1.0).contains(x)));
+        }
+    }
+
+    /// A session's first deadline is on its phase's grid, between one and two periods away.
+    #[test]
+    fn a_phased_deadline_is_on_its_grid_a_period_or_more_away() {
+        let epoch = Instant::now();
+        let period = Duration::from_millis(1);
+        for (since_us, fraction) in [(0, 0.0), (0, 0.5), (1234, 0.25), (999, 0.999), (5000, 0.0), (7321, 0.618)] {
+            let now = epoch + Duration::from_micros(since_us);
+            let d = phased_deadline(epoch, now, period, fraction);
+            assert!(
+                d >= now + period && d < now + 2 * period,
+                "{since_us} µs, {fraction}: {:?}",
+                d - now
+            );
+            let on_grid = (d - epoch).as_nanos() % period.as_nanos();
+            let want = (fraction * 1e6) as u128;
+            assert_eq!(on_grid, want, "{since_us} µs, {fraction}");
+        }
     }
 }

@@ -185,6 +185,13 @@ impl TickLoop {
         clock.next = Instant::now() + self.period;
     }
 
+    /// Starts `clock` with its deadlines at `epoch + (m + fraction) · period` (see
+    /// [`phased_deadline`]): the sessions of one worker, given fractions spread over the period,
+    /// tick at spread instants instead of all at once.
+    pub fn start_at_phase(&self, clock: &mut Clock, epoch: Instant, fraction: f64) {
+        clock.next = phased_deadline(epoch, Instant::now(), self.period, fraction);
+    }
+
     /// A worker's turn ([`super::scheduler`]): answers the tool states that arrived (at once,
     /// not at the next deadline: [`super::Session::submit`] unparks the worker after queueing
     /// one), then runs the deadline tick if it is due. Their work is added to the period's,
@@ -390,6 +397,16 @@ struct Period {
     last_input: Option<ToolInput>,
     /// The work of its answers on arrival so far (ns).
     work_ns: u64,
+}
+
+/// The first deadline at least a `period` after `now` on the grid `epoch + (m + fraction) ·
+/// period` (`fraction` in [0, 1)): it lies in `[now + period, now + 2 · period)`.
+pub(super) fn phased_deadline(epoch: Instant, now: Instant, period: Duration, fraction: f64) -> Instant {
+    let p = period.as_nanos().max(1);
+    let offset = (fraction.clamp(0.0, 1.0) * p as f64) as u128 % p;
+    let from = now.saturating_duration_since(epoch).as_nanos() + p;
+    let m = from.saturating_sub(offset).div_ceil(p);
+    epoch + Duration::from_nanos(u64::try_from(m * p + offset).unwrap_or(u64::MAX))
 }
 
 /// The engine's tool state for a haptic sample.

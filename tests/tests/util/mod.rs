@@ -7,8 +7,13 @@
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::sync::{OnceLock, mpsc};
+use std::sync::{Arc, OnceLock, mpsc};
+
 use std::time::Duration;
+
+use vademecum_engine::pgd::offline::load_bundle;
+use vademecum_engine::pipeline::{Pipeline, ToolInput, ToolKind};
+use vademecum_engine::scene::Scene;
 
 /// The `vademecum` command line, as this package's own binary (cargo builds it for these
 /// tests, with the features of this build).
@@ -254,4 +259,46 @@ pub fn read_trace(path: &Path) -> Vec<TraceRow> {
             }
         })
         .collect()
+}
+
+/// The engine's force for each position, evaluated in this process from the same bundle.
+pub fn engine() -> Pipeline {
+    let scene = Scene::builtin("organ").unwrap();
+    let bundle = Arc::new(load_bundle(&bundles().join("organ/lobe.bundle")).unwrap());
+    Pipeline::for_scene(&scene, &[bundle]).unwrap()
+}
+
+pub fn force_at(p: &mut Pipeline, x: [f64; 3]) -> [f64; 3] {
+    p.tick(&ToolInput {
+        kind: ToolKind::Probe,
+        position_m: x,
+        ..ToolInput::default()
+    })
+    .force_n
+}
+
+pub fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// Every fresh force in `rows[range]` equals the engine's force at the position it answers
+/// (a position sent at most a few ticks earlier).
+pub fn assert_forces_match_engine(rows: &[TraceRow], range: std::ops::Range<usize>, engine: &mut Pipeline) -> usize {
+    let first = rows[0].tick;
+    let mut touching = 0;
+    for r in rows[range].iter().filter(|r| r.fresh) {
+        let answered = r.answers.expect("a fresh force answers a state");
+        let asked = rows[(answered - first) as usize];
+        assert_eq!(asked.tick, answered);
+        let want = force_at(engine, asked.position_m);
+        let err = norm([0, 1, 2].map(|k| r.received_n[k] - want[k]));
+        assert!(
+            err <= 1e-9 * (1.0 + norm(want)),
+            "tick {}: the server sent {:?} for the position of tick {answered}, the engine gives {want:?}",
+            r.tick,
+            r.received_n
+        );
+        touching += usize::from(norm(want) > 0.05);
+    }
+    touching
 }

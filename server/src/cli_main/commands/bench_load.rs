@@ -66,6 +66,8 @@ struct Report {
     rate_hz: f64,
     tick_workers: Option<usize>,
     frame_workers: Option<usize>,
+    /// The server's CPU wake-up latency request (serve --wake-latency-us), as it said.
+    server_wake_latency: Option<String>,
     null_loop_lateness_us: Percentiles,
     null_loop_misses: u64,
     null_loop_ticks: u64,
@@ -173,6 +175,8 @@ struct ChaosReport {
 struct Server {
     child: Child,
     addr: String,
+    /// What the server said of its CPU wake-up latency request, if it was asked for one.
+    wake_latency: Option<String>,
 }
 
 impl Drop for Server {
@@ -205,6 +209,9 @@ impl Server {
         if let Some(n) = a.frame_workers {
             cmd.args(["--frame-workers", &n.to_string()]);
         }
+        if let Some(us) = a.server_wake_latency_us {
+            cmd.args(["--wake-latency-us", &us.to_string()]);
+        }
         if a.haptic > 0 {
             cmd.args(["--haptic-wait", &a.haptic_wait.to_string()]);
             if let Some(n) = a.device_workers {
@@ -214,11 +221,15 @@ impl Server {
         let mut child = cmd.spawn().context("cannot start the server")?;
         let stdout = child.stdout.take().context("the server's output")?;
         let mut lines = BufReader::new(stdout).lines();
+        let mut wake_latency = None;
         let addr = loop {
             match lines.next() {
                 Some(Ok(l)) => {
                     if let Some(a) = l.strip_prefix("listening on ") {
                         break a.trim().to_string();
+                    }
+                    if let Some(w) = l.strip_prefix("CPU wake-up latency: ") {
+                        wake_latency = Some(w.to_string());
                     }
                 }
                 _ => {
@@ -229,7 +240,7 @@ impl Server {
         };
         // keep draining its output so it never blocks on a full pipe
         std::thread::spawn(move || for _ in lines {});
-        Ok(Self { child, addr })
+        Ok(Self { child, addr, wake_latency })
     }
 
     /// CPU time the server has used (user + system), from `/proc/PID/stat`.
@@ -593,6 +604,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             rate_hz: a.rate,
             tick_workers: a.tick_workers,
             frame_workers: a.frame_workers,
+            server_wake_latency: server.wake_latency.clone(),
             null_loop_lateness_us: null_p,
             null_loop_misses: null_misses,
             null_loop_ticks: null_ticks,
@@ -709,6 +721,9 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
         r.tick_workers.map_or("default (one per CPU)".to_string(), |n| n.to_string()),
         r.frame_workers.map_or("default (one per CPU)".to_string(), |n| n.to_string())
     )?;
+    if let Some(w) = &r.server_wake_latency {
+        writeln!(out, "server's CPU wake-up latency request: {w}")?;
+    }
     writeln!(out, "| what | samples | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) | misses |")?;
     writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;
     let row = |out: &mut std::io::StdoutLock, what: &str, p: &Percentiles, misses: String| {

@@ -101,6 +101,8 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         },
         ..ServerConfig::default()
     };
+    // held while the server runs (released when dropped)
+    let wake_latency = a.wake_latency_us.map(vademecum_bridge::timing::request_wake_latency);
     let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
     rt.block_on(async move {
         let listener = tokio::net::TcpListener::bind(&a.listen)
@@ -120,6 +122,11 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         };
         {
             let mut out = std::io::stdout().lock();
+            match &wake_latency {
+                Some(Ok(_)) => writeln!(out, "CPU wake-up latency: held at {} µs", a.wake_latency_us.unwrap_or(0))?,
+                Some(Err(e)) => writeln!(out, "CPU wake-up latency: not held ({e})")?,
+                None => {}
+            }
             writeln!(out, "listening on {}", listener.local_addr()?)?;
             if let Some(m) = &metrics {
                 writeln!(out, "metrics on http://{}/metrics", m.local_addr()?)?;
