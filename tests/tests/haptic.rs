@@ -192,9 +192,15 @@ fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
     let script = std::fs::read_to_string(record.join("trajectory.csv")).unwrap();
     assert!(script.lines().next().unwrap().contains("bx_m"), "the hand script carries the blade");
     let trace = dir.path().join("trace.csv");
-    // the patch is metres wide: the device's workspace and hand speed widened to it
+    // the patch is metres wide: the device's workspace and hand speed widened to it; the
+    // device renders a tenth of the organ's force: at full scale the simulated hand (coupled
+    // to the stylus at 300 N/m) is pushed back by up to 33 mm by the 10 N the device may
+    // render, a closed loop whose course depends on the answers' timing — in two CI runs on
+    // a loaded machine the blade then cut along 73–75 mm and no cell, against 792 mm and a
+    // cell otherwise. This test is about the blade's path over shared memory, not that loop.
     let out = Command::new(bridge_bin())
         .args(["--session", &ch, "--device", "sim", "--no-realtime", "--json", "--max-speed", "50"])
+        .args(["--force-scale", "0.1"])
         .args(["--workspace=-20,-20,-20,20,20,20", "--script"])
         .arg(record.join("trajectory.csv"))
         .arg("--record")
@@ -217,8 +223,12 @@ fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
     assert_eq!(summary["rejected_inputs"], 0, "every blade state was a blade: {summary}");
     let rows = read_trace(&trace);
     assert!(rows.iter().filter(|r| r.fresh).count() > 1000);
-    // the scalpel's limit (the scene's default, 50 N) and the sim device's (10 N)
-    assert!(rows.iter().all(|r| norm(r.output_n) <= 10.0 + 1e-9));
+    // the scalpel's limit (the scene's default, 50 N) at the device's scale, and the sim
+    // device's own (10 N)
+    assert!(
+        rows.iter()
+            .all(|r| norm(r.received_n) <= 50.0 + 1e-9 && norm(r.output_n) <= 5.0 + 1e-9)
+    );
     assert!(rows.iter().any(|r| norm(r.received_n) > 0.05), "the blade pressed on the tissue");
 }
 

@@ -4,7 +4,7 @@
 
 mod util;
 
-/// `vademecum bench load --haptic`: device sessions driven by bridge processes among gRPC
+/// `vademecum bench load --haptic --device-workers 1`: device sessions on a device worker, driven by bridge processes among gRPC
 /// sessions, one bridge killed with SIGKILL half way and restarted, a chaos client killed too;
 /// the device sessions keep answering their bridges and every gRPC state is accounted for.
 #[test]
@@ -29,6 +29,8 @@ fn bench_load_drives_device_sessions_through_bridges_and_survives_a_killed_bridg
         "1",
         "--chaos-clients",
         "1",
+        "--device-workers",
+        "1",
         "--bridge",
         bridge.to_str().unwrap(),
         "--bundles",
@@ -42,6 +44,8 @@ fn bench_load_drives_device_sessions_through_bridges_and_survives_a_killed_bridg
     let h = &r["haptic"];
     assert_eq!(h["sessions"].as_u64(), Some(2), "{r}");
     assert_eq!(h["wait"].as_str(), Some("event"), "{r}");
+    assert_eq!(h["device_workers"].as_u64(), Some(1), "{r}");
+    assert_eq!(h["bridge_answer_wake"].as_str(), Some("event"), "{r}");
     assert_eq!(h["bridge_kills"].as_u64(), Some(1), "{r}");
     // two sessions at 1 kHz for 4 s, less the killed bridge's restart: most states answered
     assert!(h["answered"].as_u64().unwrap() > 4000, "{r}");

@@ -107,9 +107,12 @@ struct Report {
 #[derive(Debug, Serialize)]
 struct HapticReport {
     sessions: usize,
-    /// How their tick loops waited for the bridges (and on which threads), and how the
-    /// bridges waited for the answers.
+    /// How their tick loops waited for the bridges (serve --haptic-wait).
     wait: String,
+    /// Device workers that ticked them (0: a thread each).
+    device_workers: usize,
+    /// How the bridges waited for their answers (vademecum-bridge --answer-wake).
+    bridge_answer_wake: String,
     /// Tool states from the bridges answered, all sessions.
     answered: u64,
     /// Their ticks and deadline misses.
@@ -126,10 +129,12 @@ struct HapticReport {
 }
 
 impl HapticReport {
-    fn of(stats: &[vademecum_client::pb::SessionStats], wait: String, bridge_kills: u64) -> Self {
+    fn of(stats: &[vademecum_client::pb::SessionStats], a: &BenchLoadArgs, bridge_kills: u64) -> Self {
         Self {
             sessions: stats.len(),
-            wait,
+            wait: a.haptic_wait.to_string(),
+            device_workers: a.device_workers.unwrap_or(0),
+            bridge_answer_wake: a.bridge_answer_wake.to_string(),
             answered: stats.iter().map(|s| s.haptic_answered).sum(),
             ticks: stats.iter().map(|s| s.ticks).sum(),
             misses: stats.iter().map(|s| s.deadline_misses).sum(),
@@ -627,14 +632,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             session_memory_mib: memory as f64 / a.sessions as f64 / 1048576.0,
             states_in_flight_at_kill: in_flight,
             windows,
-            haptic: (a.haptic > 0).then(|| {
-                let threads = match a.device_workers.unwrap_or(0) {
-                    0 => "a thread each".to_string(),
-                    n => format!("{n} device worker(s)"),
-                };
-                let wait = format!("{} ({threads}); bridges: answer wait {}", a.haptic_wait, a.bridge_answer_wake);
-                HapticReport::of(&haptic_stats, wait, bridge_kills)
-            }),
+            haptic: (a.haptic > 0).then(|| HapticReport::of(&haptic_stats, &a, bridge_kills)),
             chaos: chaos.map(|c| ChaosReport {
                 clients: chaos_sessions,
                 every_s: a.chaos_every.unwrap_or(0.0),
@@ -786,9 +784,14 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
     if let Some(h) = &r.haptic {
         writeln!(
             out,
-            "device sessions: {} driven by bridges (server waits: {}): {} states answered, {} deadline misses of {} ticks ({:.3} %); bridges' read → force p50/p99 (worst) {:.1}/{:.1} µs, {} bridge deadline misses, {} watchdog ticks, {} bridge(s) killed and restarted",
+            "device sessions: {} driven by bridges (server waits: {} on {}; bridges wait for answers: {}): {} states answered, {} deadline misses of {} ticks ({:.3} %); bridges' read → force p50/p99 (worst) {:.1}/{:.1} µs, {} bridge deadline misses, {} watchdog ticks, {} bridge(s) killed and restarted",
             h.sessions,
             h.wait,
+            match h.device_workers {
+                0 => "a thread each".to_string(),
+                n => format!("{n} device worker(s)"),
+            },
+            h.bridge_answer_wake,
             h.answered,
             h.misses,
             h.ticks,
