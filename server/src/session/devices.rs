@@ -35,8 +35,8 @@ use vademecum_bridge::timing::RealtimeStatus;
 use super::scheduler::Job;
 use super::workers::{PlaceError, Placed, Poll, Polled, Pool, PoolConfig, Utilisation, WorkerShared};
 
-/// Most device sessions one worker runs.
-pub const MAX_DEVICES_PER_WORKER: usize = 64;
+/// Most device sessions one worker runs (the pool's limit: a session beyond it is refused).
+pub const MAX_DEVICES_PER_WORKER: usize = super::workers::MAX_JOBS_PER_WORKER;
 
 /// How the device workers run.
 #[derive(Debug, Clone, Copy)]
