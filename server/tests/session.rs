@@ -15,8 +15,8 @@ use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_server::session::{
-    Answer, AnswerWorkers, FrameWorkers, FrameWorkersConfig, PlaceError, SchedulerConfig, Script, Session, SessionConfig, SessionError,
-    TickScheduler, ToolCommand, Trajectory,
+    Answer, AnswerStream, AnswerWorkers, FrameWorkers, FrameWorkersConfig, PlaceError, SchedulerConfig, Script, Session, SessionConfig,
+    SessionError, TickScheduler, ToolCommand, Trajectory,
 };
 
 /// Counts the allocations of threads that asked to be counted (the tick thread, through
@@ -449,6 +449,34 @@ fn a_tearing_scene_without_its_tearing_vademecum_is_refused_saying_how_to_build_
     assert!(e.to_string().contains("vademecum build"), "{e}");
 }
 
+/// One turn of the allocation tests' client and readers: submits `input` (if any) as state
+/// `seq` answered to `answers`, takes what the stream and the script's channel hold, and reads
+/// the statistics; returns the answers taken.
+fn client_turn(
+    session: &Session,
+    input: Option<ToolInput>,
+    seq: u64,
+    answers: &mut AnswerStream,
+    script_answers: &mut tokio::sync::mpsc::Receiver<Answer>,
+) -> usize {
+    if let Some(input) = input {
+        let _ = session.submit(ToolCommand {
+            input,
+            seq,
+            client_time_us: 0,
+            received: Instant::now(),
+            reply: answers.id(),
+        });
+    }
+    let mut answered = 0;
+    while answers.try_recv().is_ok() {
+        answered += 1;
+    }
+    while script_answers.try_recv().is_ok() {}
+    let _ = session.stats().histograms();
+    answered
+}
+
 /// Allocations made by the tick thread of a scripted session that runs `ticks` ticks while a
 /// client stream submits tool states (good and bad), a viewer takes frames and a reader takes
 /// the statistics — every kind of work the tick thread does, the periodic hand-over of its
@@ -490,23 +518,12 @@ fn tick_thread_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], ti
         } else {
             tool(i)
         };
-        let _ = session.submit(ToolCommand {
-            input,
-            seq: i as u64,
-            client_time_us: 0,
-            received: Instant::now(),
-            reply: answers.id(),
-        });
+        answered += client_turn(&session, Some(input), i as u64, &mut answers, &mut script_answers);
         i += 1;
-        while answers.try_recv().is_ok() {
-            answered += 1;
-        }
-        while script_answers.try_recv().is_ok() {}
         if frames.has_changed().unwrap_or(false) {
             frames.borrow_and_update();
             seen += 1;
         }
-        let _ = session.stats().histograms();
         std::thread::sleep(Duration::from_micros(700));
     }
     let stats = session.wait();
@@ -568,18 +585,7 @@ fn worker_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], ticks: 
     let mut answered = 0;
     while sessions.iter().any(|(s, _, _)| !s.finished()) {
         for (session, answers, script_answers) in &mut sessions {
-            let _ = session.submit(ToolCommand {
-                input: tool(i),
-                seq: i as u64,
-                client_time_us: 0,
-                received: Instant::now(),
-                reply: answers.id(),
-            });
-            while answers.try_recv().is_ok() {
-                answered += 1;
-            }
-            while script_answers.try_recv().is_ok() {}
-            let _ = session.stats().histograms();
+            answered += client_turn(session, Some(tool(i)), i as u64, answers, script_answers);
         }
         i += 1;
         std::thread::sleep(Duration::from_micros(700));
@@ -670,20 +676,7 @@ fn device_worker_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], 
             };
             let _ = link.send_state(&state);
             forces += usize::from(link.poll_command().is_some());
-            if k == 0 {
-                let _ = session.submit(ToolCommand {
-                    input,
-                    seq: i,
-                    client_time_us: 0,
-                    received: Instant::now(),
-                    reply: answers.id(),
-                });
-            }
-            while answers.try_recv().is_ok() {
-                answered += 1;
-            }
-            while script_answers.try_recv().is_ok() {}
-            let _ = session.stats().histograms();
+            answered += client_turn(session, (k == 0).then_some(input), i, answers, script_answers);
         }
         i += 1;
         std::thread::sleep(Duration::from_micros(700));

@@ -26,14 +26,14 @@
 //! least-loaded worker (utilisation, then sessions) and stays there; the workers ask for
 //! `SCHED_FIFO` like a device session's own thread (refused gracefully).
 
-use std::sync::mpsc::{Receiver, TryRecvError};
+use std::sync::mpsc::Receiver;
 use std::thread::Thread;
 use std::time::Instant;
 
 use vademecum_bridge::timing::RealtimeStatus;
 
 use super::scheduler::Job;
-use super::workers::{PlaceError, Placed, Poll, Polled, Pool, PoolConfig, Utilisation, WorkerShared};
+use super::workers::{PlaceError, Placed, Poll, Pool, PoolConfig, Waiter, WorkerShared, run_jobs};
 
 /// Most device sessions one worker runs (the pool's limit: a session beyond it is refused).
 pub const MAX_DEVICES_PER_WORKER: usize = super::workers::MAX_JOBS_PER_WORKER;
@@ -77,11 +77,6 @@ impl DeviceWorkers {
         self.pool.load()
     }
 
-    /// Each worker's measured utilisation (its CPU time over wall time).
-    pub fn utilisation(&self) -> Vec<f64> {
-        self.pool.utilisation()
-    }
-
     /// What the OS granted each worker.
     pub fn realtime(&self) -> Vec<RealtimeStatus> {
         self.pool.realtime()
@@ -105,60 +100,43 @@ impl DeviceWorkers {
     }
 }
 
-/// A device worker's loop (module docs): until its inbox is closed and its last session ended.
+/// A device worker's loop (module docs): the workers' loop, waiting on the bridges.
 fn run_device_worker(inbox: &Receiver<Job>, shared: &WorkerShared) {
     // no tick of the haptic path takes a fault on a stack page seen for the first time
     vademecum_bridge::timing::prefault_stack();
-    let mut jobs: Vec<Job> = Vec::with_capacity(MAX_DEVICES_PER_WORKER);
-    let mut fds: Vec<libc::pollfd> = Vec::with_capacity(MAX_DEVICES_PER_WORKER);
-    let mut open = true;
-    let mut utilisation = Utilisation::start();
-    loop {
-        while open && jobs.len() < MAX_DEVICES_PER_WORKER {
-            match inbox.try_recv() {
-                Ok(mut job) => {
-                    job.start();
-                    fds.push(libc::pollfd {
-                        // checked by `place`; a negative descriptor is ignored by poll(2)
-                        fd: job.tick.peer.as_ref().and_then(|p| p.wake_fd()).unwrap_or(-1),
-                        events: libc::POLLIN,
-                        revents: 0,
-                    });
-                    jobs.push(job);
-                }
-                Err(TryRecvError::Empty) => break,
-                Err(TryRecvError::Disconnected) => open = false,
-            }
-        }
-        let mut wake: Option<Instant> = None;
-        let mut k = 0;
-        while k < jobs.len() {
-            let woken = std::mem::take(&mut fds[k].revents) != 0;
-            let job = &mut jobs[k];
-            match job.tick.poll_device(&mut job.clock, woken) {
-                Poll::At(t) => {
-                    wake = Some(wake.map_or(t, |w| w.min(t)));
-                    k += 1;
-                }
-                Poll::Ended => {
-                    fds.swap_remove(k);
-                    let mut job = jobs.swap_remove(k);
-                    if let Some(mut peer) = job.tick.peer.take() {
-                        job.tick.take_bridge_report(&mut peer);
-                        // back to the owner with the loop, closed there
-                        job.tick.peer = Some(peer);
-                    }
-                    job.end();
-                    shared.ended();
-                }
-            }
-        }
-        utilisation.update(shared);
-        match wake {
-            Some(t) => wait_for_bridges(&mut fds, t),
-            None if open => utilisation.idle(shared),
-            None => return,
-        }
+    let mut bridges = Bridges {
+        fds: Vec::with_capacity(MAX_DEVICES_PER_WORKER),
+    };
+    run_jobs(inbox, shared, &mut bridges);
+}
+
+/// What a device worker waits on: each session's bridge wake event, in the order of its
+/// session list.
+struct Bridges {
+    fds: Vec<libc::pollfd>,
+}
+
+impl Waiter<Job> for Bridges {
+    fn taken(&mut self, job: &Job) {
+        self.fds.push(libc::pollfd {
+            // checked by `place`; a negative descriptor is ignored by poll(2)
+            fd: job.tick.peer.as_ref().and_then(|p| p.wake_fd()).unwrap_or(-1),
+            events: libc::POLLIN,
+            revents: 0,
+        });
+    }
+
+    fn turn(&mut self, k: usize, job: &mut Job) -> Poll {
+        let woken = std::mem::take(&mut self.fds[k].revents) != 0;
+        job.tick.poll_device(&mut job.clock, woken)
+    }
+
+    fn removed(&mut self, k: usize) {
+        self.fds.swap_remove(k);
+    }
+
+    fn wait(&mut self, until: Instant) {
+        wait_for_bridges(&mut self.fds, until);
     }
 }
 

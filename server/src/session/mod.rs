@@ -429,9 +429,8 @@ impl Session {
             let _ = answers_done.recv();
             threads.drain(..).for_each(|t| drop(t.join()));
         };
-        let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread) {
-            (_, Some(h), None) if h.wait == WaitStrategy::Event && config.devices.is_some() => {
-                let devices = config.devices.as_ref().expect("matched");
+        let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread, &config.devices) {
+            (_, Some(h), None, Some(devices)) if h.wait == WaitStrategy::Event => {
                 // opened here, not on the worker: opening a channel takes milliseconds
                 let mut job = job;
                 match HapticPeer::open(&h.channel, WaitStrategy::Event, h.spin_window, config.period) {
@@ -453,7 +452,7 @@ impl Session {
                     }
                 }
             }
-            (Some(workers), None, None) => match workers.place(job) {
+            (Some(workers), None, None, _) => match workers.place(job) {
                 Ok(thread) => (thread, None),
                 Err(e) => {
                     abandon(&mut threads);

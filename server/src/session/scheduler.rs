@@ -38,7 +38,7 @@ use std::time::Instant;
 
 use vademecum_bridge::timing::RealtimeStatus;
 
-use super::tick::{Clock, TickLoop};
+use super::tick::{Clock, TickLoop, keep_bridge_report};
 pub use super::workers::{MAX_JOBS_PER_WORKER as MAX_SESSIONS_PER_WORKER, PlaceError};
 use super::workers::{Placed, Poll, Polled, Pool, PoolConfig};
 
@@ -122,7 +122,11 @@ impl Placed for Job {
     /// The loop has ended: its answers closed, it goes back to its owner with its clock, who
     /// hands its last recordings over ([`TickLoop::hand_over`]) and frees both — a worker
     /// takes no lock a reader holds and frees nothing.
-    fn end(self) {
+    fn end(mut self) {
+        // a device worker's session: its bridge's last report
+        if let Some(peer) = self.tick.peer.as_mut() {
+            keep_bridge_report(&self.tick.stats, peer);
+        }
         self.tick.close_answers();
         self.finished.store(true, Ordering::Release);
         // the owner may be gone (a session dropped mid-start): then it is dropped here

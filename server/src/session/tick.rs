@@ -233,7 +233,7 @@ impl TickLoop {
                 break;
             }
         }
-        self.take_bridge_report(peer);
+        keep_bridge_report(&self.stats, peer);
     }
 
     /// A device worker's turn ([`super::devices`]) for a haptic session: answers the
@@ -250,16 +250,10 @@ impl TickLoop {
         };
         let arrived = peer.try_state(woken);
         let now = Instant::now();
-        let go_on = !(arrived.is_some() || now >= clock.next) || self.deadline(clock, now, Some(&mut peer), arrived.as_ref());
+        let due = arrived.is_some() || now >= clock.next;
+        let go_on = !due || self.deadline(clock, now, Some(&mut peer), arrived.as_ref());
         self.peer = Some(peer);
         if go_on { Poll::At(clock.next) } else { Poll::Ended }
-    }
-
-    /// Keeps the bridge's last report in the statistics (when the loop ends).
-    pub fn take_bridge_report(&self, peer: &mut HapticPeer) {
-        if let Some(r) = peer.poll_report() {
-            self.stats.bridge.store(&r);
-        }
     }
 
     /// One tick at `start`: a deadline tick (the session's period), or, with a haptic `peer`,
@@ -344,9 +338,7 @@ impl TickLoop {
         if clock.tick.is_multiple_of(PUBLISH_EVERY) {
             self.stats.publish(&mut clock.local);
             if let Some(p) = peer.as_deref_mut() {
-                if let Some(r) = p.poll_report() {
-                    self.stats.bridge.store(&r);
-                }
+                keep_bridge_report(&self.stats, p);
                 self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
             }
             let cpu = if clock.cpu_of_thread {
@@ -397,6 +389,13 @@ struct Period {
     last_input: Option<ToolInput>,
     /// The work of its answers on arrival so far (ns).
     work_ns: u64,
+}
+
+/// Keeps the bridge's newest report in `stats` (when a haptic loop ends).
+pub(super) fn keep_bridge_report(stats: &TickStats, peer: &mut HapticPeer) {
+    if let Some(r) = peer.poll_report() {
+        stats.bridge.store(&r);
+    }
 }
 
 /// The first deadline at least a `period` after `now` on the grid `epoch + (m + fraction) ·

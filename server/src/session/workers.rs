@@ -1,14 +1,16 @@
 //! A pool of worker threads that each run many polled jobs: the machinery shared by the tick
-//! workers ([`super::scheduler`]) and the frame workers ([`super::frames::FrameWorkers`]).
+//! workers ([`super::scheduler`]), the frame and answer workers, and the device workers
+//! ([`super::devices`]).
 //!
 //! A job is polled ([`Polled::poll`]): it does what is due and says when it wants its next
-//! turn. Each worker owns the jobs placed on it and runs one loop:
+//! turn. Each worker owns the jobs placed on it and runs one loop (`run_jobs`):
 //!
 //! 1. take the jobs handed to it (a bounded channel; its job list is allocated once,
 //!    [`MAX_JOBS_PER_WORKER`] long, so taking one allocates nothing);
-//! 2. give every job its turn; a job that has ended is handed to [`Polled::end`];
+//! 2. give every job its turn; a job that has ended is handed to [`Placed::end`];
 //! 3. park until the earliest wake-up its jobs asked for — or until someone unparks it (a
-//!    session's submit, a session closing).
+//!    session's submit, a session closing). A device worker gives its turns and waits its
+//!    own way (a [`Waiter`]: blocked on its bridges' events), the rest of the loop the same.
 //!
 //! Each worker measures its utilisation — its thread's CPU time over wall time, every quarter
 //! second (one clock read then: CPU time, unlike wake-to-park time, does not count the time
@@ -132,23 +134,18 @@ impl WorkerShared {
     fn utilisation(&self) -> f64 {
         f64::from_bits(self.utilisation.load(Ordering::Relaxed))
     }
-
-    /// A job of this worker has ended.
-    pub fn ended(&self) {
-        self.jobs.fetch_sub(1, Ordering::Relaxed);
-    }
 }
 
 /// A worker's utilisation measurement: its thread's CPU time over wall time, published every
 /// [`UTILISATION_WINDOW`] (one clock read in between).
-pub(super) struct Utilisation {
+struct Utilisation {
     window_start: Instant,
     cpu_start: Duration,
 }
 
 impl Utilisation {
     /// Starts a window now.
-    pub fn start() -> Self {
+    fn start() -> Self {
         Self {
             window_start: Instant::now(),
             cpu_start: timing::thread_cpu_time(),
@@ -156,7 +153,7 @@ impl Utilisation {
     }
 
     /// Publishes the utilisation when a window has passed.
-    pub fn update(&mut self, shared: &WorkerShared) {
+    fn update(&mut self, shared: &WorkerShared) {
         let now = Instant::now();
         let window = now - self.window_start;
         if window >= UTILISATION_WINDOW {
@@ -168,7 +165,7 @@ impl Utilisation {
     }
 
     /// The worker has no job: publishes 0 and parks until one comes, then starts a new window.
-    pub fn idle(&mut self, shared: &WorkerShared) {
+    fn idle(&mut self, shared: &WorkerShared) {
         shared.utilisation.store(0f64.to_bits(), Ordering::Relaxed);
         std::thread::park();
         *self = Self::start();
@@ -330,8 +327,44 @@ pub(super) fn run_alone<J: Polled>(job: J) {
     run_worker(&rx, &shared);
 }
 
-/// A worker's loop (module docs): until its inbox is closed and its last job ended.
+/// How a worker's loop gives its jobs their turns and waits between them, with what it keeps
+/// per job for that (in the order of the loop's job list).
+pub(super) trait Waiter<J> {
+    /// A job was taken: it is now the last of the list.
+    fn taken(&mut self, _job: &J) {}
+    /// The turn of job `k` of the list.
+    fn turn(&mut self, k: usize, job: &mut J) -> Poll;
+    /// Job `k` has ended: the list's last job takes its place.
+    fn removed(&mut self, _k: usize) {}
+    /// Waits until `until`, or until woken.
+    fn wait(&mut self, until: Instant);
+}
+
+/// The plain worker's way: [`Polled::poll`] each job, park until the earliest wake-up (a
+/// session's submit or close unparks the worker).
+struct Park;
+
+impl<J: Polled> Waiter<J> for Park {
+    fn turn(&mut self, _k: usize, job: &mut J) -> Poll {
+        job.poll()
+    }
+
+    fn wait(&mut self, until: Instant) {
+        let now = Instant::now();
+        if until > now {
+            std::thread::park_timeout(until - now);
+        }
+    }
+}
+
+/// A worker's loop (module docs).
 fn run_worker<J: Polled>(inbox: &Receiver<J>, shared: &WorkerShared) {
+    run_jobs(inbox, shared, &mut Park);
+}
+
+/// The loop every worker runs (module docs), giving turns and waiting the `waiter`'s way:
+/// until its inbox is closed and its last job ended.
+pub(super) fn run_jobs<J: Polled, W: Waiter<J>>(inbox: &Receiver<J>, shared: &WorkerShared, waiter: &mut W) {
     let mut jobs: Vec<J> = Vec::with_capacity(MAX_JOBS_PER_WORKER);
     let mut open = true;
     let mut utilisation = Utilisation::start();
@@ -340,6 +373,7 @@ fn run_worker<J: Polled>(inbox: &Receiver<J>, shared: &WorkerShared) {
             match inbox.try_recv() {
                 Ok(mut job) => {
                     job.start();
+                    waiter.taken(&job);
                     jobs.push(job);
                 }
                 Err(TryRecvError::Empty) => break,
@@ -349,25 +383,21 @@ fn run_worker<J: Polled>(inbox: &Receiver<J>, shared: &WorkerShared) {
         let mut wake: Option<Instant> = None;
         let mut k = 0;
         while k < jobs.len() {
-            match jobs[k].poll() {
+            match waiter.turn(k, &mut jobs[k]) {
                 Poll::At(t) => {
                     wake = Some(wake.map_or(t, |w| w.min(t)));
                     k += 1;
                 }
                 Poll::Ended => {
+                    waiter.removed(k);
                     jobs.swap_remove(k).end();
-                    shared.ended();
+                    shared.jobs.fetch_sub(1, Ordering::Relaxed);
                 }
             }
         }
         utilisation.update(shared);
         match wake {
-            Some(t) => {
-                let now = Instant::now();
-                if t > now {
-                    std::thread::park_timeout(t - now);
-                }
-            }
+            Some(t) => waiter.wait(t),
             // idle: nothing to measure until a job comes
             None if open => utilisation.idle(shared),
             None => return,
