@@ -18,6 +18,7 @@
 //! - [`solve`]: sparse Cholesky with reusable symbolic analysis; rigid-motion checks.
 //! - [`vec3`]: `[f64; 3]` arithmetic for the geometry of cuts, contacts and surfaces.
 //! - [`xfem`]: cutting by XFEM (cracking nodes, shifted Heaviside): the full-order reference.
+//! - [`check`]: the hard-case suite (every method through its numerically hard inputs).
 //! - [`bundle`]: the on-disk form of built vademecums (manifest + `.npy` + checksums).
 //! - [`scene`]: scene files (TOML), their validation, and the static problem they describe.
 //!
@@ -27,6 +28,7 @@
 #![allow(non_snake_case)]
 
 pub mod bundle;
+pub mod check;
 pub mod contact;
 pub mod damage;
 pub mod dense;

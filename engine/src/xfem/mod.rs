@@ -11,6 +11,7 @@
 //! - [`subcell`]: cut planes, splitting a cell into sub-tetrahedra on each side, quadrature.
 //! - [`enrichment`]: from the swept blade surface to cut cells and cracked nodes (one plane per
 //!   node, the cracking-node method), the sliver rule.
+//! - [`identity`]: the reference of a cut on cell faces (the mesh with its cut nodes duplicated).
 //! - [`online`]: the scalpel cutting as it moves: the criterion, the swept surface, the cells
 //!   it crosses, the model bordered.
 //! - [`progressive`]: semi-progressive cutting (seed 003 §3.3): the blade's swept quads
@@ -30,6 +31,7 @@
 pub mod blade;
 pub mod corotational;
 pub mod enrichment;
+pub mod identity;
 pub mod online;
 pub mod partial;
 pub mod progressive;

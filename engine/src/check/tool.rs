@@ -1,0 +1,290 @@
+//! The tick under what devices and clients send: the built-in organ's palpation pipeline (its
+//! PGD vademecum built, written and loaded back as a session's) fed a NaN or an infinity in
+//! every field of a pressing tool state, a tool that jumps 10 cm in one tick, every limit of the
+//! tool state at its edge and just past it, and a probe pressed where the vademecum has no load
+//! states (the fixed underside). A rejected state is the typed diagnostic (`REJECTED_INPUT`,
+//! zero force) and must leave the session answering the next valid state as before.
+
+use std::sync::{Arc, Mutex};
+
+use super::{Case, Expect, Outcome, Size, diagnostic, outcome, relative};
+use crate::pgd::offline::{self, BuildOptions, LoadedBundle};
+use crate::pipeline::{Events, MAX_TOOL_SPEED_M_S, Pipeline, QUATERNION_NORM_TOLERANCE, TickState, ToolInput};
+use crate::scene::Scene;
+
+/// The built-in organ, coarser at reduced size.
+fn organ_scene(size: Size) -> Result<Scene, Outcome> {
+    let text = crate::scene::builtin("organ").expect("the built-in organ");
+    let text = match size {
+        Size::Full => text.to_string(),
+        Size::Reduced => {
+            assert!(text.contains("divisions = [16, 10, 6]"), "the built-in organ's mesh");
+            text.replace("divisions = [16, 10, 6]", "divisions = [8, 5, 3]")
+        }
+    };
+    Scene::from_toml(&text, "<hard case: organ>").map_err(diagnostic)
+}
+
+/// The organ's bundle for `size`, built once per process and size (a few seconds).
+fn organ_bundle(scene: &Scene, size: Size) -> Result<Arc<LoadedBundle>, Outcome> {
+    static BUILT: Mutex<Vec<(Size, Arc<LoadedBundle>)>> = Mutex::new(Vec::new());
+    let mut built = BUILT.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((_, b)) = built.iter().find(|(s, _)| *s == size) {
+        return Ok(b.clone());
+    }
+    let b = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).map_err(diagnostic)?;
+    let dir = std::env::temp_dir().join(format!("vademecum-check-{}-{size:?}", std::process::id()));
+    let loaded = offline::write_bundle(&dir, scene, &b)
+        .map_err(diagnostic)
+        .and_then(|_| offline::load_bundle(&dir).map_err(diagnostic));
+    let _ = std::fs::remove_dir_all(&dir);
+    let loaded = Arc::new(loaded?);
+    built.push((size, loaded.clone()));
+    Ok(loaded)
+}
+
+/// A pipeline of the organ and a probe state pressing 2 mm into the middle of its accessible
+/// (upper) surface, straight down.
+fn pressing(size: Size) -> Result<(Pipeline, ToolInput, Arc<LoadedBundle>, f64), Outcome> {
+    let scene = organ_scene(size)?;
+    let b = organ_bundle(&scene, size)?;
+    let pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).map_err(diagnostic)?;
+    let loads = b.vademecum.load_nodes();
+    // the highest load node: the middle of the upper surface
+    let top = loads
+        .iter()
+        .copied()
+        .max_by(|&a, &c| b.nodes[a][2].total_cmp(&b.nodes[c][2]))
+        .ok_or_else(|| Outcome::Broken("the vademecum has no load nodes".into()))?;
+    let r = probe_radius(&scene);
+    let p = b.nodes[top];
+    let tool = ToolInput {
+        position_m: [p[0], p[1], p[2] + r - 0.002],
+        ..ToolInput::default()
+    };
+    Ok((pipe, tool, b, r))
+}
+
+fn probe_radius(scene: &Scene) -> f64 {
+    offline::probe_radius(scene)
+}
+
+fn norm(f: [f64; 3]) -> f64 {
+    f.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Whether a tick's answer is finite and within the pipeline's force limit.
+fn bounded(pipe: &Pipeline, s: &TickState) -> bool {
+    s.force_n.iter().all(|f| f.is_finite()) && norm(s.force_n) <= pipe.max_force_n() * (1.0 + 1e-12)
+}
+
+/// The same valid state after a poisoned one answers as it did before it (to rounding).
+fn unchanged(before: &TickState, after: &TickState) -> bool {
+    relative(norm(after.force_n), norm(before.force_n)) < 1e-9
+}
+
+fn poisoned_inputs(size: Size) -> Outcome {
+    outcome(|| {
+        let (mut pipe, tool, _, _) = pressing(size)?;
+        let before = pipe.tick(&tool);
+        if before.contact.is_none() || !bounded(&pipe, &before) {
+            return Ok(Outcome::Broken(format!("the pressing state answers {:?}", before.force_n)));
+        }
+        let mut rejected = 0;
+        for field in 0..14 {
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut t = tool;
+                match field {
+                    0..3 => t.position_m[field] = bad,
+                    3..6 => t.velocity_m_s[field - 3] = bad,
+                    6..10 => t.orientation[field - 6] = bad,
+                    10..13 => t.blade_end_m[field - 10] = bad,
+                    _ => t.closure = bad,
+                }
+                let s = pipe.tick(&t);
+                if !s.events.has(Events::REJECTED_INPUT) || s.force_n != [0.0; 3] {
+                    return Ok(Outcome::Broken(format!(
+                        "field {field} = {bad}: answered {:?} without rejecting it",
+                        s.force_n
+                    )));
+                }
+                let again = pipe.tick(&tool);
+                if !unchanged(&before, &again) {
+                    return Ok(Outcome::Broken(format!(
+                        "after field {field} = {bad}: {:?} N, before {:?} N",
+                        again.force_n, before.force_n
+                    )));
+                }
+                rejected += 1;
+            }
+        }
+        Ok(Outcome::Diagnostic(format!(
+            "{rejected} of 42 poisoned states rejected (REJECTED_INPUT, zero force); the next valid state answers {:.3} N as before",
+            norm(before.force_n)
+        )))
+    })
+}
+
+fn jump(size: Size) -> Outcome {
+    outcome(|| {
+        let (mut pipe, tool, _, _) = pressing(size)?;
+        let before = pipe.tick(&tool);
+        let mut through = tool;
+        through.position_m[2] -= 0.1;
+        let deep = pipe.tick(&through);
+        let mut aside = tool;
+        aside.position_m[0] += 0.1;
+        let side = pipe.tick(&aside);
+        pipe.tick(&through);
+        let back = pipe.tick(&tool);
+        for (what, s) in [("10 cm down", &deep), ("10 cm aside", &side), ("back", &back)] {
+            if !bounded(&pipe, s) {
+                return Ok(Outcome::Broken(format!("{what}: {:?} N", s.force_n)));
+            }
+        }
+        if !unchanged(&before, &back) {
+            return Ok(Outcome::Broken(format!(
+                "back at the start: {:.4} N, before {:.4} N",
+                norm(back.force_n),
+                norm(before.force_n)
+            )));
+        }
+        Ok(Outcome::bounded(format!(
+            "10 cm down: {:.2} N{}; 10 cm aside: {:.2} N; back: {:.3} N as before (limit {} N)",
+            norm(deep.force_n),
+            if deep.events.has(Events::FORCE_SATURATED) {
+                " (saturated)"
+            } else {
+                ""
+            },
+            norm(side.force_n),
+            norm(back.force_n),
+            pipe.max_force_n()
+        )))
+    })
+}
+
+fn edges(size: Size) -> Outcome {
+    outcome(|| {
+        let (mut pipe, tool, _, _) = pressing(size)?;
+        let ws = pipe.workspace();
+        let speed = |v: f64| {
+            let mut t = tool;
+            t.velocity_m_s = [v, 0.0, 0.0];
+            t
+        };
+        let closure = |c: f64| {
+            let mut t = tool;
+            t.closure = c;
+            t
+        };
+        let quaternion = |n: f64| {
+            let mut t = tool;
+            t.orientation = [n, 0.0, 0.0, 0.0];
+            t
+        };
+        let at_x = |x: f64| {
+            let mut t = tool;
+            t.position_m[0] = x;
+            t
+        };
+        let q = QUATERNION_NORM_TOLERANCE;
+        let states = [
+            ("speed at the limit", speed(MAX_TOOL_SPEED_M_S), true),
+            ("speed past it", speed(MAX_TOOL_SPEED_M_S * (1.0 + 1e-9)), false),
+            ("closure 0", closure(0.0), true),
+            ("closure 1", closure(1.0), true),
+            ("closure past 1", closure(1.0 + 1e-9), false),
+            ("closure below 0", closure(-1e-9), false),
+            ("quaternion norm 1 + 0.999 tol", quaternion(1.0 + 0.999 * q), true),
+            ("quaternion norm 1 − 0.999 tol", quaternion(1.0 - 0.999 * q), true),
+            ("quaternion norm past tol", quaternion(1.0 + 1.001 * q), false),
+            ("zero quaternion", quaternion(0.0), false),
+            ("at the workspace's edge", at_x(ws.max[0] - 1e-9), true),
+            ("past the workspace's edge", at_x(ws.max[0] + 1e-6), false),
+        ];
+        for (what, t, accepted) in states {
+            let s = pipe.tick(&t);
+            if s.events.has(Events::REJECTED_INPUT) == accepted || !bounded(&pipe, &s) {
+                return Ok(Outcome::Broken(format!(
+                    "{what}: {} with {:?} N",
+                    if accepted { "rejected" } else { "accepted" },
+                    s.force_n
+                )));
+            }
+        }
+        Ok(Outcome::bounded(format!(
+            "{} states at each limit accepted with a bounded force, each just past it rejected",
+            states.len()
+        )))
+    })
+}
+
+fn outside_accessible(size: Size) -> Outcome {
+    outcome(|| {
+        let (mut pipe, _, b, r) = pressing(size)?;
+        let loads = b.vademecum.load_nodes();
+        // the lowest surface node: on the underside, which no load state covers
+        let low = b
+            .surface
+            .iter()
+            .flatten()
+            .copied()
+            .min_by(|&a, &c| b.nodes[a][2].total_cmp(&b.nodes[c][2]))
+            .ok_or_else(|| Outcome::Broken("the organ has no surface".into()))?;
+        if loads.contains(&low) {
+            return Ok(Outcome::Broken("the underside is loadable: not the case meant".into()));
+        }
+        let p = b.nodes[low];
+        let mut last = TickState::default();
+        // from below, up to 3 mm deep
+        for k in 0..=30 {
+            let tool = ToolInput {
+                position_m: [p[0], p[1], p[2] - r - 0.001 + 0.004 * k as f64 / 30.0],
+                ..ToolInput::default()
+            };
+            last = pipe.tick(&tool);
+            if !bounded(&pipe, &last) {
+                return Ok(Outcome::Broken(format!("{:?} N", last.force_n)));
+            }
+        }
+        let Some(c) = last.contact else {
+            return Ok(Outcome::Broken("no contact pressed 3 mm into the underside".into()));
+        };
+        Ok(Outcome::bounded(format!(
+            "{:.3} N at {:.1} mm deep, {:.0} % of it on the deformable tissue (nearest load states), the rest on the support",
+            norm(last.force_n),
+            1e3 * c.depth_m,
+            100.0 * c.loadable
+        )))
+    })
+}
+
+pub(super) fn cases() -> Vec<Case> {
+    vec![
+        Case {
+            name: "NaN / ±Inf in every tool-state field",
+            method: "palpation pipeline (PGD)",
+            expect: Expect::Diagnostic(&["42 of 42 poisoned states rejected"]),
+            run: poisoned_inputs,
+        },
+        Case {
+            name: "a tool jumping 10 cm in one tick",
+            method: "palpation pipeline (PGD)",
+            expect: Expect::FINITE,
+            run: jump,
+        },
+        Case {
+            name: "tool-state limits at and past their edge",
+            method: "palpation pipeline (PGD)",
+            expect: Expect::FINITE,
+            run: edges,
+        },
+        Case {
+            name: "pressed outside the accessible region",
+            method: "palpation pipeline (PGD)",
+            expect: Expect::FINITE,
+            run: outside_accessible,
+        },
+    ]
+}
