@@ -663,3 +663,39 @@ fn bench_load_kills_clients_and_still_accounts_for_every_tool_state() {
     let o = vademecum(&["bench", "load", "--chaos-every", "1", "--chaos-clients", "40"], dir.path());
     assert!(!o.status.success() && stderr(&o).contains("--chaos-clients"), "{}", stderr(&o));
 }
+
+#[test]
+fn check_hard_cases_prints_verdicts_writes_json_and_refuses_an_empty_selection() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(
+        &[
+            "check",
+            "hard-cases",
+            "--reduced",
+            "--only",
+            "XFEM",
+            "--markdown",
+            "--json",
+            "v.json",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.starts_with("| case | method |"), "{text}");
+    assert!(text.contains("3 of 3 hard cases pass (reduced size"), "{text}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("v.json")).unwrap()).unwrap();
+    let cases = v["cases"].as_array().unwrap();
+    assert_eq!(cases.len(), 3);
+    assert!(
+        cases
+            .iter()
+            .all(|c| c["pass"] == true && c["method"].as_str().unwrap().contains("XFEM"))
+    );
+    // the cut through nodes is measured against the duplicated mesh
+    assert!(cases[0]["relative_error"].as_f64().unwrap() < 1e-9);
+
+    let o = vademecum(&["check", "hard-cases", "--only", "no such case"], dir.path());
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no hard case matches"), "{}", stderr(&o));
+}

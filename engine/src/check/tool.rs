@@ -129,15 +129,24 @@ fn jump(size: Size) -> Outcome {
     outcome(|| {
         let (mut pipe, tool, _, _) = pressing(size)?;
         let before = pipe.tick(&tool);
-        let mut through = tool;
-        through.position_m[2] -= 0.1;
-        let deep = pipe.tick(&through);
-        let mut aside = tool;
-        aside.position_m[0] += 0.1;
-        let side = pipe.tick(&aside);
-        pipe.tick(&through);
+        let moved = |axis: usize, by: f64| {
+            let mut t = tool;
+            t.position_m[axis] += by;
+            t
+        };
+        // 3 cm into the 5 cm thick organ, then through it and out below, then off its edge
+        let into = pipe.tick(&moved(2, -0.03));
+        pipe.tick(&tool);
+        let through = pipe.tick(&moved(2, -0.1));
+        pipe.tick(&tool);
+        let side = pipe.tick(&moved(0, 0.1));
         let back = pipe.tick(&tool);
-        for (what, s) in [("10 cm down", &deep), ("10 cm aside", &side), ("back", &back)] {
+        for (what, s) in [
+            ("3 cm in", &into),
+            ("10 cm down", &through),
+            ("10 cm aside", &side),
+            ("back", &back),
+        ] {
             if !bounded(&pipe, s) {
                 return Ok(Outcome::Broken(format!("{what}: {:?} N", s.force_n)));
             }
@@ -150,13 +159,14 @@ fn jump(size: Size) -> Outcome {
             )));
         }
         Ok(Outcome::bounded(format!(
-            "10 cm down: {:.2} N{}; 10 cm aside: {:.2} N; back: {:.3} N as before (limit {} N)",
-            norm(deep.force_n),
-            if deep.events.has(Events::FORCE_SATURATED) {
+            "3 cm in: {:.2} N{}; 10 cm down, through and out: {:.2} N; 10 cm aside, off the edge: {:.2} N; back: {:.3} N as before (limit {} N)",
+            norm(into.force_n),
+            if into.events.has(Events::FORCE_SATURATED) {
                 " (saturated)"
             } else {
                 ""
             },
+            norm(through.force_n),
             norm(side.force_n),
             norm(back.force_n),
             pipe.max_force_n()

@@ -87,9 +87,51 @@ geometry of a large organ).")]
     /// Print or check scene files.
     #[command(subcommand)]
     Scene(SceneCommand),
+    /// Run the numerical self-checks (the hard-case suite).
+    #[command(subcommand)]
+    Check(CheckCommand),
     /// Measure solver performance.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+/// `vademecum check …`.
+#[derive(Debug, Subcommand)]
+pub enum CheckCommand {
+    /// Drive every method through its numerically hard cases and print the verdicts.
+    #[command(long_about = "Drive every method through the inputs where numerical methods break and print one \
+row per case: the case, the method, what it must produce, what it produced, its error against \
+the case's reference, its time, and the verdict.\n\n\
+Cases: near-incompressibility (ν = 0.4999 and 0.5) per element and locking option; every \
+hyperelastic law stretched 100 % and compressed 50 % against the exact homogeneous answer; \
+element inversion and St Venant-Kirchhoff crushing (Newton's diagnostic); the ANM series past its \
+validity radius and past the limit point; the large-deformation lattice far from its positions \
+and past its paths; the meshless solver with a cut through nodes, a piece cut loose, ν = 0.499 \
+and 100 % stretch; the tick under NaN/Inf in every tool-state field, a 10 cm jump in one tick, \
+limits at and past their edge, contact outside the accessible region; XFEM cuts through nodes, \
+at ν = 0.499 and cutting a piece loose, malformed blades; tearing to full damage, at ν = 0.499 \
+and outside the vademecum's box.\n\n\
+A case passes with a finite, bounded answer within its error, or the typed diagnostic it names \
+(never NaN, a panic or a silent wrong answer). Exit status 1 when any case fails. The verdicts \
+at full size are in docs/stability.md; `cargo test` runs the suite with --reduced.")]
+    HardCases(HardCasesArgs),
+}
+
+/// Arguments of `vademecum check hard-cases`.
+#[derive(Debug, Args)]
+pub struct HardCasesArgs {
+    /// Smaller problems (the suite in tens of seconds; what `cargo test` runs).
+    #[arg(long)]
+    pub reduced: bool,
+    /// Only the cases whose name or method contains this text (case-insensitive).
+    #[arg(long, value_name = "TEXT")]
+    pub only: Option<String>,
+    /// Also write the verdicts as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Print the table as Markdown (for docs/stability.md) instead of aligned text.
+    #[arg(long)]
+    pub markdown: bool,
 }
 
 /// Which scene a command works on: a file, or a built-in scene.

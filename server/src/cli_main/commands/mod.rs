@@ -14,6 +14,7 @@ mod bench_pgd;
 mod bench_session;
 mod bench_tear;
 mod build;
+mod check;
 mod inspect;
 mod mesh_info;
 mod run;
@@ -24,7 +25,7 @@ mod solve;
 
 use std::process::ExitCode;
 
-use crate::cli_main::cli::{BenchCommand, Cli, Command, MeshCommand};
+use crate::cli_main::cli::{BenchCommand, CheckCommand, Cli, Command, MeshCommand};
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
@@ -36,6 +37,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Serve(a) => serve::run(a),
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
+        Command::Check(CheckCommand::HardCases(a)) => check::hard_cases(a),
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),
         Command::Bench(BenchCommand::Pgd(a)) => bench_pgd::run(a),
         Command::Bench(BenchCommand::Session(a)) => bench_session::run(a),
