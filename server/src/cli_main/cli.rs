@@ -518,6 +518,16 @@ that a plane through it crosses), beside a null loop.\n\n\
 Default mesh: a built-in 24 x 6 x 6 block of tetrahedra. The liver of the issue: \
 ../shared/data/meshes/derived/openhelp_liver_tet_h20.msh and _h12.msh.")]
     Corot(BenchCorotArgs),
+    /// What each effect costs: build time, bundle size, session memory and tick work per scene.
+    #[command(long_about = "Effect composition: for each SCENE (default: the cornea of seed 001 with \
+palpation only, + large deformations, + cutting, + tearing: scenes/effects/cornea_*.toml), build its \
+bundles into a fresh folder (timed), measure the bundle's size on disk, then run its headless session \
+(`vademecum run`, the scene's built-in trajectory at 1 kHz) and read the session's tick work \
+percentiles, deadline misses and the memory it holds of its own, by effect. Prints one row per scene \
+and the difference of each to the first (the palpation-only baseline).\n\n\
+Builds and runs in child processes of this binary, one scene at a time; --out keeps the bundles and \
+recordings (default: a temporary folder, removed).")]
+    Effects(BenchEffectsArgs),
 }
 
 /// Arguments of `vademecum bench tear`.
@@ -555,6 +565,22 @@ pub struct BenchCorotArgs {
     /// Timed calls of each part.
     #[arg(long, default_value_t = 10)]
     pub iterations: usize,
+    /// Print the results as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Arguments of `vademecum bench effects`.
+#[derive(Debug, Args)]
+pub struct BenchEffectsArgs {
+    /// Scene files (TOML), the first the baseline. Default: scenes/effects/cornea_{palpation,large,cutting,tearing}.toml.
+    pub scenes: Vec<PathBuf>,
+    /// Seconds of each session (default: the length of the scene's built-in trajectory).
+    #[arg(long, value_name = "S")]
+    pub seconds: Option<f64>,
+    /// Keep the bundles and recordings here.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
     /// Print the results as JSON.
     #[arg(long)]
     pub json: bool,

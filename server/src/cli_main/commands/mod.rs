@@ -6,6 +6,7 @@ mod bench_corot;
 mod bench_cube;
 mod bench_cut;
 mod bench_cut_session;
+mod bench_effects;
 mod bench_efg;
 mod bench_haptic;
 mod bench_load;
@@ -50,6 +51,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(BenchCommand::Cut(a)) => bench_cut::run(a),
         Command::Bench(BenchCommand::Tear(a)) => bench_tear::run(a),
         Command::Bench(BenchCommand::Corot(a)) => bench_corot::run(a),
+        Command::Bench(BenchCommand::Effects(a)) => bench_effects::run(a),
     }
 }
 
