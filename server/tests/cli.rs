@@ -699,3 +699,88 @@ fn check_hard_cases_prints_verdicts_writes_json_and_refuses_an_empty_selection()
     assert!(!o.status.success());
     assert!(stderr(&o).contains("no hard case matches"), "{}", stderr(&o));
 }
+
+/// The built-in organ on a coarse mesh, as a scene file in `dir`.
+fn coarse_organ(dir: &Path) -> std::path::PathBuf {
+    let o = vademecum(&["scene", "show", "organ"], dir);
+    let text = stdout(&o).replace("divisions = [16, 10, 6]", "divisions = [8, 5, 3]");
+    assert!(text.contains("[8, 5, 3]"));
+    let path = dir.join("coarse.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn study_sweeps_modes_and_storage_marks_the_front_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = coarse_organ(dir.path());
+    let args = ["study", scene.to_str().unwrap(), "--out", "st", "--frames", "50"];
+    let o = vademecum(&args, dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let st = dir.path().join("st");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(st.join("study.json")).unwrap()).unwrap();
+    let curve = v["build"]["error_curve"].as_array().unwrap().len();
+    let points = v["points"].as_array().unwrap();
+    assert_eq!(points.len(), 2 * curve, "every prefix in f32 and in i16");
+    let of = |s: &str| -> Vec<&serde_json::Value> { points.iter().filter(|p| p["storage"] == s).collect() };
+    let (f, q) = (of("f32"), of("i16"));
+    for w in f.windows(2) {
+        assert!(w[1]["modes"].as_u64() > w[0]["modes"].as_u64());
+        assert!(w[1]["field_error"].as_f64().unwrap() <= w[0]["field_error"].as_f64().unwrap() * (1.0 + 1e-12));
+    }
+    for (a, b) in f.iter().zip(&q) {
+        // quantised modes add their own small error, and halve the bytes read per frame
+        assert!(b["field_error"].as_f64() >= a["field_error"].as_f64());
+        assert!(b["field_error"].as_f64().unwrap() < a["field_error"].as_f64().unwrap() + 1e-3);
+        assert_eq!(2 * b["field_bytes"].as_u64().unwrap(), a["field_bytes"].as_u64().unwrap());
+    }
+    // the most accurate point is on both fronts: nothing is more accurate
+    let best = points
+        .iter()
+        .min_by(|a, b| a["field_error"].as_f64().unwrap().total_cmp(&b["field_error"].as_f64().unwrap()))
+        .unwrap();
+    assert!(best["front_offline"] == true && best["front_online"] == true);
+    for f in ["study.csv", "error_vs_online.svg", "error_vs_bundle.svg", "verdict.txt"] {
+        assert!(st.join(f).is_file(), "{f}");
+    }
+    assert!(stdout(&o).contains("The contact force does not depend on the modes"));
+
+    // a second run reuses the build and every point
+    let again = vademecum(&args, dir.path());
+    assert!(again.status.success());
+    let e = stderr(&again);
+    assert!(e.contains("build in") && e.contains("reused") && e.contains("0 to measure"), "{e}");
+}
+
+#[test]
+fn build_target_error_keeps_the_fewest_modes_that_meet_it_or_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = coarse_organ(dir.path());
+    let s = scene.to_str().unwrap();
+    let o = vademecum(&["build", s, "--out", "b", "--target-error", "1e-2", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert!(stderr(&o).contains("picked"), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let r = &r[0];
+    let (modes, err) = (r["modes"].as_u64().unwrap(), r["error"].as_f64().unwrap());
+    assert!(err <= 1e-2, "{err}");
+    // one mode fewer would not meet it: the curve's last sampled prefix below `modes` errs more
+    let below = r["error_curve"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p[0].as_u64().unwrap() < modes)
+        .last()
+        .cloned();
+    if let Some(p) = below {
+        assert!(p[1].as_f64().unwrap() > 1e-2, "{p:?}");
+    }
+    let o = vademecum(&["build", s, "--out", "b2", "--target-error", "1e-14"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("no prefix") && stderr(&o).contains("the closest is"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!dir.path().join("b2").exists());
+}

@@ -87,12 +87,43 @@ geometry of a large organ).")]
     /// Print or check scene files.
     #[command(subcommand)]
     Scene(SceneCommand),
+    /// What accuracy costs: every fidelity setting of a scene's vademecum, its error and its cost.
+    #[command(
+        long_about = "Sweep the fidelity settings of a scene's PGD vademecum that trade accuracy for time \
+and measure each: one build at --tolerance measures the error of every prefix of the modes against \
+the exact parametric solution (relative L2 over all load states); each prefix, with its modes stored \
+in f32 or quantised to i16, is a point whose online cost (the surface displacement field of one frame, \
+p50 and p99 beside a null loop) and offline cost (bundle bytes, build time) are measured.\n\n\
+Writes <OUT>/study.csv, study.json, error_vs_online.svg and error_vs_bundle.svg (the Pareto front \
+marked) and verdict.txt (the cheapest point meeting the scene's fidelity.pgd.tolerance). Resumable: \
+a second run reuses the build (same scene and tolerance) and the points already measured.\n\n\
+This version sweeps the PGD vademecum (modes, storage); the contact force comes from exact local \
+compliances and has no mode error. Default OUT: out/<scene name>/study."
+    )]
+    Study(StudyArgs),
     /// Run the numerical self-checks (the hard-case suite).
     #[command(subcommand)]
     Check(CheckCommand),
     /// Measure solver performance.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+/// Arguments of `vademecum study`.
+#[derive(Debug, Args)]
+pub struct StudyArgs {
+    /// The scene (its first organ is studied).
+    #[command(flatten)]
+    pub source: SceneSource,
+    /// Output folder (kept between runs: the study resumes). Default: `out/<scene name>/study`.
+    #[arg(long, short, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// The tolerance of the study's build: the tightest point of the sweep.
+    #[arg(long, default_value_t = 1e-4, value_name = "E")]
+    pub tolerance: f64,
+    /// Frames timed per point.
+    #[arg(long, default_value_t = 2000, value_name = "N")]
+    pub frames: usize,
 }
 
 /// `vademecum check …`.
@@ -178,6 +209,12 @@ pub struct BuildArgs {
     /// this many GB. Default: the memory the system has available.
     #[arg(long, value_name = "GB")]
     pub max_memory: Option<f64>,
+    /// Keep the fewest modes whose measured error (relative L2 over all load states) meets E,
+    /// instead of the scene's fidelity.pgd.tolerance; refuse (exit 1, no bundle written) with
+    /// the closest achievable error when no prefix meets it. `vademecum study` shows the
+    /// whole trade-off.
+    #[arg(long, value_name = "E")]
+    pub target_error: Option<f64>,
     /// Print the build report as JSON on stdout.
     #[arg(long)]
     pub json: bool,

@@ -96,20 +96,39 @@ pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Ar
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
-    let opts = BuildOptions {
+    let mut opts = BuildOptions {
         max_memory: memory_limit(a.max_memory)?,
         ..BuildOptions::for_scene(&scene, !a.no_recompress)
     };
+    if let Some(e) = a.target_error {
+        anyhow::ensure!(e > 0.0 && e < 1.0, "--target-error must lie in (0, 1), got {e}");
+        opts.tolerance = e;
+    }
     let mut reports = Vec::new();
     let mut stdout = std::io::stdout().lock();
     for i in 0..scene.spec.organs.len() {
         let name = scene.spec.organs[i].name.clone();
         let (built, bar) = build_with_progress(&scene, i, &opts)?;
+        let r = &built.report;
+        if let Some(e) = a.target_error {
+            bar.finish();
+            if !r.target_met {
+                eprintln!(
+                    "vademecum: organ '{name}': no prefix of the {} modes built meets --target-error {e:.1e}: the closest is {:.3e} with all of them; raise fidelity.pgd.max_modes or lower fidelity.pgd.global_tolerance (no bundle written)",
+                    r.greedy.modes, r.error_greedy
+                );
+                return Ok(ExitCode::FAILURE);
+            }
+            eprintln!(
+                "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
+                r.modes, r.greedy.modes, r.error
+            );
+        }
+        let bar = Stages::start(&format!("writing '{name}'"));
         bar.stage("writing bundle");
         let dir = out.join(format!("{name}.bundle"));
         offline::write_bundle(&dir, &scene, &built).with_context(|| format!("cannot write bundle {}", dir.display()))?;
         bar.finish();
-        let r = &built.report;
         if !a.json {
             writeln!(
                 stdout,

@@ -23,6 +23,7 @@ mod run_haptic;
 mod scene;
 mod serve;
 mod solve;
+mod study;
 
 use std::process::ExitCode;
 
@@ -39,6 +40,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
         Command::Check(CheckCommand::HardCases(a)) => check::hard_cases(a),
+        Command::Study(a) => study::run(a),
         Command::Bench(BenchCommand::Fe(a)) => bench::run_fe(a),
         Command::Bench(BenchCommand::Pgd(a)) => bench_pgd::run(a),
         Command::Bench(BenchCommand::Session(a)) => bench_session::run(a),
