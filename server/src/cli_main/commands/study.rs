@@ -139,7 +139,7 @@ fn measure(b: &LoadedBundle, rec: &BuildRecord, storage: &str, modes: usize, err
     nodes.dedup();
     // coefficient vectors of real contacts: a unit force at random loadable surface points
     let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
-    let mut rng = Rng(0x5EED_0F_57D4);
+    let mut rng = Rng(0x005E_ED0F_57D4);
     let mut full = vec![0.0; v.modes()];
     let coeffs: Vec<Vec<f32>> = (0..64)
         .map(|_| {
