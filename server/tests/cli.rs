@@ -769,8 +769,7 @@ fn build_target_error_keeps_the_fewest_modes_that_meet_it_or_refuses() {
         .as_array()
         .unwrap()
         .iter()
-        .filter(|p| p[0].as_u64().unwrap() < modes)
-        .last()
+        .rfind(|p| p[0].as_u64().unwrap() < modes)
         .cloned();
     if let Some(p) = below {
         assert!(p[1].as_f64().unwrap() > 1e-2, "{p:?}");
