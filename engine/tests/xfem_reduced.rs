@@ -185,65 +185,14 @@ fn the_cut_compliance_at_a_node_is_the_full_xfem_displacement_per_unit_force() {
     }
 }
 
-/// A 4 × 1 × 1 bar of hexahedra with `divisions` cells, clamped at x = 0, its free end's
-/// upper corner loaded downwards by 1 N.
+/// The built-in 4 × 1 × 1 bar with `divisions` cells, clamped at x = 0, its free end's upper
+/// corner loaded downwards by 1 N.
 fn bar(divisions: [usize; 3]) -> Scene {
     let [i, j, k] = divisions;
-    let text = format!(
-        r#"
-[scene]
-name = "bar"
-[[organs]]
-name = "bar"
-density = 1.0
-[organs.mesh]
-builtin = "block"
-size = [4.0, 1.0, 1.0]
-divisions = [{i}, {j}, {k}]
-cell = "hex8"
-[[organs.materials]]
-model = "linear"
-young = 100.0
-poisson = 0.3
-[organs.fixed]
-box = {{ min = [0.0, 0.0, 0.0], max = [0.0, 1.0, 1.0] }}
-[organs.accessible]
-half_space = {{ point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }}
-[[organs.loads]]
-kind = "point"
-at = [4.0, 0.0, 1.0]
-force = [0.0, 0.0, -1.0]
-"#
-    );
+    let text = vademecum_engine::scene::builtin("bar")
+        .unwrap()
+        .replace("divisions = [4, 1, 1]", &format!("divisions = [{i}, {j}, {k}]"));
     Scene::from_toml(&text, "bar.toml").unwrap()
-}
-
-#[test]
-fn a_piece_cut_loose_is_a_typed_error_and_leaves_the_model_at_the_previous_cut() {
-    // a bar clamped at x = 0, its free end loaded; cutting it through at x = 2 frees the end
-    let scene = bar([4, 1, 1]);
-    let b = built(&scene, 1e-6);
-    let m = &b.model;
-    let params = XfemParams::default();
-    let mut red = reduced(&b, RitzBasis::Srb, Discontinuous::LocalFields);
-    // a first cut from the top down to mid-height: fine
-    let half = Cut::swept(&[([2.0, -0.1, 1.1], [2.0, 1.1, 1.1]), ([2.0, -0.1, 0.5], [2.0, 1.1, 0.5])]).unwrap();
-    let cells = Enrichment::cut_cells(&m.mesh, &half, &params).unwrap();
-    assert!(cells.is_empty(), "half a cell is not cut");
-    let through = Cut::swept(&[([2.0, -0.1, 1.1], [2.0, 1.1, 1.1]), ([2.0, -0.1, -0.1], [2.0, 1.1, -0.1])]).unwrap();
-    let cells = Enrichment::cut_cells(&m.mesh, &through, &params).unwrap();
-    let before = red.dim();
-    match red.cut(&m.mesh, &cells) {
-        Err(ReducedError::Singular { .. }) => {}
-        other => panic!("expected a singular bordering, got {other:?}"),
-    }
-    // nothing changed: the model still answers, finite, as before the cut
-    assert_eq!(red.dim(), before);
-    assert!(red.enrichment().is_empty());
-    let (u, q) = red.displacements(&m.problem.forces);
-    assert!(u.iter().chain(&q).all(|x| x.is_finite()));
-    let k = red.contact_compliance(&[0], &[1.0]);
-    assert!(k.iter().flatten().all(|x| x.is_finite()));
 }
 
 /// The patch's reduced model (local fields, SRB) and an online scalpel on it.

@@ -3,7 +3,8 @@
 //! plane of nodes down to the clamped base (both lips held there), the same cut at ν = 0.499,
 //! each against the mesh with its cut nodes duplicated (the identity a cut on cell faces must
 //! meet); the block cut right through with only one end held (the loose piece found, held on
-//! its soft foundation, bounded); and malformed blades (typed refusals).
+//! its soft foundation, bounded); the reduced online model asked for a cut that frees a piece
+//! (refused, typed, the model unchanged); and malformed blades (typed refusals).
 
 use super::{Case, Expect, Outcome, Size, diagnostic, finite, outcome};
 use crate::fem::Locking;
@@ -12,7 +13,11 @@ use crate::fem::linear_static::StaticProblem;
 use crate::material::LinearElastic;
 use crate::mesh::{Mesh, procedural};
 use crate::meshless::cut::Cut;
+use crate::pgd::PgdParams;
+use crate::pgd::offline::{self, BuildOptions};
+use crate::scene::Scene;
 use crate::xfem::identity::identity_gap;
+use crate::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
 use crate::xfem::system;
 use crate::xfem::{Enrichment, XfemParams};
 
@@ -106,6 +111,60 @@ fn cut_loose(size: Size) -> Outcome {
     })
 }
 
+/// The online model (seed 000 §3.3: the PGD modes as a Ritz basis, SRB, bordered with the
+/// enriched nodes with their local fields) of the built-in 4 × 1 × 1 bar clamped at x = 0, cut right
+/// through at x = 2: the bordering is singular (the free end has nothing left to hold it), and
+/// the model must refuse the cut, keep its previous state and keep answering finite.
+fn reduced_cut_loose(_: Size) -> Outcome {
+    outcome(|| {
+        let scene = Scene::builtin("bar").map_err(diagnostic)?;
+        // every mode the bar has: what is tested is the bordering, not the basis
+        let base = BuildOptions::for_scene(&scene, true);
+        let opts = BuildOptions {
+            params: PgdParams {
+                global_tolerance: 1e-6,
+                max_modes: 400,
+                ..base.params
+            },
+            tolerance: 1e-6,
+            ..base
+        };
+        let b = offline::build_organ(&scene, 0, &opts, &mut |_| {}).map_err(diagnostic)?;
+        let (m, v) = (&b.model, &b.vademecum);
+        let params = XfemParams::default();
+        let mut red = ReducedCut::new(
+            &m.mesh,
+            &m.materials,
+            m.locking,
+            &m.problem,
+            v.f_raw(),
+            v.modes(),
+            RitzBasis::Srb,
+            Discontinuous::LocalFields,
+            &params,
+        )
+        .map_err(diagnostic)?;
+        let through = Cut::swept(&[([2.0, -0.1, 1.1], [2.0, 1.1, 1.1]), ([2.0, -0.1, -0.1], [2.0, 1.1, -0.1])]).map_err(diagnostic)?;
+        let cells = Enrichment::cut_cells(&m.mesh, &through, &params).map_err(diagnostic)?;
+        let before = red.dim();
+        let e = match red.cut(&m.mesh, &cells) {
+            Err(e) => e,
+            Ok(_) => return Ok(Outcome::Broken("a cut that frees the loaded end was accepted".into())),
+        };
+        let (u, q) = red.displacements(&m.problem.forces);
+        let k = red.contact_compliance(&[0], &[1.0]);
+        let unchanged = red.dim() == before && red.enrichment().is_empty();
+        if !(unchanged && finite(&u) && finite(&q) && k.iter().flatten().all(|x| x.is_finite())) {
+            return Ok(Outcome::Broken(format!(
+                "after the refusal ({e}) the model changed or answers non-finite"
+            )));
+        }
+        Ok(Outcome::Diagnostic(format!(
+            "{e}; the model keeps its previous cut ({before} unknowns) and answers finite"
+        )))
+    })
+}
+
 fn bad_blade(_: Size) -> Outcome {
     match Cut::swept(&[([0.0, 0.0, f64::NAN], [1.0, 0.0, 0.0]), ([0.0; 3], [1.0, 1.0, 0.0])]) {
         Err(e) => match Cut::swept(&[([1.0; 3], [1.0; 3]), ([2.0; 3], [2.0; 3])]) {
@@ -137,6 +196,12 @@ pub(super) fn cases() -> Vec<Case> {
             method: "XFEM full order, hex8 B-bar",
             expect: Expect::FINITE,
             run: cut_loose,
+        },
+        Case {
+            name: "a cut that frees a piece",
+            method: "reduced online XFEM (SRB, local fields)",
+            expect: Expect::Diagnostic(&["singular"]),
+            run: reduced_cut_loose,
         },
         Case {
             name: "a NaN blade, a zero-length blade",

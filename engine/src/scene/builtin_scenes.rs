@@ -1,7 +1,7 @@
 //! Scenes compiled into the binary, so defaults need no files.
 
 /// Names of the built-in scenes; the first is the default.
-pub const BUILTIN_NAMES: [&str; 11] = [
+pub const BUILTIN_NAMES: [&str; 12] = [
     "organ",
     "patch",
     "cantilever",
@@ -13,6 +13,7 @@ pub const BUILTIN_NAMES: [&str; 11] = [
     "cube_shear",
     "gallbladder_fat",
     "liver_cut",
+    "bar",
 ];
 
 /// The TOML text of a built-in scene.
@@ -29,6 +30,7 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "cube_shear" => CUBE_SHEAR,
         "gallbladder_fat" => GALLBLADDER_FAT,
         "liver_cut" => LIVER_CUT,
+        "bar" => BAR,
         _ => return None,
     })
 }
@@ -136,6 +138,38 @@ description = "A vertical 5 x 5 grid of unit hexahedra (one cell deep), E = 5 Pa
 locking = "none"
 "#
 );
+
+const BAR: &str = r#"# A bar clamped at one end, its free end's upper corner loaded: cut through, its end comes loose.
+[scene]
+name = "bar"
+description = "A 4 x 1 x 1 bar of 4 unit hexahedra (E = 100 Pa, nu = 0.3) clamped at x = 0, 1 N down on the upper corner of its free end: the smallest organ a cut can free a piece of (the reduced cutting model's hard case)."
+
+[[organs]]
+name = "bar"
+density = 1.0
+
+[organs.mesh]
+builtin = "block"
+size = [4.0, 1.0, 1.0]
+divisions = [4, 1, 1]
+cell = "hex8"
+
+[[organs.materials]]
+model = "linear"
+young = 100.0
+poisson = 0.3
+
+[organs.fixed]
+box = { min = [0.0, 0.0, 0.0], max = [0.0, 1.0, 1.0] }
+
+[organs.accessible]
+half_space = { point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]
+kind = "point"
+at = [4.0, 0.0, 1.0]
+force = [0.0, 0.0, -1.0]
+"#;
 
 const CANTILEVER: &str = r#"# A cantilever ten times longer than high under a tip load (compare with beam theory).
 [scene]
