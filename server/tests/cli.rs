@@ -673,7 +673,7 @@ fn check_hard_cases_prints_verdicts_writes_json_and_refuses_an_empty_selection()
             "hard-cases",
             "--reduced",
             "--only",
-            "XFEM",
+            "xfem full order",
             "--markdown",
             "--json",
             "v.json",
@@ -690,7 +690,7 @@ fn check_hard_cases_prints_verdicts_writes_json_and_refuses_an_empty_selection()
     assert!(
         cases
             .iter()
-            .all(|c| c["pass"] == true && c["method"].as_str().unwrap().contains("XFEM"))
+            .all(|c| c["pass"] == true && c["method"].as_str().unwrap().contains("XFEM full order"))
     );
     // the cut through nodes is measured against the duplicated mesh
     assert!(cases[0]["relative_error"].as_f64().unwrap() < 1e-9);
