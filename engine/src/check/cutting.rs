@@ -235,8 +235,8 @@ fn corotational_cut_loose(size: Size) -> Outcome {
         if !finite(d) {
             return Ok(Outcome::Broken("non-finite frame".into()));
         }
-        let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
-        let error = norm(&mut d.iter().zip(&anchor).map(|(a, b)| a - b)) / norm(&mut anchor.iter().copied());
+        let gap: f64 = d.iter().zip(&anchor).map(|(a, b)| (a - b).powi(2)).sum();
+        let error = (gap / anchor.iter().map(|x| x * x).sum::<f64>()).sqrt();
         Ok(Outcome::answer(
             format!(
                 "1 piece found loose (6 rigid motions), turned 0.8 rad: held there, reached from rest in {} frames",

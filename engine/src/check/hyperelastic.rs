@@ -25,26 +25,19 @@ fn tissue(nu: f64) -> LinearElastic {
     LinearElastic::new(3000.0, nu).expect("valid moduli")
 }
 
-/// The law named `name` (`svk`, `nh`, `mr`) with `U(J)` = `vol` for tissue of ratio `nu`.
+/// The law named `name` (`svk`, `nh`, `mr`) with `U(J)` = `vol` for tissue of ratio `nu`
+/// (Mooney–Rivlin: a quarter of the shear modulus in C₀₁).
 fn law(name: &str, vol: VolumetricLaw, nu: f64) -> Hyperelastic {
     let m = tissue(nu);
-    match (name, Hyperelastic::neo_hookean(&m)) {
-        ("svk", _) => Hyperelastic::svk(&m),
-        ("nh", Hyperelastic::NeoHookean { mu, kappa, .. }) => Hyperelastic::NeoHookean {
-            mu,
-            kappa,
-            volumetric: vol,
-        },
-        _ => match Hyperelastic::mooney_rivlin(&m, 0.25).expect("a quarter of the shear in C01") {
-            Hyperelastic::MooneyRivlin { c10, c01, kappa, .. } => Hyperelastic::MooneyRivlin {
-                c10,
-                c01,
-                kappa,
-                volumetric: vol,
-            },
-            other => other,
-        },
+    let mut law = match name {
+        "svk" => Hyperelastic::svk(&m),
+        "nh" => Hyperelastic::neo_hookean(&m),
+        _ => Hyperelastic::mooney_rivlin(&m, 0.25).expect("valid moduli"),
+    };
+    if let Hyperelastic::NeoHookean { volumetric, .. } | Hyperelastic::MooneyRivlin { volumetric, .. } = &mut law {
+        *volumetric = vol;
     }
+    law
 }
 
 /// The exact reaction on the pulled face of the uniaxial cube at axial stretch `stretch`.

@@ -31,6 +31,7 @@ mod reduced;
 mod tearing;
 mod tool;
 
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// How large the cases' problems are.
@@ -232,8 +233,7 @@ pub fn run(cases: &[Case], size: Size, mut on_done: impl FnMut(usize, &Verdict))
         .collect()
 }
 
-/// `Ok(x)` as a diagnostic-free value, `Err(e)` as [`Outcome::Diagnostic`]: for the `?` of the
-/// cases, which turn a method's typed error into the outcome.
+/// A method's typed error as [`Outcome::Diagnostic`] (for `.map_err(diagnostic)?` in the cases).
 fn diagnostic(e: impl std::fmt::Display) -> Outcome {
     Outcome::Diagnostic(e.to_string())
 }
@@ -246,6 +246,18 @@ fn finite(v: &[f64]) -> bool {
 /// `|a − b| / |b|`.
 fn relative(a: f64, b: f64) -> f64 {
     (a - b).abs() / b.abs()
+}
+
+/// The value of `size` in `cache`, made by `make` the first time (the bundles and lattices
+/// several cases share are built once per process and size).
+fn once_per_size<T>(cache: &Mutex<Vec<(Size, Arc<T>)>>, size: Size, make: impl FnOnce() -> Result<T, Outcome>) -> Result<Arc<T>, Outcome> {
+    let mut made = cache.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((_, v)) = made.iter().find(|(s, _)| *s == size) {
+        return Ok(v.clone());
+    }
+    let v = Arc::new(make()?);
+    made.push((size, v.clone()));
+    Ok(v)
 }
 
 /// The outcome of a case body written with `?` over [`Outcome`]s.

@@ -8,7 +8,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use super::{Case, Expect, Outcome, Size, diagnostic, finite, outcome, relative};
+use super::{Case, Expect, Outcome, Size, diagnostic, finite, once_per_size, outcome, relative};
 use crate::fem::hyperelastic::{LawMap, Volumetric};
 use crate::fem::linear_static::StaticProblem;
 use crate::fem::nonlinear_static::{self, NewtonParams};
@@ -102,13 +102,7 @@ fn crushed_reduced(_: Size) -> Outcome {
 /// once per process and size.
 fn cornea_lattice(size: Size) -> Result<Arc<AnmLattice>, Outcome> {
     static BUILT: Mutex<Vec<(Size, Arc<AnmLattice>)>> = Mutex::new(Vec::new());
-    let mut built = BUILT.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((_, l)) = built.iter().find(|(s, _)| *s == size) {
-        return Ok(l.clone());
-    }
-    let lattice = Arc::new(build_cornea_lattice(size)?);
-    built.push((size, lattice.clone()));
-    Ok(lattice)
+    once_per_size(&BUILT, size, || build_cornea_lattice(size))
 }
 
 fn build_cornea_lattice(size: Size) -> Result<AnmLattice, Outcome> {

@@ -7,7 +7,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use super::{Case, Expect, Outcome, Size, diagnostic, outcome, relative};
+use super::{Case, Expect, Outcome, Size, diagnostic, once_per_size, outcome, relative};
 use crate::pgd::offline::{self, BuildOptions, LoadedBundle};
 use crate::pipeline::{Events, MAX_TOOL_SPEED_M_S, Pipeline, QUATERNION_NORM_TOLERANCE, TickState, ToolInput};
 use crate::scene::Scene;
@@ -25,22 +25,19 @@ fn organ_scene(size: Size) -> Result<Scene, Outcome> {
     Scene::from_toml(&text, "<hard case: organ>").map_err(diagnostic)
 }
 
-/// The organ's bundle for `size`, built once per process and size (a few seconds).
+/// The organ's bundle for `size`, built once per process and size (a few seconds), written
+/// and loaded back as a session's.
 fn organ_bundle(scene: &Scene, size: Size) -> Result<Arc<LoadedBundle>, Outcome> {
     static BUILT: Mutex<Vec<(Size, Arc<LoadedBundle>)>> = Mutex::new(Vec::new());
-    let mut built = BUILT.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((_, b)) = built.iter().find(|(s, _)| *s == size) {
-        return Ok(b.clone());
-    }
-    let b = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).map_err(diagnostic)?;
-    let dir = std::env::temp_dir().join(format!("vademecum-check-{}-{size:?}", std::process::id()));
-    let loaded = offline::write_bundle(&dir, scene, &b)
-        .map_err(diagnostic)
-        .and_then(|_| offline::load_bundle(&dir).map_err(diagnostic));
-    let _ = std::fs::remove_dir_all(&dir);
-    let loaded = Arc::new(loaded?);
-    built.push((size, loaded.clone()));
-    Ok(loaded)
+    once_per_size(&BUILT, size, || {
+        let b = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).map_err(diagnostic)?;
+        let dir = std::env::temp_dir().join(format!("vademecum-check-{}-{size:?}", std::process::id()));
+        let loaded = offline::write_bundle(&dir, scene, &b)
+            .map_err(diagnostic)
+            .and_then(|_| offline::load_bundle(&dir).map_err(diagnostic));
+        let _ = std::fs::remove_dir_all(&dir);
+        loaded
+    })
 }
 
 /// A pipeline of the organ and a probe state pressing 2 mm into the middle of its accessible
@@ -56,17 +53,13 @@ fn pressing(size: Size) -> Result<(Pipeline, ToolInput, Arc<LoadedBundle>, f64),
         .copied()
         .max_by(|&a, &c| b.nodes[a][2].total_cmp(&b.nodes[c][2]))
         .ok_or_else(|| Outcome::Broken("the vademecum has no load nodes".into()))?;
-    let r = probe_radius(&scene);
+    let r = offline::probe_radius(&scene);
     let p = b.nodes[top];
     let tool = ToolInput {
         position_m: [p[0], p[1], p[2] + r - 0.002],
         ..ToolInput::default()
     };
     Ok((pipe, tool, b, r))
-}
-
-fn probe_radius(scene: &Scene) -> f64 {
-    offline::probe_radius(scene)
 }
 
 fn norm(f: [f64; 3]) -> f64 {

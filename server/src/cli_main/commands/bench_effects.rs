@@ -37,7 +37,8 @@ struct Row {
     miss_rate: f64,
 }
 
-fn dir_bytes(dir: &Path) -> std::io::Result<u64> {
+/// Bytes of every file under `dir`.
+pub(super) fn dir_bytes(dir: &Path) -> std::io::Result<u64> {
     let mut total = 0;
     for e in std::fs::read_dir(dir)? {
         let e = e?;

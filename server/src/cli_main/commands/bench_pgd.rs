@@ -19,8 +19,8 @@ use crate::cli_main::cli::BenchPgdArgs;
 pub(crate) struct Stat {
     what: String,
     calls: usize,
-    p50_us: f64,
-    p99_us: f64,
+    pub(crate) p50_us: f64,
+    pub(crate) p99_us: f64,
     p999_us: f64,
     max_us: f64,
 }

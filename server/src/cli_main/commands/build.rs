@@ -110,25 +110,26 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         let name = scene.spec.organs[i].name.clone();
         let (built, bar) = build_with_progress(&scene, i, &opts)?;
         let r = &built.report;
-        if let Some(e) = a.target_error {
+        if let Some(e) = a.target_error
+            && !r.target_met
+        {
             bar.finish();
-            if !r.target_met {
-                eprintln!(
-                    "vademecum: organ '{name}': no prefix of the {} modes built meets --target-error {e:.1e}: the closest is {:.3e} with all of them; raise fidelity.pgd.max_modes or lower fidelity.pgd.global_tolerance (no bundle written)",
-                    r.greedy.modes, r.error_greedy
-                );
-                return Ok(ExitCode::FAILURE);
-            }
+            eprintln!(
+                "vademecum: organ '{name}': no prefix of the {} modes built meets --target-error {e:.1e}: the closest is {:.3e} with all of them; raise fidelity.pgd.max_modes or lower fidelity.pgd.global_tolerance (no bundle written)",
+                r.greedy.modes, r.error_greedy
+            );
+            return Ok(ExitCode::FAILURE);
+        }
+        bar.stage("writing bundle");
+        let dir = out.join(format!("{name}.bundle"));
+        offline::write_bundle(&dir, &scene, &built).with_context(|| format!("cannot write bundle {}", dir.display()))?;
+        bar.finish();
+        if let Some(e) = a.target_error {
             eprintln!(
                 "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
                 r.modes, r.greedy.modes, r.error
             );
         }
-        let bar = Stages::start(&format!("writing '{name}'"));
-        bar.stage("writing bundle");
-        let dir = out.join(format!("{name}.bundle"));
-        offline::write_bundle(&dir, &scene, &built).with_context(|| format!("cannot write bundle {}", dir.display()))?;
-        bar.finish();
         if !a.json {
             writeln!(
                 stdout,

@@ -19,8 +19,9 @@ use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
+use vademecum_engine::scene::Scene;
 
-use super::bench_pgd::{Rng, time_n};
+use super::bench_pgd::{Rng, stat, time_n};
 use crate::cli_main::cli::StudyArgs;
 use crate::cli_main::commands::build::build_with_progress;
 use crate::cli_main::commands::solve::load_scene;
@@ -84,8 +85,7 @@ fn file_bytes(path: &Path) -> u64 {
 }
 
 /// Builds (or reuses) the vademecum at the study's tolerance.
-fn build(a: &StudyArgs, out: &Path) -> anyhow::Result<(BuildRecord, LoadedBundle)> {
-    let scene = load_scene(&a.source)?;
+fn build(a: &StudyArgs, scene: &Scene, out: &Path) -> anyhow::Result<(BuildRecord, LoadedBundle)> {
     let text = serde_json::to_string(&scene.spec).context("serialising the scene")?;
     let key = fnv(&format!("{text}\n{}", a.tolerance));
     let record_path = out.join("build.json");
@@ -100,20 +100,17 @@ fn build(a: &StudyArgs, out: &Path) -> anyhow::Result<(BuildRecord, LoadedBundle
     }
     let opts = BuildOptions {
         tolerance: a.tolerance,
-        ..BuildOptions::for_scene(&scene, true)
+        ..BuildOptions::for_scene(scene, true)
     };
     let start = Instant::now();
-    let (built, bar) = build_with_progress(&scene, 0, &opts)?;
+    let (built, bar) = build_with_progress(scene, 0, &opts)?;
     bar.stage("writing bundle");
-    offline::write_bundle(&bundle_dir, &scene, &built).with_context(|| format!("cannot write {}", bundle_dir.display()))?;
+    offline::write_bundle(&bundle_dir, scene, &built).with_context(|| format!("cannot write {}", bundle_dir.display()))?;
     bar.finish();
     let build_s = start.elapsed().as_secs_f64();
     let r = &built.report;
     let mode_bytes = file_bytes(&bundle_dir.join("F.npy")) + file_bytes(&bundle_dir.join("G.npy"));
-    let total: u64 = std::fs::read_dir(&bundle_dir)?
-        .filter_map(|e| e.ok())
-        .map(|e| file_bytes(&e.path()))
-        .sum();
+    let total = super::bench_effects::dir_bytes(&bundle_dir)?;
     let rec = BuildRecord {
         key,
         organ: r.organ.clone(),
@@ -131,68 +128,81 @@ fn build(a: &StudyArgs, out: &Path) -> anyhow::Result<(BuildRecord, LoadedBundle
     Ok((rec, offline::load_bundle(&bundle_dir)?))
 }
 
+/// What a frame evaluates: the surface nodes, and the mode coefficients (f32, every mode) of
+/// 64 real contacts — a unit force at random points of the loadable surface.
+struct Frames {
+    nodes: Vec<usize>,
+    coeffs: Vec<Vec<f32>>,
+}
+
+impl Frames {
+    fn of(b: &LoadedBundle) -> anyhow::Result<Self> {
+        let v = &b.vademecum;
+        let mut nodes: Vec<usize> = b.surface.iter().flatten().copied().collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
+        if tris.is_empty() {
+            bail!("the bundle has no surface triangle whose three nodes are loadable");
+        }
+        let mut rng = Rng(0x005E_ED0F_57D4);
+        let mut full = vec![0.0; v.modes()];
+        let coeffs = (0..64)
+            .map(|_| {
+                let tri = tris[(rng.next() % tris.len() as u64) as usize];
+                let (u, w) = (rng.unit(), rng.unit());
+                let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
+                v.coefficients(tri, [1.0 - u - w, u, w], [0.0, 0.0, -1.0], &mut full);
+                full.iter().map(|&c| c as f32).collect()
+            })
+            .collect();
+        Ok(Self { nodes, coeffs })
+    }
+}
+
 /// Measures one point: the surface field of a frame at `modes` modes in `storage`.
-fn measure(b: &LoadedBundle, rec: &BuildRecord, storage: &str, modes: usize, error: f64, frames: usize) -> Point {
+fn measure(b: &LoadedBundle, rec: &BuildRecord, frames: &Frames, storage: &str, modes: usize, error: f64, repeat: usize) -> Point {
     let v = &b.vademecum;
-    let mut nodes: Vec<usize> = b.surface.iter().flatten().copied().collect();
-    nodes.sort_unstable();
-    nodes.dedup();
-    // coefficient vectors of real contacts: a unit force at random loadable surface points
-    let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
-    let mut rng = Rng(0x005E_ED0F_57D4);
-    let mut full = vec![0.0; v.modes()];
-    let coeffs: Vec<Vec<f32>> = (0..64)
-        .map(|_| {
-            let tri = tris[(rng.next() % tris.len().max(1) as u64) as usize];
-            let (u, w) = (rng.unit(), rng.unit());
-            let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
-            v.coefficients(tri, [1.0 - u - w, u, w], [0.0, 0.0, -1.0], &mut full);
-            full[..modes].iter().map(|&c| c as f32).collect()
-        })
-        .collect();
-    let f32_field = NodeMajorField::from_mode_major(v.f_raw(), v.n_nodes(), modes, &nodes);
+    let (nodes, coeffs) = (&frames.nodes, &frames.coeffs);
+    let f32_field = NodeMajorField::from_mode_major(v.f_raw(), v.n_nodes(), modes, nodes);
     let mut out = vec![0.0f32; 3 * nodes.len()];
     let mut i = 0;
     let (times, bytes, quant) = if storage == "i16" {
-        let q = QuantizedField::new(v, &nodes, modes);
+        let q = QuantizedField::new(v, nodes, modes);
         let mut scaled = vec![0.0f32; modes];
         // the quantisation's own error, on the same contacts
         let mut exact = vec![0.0f32; out.len()];
         let (mut num, mut den) = (0.0f64, 0.0f64);
-        for c in &coeffs {
-            f32_field.eval(c, &mut exact);
-            q.eval(c, &mut scaled, &mut out);
+        for c in coeffs {
+            f32_field.eval(&c[..modes], &mut exact);
+            q.eval(&c[..modes], &mut scaled, &mut out);
             num += exact.iter().zip(&out).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>();
             den += exact.iter().map(|a| (*a as f64).powi(2)).sum::<f64>();
         }
-        let t = time_n(frames, || {
+        let t = time_n(repeat, || {
             i = (i + 1) % coeffs.len();
-            q.eval(&coeffs[i], &mut scaled, &mut out);
+            q.eval(&coeffs[i][..modes], &mut scaled, &mut out);
             out[0] as f64
         });
         (t, q.bytes(), if den > 0.0 { (num / den).sqrt() } else { 0.0 })
     } else {
-        let t = time_n(frames, || {
+        let t = time_n(repeat, || {
             i = (i + 1) % coeffs.len();
-            f32_field.eval(&coeffs[i], &mut out);
+            f32_field.eval(&coeffs[i][..modes], &mut out);
             out[0] as f64
         });
         (t, f32_field.bytes(), 0.0)
     };
-    let null = time_n(frames, || 0.0);
-    let p = |mut t: Vec<f64>, q: f64| {
-        t.sort_by(f64::total_cmp);
-        t[((t.len() - 1) as f64 * q).round() as usize]
-    };
+    let (frame, null) = (stat("frame", times), stat("null", time_n(repeat, || 0.0)));
     let per_mode = if storage == "i16" { 0.5 } else { 1.0 };
     Point {
         storage: storage.into(),
         modes,
         field_error: error + quant,
         force_error: 0.0,
-        frame_p50_us: p(times.clone(), 0.5),
-        frame_p99_us: p(times, 0.99),
-        null_p50_us: p(null, 0.5),
+        frame_p50_us: frame.p50_us,
+        frame_p99_us: frame.p99_us,
+        null_p50_us: null.p50_us,
         field_bytes: bytes,
         bundle_bytes: rec.fixed_bytes + (per_mode * rec.bytes_per_mode * modes as f64) as u64,
         front_online: false,
@@ -268,13 +278,15 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     if a.frames == 0 {
         bail!("--frames must be at least 1");
     }
-    let scene_name = load_scene(&a.source)?.spec.scene.name;
+    let scene = load_scene(&a.source)?;
+    let scene_name = scene.spec.scene.name.clone();
     let out = a
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(&scene_name).join("study"));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
-    let (rec, bundle) = build(&a, &out)?;
+    let (rec, bundle) = build(&a, &scene, &out)?;
+    let frames = Frames::of(&bundle)?;
 
     // resume: the points already measured on this build
     let points_path = out.join("points.jsonl");
@@ -299,7 +311,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     let mut log = std::fs::OpenOptions::new().create(true).append(true).open(&points_path)?;
     for (storage, k, e) in todo {
         bar.set_message(format!("{storage}, {k} modes"));
-        let p = measure(&bundle, &rec, &storage, k, e, a.frames);
+        let p = measure(&bundle, &rec, &frames, &storage, k, e, a.frames);
         writeln!(log, "{}", serde_json::to_string(&p)?)?;
         done.insert((storage, k), p);
         bar.inc(1);
@@ -381,7 +393,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         )?;
     }
     let null = points.first().map_or(0.0, |p| p.null_p50_us);
-    let target = load_scene(&a.source)?.spec.fidelity.pgd.tolerance;
+    let target = scene.spec.fidelity.pgd.tolerance;
     let verdict = match points
         .iter()
         .filter(|p| p.field_error <= target && p.front_online)
