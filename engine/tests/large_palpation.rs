@@ -4,11 +4,9 @@
 
 use std::sync::Arc;
 
-use vademecum_engine::fem::hyperelastic::{LawMap, Volumetric};
-use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
 use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::{Pipeline, PipelineError, ToolInput};
-use vademecum_engine::rom::palpation::{AnmLattice, AnmLatticeParams};
+use vademecum_engine::rom::palpation::{AnmLattice, AnmLatticeParams, NewtonLaw};
 use vademecum_engine::scene::Scene;
 
 /// The built-in cornea on a coarse mesh, asking for large deformations with a small lattice.
@@ -46,36 +44,9 @@ fn lattice_paths_give_the_full_model_force_depth_law_at_their_positions() {
     assert!(p.normal[2] < -0.99, "{:?}", p.normal);
 
     // full Newton with the same load at the same position
-    let patch: Vec<usize> = organ
-        .accessible_nodes
-        .iter()
-        .copied()
-        .filter(|&n| (0..3).map(|k| (organ.mesh.nodes[n][k] - p.point[k]).powi(2)).sum::<f64>() <= 1e-6)
-        .collect();
-    let mut problem = organ.problem.clone();
-    problem.forces.fill(0.0);
-    vademecum_engine::fem::loads::add_distributed_force(&mut problem.forces, &patch, p.normal.map(|x| x * 0.126));
-    let mut curve = Vec::new();
-    let newton = NewtonParams {
-        steps: 8,
-        ..NewtonParams::default()
-    };
-    nonlinear_static::solve(
-        &organ.mesh,
-        &LawMap::clone(&laws),
-        Volumetric::PointWise,
-        &problem,
-        &newton,
-        |l, u| {
-            let d = patch
-                .iter()
-                .map(|&i| (0..3).map(|k| u[3 * i + k] * p.normal[k]).sum::<f64>())
-                .sum::<f64>()
-                / patch.len() as f64;
-            curve.push((l, d));
-        },
-    )
-    .unwrap();
+    let newton = NewtonLaw::at(&organ, &laws, &AnmLatticeParams { load_steps: 8, ..params }, p.node).unwrap();
+    assert_eq!(newton.steps.len(), 8, "{newton:?}");
+    let curve = newton.steps;
     let mut zeta = vec![0.0; lattice.max_modes()];
     for &(l, d) in &curve {
         // the lattice's law gives back the load factor Newton needed for that depth
@@ -167,4 +138,69 @@ fn a_large_deformation_scene_builds_a_lattice_bundle_and_the_pipeline_scales_the
     let e = Pipeline::for_scene(&scene, &[plain]).unwrap_err();
     assert_eq!(e, PipelineError::NoLattice { organ: 0 });
     assert!(e.to_string().contains("vademecum build"));
+}
+
+/// The error estimate each answer carries: attached by the pipeline (the lattice's spread for
+/// large deformations, the round-off for the linear law), and bounding the full model's error
+/// at nodes off the lattice — Newton pushed 1.5 times past the lattice's force, so the states
+/// past its paths are checked too — and at random points for the linear law.
+#[test]
+fn the_error_estimate_bounds_the_full_model_off_the_lattice() {
+    use vademecum_engine::pipeline::estimate::{Coverage, large_samples, linear_samples};
+    let scene = cornea(true);
+    let opts = BuildOptions::for_scene(&scene, true);
+    let built = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir.path(), &scene, &built).unwrap();
+    let bundle = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    let lattice = bundle.anm.clone().unwrap();
+    let organ = scene.organ_model(0).unwrap();
+
+    // the pipeline attaches it: zero away from the organ, the spread-based bound in contact
+    let mut large = Pipeline::for_scene(&scene, std::slice::from_ref(&bundle)).unwrap();
+    let apex = lattice.positions[0].point;
+    let away = large.tick(&ToolInput {
+        position_m: [apex[0], apex[1], apex[2] + 0.01],
+        ..ToolInput::default()
+    });
+    assert_eq!(away.force_error_n, Some(0.0));
+    let press = ToolInput {
+        position_m: [apex[0] + 0.4e-3, apex[1], apex[2] + 1.0e-3 - 0.15e-3],
+        ..ToolInput::default()
+    };
+    let fl = Pipeline::for_scene(&cornea(false), std::slice::from_ref(&bundle))
+        .unwrap()
+        .tick(&press);
+    let fe = large.tick(&press);
+    let c = fe.contact.unwrap();
+    let mut zeta = vec![0.0; lattice.max_modes()];
+    let s = lattice.stiffness_ratio(c.point_m, c.depth_m, 4, &mut zeta);
+    let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let e = fe.force_error_n.unwrap();
+    assert!(s.nearest_m > 0.0 && !s.extrapolated, "{s:?}");
+    let rates = lattice.interpolation_rates(4);
+    assert!(rates.len() == 3 && rates.iter().all(|&r| r > 0.0), "{rates:?}");
+    assert!(
+        (e - norm(fl.force_n) * (s.error(&rates) + 1e-9 * s.ratio)).abs() <= 1e-12 * e,
+        "{e}"
+    );
+    assert!(e < 0.5 * norm(fe.force_n), "a useful estimate: {e} of {}", norm(fe.force_n));
+    let le = fl.force_error_n.unwrap();
+    assert!(le > 0.0 && le <= 1e-8 * norm(fl.force_n), "{le}");
+
+    // against the full model: ≥ 95 % of the states bounded (what the study checks per scene)
+    let params = opts.large.unwrap();
+    let samples = large_samples(&organ, &lattice, &params, 4, |_, _| {}).unwrap();
+    let cov = Coverage::of(&samples);
+    assert!(cov.samples >= 12, "{cov:?}");
+    assert!(samples.iter().any(|s| s.beyond_range), "the states past the paths are sampled");
+    assert!(
+        cov.max_relative_error > 1e-3,
+        "off the lattice the served law is not exact: {cov:?}"
+    );
+    assert!(cov.fraction() >= 0.95, "{cov:?}\n{samples:#?}");
+    let samples = linear_samples(&organ, &bundle, 20).unwrap();
+    let cov = Coverage::of(&samples);
+    assert_eq!(cov.samples, 20);
+    assert_eq!(cov.bounded, 20, "{samples:#?}");
 }

@@ -60,6 +60,7 @@ pub fn tool_response(a: &Answer) -> pb::ToolResponse {
             parallel_n: Some(pb_vec3(b.parallel_n)),
             cutting: b.cutting,
         }),
+        force_error_n: a.state.force_error_n,
     }
 }
 

@@ -156,6 +156,21 @@ fn run_builds_the_missing_vademecum_plays_the_palpation_and_records_it() {
     let rec = dir.path().join("out/organ/run");
     let forces = std::fs::read_to_string(rec.join("forces.csv")).unwrap();
     assert_eq!(forces.lines().count() as u64, ticks + 1, "one row per tick plus the header");
+    // the recording keeps each force's error estimate: finite, and nonzero in contact
+    let header: Vec<&str> = forces.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .unwrap_or_else(|| panic!("{name} in {header:?}"))
+    };
+    let (contact, error) = (col("contact"), col("force_error_n"));
+    let rows: Vec<Vec<&str>> = forces.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    assert!(
+        rows.iter()
+            .all(|r| r[error].parse::<f64>().is_ok_and(|e| e.is_finite() && e >= 0.0))
+    );
+    assert!(rows.iter().any(|r| r[contact] == "1" && r[error].parse::<f64>().unwrap() > 0.0));
     assert!(rec.join("lobe.pvd").is_file() && rec.join("summary.json").is_file());
     assert!(s["frames"].as_u64().unwrap() > 10, "{s}");
     // a second run reuses the bundle

@@ -66,6 +66,10 @@ fn a_client_streams_5000_tool_states_and_gets_5000_engine_forces_in_order() {
                 let f = r.force_n.unwrap();
                 assert_eq!([f.x, f.y, f.z], expected.force_n, "tool state {received}");
                 assert_eq!(r.events, expected.events.0);
+                // every answer carries its error estimate: the engine's, 0 out of contact
+                assert_eq!(r.force_error_n, expected.force_error_n, "tool state {received}");
+                let e = r.force_error_n.expect("linear palpation estimates every force");
+                assert!(e >= 0.0 && (r.events & Events::CONTACT != 0 || e == 0.0));
                 assert!(r.server_answered_us >= r.server_received_us);
                 touching += usize::from(r.events & Events::CONTACT != 0);
                 received += 1;

@@ -11,15 +11,7 @@ fn lobe() -> (Vec<[f64; 3]>, Surface, Bounds) {
     (mesh.nodes, s, bounds)
 }
 
-struct Rng(u64);
-impl Rng {
-    fn unit(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+use crate::pipeline::estimate::Rng;
 
 fn scan(s: &Surface, p: [f64; 3]) -> (f64, SurfacePoint) {
     (0..s.len())

@@ -418,6 +418,8 @@ impl Effect for Cutting {
             && c.loadable > 0.0
             && let Some(cv) = self.bundle.vademecum.compliance(c.nodes, c.weights)
         {
+            // the cut's compliance has no error estimate yet: the force carries none
+            state.force_error_n = None;
             let added = if self.view.enriched_unknowns() > 0 {
                 self.view.added_compliance(&c.nodes, &c.weights)
             } else {

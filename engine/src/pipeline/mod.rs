@@ -20,6 +20,7 @@
 
 pub mod corotational;
 pub mod cutting;
+pub mod estimate;
 pub mod palpation;
 pub mod tearing;
 
@@ -212,6 +213,11 @@ pub struct TickState {
     pub events: Events,
     /// The force on a scalpel's blade split along it (cutting scenes, scalpel ticks).
     pub blade: Option<BladeForce>,
+    /// An estimate of the error of `force_n` against the full-order model of the same mesh
+    /// (N), set by the effects that can tell (palpation, linear and large: see
+    /// [`palpation`]); `None` when an effect that cannot (cutting, tearing) shaped the force,
+    /// or the input was rejected.
+    pub force_error_n: Option<f64>,
 }
 
 /// A simulated effect: one stage of the tick.

@@ -21,6 +21,22 @@
 //! allocation; past the lattice's paths the ratio continues along their last tangent and the
 //! tick is flagged `BEYOND_RANGE`. The linear model has no depth range: its force grows
 //! linearly with depth until the pipeline saturates it at the probe's `max_force`.
+//!
+//! # The error estimate of each force
+//! Every force comes with an estimate of its error against the full-order model of the same
+//! mesh ([`TickState::force_error_n`]): for the linear law, the round-off of the exact local
+//! compliances (`LINEAR_RELATIVE_ERROR · |f|`: the force is exact otherwise); with large
+//! deformations, the lattice's [`Stiffening::error`] times the linear force — the nonlinear
+//! correction's uncertainty growing with the distance to the nearest lattice position at the
+//! rate the lattice's leave-one-out calibrated around each position
+//! ([`AnmLattice::interpolation_rates`]), plus the
+//! path's own error and, past the paths, the nonlinear correction growing at the rate it grew
+//! along them. The support's share is
+//! the model's wall and carries no error.
+//! `vademecum study` checks the estimate against full Newton at nodes off the lattice.
+//!
+//! [`Stiffening::error`]: crate::rom::palpation::Stiffening::error
+//! [`AnmLattice::interpolation_rates`]: crate::rom::palpation::AnmLattice::interpolation_rates
 
 use std::sync::Arc;
 
@@ -38,6 +54,8 @@ struct Organ {
     proxy: Proxy,
     /// The support stiffness `k_w` (N/m).
     wall_stiffness: f64,
+    /// The lattice's interpolation rates (large deformations; empty otherwise).
+    rates: Vec<f64>,
 }
 
 /// The linear-deformation effect over one vademecum per organ.
@@ -51,6 +69,11 @@ pub struct Palpation {
 
 /// Lattice positions blended per evaluation (seed 001 §6.1 interpolates among four).
 const NEIGHBOURS: usize = 4;
+
+/// The relative error of the linear law's force against the full-order model: the round-off of
+/// the exact local compliances (computed by a direct solve; `vademecum study` measures it, at
+/// most 1e-11 on the organ, the cornea and the liver).
+pub const LINEAR_RELATIVE_ERROR: f64 = 1e-9;
 
 /// The stiffest the organ gets at a loadable node, `max_a 1/λ_min(C(a))` (N/m), 0 if no
 /// node is loadable: the support stiffness `k_w`.
@@ -67,16 +90,21 @@ pub fn support_stiffness(v: &Vademecum) -> f64 {
 }
 
 impl Organ {
-    fn new(bundle: Arc<LoadedBundle>) -> Self {
+    fn new(bundle: Arc<LoadedBundle>, large: bool) -> Self {
         let surface = Surface::new(&bundle.nodes, bundle.surface.clone());
         let bounds = Bounds::of(&bundle.nodes, &bundle.surface);
         let wall_stiffness = support_stiffness(&bundle.vademecum);
+        let rates = match (&bundle.anm, large) {
+            (Some(lattice), true) => lattice.interpolation_rates(NEIGHBOURS),
+            _ => Vec::new(),
+        };
         Self {
             bundle,
             surface,
             bounds,
             proxy: Proxy::default(),
             wall_stiffness,
+            rates,
         }
     }
 
@@ -122,7 +150,7 @@ impl Palpation {
                 .unwrap_or(0)
         ];
         Self {
-            organs: bundles.into_iter().map(Organ::new).collect(),
+            organs: bundles.into_iter().map(|b| Organ::new(b, large)).collect(),
             radius_m,
             large,
             scratch,
@@ -135,11 +163,15 @@ impl Effect for Palpation {
         "palpation"
     }
 
-    /// Each organ's contact surface (triangles, their geometry, the search grid) and the
-    /// scratch of the lattice blend.
+    /// Each organ's contact surface (triangles, their geometry, the search grid), the
+    /// lattice's interpolation rates and the scratch of the lattice blend.
     fn memory_bytes(&self) -> usize {
         crate::memory::vec_bytes(&self.organs)
-            + self.organs.iter().map(|o| o.surface.heap_bytes()).sum::<usize>()
+            + self
+                .organs
+                .iter()
+                .map(|o| o.surface.heap_bytes() + crate::memory::vec_bytes(&o.rates))
+                .sum::<usize>()
             + crate::memory::vec_bytes(&self.scratch)
     }
 
@@ -157,6 +189,8 @@ impl Effect for Palpation {
             }
         }
         let Some((organ, touch)) = best else {
+            // no contact: no force, in the full model too
+            state.force_error_n = Some(0.0);
             return;
         };
         let o = &self.organs[organ];
@@ -169,16 +203,20 @@ impl Effect for Palpation {
                 point[k] += w * nodes[*a][k];
             }
         }
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let mut error = LINEAR_RELATIVE_ERROR * norm(tissue);
         if self.large
             && lambda > 0.0
             && let Some(lattice) = &o.bundle.anm
         {
             let s = lattice.stiffness_ratio(point, touch.depth, NEIGHBOURS, &mut self.scratch);
+            error = norm(tissue) * s.error(&o.rates) + LINEAR_RELATIVE_ERROR * s.ratio * norm(tissue);
             tissue = tissue.map(|x| x * s.ratio);
             if s.extrapolated {
                 state.events.0 |= Events::BEYOND_RANGE;
             }
         }
+        state.force_error_n = Some(error);
         let f = [0, 1, 2].map(|k| tissue[k] + wall[k]);
         state.force_n = [state.force_n[0] - f[0], state.force_n[1] - f[1], state.force_n[2] - f[2]];
         state.contact = Some(Contact {

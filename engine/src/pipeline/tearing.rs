@@ -508,8 +508,11 @@ impl Effect for Tearing {
         if matches!(self.phase, Phase::Held { .. }) {
             state.events.0 |= Events::CONTACT;
         }
-        // the tissue's reaction, −|R| Σ_p s_p t̂_p
+        // the tissue's reaction, −|R| Σ_p s_p t̂_p (no error estimate: the force carries none)
         let site = &self.sites[self.active];
+        if self.s.iter().any(|&s| s != 0.0) {
+            state.force_error_n = None;
+        }
         for (s, t) in self.s.iter().zip(&site.frame) {
             for k in 0..3 {
                 state.force_n[k] -= s * site.resultant_n * t[k];

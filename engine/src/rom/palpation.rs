@@ -97,6 +97,56 @@ pub struct Stiffening {
     pub ratio: f64,
     /// Whether some neighbour's path ended before this depth (the law was extrapolated).
     pub extrapolated: bool,
+    /// The distance from the point to the nearest lattice position (m).
+    pub nearest_m: f64,
+    /// The positions blended (indices into [`AnmLattice::positions`]): the first `count`.
+    pub blended: [usize; 8],
+    /// How many positions were blended.
+    pub count: usize,
+    /// The uncertainty of the ratio past the paths' ends: the largest over the neighbours
+    /// blended whose path ended before this depth (0 within the paths) of
+    /// `max(|s_i(δ) − s_i(d_end)|, |1 − s_i(d_end)| (δ − d_end) / d_end)`.
+    pub beyond: f64,
+}
+
+/// The relative error of a lattice position's own ANM-POD path against full Newton at the same
+/// position: the floor of [`Stiffening::error`]. The lattice test holds the path's load factor
+/// within 1e-3 of Newton's at every depth Newton reached (`engine/tests/large_palpation.rs`).
+pub const PATH_RELATIVE_ERROR: f64 = 1e-3;
+
+/// The margin on the leave-one-out's largest ratio ([`AnmLattice::interpolation_rates`]): the
+/// left-out positions are a few draws (four depths at each of 9–16 positions), and a contact
+/// can sit where the organ changes faster than between any two positions. Without it the
+/// estimate bounded 95.2 % of the liver's sampled states within and past the paths, the
+/// lowest ratio of estimate to true error being 0.50; with it, see `docs/accuracy.md`.
+pub const LEAVE_ONE_OUT_MARGIN: f64 = 2.0;
+
+impl Stiffening {
+    /// The estimated error of [`Stiffening::ratio`] against the full-order model's ratio at this
+    /// point and depth,
+    ///
+    /// `e = rate · |1 − s| · dist + beyond + PATH_RELATIVE_ERROR · s`,
+    ///
+    /// with `rate` the largest of the blended positions' [`AnmLattice::interpolation_rates`]
+    /// (1/m): the interpolated nonlinear correction `1 − s` is uncertain in proportion to the
+    /// distance to the nearest position whose path was computed, and past the paths the
+    /// correction may keep growing at the rate it grew along them ([`Stiffening::beyond`]).
+    /// Without rates (a lattice of one position) the whole correction is uncertain off the
+    /// position. Multiplied by the linear force, it bounds the served force's error;
+    /// `vademecum study` measures how often.
+    pub fn error(&self, rates: &[f64]) -> f64 {
+        let correction = (1.0 - self.ratio).abs();
+        let rate = self.blended[..self.count.min(8)]
+            .iter()
+            .filter_map(|&i| rates.get(i))
+            .fold(None, |m: Option<f64>, &r| Some(m.map_or(r, |m| m.max(r))));
+        let interpolation = match rate {
+            Some(rate) => rate * self.nearest_m * correction,
+            None if self.nearest_m > 0.0 => correction,
+            None => 0.0,
+        };
+        interpolation + self.beyond + PATH_RELATIVE_ERROR * self.ratio.abs()
+    }
 }
 
 fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -110,10 +160,7 @@ impl AnmPosition {
         if depth <= 0.0 {
             return (0.0, false);
         }
-        let d = |s: &Series, a: f64, z: &mut [f64]| -> (f64, f64) {
-            let l = s.eval(a, z);
-            (self.probe.iter().zip(z.iter()).map(|(p, z)| p * z).sum(), l)
-        };
+        let d = |s: &Series, a: f64, z: &mut [f64]| self.depth_and_load(s, a, z);
         for (s, &end) in self.path.steps.iter().zip(&self.path.ends) {
             let (d_end, _) = d(s, end, zeta);
             if depth <= d_end {
@@ -144,6 +191,37 @@ impl AnmPosition {
         };
         (l1 + slope.max(0.0) * (depth - d1), true)
     }
+
+    /// The displacement under the load and the load factor at arc-length `a` of series `s`.
+    fn depth_and_load(&self, s: &Series, a: f64, zeta: &mut [f64]) -> (f64, f64) {
+        let l = s.eval(a, zeta);
+        (self.probe.iter().zip(zeta.iter()).map(|(p, z)| p * z).sum(), l)
+    }
+
+    /// Where the path ends: the displacement under the load and the load factor there.
+    pub fn path_end(&self, zeta: &mut [f64]) -> Option<(f64, f64)> {
+        let (s, &end) = (self.path.steps.last()?, self.path.ends.last()?);
+        Some(self.depth_and_load(s, end, zeta))
+    }
+
+    /// This position's nonlinear-to-linear force ratio at `depth` (`λ(δ) d_lin / δ`) and the
+    /// uncertainty of its part past the path's end (0 within the path):
+    /// `max(|s(δ) − s(d_end)|, |1 − s(d_end)| (δ − d_end) / d_end)` — the change the
+    /// extrapolation makes, or the nonlinear correction growing past the path at the rate it
+    /// grew along it (to first order the correction is proportional to the depth), whichever
+    /// is larger.
+    fn ratio_at(&self, depth: f64, zeta: &mut [f64]) -> (f64, f64, bool) {
+        let (lambda, extrapolated) = self.load_at_depth(depth, zeta);
+        let ratio = lambda * self.d_linear / depth;
+        let beyond = match self.path_end(zeta).filter(|_| extrapolated) {
+            Some((d_end, l_end)) if d_end > 0.0 => {
+                let at_end = l_end * self.d_linear / d_end;
+                (ratio - at_end).abs().max((1.0 - at_end).abs() * (depth - d_end).max(0.0) / d_end)
+            }
+            _ => 0.0,
+        };
+        (ratio, beyond, extrapolated)
+    }
 }
 
 impl AnmLattice {
@@ -161,22 +239,8 @@ impl AnmLattice {
             ));
         }
         let mesh = &organ.mesh;
-        // area-weighted outward vertex normals of the boundary surface
-        let mut normals = vec![[0.0; 3]; mesh.n_nodes()];
-        for t in organ.boundary.triangles() {
-            let (area, n) = triangle_area_normal(mesh, t);
-            for &v in &t {
-                for k in 0..3 {
-                    normals[v][k] += area * n[k];
-                }
-            }
-        }
-        let candidates: Vec<usize> = organ
-            .accessible_nodes
-            .iter()
-            .copied()
-            .filter(|&n| unit(normals[n]).is_some() && (0..3).all(|k| !organ.problem.constrained[3 * n + k]))
-            .collect();
+        let normals = surface_normals(organ);
+        let candidates = loadable_nodes(organ, &normals);
         if candidates.is_empty() {
             return Err(StudyError::Unsupported(
                 "the organ has no accessible surface node free to move".into(),
@@ -234,15 +298,7 @@ impl AnmLattice {
         node: usize,
         normal: [f64; 3],
     ) -> Result<AnmPosition, StudyError> {
-        let patch: Vec<usize> = accessible
-            .iter()
-            .copied()
-            .filter(|&n| n == node || dist2(mesh.nodes[n], mesh.nodes[node]) <= params.patch_radius.powi(2))
-            .collect();
-        let mut problem = base.clone();
-        problem.forces.fill(0.0);
-        problem.prescribed.fill(0.0);
-        crate::fem::loads::add_distributed_force(&mut problem.forces, &patch, normal.map(|x| x * params.max_force));
+        let (patch, problem) = patch_load(mesh, accessible, base, params, node, normal);
         let mut snaps = Vec::new();
         let mut reached = 0.0;
         let newton = NewtonParams {
@@ -290,16 +346,30 @@ impl AnmLattice {
     /// `k` nearest positions by inverse squared distance; `zeta` is scratch of the largest
     /// reduced size (see [`AnmLattice::max_modes`]).
     pub fn stiffness_ratio(&self, point: [f64; 3], depth: f64, k: usize, zeta: &mut [f64]) -> Stiffening {
-        if !(depth.is_finite() && depth > 0.0) || self.positions.is_empty() {
+        self.blend(point, depth, k, None, zeta)
+    }
+
+    /// [`AnmLattice::stiffness_ratio`] without position `skip` (the leave-one-out of
+    /// [`AnmLattice::spread_factor`]).
+    fn blend(&self, point: [f64; 3], depth: f64, k: usize, skip: Option<usize>, zeta: &mut [f64]) -> Stiffening {
+        let usable = self.positions.len() - usize::from(skip.is_some_and(|s| s < self.positions.len()));
+        if !(depth.is_finite() && depth > 0.0) || usable == 0 {
             return Stiffening {
                 ratio: 1.0,
                 extrapolated: false,
+                nearest_m: 0.0,
+                blended: [0; 8],
+                count: 0,
+                beyond: 0.0,
             };
         }
         // the k nearest, by insertion into a small fixed array (no allocation)
         let mut best = [(f64::INFINITY, usize::MAX); 8];
-        let k = k.clamp(1, best.len()).min(self.positions.len());
+        let k = k.clamp(1, best.len()).min(usable);
         for (i, p) in self.positions.iter().enumerate() {
+            if Some(i) == skip {
+                continue;
+            }
             let d = dist2(p.point, point);
             if d < best[k - 1].0 {
                 let mut j = k - 1;
@@ -310,16 +380,25 @@ impl AnmLattice {
                 best[j] = (d, i);
             }
         }
-        let (mut num, mut den, mut extrapolated) = (0.0, 0.0, false);
+        let nearest_m = best[0].0.sqrt();
+        let blended = best.map(|(_, i)| i);
+        let (mut num, mut den, mut extrapolated, mut beyond_max) = (0.0, 0.0, false, 0.0f64);
         for &(d2, i) in &best[..k] {
             let p = &self.positions[i];
             let r = p.probe.len();
-            let (lambda, ex) = p.load_at_depth(depth, &mut zeta[..r]);
+            let (ratio, beyond, ex) = p.ratio_at(depth, &mut zeta[..r]);
             extrapolated |= ex;
-            let ratio = lambda * p.d_linear / depth;
             if d2 == 0.0 {
-                return Stiffening { ratio, extrapolated: ex };
+                return Stiffening {
+                    ratio,
+                    extrapolated: ex,
+                    nearest_m,
+                    blended,
+                    count: 1,
+                    beyond,
+                };
             }
+            beyond_max = beyond_max.max(beyond);
             num += ratio / d2;
             den += 1.0 / d2;
         }
@@ -327,12 +406,179 @@ impl AnmLattice {
         Stiffening {
             ratio: if ratio.is_finite() && ratio > 0.0 { ratio } else { 1.0 },
             extrapolated,
+            nearest_m,
+            blended,
+            count: k,
+            beyond: beyond_max,
         }
+    }
+
+    /// The rate (1/m), per position, at which the interpolated correction's uncertainty grows
+    /// with the distance to the nearest position ([`Stiffening::error`]), calibrated on the
+    /// lattice itself by leave-one-out: each position's own law, at a quarter, half, three
+    /// quarters and the whole of its path's depth, is predicted from its `k` nearest other
+    /// positions, and its rate is [`LEAVE_ONE_OUT_MARGIN`] times the largest
+    /// `|predicted − own| / (|1 − predicted| · distance)` met (the distance to the nearest
+    /// other position): how fast the organ's law changes around it. Empty for a lattice of
+    /// fewer than two positions (nothing to leave out). Allocates: call it once, when a session
+    /// starts.
+    pub fn interpolation_rates(&self, k: usize) -> Vec<f64> {
+        if self.positions.len() < 2 {
+            return Vec::new();
+        }
+        let mut zeta = vec![0.0; self.max_modes()];
+        self.positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let r = p.probe.len();
+                let Some((d_end, _)) = p.path_end(&mut zeta[..r]).filter(|&(d, _)| d > 0.0 && d.is_finite()) else {
+                    return 0.0;
+                };
+                let mut rate = 0.0f64;
+                for q in 1..=4 {
+                    let depth = d_end * q as f64 / 4.0;
+                    let (own, _, _) = p.ratio_at(depth, &mut zeta[..r]);
+                    let guess = self.blend(p.point, depth, k, Some(i), &mut zeta);
+                    let scale = (1.0 - guess.ratio).abs().max(PATH_RELATIVE_ERROR) * guess.nearest_m;
+                    let miss = (guess.ratio - own).abs() - PATH_RELATIVE_ERROR * own.abs();
+                    if miss > 0.0 && scale > 0.0 && (miss / scale).is_finite() {
+                        rate = rate.max(miss / scale);
+                    }
+                }
+                LEAVE_ONE_OUT_MARGIN * rate
+            })
+            .collect()
     }
 
     /// The largest reduced size of the positions (the scratch `stiffness_ratio` needs).
     pub fn max_modes(&self) -> usize {
         self.positions.iter().map(|p| p.probe.len()).max().unwrap_or(0)
+    }
+}
+
+/// Area-weighted outward vertex normals of `organ`'s boundary surface (zero off it).
+pub fn surface_normals(organ: &OrganModel) -> Vec<[f64; 3]> {
+    let mut normals = vec![[0.0; 3]; organ.mesh.n_nodes()];
+    for t in organ.boundary.triangles() {
+        let (area, n) = triangle_area_normal(&organ.mesh, t);
+        for &v in &t {
+            for k in 0..3 {
+                normals[v][k] += area * n[k];
+            }
+        }
+    }
+    normals
+}
+
+/// The accessible nodes a lattice may load: with a surface normal, and free to move.
+pub fn loadable_nodes(organ: &OrganModel, normals: &[[f64; 3]]) -> Vec<usize> {
+    organ
+        .accessible_nodes
+        .iter()
+        .copied()
+        .filter(|&n| unit(normals[n]).is_some() && (0..3).all(|k| !organ.problem.constrained[3 * n + k]))
+        .collect()
+}
+
+/// The load of a lattice position: `max_force` along the unit `normal` at `node`, spread over
+/// the accessible nodes within the patch radius, on the supports of `base` (the patch, and
+/// the problem).
+fn patch_load(
+    mesh: &crate::mesh::Mesh,
+    accessible: &[usize],
+    base: &crate::fem::linear_static::StaticProblem,
+    params: &AnmLatticeParams,
+    node: usize,
+    normal: [f64; 3],
+) -> (Vec<usize>, crate::fem::linear_static::StaticProblem) {
+    let patch: Vec<usize> = accessible
+        .iter()
+        .copied()
+        .filter(|&n| n == node || dist2(mesh.nodes[n], mesh.nodes[node]) <= params.patch_radius.powi(2))
+        .collect();
+    let mut problem = base.clone();
+    problem.forces.fill(0.0);
+    problem.prescribed.fill(0.0);
+    crate::fem::loads::add_distributed_force(&mut problem.forces, &patch, normal.map(|x| x * params.max_force));
+    (patch, problem)
+}
+
+/// The full-order force–depth law at one surface node: what a lattice position's path
+/// approximates, computed by full Newton–Raphson on the mesh (the reference of the error
+/// estimate's check in `vademecum study`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewtonLaw {
+    /// The surface node.
+    pub node: usize,
+    /// Its reference position (m).
+    pub point: [f64; 3],
+    /// The full model's linear displacement under the full load (m): its responses to loads
+    /// a thousandth and two thousandths as large, extrapolated to zero load.
+    pub d_linear: f64,
+    /// `(λ, d)`: the load factor of each converged Newton step and the displacement under the
+    /// load there (m).
+    pub steps: Vec<(f64, f64)>,
+}
+
+impl NewtonLaw {
+    /// Full Newton in `params.load_steps` steps at `node` (an accessible node with a surface
+    /// normal), with the load of a lattice position there (`max_force` along the inward normal,
+    /// over the patch). Where Newton stops short of the full load, the steps it converged.
+    pub fn at(organ: &OrganModel, laws: &LawMap, params: &AnmLatticeParams, node: usize) -> Result<Self, StudyError> {
+        let normals = surface_normals(organ);
+        let Some(inward) = normals.get(node).and_then(|&n| unit(n)).map(|n| n.map(|x| -x)) else {
+            return Err(StudyError::Unsupported(format!("node {node} has no surface normal")));
+        };
+        let mesh = &organ.mesh;
+        let (patch, problem) = patch_load(mesh, &organ.accessible_nodes, &organ.problem, params, node, inward);
+        let mut steps = Vec::new();
+        let newton = NewtonParams {
+            steps: params.load_steps,
+            ..NewtonParams::default()
+        };
+        match nonlinear_static::solve(mesh, laws, Volumetric::PointWise, &problem, &newton, |l, u| {
+            // a step reported twice (the last, once converged) is one state
+            if steps.last().is_none_or(|&(last, _)| last != l) {
+                steps.push((l, super::mean_along(u, &patch, inward)));
+            }
+        }) {
+            Ok(_) => {}
+            Err(nonlinear_static::NonlinearError::NoConvergence { .. }) if !steps.is_empty() => {}
+            Err(e) => return Err(e.into()),
+        }
+        // the linear response by Richardson extrapolation of two small loads: d(ε)/ε is
+        // d_lin + O(ε), so 2 d(ε)/ε − d(2ε)/(2ε) is d_lin + O(ε²)
+        const SMALL: f64 = 1e-3;
+        let small = |scale: f64| -> Result<f64, StudyError> {
+            let mut p = problem.clone();
+            p.forces.iter_mut().for_each(|f| *f *= scale);
+            let mut d = 0.0;
+            let one = NewtonParams {
+                steps: 1,
+                ..NewtonParams::default()
+            };
+            nonlinear_static::solve(mesh, laws, Volumetric::PointWise, &p, &one, |_, u| {
+                d = super::mean_along(u, &patch, inward)
+            })?;
+            Ok(d / scale)
+        };
+        let d_linear = 2.0 * small(SMALL)? - small(2.0 * SMALL)?;
+        Ok(Self {
+            node,
+            point: mesh.nodes[node],
+            d_linear,
+            steps,
+        })
+    }
+
+    /// `(depth, ratio)` of every step: the full model's nonlinear-to-linear force ratio at the
+    /// depth it reached, `λ d_lin / d` (what [`AnmLattice::stiffness_ratio`] serves).
+    pub fn ratios(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.steps
+            .iter()
+            .filter(|&&(_, d)| d > 0.0)
+            .map(|&(l, d)| (d, l * self.d_linear / d))
     }
 }
 

@@ -62,7 +62,7 @@ when it is missing or was built from another scene or mesh. Without --script, th
 palpates the middle of the first organ's accessible surface: down 3 mm above it, --depth \
 into it over 1 s, hold, slide 15 mm over 2 s, lift (5 s in all).\n\n\
 Writes <RECORD>/forces.csv (tick, t_s, contact point, force on the tool in N, contact, \
-depth, events, latency_us), trajectory.csv, <organ>.pvd + frames/*.vtu and summary.json. \
+depth, events, latency_us, force_error_n: the estimated error of the force against the full-order model, empty where the force has no estimate), trajectory.csv, <organ>.pvd + frames/*.vtu and summary.json. \
 Exit status 1 when force rows were dropped.")]
     Run(RunArgs),
     /// Serve sessions over gRPC (sessions, interaction stream, viewer frames, health, reflection).
@@ -124,6 +124,14 @@ pub struct StudyArgs {
     /// Frames timed per point.
     #[arg(long, default_value_t = 2000, value_name = "N")]
     pub frames: usize,
+    /// Contact states of the linear law sampled to check the per-answer error estimate
+    /// against the full model (3 solves each).
+    #[arg(long, default_value_t = 40, value_name = "N")]
+    pub estimate_points: usize,
+    /// Surface nodes off the lattice where full Newton checks the large-deformation error
+    /// estimate (one Newton path each, pushed 1.5× past the lattice's force).
+    #[arg(long, default_value_t = 12, value_name = "N")]
+    pub estimate_nodes: usize,
 }
 
 /// `vademecum check …`.

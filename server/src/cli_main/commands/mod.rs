@@ -24,6 +24,7 @@ mod scene;
 mod serve;
 mod solve;
 mod study;
+mod study_estimate;
 
 use std::process::ExitCode;
 

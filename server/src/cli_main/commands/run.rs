@@ -283,6 +283,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 "depth_m",
                 "events",
                 "latency_us",
+                "force_error_n",
             ];
             if cutting {
                 header.extend(["f_perp_n", "f_par_n", "cutting"]);
@@ -353,6 +354,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                     format!("{:e}", c.map_or(0.0, |c| c.depth_m)),
                     row.a.state.events.0.to_string(),
                     (row.a.answered_us - row.a.received_us).to_string(),
+                    row.a.state.force_error_n.map_or(String::new(), |e| format!("{e:e}")),
                 ];
                 if cutting {
                     let mag = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();

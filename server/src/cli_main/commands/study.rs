@@ -4,8 +4,10 @@
 //! is then a fidelity point whose online cost (the surface displacement field of one frame,
 //! beside a null loop) and offline cost (bundle bytes at that prefix, the build time) are
 //! measured. Writes the table (CSV, JSON), two plots with the Pareto front marked, and a
-//! verdict. Resumable: the build and every finished point are kept in the output folder and
-//! not redone.
+//! verdict. Then the per-answer error estimate is checked against the full model
+//! ([`super::study_estimate`]): the study fails (exit 1) when it bounds fewer than 95 % of the
+//! sampled states. Resumable: the build, every finished point and the estimate's check are
+//! kept in the output folder and not redone.
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -317,6 +319,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         bar.inc(1);
     }
     bar.finish_and_clear();
+    let estimate = super::study_estimate::check(&scene, &bundle, &rec.key, a.estimate_points, a.estimate_nodes, &out)?;
 
     let mut points: Vec<Point> = done.into_values().collect();
     points.sort_by(|a, b| (a.storage.as_str(), a.modes).cmp(&(b.storage.as_str(), b.modes)));
@@ -349,7 +352,9 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     std::fs::write(out.join("study.csv"), csv)?;
     std::fs::write(
         out.join("study.json"),
-        serde_json::to_string_pretty(&serde_json::json!({ "scene": scene_name, "build": rec, "points": points }))?,
+        serde_json::to_string_pretty(
+            &serde_json::json!({ "scene": scene_name, "build": rec, "points": points, "estimate": estimate.coverage }),
+        )?,
     )?;
     plot(
         &points,
@@ -414,18 +419,23 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         ),
     };
     let verdict = format!(
-        "{verdict} The contact force does not depend on the modes (exact local compliances): its error is 0 at every point. One build measured all {} prefixes in {:.1} s ({} load states).",
+        "{verdict} The contact force does not depend on the modes (exact local compliances): no prefix changes it. One build measured all {} prefixes in {:.1} s ({} load states). {}",
         rec.error_curve.len(),
         rec.build_s,
-        rec.load_states
+        rec.load_states,
+        super::study_estimate::verdict(&estimate)
     );
     writeln!(
         o,
-        "\n{verdict}\n\nwritten: {}/study.csv, study.json, error_vs_online.svg, error_vs_bundle.svg",
+        "\n{verdict}\n\nwritten: {}/study.csv, study.json, error_vs_online.svg, error_vs_bundle.svg, estimate.csv, estimate_vs_error.svg",
         out.display()
     )?;
     std::fs::write(out.join("verdict.txt"), verdict + "\n")?;
-    Ok(ExitCode::SUCCESS)
+    Ok(if super::study_estimate::holds(&estimate) {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
 }
 
 #[cfg(test)]

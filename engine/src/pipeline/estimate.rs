@@ -1,0 +1,257 @@
+//! How well the per-answer error estimate ([`super::TickState::force_error_n`]) bounds the true
+//! error: sampled contact states served as a session serves them, each beside the full-order
+//! model's answer for the same state (what `vademecum study` reports and `cargo test` checks).
+//!
+//! - **Linear palpation**: at random points of the accessible surface, the force for a 1 mm
+//!   press along the surface normal from the vademecum (`C(s)⁻¹δ`, exact local compliances)
+//!   against the full model's: the stiffness factored, the unit loads `Σ_b w_b` over the
+//!   triangle's patches solved, the response read back with the same patch weights.
+//! - **Large deformations**: at surface nodes off the lattice, full Newton with a lattice
+//!   position's load taken 1.5 times past the lattice's force ([`NewtonLaw`]): at each depth
+//!   Newton reached, the served ratio against the full model's, the part past the lattice's
+//!   paths included (where the estimate must cover the extrapolation).
+
+use super::palpation::LINEAR_RELATIVE_ERROR;
+use crate::pgd::Vademecum;
+use crate::pgd::offline::{self, BuildError, LoadedBundle};
+use crate::rom::palpation::{AnmLattice, AnmLatticeParams, NewtonLaw, loadable_nodes, surface_normals};
+use crate::rom::study::StudyError;
+use crate::scene::OrganModel;
+
+/// Lattice positions blended per evaluation, as the palpation effect blends them.
+const NEIGHBOURS: usize = 4;
+
+/// How far past the lattice's force the full model is pushed to sample the extrapolation.
+pub const PAST_THE_LATTICE: f64 = 1.5;
+
+/// One sampled state.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Sample {
+    /// `"linear"` or `"large"`.
+    pub model: &'static str,
+    /// The surface point loaded (m).
+    pub point_m: [f64; 3],
+    /// The press's depth (m).
+    pub depth_m: f64,
+    /// Whether the served law was extrapolated past the lattice's paths (large only).
+    pub beyond_range: bool,
+    /// The served value: the force magnitude (N, linear) or the nonlinear-to-linear ratio
+    /// (large; the force is the ratio times the exact linear force, so relative errors agree).
+    pub served: f64,
+    /// The full-order model's value, in the same unit.
+    pub truth: f64,
+    /// The true error, `|served − truth|` (the force difference's norm for linear).
+    pub error: f64,
+    /// The estimate the session attaches, in the same unit.
+    pub estimate: f64,
+}
+
+impl Sample {
+    /// Whether the estimate bounds the true error.
+    pub fn bounded(&self) -> bool {
+        self.error <= self.estimate
+    }
+}
+
+/// What the samples say of the estimate.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Coverage {
+    /// States sampled.
+    pub samples: usize,
+    /// States whose estimate bounds their true error.
+    pub bounded: usize,
+    /// The median of estimate / true error over states with a nonzero error (how loose the
+    /// bound is; `NaN` if none).
+    pub median_ratio: f64,
+    /// The largest true error relative to the truth.
+    pub max_relative_error: f64,
+}
+
+impl Coverage {
+    /// Sums up `samples`.
+    pub fn of(samples: &[Sample]) -> Self {
+        let mut ratios: Vec<f64> = samples.iter().filter(|s| s.error > 0.0).map(|s| s.estimate / s.error).collect();
+        ratios.sort_by(f64::total_cmp);
+        Self {
+            samples: samples.len(),
+            bounded: samples.iter().filter(|s| s.bounded()).count(),
+            median_ratio: ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN),
+            max_relative_error: samples
+                .iter()
+                .map(|s| s.error / s.truth.abs().max(f64::MIN_POSITIVE))
+                .fold(0.0, f64::max),
+        }
+    }
+
+    /// The share of states bounded (1 with no sample).
+    pub fn fraction(&self) -> f64 {
+        if self.samples == 0 {
+            1.0
+        } else {
+            self.bounded as f64 / self.samples as f64
+        }
+    }
+}
+
+/// A tiny deterministic generator (xorshift), so the samples are repeatable.
+pub(crate) struct Rng(pub(crate) u64);
+
+impl Rng {
+    pub(crate) fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+    pub(crate) fn unit(&mut self) -> f64 {
+        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// `count` linear-palpation states of organ `model` (whose bundle is `bundle`): see the
+/// [module docs](self). Factors the organ's stiffness (seconds on a large organ).
+pub fn linear_samples(model: &OrganModel, bundle: &LoadedBundle, count: usize) -> Result<Vec<Sample>, BuildError> {
+    let v = &bundle.vademecum;
+    let tris: Vec<[usize; 3]> = bundle
+        .surface
+        .iter()
+        .copied()
+        .filter(|t| t.iter().all(|&n| v.is_loadable(n)))
+        .collect();
+    if tris.is_empty() || count == 0 {
+        return Ok(Vec::new());
+    }
+    let (dofs, _, chol, _, _) = offline::stiffness(model, &mut |_| {})?;
+    let index: std::collections::HashMap<usize, usize> = v.load_nodes().iter().enumerate().map(|(j, &n)| (n, j)).collect();
+    let patches = v.patches();
+    let n = model.mesh.n_nodes();
+    let nf = dofs.n_free();
+    let mut rng = Rng(0x0E57_1A7E_5EED);
+    let mut out = Vec::with_capacity(count);
+    let zero = vec![0.0; 3 * n];
+    while out.len() < count {
+        let tri = tris[(rng.next() % tris.len() as u64) as usize];
+        let (a, b) = (rng.unit(), rng.unit());
+        let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+        let w = [1.0 - a - b, a, b];
+        let Some(served_c) = v.compliance(tri, w) else { continue };
+        // the full model's compliance at s: unit forces over the weighted patches, read back
+        // with the same weights
+        let mut rhs = vec![0.0; 3 * nf];
+        for d in 0..3 {
+            let mut f = vec![0.0; 3 * n];
+            for (&node, &wa) in tri.iter().zip(&w) {
+                let (nodes, pw) = &patches[index[&node]];
+                for (&p, &x) in nodes.iter().zip(pw) {
+                    f[3 * p + d] += wa * x;
+                }
+            }
+            dofs.restrict(&f, &mut rhs[d * nf..(d + 1) * nf]);
+        }
+        chol.solve_many_in_place(&mut rhs, 3);
+        let mut true_c = [[0.0; 3]; 3];
+        let mut u = vec![0.0; 3 * n];
+        for d in 0..3 {
+            dofs.expand(&rhs[d * nf..(d + 1) * nf], &zero, &mut u);
+            for (&node, &wa) in tri.iter().zip(&w) {
+                let (nodes, pw) = &patches[index[&node]];
+                for (&p, &x) in nodes.iter().zip(pw) {
+                    for (i, row) in true_c.iter_mut().enumerate() {
+                        row[d] += wa * x * u[3 * p + i];
+                    }
+                }
+            }
+        }
+        let normal = unit_normal(&bundle.nodes, tri);
+        let depth = 1e-3;
+        let delta = normal.map(|x| -depth * x);
+        let served = Vademecum::contact_force(&served_c, delta);
+        let truth = Vademecum::contact_force(&true_c, delta);
+        let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let point_m = std::array::from_fn(|k| (0..3).map(|i| w[i] * bundle.nodes[tri[i]][k]).sum());
+        out.push(Sample {
+            model: "linear",
+            point_m,
+            depth_m: depth,
+            beyond_range: false,
+            served: norm(served),
+            truth: norm(truth),
+            error: norm([0, 1, 2].map(|k| served[k] - truth[k])),
+            estimate: LINEAR_RELATIVE_ERROR * norm(served),
+        });
+    }
+    Ok(out)
+}
+
+/// The outward unit normal of triangle `t`.
+fn unit_normal(nodes: &[[f64; 3]], t: [usize; 3]) -> [f64; 3] {
+    let (p, q, r) = (nodes[t[0]], nodes[t[1]], nodes[t[2]]);
+    let e1 = [0, 1, 2].map(|k| q[k] - p[k]);
+    let e2 = [0, 1, 2].map(|k| r[k] - p[k]);
+    let c = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let l = c.iter().map(|x| x * x).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+    c.map(|x| x / l)
+}
+
+/// Large-deformation states at `nodes` surface nodes of organ `model` off `lattice` (drawn at
+/// random among the loadable nodes that are not lattice positions), with the lattice's build
+/// settings `params`: see the [module docs](self). `progress(done, total)` after each node.
+/// Nodes where Newton converges no step are skipped.
+pub fn large_samples(
+    model: &OrganModel,
+    lattice: &AnmLattice,
+    params: &AnmLatticeParams,
+    nodes: usize,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Vec<Sample>, StudyError> {
+    let Some(laws) = &model.laws else {
+        return Err(StudyError::Unsupported("the organ's materials are not hyperelastic".into()));
+    };
+    let rates = lattice.interpolation_rates(NEIGHBOURS);
+    let normals = surface_normals(model);
+    let mut pool: Vec<usize> = loadable_nodes(model, &normals)
+        .into_iter()
+        .filter(|n| !lattice.positions.iter().any(|p| p.node == *n))
+        .collect();
+    let mut rng = Rng(0x1A77_1CE5_EED5);
+    let mut chosen = Vec::new();
+    while chosen.len() < nodes && !pool.is_empty() {
+        chosen.push(pool.swap_remove((rng.next() % pool.len() as u64) as usize));
+    }
+    let past = AnmLatticeParams {
+        max_force: PAST_THE_LATTICE * lattice.max_force,
+        load_steps: (PAST_THE_LATTICE * params.load_steps as f64).ceil() as usize,
+        ..*params
+    };
+    let mut zeta = vec![0.0; lattice.max_modes()];
+    let mut out = Vec::new();
+    for (done, &node) in chosen.iter().enumerate() {
+        let law = match NewtonLaw::at(model, laws, &past, node) {
+            Ok(law) => law,
+            Err(StudyError::Newton(_)) => {
+                progress(done + 1, chosen.len());
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
+        for (depth, truth) in law.ratios() {
+            let s = lattice.stiffness_ratio(law.point, depth, NEIGHBOURS, &mut zeta);
+            out.push(Sample {
+                model: "large",
+                point_m: law.point,
+                depth_m: depth,
+                beyond_range: s.extrapolated,
+                served: s.ratio,
+                truth,
+                error: (s.ratio - truth).abs(),
+                estimate: s.error(&rates),
+            });
+        }
+        progress(done + 1, chosen.len());
+    }
+    Ok(out)
+}

@@ -1,0 +1,228 @@
+//! The study's check of the per-answer error estimate (`ToolResponse.force_error_n`): sampled
+//! contact states served as a session serves them, each beside the full-order model's answer
+//! (module `engine::pipeline::estimate`), the share the estimate bounds, a table and a plot.
+//! Kept in `estimate.json` for the study's build: a resumed study does not redo it.
+
+use std::path::Path;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use plotters::prelude::*;
+use serde::{Deserialize, Serialize};
+use vademecum_engine::pgd::offline::{BuildOptions, LoadedBundle};
+use vademecum_engine::pipeline::estimate::{self, Coverage, Sample};
+use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::schema::DeformationModel;
+
+/// The share of sampled states the estimate must bound.
+pub(super) const REQUIRED: f64 = 0.95;
+
+/// What `estimate.json` keeps.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(super) struct EstimateRecord {
+    /// The study build's key: another build redoes the check.
+    key: String,
+    /// Per model (`linear`, `large`): samples, bounded, median estimate / true error, largest
+    /// relative error.
+    pub(super) coverage: Vec<(String, CoverageRecord)>,
+}
+
+/// [`Coverage`], kept.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(super) struct CoverageRecord {
+    pub(super) samples: usize,
+    pub(super) bounded: usize,
+    pub(super) median_ratio: f64,
+    pub(super) max_relative_error: f64,
+}
+
+impl CoverageRecord {
+    pub(super) fn fraction(&self) -> f64 {
+        if self.samples == 0 {
+            1.0
+        } else {
+            self.bounded as f64 / self.samples as f64
+        }
+    }
+}
+
+impl From<Coverage> for CoverageRecord {
+    fn from(c: Coverage) -> Self {
+        Self {
+            samples: c.samples,
+            bounded: c.bounded,
+            median_ratio: c.median_ratio,
+            max_relative_error: c.max_relative_error,
+        }
+    }
+}
+
+/// Samples the estimate of organ 0 of `scene` (its study bundle `bundle`): `points` linear
+/// states, and `nodes` nodes off the lattice when the scene has large deformations; writes
+/// `estimate.csv` and `estimate_vs_error.svg` to `out`. Reuses `estimate.json` when it was made
+/// for build `key`.
+pub(super) fn check(
+    scene: &Scene,
+    bundle: &LoadedBundle,
+    key: &str,
+    points: usize,
+    nodes: usize,
+    out: &Path,
+) -> anyhow::Result<EstimateRecord> {
+    let record_path = out.join("estimate.json");
+    if let Ok(old) = std::fs::read_to_string(&record_path)
+        && let Ok(rec) = serde_json::from_str::<EstimateRecord>(&old)
+        && rec.key == key
+    {
+        eprintln!("resuming: the error estimate's check in {} is reused", record_path.display());
+        return Ok(rec);
+    }
+    let model = scene.organ_model(0)?;
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(ProgressStyle::with_template("{spinner} {msg} [{elapsed}]").unwrap_or_else(|_| ProgressStyle::default_spinner()));
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    bar.set_message(format!("error estimate: {points} linear states against the full model"));
+    let mut samples = estimate::linear_samples(&model, bundle, points)?;
+    let large = scene.spec.effects.deformation == DeformationModel::Large;
+    if large && let (Some(lattice), Some(params)) = (&bundle.anm, BuildOptions::for_scene(scene, true).large) {
+        bar.set_message(format!("error estimate: full Newton at {nodes} nodes off the lattice"));
+        samples.extend(estimate::large_samples(&model, lattice, &params, nodes, |done, total| {
+            bar.set_message(format!("error estimate: full Newton at nodes off the lattice, {done}/{total}"))
+        })?);
+    }
+    bar.finish_and_clear();
+
+    let mut csv = String::from("model,x_m,y_m,z_m,depth_m,beyond_range,served,truth,error,estimate,bounded\n");
+    for s in &samples {
+        csv += &format!(
+            "{},{:e},{:e},{:e},{:e},{},{:e},{:e},{:e},{:e},{}\n",
+            s.model,
+            s.point_m[0],
+            s.point_m[1],
+            s.point_m[2],
+            s.depth_m,
+            s.beyond_range,
+            s.served,
+            s.truth,
+            s.error,
+            s.estimate,
+            s.bounded()
+        );
+    }
+    std::fs::write(out.join("estimate.csv"), csv).context("cannot write estimate.csv")?;
+    plot(&samples, &scene.spec.scene.name, &out.join("estimate_vs_error.svg"))?;
+    let coverage = ["linear", "large"]
+        .into_iter()
+        .map(|m| {
+            let of: Vec<Sample> = samples.iter().copied().filter(|s| s.model == m).collect();
+            (m.to_string(), CoverageRecord::from(Coverage::of(&of)))
+        })
+        .filter(|(_, c)| c.samples > 0)
+        .collect();
+    let rec = EstimateRecord {
+        key: key.to_string(),
+        coverage,
+    };
+    std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
+    Ok(rec)
+}
+
+/// The sentence of the verdict: per model, the share bounded and how loose the bound is.
+pub(super) fn verdict(rec: &EstimateRecord) -> String {
+    let parts: Vec<String> = rec
+        .coverage
+        .iter()
+        .map(|(m, c)| {
+            let how = if c.max_relative_error < 1e-12 {
+                format!(
+                    "the full model agrees to round-off (largest difference {:.1e} relative, the estimate being 1e-9 of the force)",
+                    c.max_relative_error
+                )
+            } else {
+                format!(
+                    "median estimate / true error {:.2}, largest true error {:.2e} relative{}",
+                    c.median_ratio,
+                    c.max_relative_error,
+                    if m == "large" {
+                        " (up to 1.5 times the lattice's force, past its paths)"
+                    } else {
+                        ""
+                    }
+                )
+            };
+            format!(
+                "{m}: the estimate bounds the full model's error in {} of {} sampled states ({:.1} %, {} {:.0} %); {how}",
+                c.bounded,
+                c.samples,
+                100.0 * c.fraction(),
+                if c.fraction() >= REQUIRED { "meeting" } else { "BELOW" },
+                100.0 * REQUIRED,
+            )
+        })
+        .collect();
+    format!("Per-answer error estimate — {}.", parts.join("; "))
+}
+
+/// Whether every model's estimate meets [`REQUIRED`].
+pub(super) fn holds(rec: &EstimateRecord) -> bool {
+    rec.coverage.iter().all(|(_, c)| c.fraction() >= REQUIRED)
+}
+
+/// Estimate against true error, log–log, relative to the served value, with the line where they
+/// are equal: a bounded state lies above it.
+fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
+    let rel = |v: f64, s: &Sample| (v / s.served.abs().max(f64::MIN_POSITIVE)).max(1e-17);
+    let pts: Vec<(f64, f64, &Sample)> = samples.iter().map(|s| (rel(s.error, s), rel(s.estimate, s), s)).collect();
+    let lo = pts.iter().flat_map(|p| [p.0, p.1]).fold(1.0, f64::min) * 0.5;
+    let hi = pts.iter().flat_map(|p| [p.0, p.1]).fold(1e-12, f64::max) * 2.0;
+    let root = SVGBackend::new(file, (760, 640)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{scene}: per-answer error estimate against the true error"),
+            ("sans-serif", 18),
+        )
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d((lo..hi).log_scale(), (lo..hi).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("true error against the full model (relative)")
+        .y_desc("estimate the session attaches (relative)")
+        .x_label_formatter(&|v| format!("{v:.0e}"))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    chart
+        .draw_series(LineSeries::new([(lo, lo), (hi, hi)], BLACK.stroke_width(1)))?
+        .label("estimate = error (bounded above)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
+    let groups: [(&str, bool, &str); 3] = [
+        ("linear", false, "linear law"),
+        ("large", false, "large deformations, within the lattice's paths"),
+        ("large", true, "large deformations, past the paths"),
+    ];
+    for (k, (model, beyond, label)) in groups.into_iter().enumerate() {
+        let color = super::bench_anm::PALETTE[k];
+        let of: Vec<(f64, f64)> = pts
+            .iter()
+            .filter(|p| p.2.model == model && p.2.beyond_range == beyond)
+            .map(|p| (p.0, p.1))
+            .collect();
+        if of.is_empty() {
+            continue;
+        }
+        chart
+            .draw_series(of.iter().map(|&(x, y)| Circle::new((x, y), 4, color.filled())))?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
