@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use vademecum_engine::pgd::offline::{self, BuildOptions};
-use vademecum_engine::pipeline::{Pipeline, PipelineError, ToolInput};
+use vademecum_engine::pipeline::{Events, Fidelity, Pipeline, PipelineError, ToolInput};
 use vademecum_engine::rom::palpation::{AnmLattice, AnmLatticeParams, NewtonLaw};
 use vademecum_engine::scene::Scene;
 
@@ -128,6 +128,27 @@ fn a_large_deformation_scene_builds_a_lattice_bundle_and_the_pipeline_scales_the
     for k in 0..3 {
         assert!((fn_.force_n[k] - ratio * fl.force_n[k]).abs() <= 1e-12 * (1.0 + fl.force_n[k].abs()));
     }
+
+    // the reduced fidelity (a session under load): the nearest position alone, flagged; the
+    // linear law has no cheaper setting and keeps its force; back at full fidelity, the same
+    // force as before
+    large.set_fidelity(Fidelity::Reduced);
+    linear.set_fidelity(Fidelity::Reduced);
+    large.reset();
+    linear.reset();
+    let (rl, rn) = (linear.tick(&tool), large.tick(&tool));
+    assert!(rn.events.has(Events::REDUCED_FIDELITY) && rl.events.has(Events::REDUCED_FIDELITY));
+    assert_eq!(rl.force_n, fl.force_n);
+    let nearest = lattice.stiffness_ratio(contact.point_m, contact.depth_m, 1, &mut zeta).ratio;
+    for k in 0..3 {
+        assert!((rn.force_n[k] - nearest * fl.force_n[k]).abs() <= 1e-12 * (1.0 + fl.force_n[k].abs()));
+    }
+    assert!(rn.force_error_n.unwrap() > 0.0);
+    large.set_fidelity(Fidelity::Full);
+    large.reset();
+    let back = large.tick(&tool);
+    assert!(!back.events.has(Events::REDUCED_FIDELITY));
+    assert_eq!(back.force_n, fn_.force_n);
 
     // a bundle built without the lattice cannot serve a large-deformation scene
     let plain = offline::build_organ(&cornea(false), 0, &BuildOptions::for_scene(&cornea(false), true), &mut |_| {}).unwrap();

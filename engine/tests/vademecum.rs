@@ -161,6 +161,14 @@ fn bundles_round_trip_exactly() {
     assert_eq!(l.nodes, b.model.mesh.nodes);
     offline::check_matches(&dir, &l.manifest, &scene, &b.model.mesh).unwrap();
     assert_eq!(std::fs::read_to_string(dir.join("scene.toml")).unwrap(), SCENE);
+    // the prefix a session's frames fall back to: the fewest modes of the build's error curve
+    // that meet the error, none when every mode is needed or the bundle is that coarse already
+    let curve = &b.report.error_curve;
+    let (k, e) = curve[curve.len() / 2];
+    assert_eq!(l.modes_for_error(e), Some(k), "{curve:?}");
+    assert!(curve.iter().filter(|p| p.1 <= e).all(|p| p.0 >= k));
+    assert_eq!(l.modes_for_error(0.0), None);
+    assert_eq!(l.modes_for_error(1.0).map(|k| k >= 1), Some(true));
 }
 
 #[test]
@@ -421,6 +429,20 @@ fn node_major_f32_surface_field_matches_the_f64_field() {
             assert!((out[3 * j + i] as f64 - full[3 * node + i]).abs() < 1e-5 * scale, "node {node}");
         }
     }
+    // a prefix of the modes (the frames' fallback under load) is the field of the first
+    // modes alone: the same as zeroing the other coefficients; 0 means all of them
+    let k = v.modes() / 3;
+    let mut prefix = vec![0.0f32; out.len()];
+    nm.eval_prefix(&c32, k, &mut prefix);
+    let cut: Vec<f32> = c32.iter().enumerate().map(|(i, &c)| if i < k { c } else { 0.0 }).collect();
+    let mut zeroed = vec![0.0f32; out.len()];
+    nm.eval(&cut, &mut zeroed);
+    for (a, b) in prefix.iter().zip(&zeroed) {
+        assert!((a - b).abs() <= 1e-6 * scale as f32, "{a} vs {b}");
+    }
+    assert_ne!(prefix, out, "a third of the modes is a coarser field");
+    nm.eval_prefix(&c32, 0, &mut prefix);
+    assert_eq!(prefix, out);
     // i16 with a scale per mode: each term is off by at most half a quantum, |c_k| max|F_k| / 65534
     let q = QuantizedField::new(v, &surface, v.modes());
     assert_eq!(q.bytes() * 2, nm.bytes());

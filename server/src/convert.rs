@@ -262,6 +262,9 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
         bridge_deadline_misses: b.deadline_misses,
         bridge_watchdog_ticks: b.watchdog_ticks,
         bridge_input_rejections: b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+        fidelity_fallbacks: st.fallbacks,
+        fidelity_reduced: e.session.stats().reduced.load(Relaxed),
+        reduced_ticks: st.reduced_ticks,
         memory_bytes: memory.total(),
         memory: memory
             .parts

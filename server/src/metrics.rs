@@ -69,6 +69,16 @@ pub fn render(registry: &Registry) -> String {
             "counter",
         ),
         ("vademecum_frames_total", "Frames produced for viewers.", "counter"),
+        (
+            "vademecum_fidelity_fallbacks_total",
+            "Times the session fell back to its reduced fidelity (ticks close to their deadline).",
+            "counter",
+        ),
+        (
+            "vademecum_fidelity_reduced",
+            "1 while the session runs at its reduced fidelity.",
+            "gauge",
+        ),
     ];
     for (i, (name, help, kind)) in gauges.iter().enumerate() {
         let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
@@ -82,7 +92,9 @@ pub fn render(registry: &Registry) -> String {
                 4 => s.answered.load(Ordering::Relaxed),
                 5 => s.rejected.load(Ordering::Relaxed),
                 6 => s.dropped.load(Ordering::Relaxed),
-                _ => s.frames.load(Ordering::Relaxed),
+                7 => s.frames.load(Ordering::Relaxed),
+                8 => s.fallbacks.load(Ordering::Relaxed),
+                _ => u64::from(s.reduced.load(Ordering::Relaxed)),
             };
             let _ = writeln!(out, "{name}{{{}}} {v}", series(e));
         }

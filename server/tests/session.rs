@@ -82,6 +82,11 @@ half_space = { point = [0.0, 0.0, 0.02], normal = [0.0, 0.0, 1.0] }
 kind = "probe"
 name = "probe"
 radius = 0.006
+
+# the tests compare every answer with a pipeline of their own: a fallback under the test
+# machine's load would flag its answers (the fallback has a test of its own)
+[fidelity]
+fallback = "off"
 "#;
 
 fn slab() -> (Arc<Scene>, Vec<Arc<LoadedBundle>>, tempfile::TempDir) {
@@ -859,4 +864,48 @@ fn a_session_that_would_overload_the_tick_workers_is_refused_saying_the_load() {
         std::thread::sleep(Duration::from_millis(10));
     }
     Session::start("again".into(), scene, bundles, config).expect("the idle worker admits again");
+}
+
+/// The fidelity fallback: a session whose ticks come close to their deadline runs its reduced
+/// setting and flags every answer, counted in its statistics; with `fidelity.fallback = "off"`
+/// the same load changes nothing. The load here is a period of 20 µs, which no tick thread
+/// keeps (a wake-up alone takes longer), so every period is a close call.
+#[test]
+fn a_session_whose_ticks_come_close_to_their_deadline_falls_back_and_says_so() {
+    let (_, bundles, _dir) = slab();
+    let run = |fallback: &str| {
+        let scene = Arc::new(Scene::from_toml(&SCENE.replace("fallback = \"off\"", fallback), "slab.toml").unwrap());
+        let keys: Vec<(f64, [f64; 3], f64)> = (0..=10).map(|k| (k as f64 * 0.01, tool(25 * k).position_m, 0.0)).collect();
+        let (tx, mut rx) = tokio::sync::mpsc::channel(1 << 14);
+        let config = SessionConfig {
+            period: Duration::from_micros(20),
+            ..SessionConfig::default()
+        };
+        let script = Script {
+            trajectory: Trajectory::new(keys).unwrap(),
+            answers: tx,
+        };
+        let session = Session::start_scripted("fallback".into(), scene.clone(), bundles.clone(), config, script).unwrap();
+        let (mut flagged, mut n) = (0usize, 0usize);
+        let mut reduced_seen = false;
+        while !session.finished() || !rx.is_empty() {
+            match rx.try_recv() {
+                Ok(a) => {
+                    n += 1;
+                    let reduced = a.state.events.has(Events::REDUCED_FIDELITY);
+                    flagged += usize::from(reduced);
+                    reduced_seen |= session.stats().reduced.load(Ordering::Relaxed);
+                }
+                Err(_) => std::thread::sleep(Duration::from_micros(200)),
+            }
+        }
+        (session.wait(), flagged, n, reduced_seen)
+    };
+    let (stats, flagged, n, reduced) = run("fallback = \"auto\"");
+    assert!(n > 1000, "{n} answers");
+    assert!(stats.fallbacks >= 1, "{stats:?}");
+    assert!(stats.reduced_ticks > 0 && reduced);
+    assert!(flagged > n / 2, "{flagged} of {n} answers flagged");
+    let (stats, flagged, _, _) = run("fallback = \"off\"");
+    assert_eq!((stats.fallbacks, stats.reduced_ticks, flagged), (0, 0, 0), "{stats:?}");
 }

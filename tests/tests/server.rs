@@ -65,7 +65,9 @@ fn a_client_streams_5000_tool_states_and_gets_5000_engine_forces_in_order() {
                 });
                 let f = r.force_n.unwrap();
                 assert_eq!([f.x, f.y, f.z], expected.force_n, "tool state {received}");
-                assert_eq!(r.events, expected.events.0);
+                // a session falling back under the machine's load flags its answers; the force
+                // of linear palpation is the same at either fidelity
+                assert_eq!(r.events & !Events::REDUCED_FIDELITY, expected.events.0);
                 // every answer carries its error estimate: the engine's, 0 out of contact
                 assert_eq!(r.force_error_n, expected.force_error_n, "tool state {received}");
                 let e = r.force_error_n.expect("linear palpation estimates every force");

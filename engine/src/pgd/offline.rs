@@ -780,6 +780,21 @@ pub struct LoadedBundle {
 }
 
 impl LoadedBundle {
+    /// The fewest modes whose displacement-field error the build measured at or below `error`
+    /// (the sampled error curve of its report, `manifest.info.error_curve`), when fewer than
+    /// the bundle holds: the prefix a session's frames fall back to under load. `None` when the
+    /// bundle's own modes are already that coarse, or its report has no curve.
+    pub fn modes_for_error(&self, error: f64) -> Option<usize> {
+        let curve = self.manifest.info.get("error_curve")?.as_array()?;
+        curve
+            .iter()
+            .filter_map(|p| Some((p.get(0)?.as_u64()? as usize, p.get(1)?.as_f64()?)))
+            .filter(|&(k, e)| e <= error && k > 0)
+            .map(|(k, _)| k)
+            .min()
+            .filter(|&k| k < self.vademecum.modes())
+    }
+
     /// The vademecum's modes at `nodes` in node-major f32 ([`NodeMajorField`]): shared by
     /// every session of the bundle (made by the first that asks), so each session's frames do
     /// not keep a copy of their own (`3·modes·4` bytes per node: megabytes on an organ).

@@ -429,6 +429,19 @@ impl NodeMajorField {
         debug_assert_eq!(out.len(), 3 * self.nodes.len());
         eval_rows(&self.data, self.modes, coeffs, out);
     }
+
+    /// [`NodeMajorField::eval`] with the first `prefix` modes only (all when `prefix` is 0 or
+    /// at least the modes): the coarser field of a shorter vademecum, at `prefix / modes` of
+    /// the multiply-adds (each row's tail is skipped).
+    pub fn eval_prefix(&self, coeffs: &[f32], prefix: usize, out: &mut [f32]) {
+        if prefix == 0 || prefix >= self.modes {
+            return self.eval(coeffs, out);
+        }
+        debug_assert_eq!(out.len(), 3 * self.nodes.len());
+        for (o, row) in out.iter_mut().zip(self.data.chunks_exact(self.modes)) {
+            *o = dot(&row[..prefix], &coeffs[..prefix]);
+        }
+    }
 }
 
 /// The spatial modes at a set of nodes, node-major like [`NodeMajorField`] but quantised to

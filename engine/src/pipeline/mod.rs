@@ -158,6 +158,9 @@ impl Events {
     pub const TEARING: u32 = 512;
     /// The jaws opened on held tissue; the force fades (tearing effect).
     pub const RELEASED: u32 = 1024;
+    /// The session runs at its reduced fidelity ([`Fidelity::Reduced`]): it fell back to a
+    /// cheaper setting because its ticks came close to missing their deadline.
+    pub const REDUCED_FIDELITY: u32 = 2048;
 
     /// The flags that mark a happening rather than a state (a cut advanced, a stroke started,
     /// the tissue tore, the jaws took or let go): a tick that answers no client still
@@ -220,6 +223,20 @@ pub struct TickState {
     pub force_error_n: Option<f64>,
 }
 
+/// The fidelity an effect runs at: its scene's settings, or the cheaper setting a session falls
+/// back to under load (see the server's fidelity governor). A reduced setting is one the study
+/// measures: large deformations blend the lattice's nearest position instead of four (a
+/// quarter of the series evaluations, with an error estimate calibrated for it); the frames
+/// show a prefix of the modes (the server's side).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Fidelity {
+    /// The scene's settings.
+    #[default]
+    Full,
+    /// The cheaper fallback.
+    Reduced,
+}
+
 /// A simulated effect: one stage of the tick.
 pub trait Effect: Send {
     /// Short name (`"palpation"`, …) for logs and metrics.
@@ -233,6 +250,9 @@ pub trait Effect: Send {
     /// Forgets the state carried from tick to tick (the contact proxy): the next tick starts
     /// as if the tool had just appeared.
     fn reset(&mut self) {}
+    /// Runs the next ticks at `fidelity` (an effect with no cheaper setting ignores it). Must
+    /// not allocate: the tick thread calls it.
+    fn set_fidelity(&mut self, _fidelity: Fidelity) {}
 }
 
 /// Why a pipeline could not be assembled.
@@ -313,6 +333,8 @@ pub struct Pipeline {
     /// The co-rotational deformation (co-rotational cutting; taken once, by the session's
     /// frame thread).
     corotational: Option<corotational::CorotationalDeformation>,
+    /// The fidelity the effects run at.
+    fidelity: Fidelity,
 }
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
@@ -441,7 +463,25 @@ impl Pipeline {
             tear_offline,
             grasp_sites,
             corotational,
+            fidelity: Fidelity::Full,
         })
+    }
+
+    /// Runs the next ticks at `fidelity` ([`Fidelity`]): every effect switches to its cheaper
+    /// setting or back, and the ticks at [`Fidelity::Reduced`] carry
+    /// [`Events::REDUCED_FIDELITY`]. No allocation: the tick thread calls it.
+    pub fn set_fidelity(&mut self, fidelity: Fidelity) {
+        if fidelity != self.fidelity {
+            self.fidelity = fidelity;
+            for e in &mut self.effects {
+                e.set_fidelity(fidelity);
+            }
+        }
+    }
+
+    /// The fidelity the effects run at.
+    pub fn fidelity(&self) -> Fidelity {
+        self.fidelity
     }
 
     /// The co-rotational deformation the frame thread advances (co-rotational cutting,
@@ -542,6 +582,9 @@ impl Pipeline {
         }
         for e in &mut self.effects {
             e.tick(tool, &mut state);
+        }
+        if self.fidelity == Fidelity::Reduced {
+            state.events.0 |= Events::REDUCED_FIDELITY;
         }
         if !state.force_n.iter().all(|v| v.is_finite()) {
             state.force_n = [0.0; 3];

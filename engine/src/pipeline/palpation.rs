@@ -40,7 +40,7 @@
 
 use std::sync::Arc;
 
-use super::{Contact, Effect, Events, TickState, ToolInput};
+use super::{Contact, Effect, Events, Fidelity, TickState, ToolInput};
 use crate::contact::{Bounds, Proxy, Surface, Touch};
 use crate::pgd::Vademecum;
 use crate::pgd::offline::LoadedBundle;
@@ -54,8 +54,9 @@ struct Organ {
     proxy: Proxy,
     /// The support stiffness `k_w` (N/m).
     wall_stiffness: f64,
-    /// The lattice's interpolation rates (large deformations; empty otherwise).
-    rates: Vec<f64>,
+    /// The lattice's interpolation rates for its four-position blend and for its nearest
+    /// position alone (the reduced fidelity) (large deformations; empty otherwise).
+    rates: [Vec<f64>; 2],
 }
 
 /// The linear-deformation effect over one vademecum per organ.
@@ -65,6 +66,8 @@ pub struct Palpation {
     radius_m: f64,
     large: bool,
     scratch: Vec<f64>,
+    /// Lattice positions blended: [`NEIGHBOURS`], or 1 at the reduced fidelity.
+    neighbours: usize,
 }
 
 /// Lattice positions blended per evaluation (seed 001 §6.1 interpolates among four).
@@ -95,8 +98,8 @@ impl Organ {
         let bounds = Bounds::of(&bundle.nodes, &bundle.surface);
         let wall_stiffness = support_stiffness(&bundle.vademecum);
         let rates = match (&bundle.anm, large) {
-            (Some(lattice), true) => lattice.interpolation_rates(NEIGHBOURS),
-            _ => Vec::new(),
+            (Some(lattice), true) => [lattice.interpolation_rates(NEIGHBOURS), lattice.interpolation_rates(1)],
+            _ => [Vec::new(), Vec::new()],
         };
         Self {
             bundle,
@@ -154,6 +157,7 @@ impl Palpation {
             radius_m,
             large,
             scratch,
+            neighbours: NEIGHBOURS,
         }
     }
 }
@@ -170,7 +174,7 @@ impl Effect for Palpation {
             + self
                 .organs
                 .iter()
-                .map(|o| o.surface.heap_bytes() + crate::memory::vec_bytes(&o.rates))
+                .map(|o| o.surface.heap_bytes() + o.rates.iter().map(crate::memory::vec_bytes).sum::<usize>())
                 .sum::<usize>()
             + crate::memory::vec_bytes(&self.scratch)
     }
@@ -209,8 +213,9 @@ impl Effect for Palpation {
             && lambda > 0.0
             && let Some(lattice) = &o.bundle.anm
         {
-            let s = lattice.stiffness_ratio(point, touch.depth, NEIGHBOURS, &mut self.scratch);
-            error = norm(tissue) * s.error(&o.rates) + LINEAR_RELATIVE_ERROR * s.ratio * norm(tissue);
+            let s = lattice.stiffness_ratio(point, touch.depth, self.neighbours, &mut self.scratch);
+            let rates = &o.rates[usize::from(self.neighbours == 1)];
+            error = norm(tissue) * s.error(rates) + LINEAR_RELATIVE_ERROR * s.ratio * norm(tissue);
             tissue = tissue.map(|x| x * s.ratio);
             if s.extrapolated {
                 state.events.0 |= Events::BEYOND_RANGE;
@@ -237,5 +242,14 @@ impl Effect for Palpation {
         for o in &mut self.organs {
             o.proxy.release();
         }
+    }
+
+    /// At [`Fidelity::Reduced`] the large-deformation law takes the lattice's nearest position
+    /// alone (one series inversion instead of four); the linear law has no cheaper setting.
+    fn set_fidelity(&mut self, fidelity: Fidelity) {
+        self.neighbours = match fidelity {
+            Fidelity::Full => NEIGHBOURS,
+            Fidelity::Reduced => 1,
+        };
     }
 }

@@ -532,6 +532,24 @@ pub struct Fidelity {
     /// Settings of tearing (the damage reference, its POD and vademecum).
     #[serde(default)]
     pub tearing: TearingFidelity,
+    /// What a session does when its ticks come close to missing their deadline: `auto`
+    /// (default) falls back to a cheaper setting — the large-deformation law on the lattice's
+    /// nearest position, the frames on the fewest modes that meet 1e-2 — says so
+    /// (`EVENT_REDUCED_FIDELITY`, a metric) and returns when the load falls; `off` keeps the
+    /// scene's settings throughout (a quantitative recording).
+    #[serde(default)]
+    pub fallback: Fallback,
+}
+
+/// `fidelity.fallback`: whether a session under load falls back to a cheaper setting.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Fallback {
+    /// Fall back under load, return when it falls.
+    #[default]
+    Auto,
+    /// Keep the scene's settings.
+    Off,
 }
 
 /// One block of a tearing schedule: `steps` pseudo-time steps of `scale` times the organ's

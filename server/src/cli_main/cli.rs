@@ -353,6 +353,11 @@ pub struct ServeArgs {
     /// Pin tick worker k to CPU k.
     #[arg(long)]
     pub pin_tick_workers: bool,
+    /// Never fall back to a cheaper setting under load, whatever the scenes say (by default a
+    /// session whose ticks come close to their deadline runs its scene's reduced fidelity
+    /// until the load falls: `fidelity.fallback` in docs/scene-format.md).
+    #[arg(long)]
+    pub no_fidelity_fallback: bool,
     /// Ask SCHED_FIFO at this priority (1-99) for the tick workers; refused gracefully (and
     /// logged) when the OS does not permit it.
     #[arg(long, value_name = "PRIORITY", value_parser = clap::value_parser!(i32).range(1..=99))]
@@ -905,6 +910,18 @@ pub struct BenchLoadArgs {
     /// Also write the figures as JSON to this file.
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Threads of busy floating-point work beside the server (in this process) while the load
+    /// runs: a CPU hog, to show the sessions' fidelity fallback (their cheaper setting under
+    /// load, `fidelity.fallback`) and their return when it stops.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub hog: usize,
+    /// With --hog: stop the hog after this many seconds of the load (default: the whole run).
+    #[arg(long, value_name = "SECONDS")]
+    pub hog_seconds: Option<f64>,
+    /// Serve with --no-fidelity-fallback: the same load with the sessions kept at their
+    /// scenes' settings (the control of a fallback run).
+    #[arg(long)]
+    pub no_fidelity_fallback: bool,
 }
 
 /// Arguments of `vademecum bench load-client` (hidden).

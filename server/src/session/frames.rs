@@ -304,6 +304,9 @@ pub(super) struct FrameProducer {
     tear: Option<TearView>,
     walls: Option<WallGeometry>,
     fields: Vec<Arc<NodeMajorField>>,
+    /// Per organ, the modes its frames keep while the session runs reduced (0: all; see
+    /// [`super::fidelity`]).
+    fallback_modes: Vec<usize>,
     geometry: Arc<SurfaceGeometry>,
     latest: triple_buffer::Output<Latest>,
     tx: watch::Sender<Arc<Frame>>,
@@ -351,6 +354,10 @@ impl FrameProducer {
             .zip(&geometry.organs)
             .map(|(b, o)| b.surface_field(&o.nodes))
             .collect();
+        let fallback_modes = bundles
+            .iter()
+            .map(|b| b.modes_for_error(super::fidelity::FALLBACK_FIELD_ERROR).unwrap_or(0))
+            .collect();
         let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
         let scratch = Scratch {
             coeffs: bundles.iter().map(|b| vec![0.0; b.vademecum.modes()]).collect(),
@@ -364,6 +371,7 @@ impl FrameProducer {
             tear,
             walls: None,
             fields,
+            fallback_modes,
             geometry,
             latest,
             tx,
@@ -469,7 +477,13 @@ impl FrameProducer {
                 for (a, b) in s.c32[c.organ].iter_mut().zip(&s.coeffs[c.organ]) {
                     *a = *b as f32;
                 }
-                self.fields[c.organ].eval(&s.c32[c.organ], &mut frame.displacements_m[c.organ]);
+                // under load, the prefix of the modes that meets the fallback's field error
+                let prefix = if self.stats.reduced.load(Ordering::Relaxed) {
+                    self.fallback_modes[c.organ]
+                } else {
+                    0
+                };
+                self.fields[c.organ].eval_prefix(&s.c32[c.organ], prefix, &mut frame.displacements_m[c.organ]);
                 loaded = Some(c);
             }
         }

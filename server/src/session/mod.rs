@@ -34,6 +34,7 @@
 pub mod answers;
 pub mod demand;
 pub mod devices;
+pub mod fidelity;
 pub mod frames;
 pub mod memory;
 pub mod scheduler;
@@ -55,6 +56,7 @@ use vademecum_engine::contact::Bounds;
 use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pipeline::{GraspSite, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::schema::Fallback;
 use vademecum_proto::shm::{HapticChannel, OpenError};
 use workers::Placed;
 
@@ -185,6 +187,10 @@ pub struct SessionConfig {
     /// The answer workers that route the session's answers to its streams
     /// ([`answers::AnswerWorkers`]); `None`: a dispatcher thread of its own.
     pub answering: Option<Arc<AnswerWorkers>>,
+    /// Whether the session may fall back to its reduced fidelity under load ([`fidelity`]),
+    /// when its scene allows it (`fidelity.fallback = "auto"`, the default). `serve
+    /// --no-fidelity-fallback` turns it off for every session.
+    pub fallback: bool,
 }
 
 impl Default for SessionConfig {
@@ -199,6 +205,7 @@ impl Default for SessionConfig {
             devices: None,
             framing: None,
             answering: None,
+            fallback: true,
         }
     }
 }
@@ -358,6 +365,7 @@ impl Session {
             owed: 0,
             steps: 0,
             peer: None,
+            governor: fidelity::Governor::new(config.period, config.fallback && scene.spec.fidelity.fallback == Fallback::Auto),
         });
         let (done, tick_done) = mpsc::sync_channel(1);
         let tick_finished = Arc::new(AtomicBool::new(false));

@@ -15,7 +15,7 @@
 use std::sync::Mutex;
 
 use crossbeam_queue::ArrayQueue;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use hdrhistogram::Histogram;
 use serde::Serialize;
@@ -115,6 +115,12 @@ pub struct TickStats {
     pub corotational: CorotationalStats,
     /// Co-rotational frames that failed (the state kept).
     pub corotational_failures: AtomicU64,
+    /// Times the session fell back to its reduced fidelity ([`super::fidelity`]).
+    pub fallbacks: AtomicU64,
+    /// Whether it runs reduced now (the frames read it to take their prefix of the modes).
+    pub reduced: AtomicBool,
+    /// Periods it ran reduced.
+    pub reduced_ticks: AtomicU64,
     /// Everything merged so far (readers only).
     histograms: Mutex<Histograms>,
     /// A recorded set waiting for a reader.
@@ -142,6 +148,9 @@ impl Default for TickStats {
             tick_cpu_ns: AtomicU64::new(0),
             corotational: CorotationalStats::default(),
             corotational_failures: AtomicU64::new(0),
+            fallbacks: AtomicU64::new(0),
+            reduced: AtomicBool::new(false),
+            reduced_ticks: AtomicU64::new(0),
             histograms: Mutex::new(Histograms::default()),
             full: ArrayQueue::new(1),
             empty,
@@ -340,6 +349,8 @@ impl TickStats {
         StatsSnapshot {
             ticks: self.ticks.load(Ordering::Relaxed),
             misses: self.misses.load(Ordering::Relaxed),
+            fallbacks: self.fallbacks.load(Ordering::Relaxed),
+            reduced_ticks: self.reduced_ticks.load(Ordering::Relaxed),
             answered: self.answered.load(Ordering::Relaxed),
             rejected: self.rejected.load(Ordering::Relaxed),
             dropped: self.dropped.load(Ordering::Relaxed),
@@ -394,6 +405,10 @@ pub struct StatsSnapshot {
     pub ticks: u64,
     /// Deadline misses (a tick starting more than one period late).
     pub misses: u64,
+    /// Times the session fell back to its reduced fidelity.
+    pub fallbacks: u64,
+    /// Periods it ran reduced.
+    pub reduced_ticks: u64,
     /// Tool states answered.
     pub answered: u64,
     /// Tool states rejected.

@@ -6,7 +6,7 @@ use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use vademecum_bridge::peer::HapticPeer;
-use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
+use vademecum_engine::pipeline::{Events, Fidelity, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_PROBE, TOOL_SCALPEL};
 
 use super::answers::{AnswerRing, StreamId};
@@ -65,6 +65,8 @@ pub(super) struct TickLoop {
     /// The haptic channel of a session a device worker ticks (opened by whoever starts the
     /// loop; it goes back to the session's owner with the loop, and is closed there).
     pub peer: Option<HapticPeer>,
+    /// Falls back to the reduced fidelity under load ([`super::fidelity`]).
+    pub governor: super::fidelity::Governor,
 }
 
 /// A tick loop's clock and recordings: its next deadline, its period count, the current
@@ -264,10 +266,12 @@ impl TickLoop {
     fn deadline(&mut self, clock: &mut Clock, start: Instant, mut peer: Option<&mut HapticPeer>, arrived: Option<&HapticState>) -> bool {
         let period = self.period;
         let next = clock.next;
+        let mut late_ns = 0;
         if start >= next {
             // a deadline tick (not one woken early by the bridge)
             let late = start.saturating_duration_since(next);
-            Histograms::record(&mut clock.local.lateness, late.as_nanos() as u64);
+            late_ns = late.as_nanos() as u64;
+            Histograms::record(&mut clock.local.lateness, late_ns);
             if late > period {
                 self.stats.misses.fetch_add(1, Ordering::Relaxed);
             }
@@ -354,6 +358,7 @@ impl TickLoop {
         let work = start.elapsed().as_nanos() as u64 + std::mem::take(&mut clock.this.work_ns);
         Histograms::record(&mut clock.local.work, work);
         clock.work_total_ns += work;
+        self.govern(late_ns + work);
         let mut next = match peer.as_deref() {
             Some(p) => p.next_deadline(next, start, arrived.is_some()),
             None => next + period,
@@ -364,6 +369,22 @@ impl TickLoop {
         }
         clock.next = next;
         true
+    }
+
+    /// Gives the period's pressure (its lateness and work, ns) to the fidelity governor and
+    /// switches the pipeline and the frames when it says so: a field write and atomics.
+    fn govern(&mut self, pressure_ns: u64) {
+        if let Some(f) = self.governor.observe(pressure_ns) {
+            self.pipeline.set_fidelity(f);
+            let reduced = f == Fidelity::Reduced;
+            if reduced {
+                self.stats.fallbacks.fetch_add(1, Ordering::Relaxed);
+            }
+            self.stats.reduced.store(reduced, Ordering::Relaxed);
+        }
+        if self.governor.reduced() {
+            self.stats.reduced_ticks.fetch_add(1, Ordering::Relaxed);
+        }
     }
 
     /// Closes the answers (an atomic and a wake-up: the dispatcher delivers what is left and

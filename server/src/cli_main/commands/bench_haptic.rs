@@ -136,7 +136,7 @@ where
 }
 
 /// Busy floating-point work until `stop`.
-fn hog(stop: Arc<AtomicBool>) {
+pub(super) fn hog(stop: Arc<AtomicBool>) {
     let mut x = 1.000_001f64;
     while !stop.load(Ordering::Relaxed) {
         for _ in 0..10_000 {

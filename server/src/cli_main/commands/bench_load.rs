@@ -98,6 +98,13 @@ struct Report {
     /// The sessions driven by device bridges (`--haptic`).
     #[serde(skip_serializing_if = "Option::is_none")]
     haptic: Option<HapticReport>,
+    /// Threads of the CPU hog (`--hog`), and how long it ran (s).
+    hog_threads: usize,
+    hog_seconds: f64,
+    /// The sessions' fidelity fallbacks (`SessionStats.fidelity_fallbacks`, summed), and the
+    /// share of their ticks at the reduced fidelity.
+    fidelity_fallbacks: u64,
+    reduced_tick_pct: f64,
     /// What the chaos did (`--chaos-every`).
     #[serde(skip_serializing_if = "Option::is_none")]
     chaos: Option<ChaosReport>,
@@ -162,6 +169,9 @@ struct Window {
     haptic_sessions_miss_pct: Option<f64>,
     /// Clients killed in the window.
     kills: u64,
+    /// Sessions at their reduced fidelity at the window's end, and fallbacks in the window.
+    sessions_reduced: usize,
+    fallbacks: u64,
 }
 
 /// The chaos of a run.
@@ -216,6 +226,9 @@ impl Server {
         }
         if let Some(us) = a.server_wake_latency_us {
             cmd.args(["--wake-latency-us", &us.to_string()]);
+        }
+        if a.no_fidelity_fallback {
+            cmd.arg("--no-fidelity-fallback");
         }
         if a.haptic > 0 {
             cmd.args(["--haptic-wait", &a.haptic_wait.to_string()]);
@@ -414,6 +427,11 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             );
         }
     }
+    if let Some(h) = a.hog_seconds
+        && !(h >= 0.0 && h.is_finite())
+    {
+        bail!("--hog-seconds must be a non-negative number of seconds, got {h}");
+    }
     let chaos_sessions = if a.chaos_every.is_some() { a.chaos_clients } else { 0 };
     if chaos_sessions + a.haptic > a.sessions {
         bail!(
@@ -510,7 +528,21 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         let (mut next_window, mut windows, mut kills) = (wall + window, Vec::new(), 0);
         let mut next_kill = a.chaos_every.map(|e| wall + window + Duration::from_secs_f64(e));
         let mut before = sample(&sessions, &null_counts).await?;
+        // the CPU hog, beside the server, for --hog-seconds of the load
+        let hog_stop = Arc::new(AtomicBool::new(false));
+        let hogs: Vec<_> = (0..a.hog)
+            .map(|_| {
+                let s = hog_stop.clone();
+                std::thread::spawn(move || super::bench_haptic::hog(s))
+            })
+            .collect();
+        let hog_end = wall + Duration::from_secs_f64(a.hog_seconds.unwrap_or(a.seconds).min(a.seconds));
+        let mut hog_ran = if a.hog > 0 { None } else { Some(0.0) };
         while Instant::now() < end {
+            if hog_ran.is_none() && Instant::now() >= hog_end {
+                hog_stop.store(true, Ordering::Relaxed);
+                hog_ran = Some(wall.elapsed().as_secs_f64());
+            }
             tokio::time::sleep(Duration::from_millis(250).min(end.saturating_duration_since(Instant::now()))).await;
             progress.set_position(wall.elapsed().as_secs());
             if let (Some(c), Some(t)) = (&mut chaos, next_kill)
@@ -539,6 +571,11 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             }
         }
         progress.finish_and_clear();
+        hog_stop.store(true, Ordering::Relaxed);
+        let hog_seconds = hog_ran.unwrap_or_else(|| wall.elapsed().as_secs_f64());
+        for h in hogs {
+            let _ = h.join();
+        }
         let cpu = match (cpu0, server.cpu()) {
             (Some(a0), Some(a1)) => (a1 - a0).as_secs_f64() / wall.elapsed().as_secs_f64(),
             _ => f64::NAN,
@@ -592,10 +629,12 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             echo_server.stop().await;
         }
         let (mut ticks, mut misses, mut worst_rate, mut worst_work) = (0, 0, 0.0f64, 0.0f64);
-        let mut memory = 0;
+        let (mut memory, mut fallbacks, mut reduced_ticks) = (0, 0, 0);
         for s in sessions {
             let st = s.close().await?;
             memory += st.memory_bytes;
+            fallbacks += st.fidelity_fallbacks;
+            reduced_ticks += st.reduced_ticks;
             ticks += st.ticks;
             misses += st.deadline_misses;
             worst_rate = worst_rate.max(st.deadline_misses as f64 / st.ticks.max(1) as f64);
@@ -633,6 +672,10 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             states_in_flight_at_kill: in_flight,
             windows,
             haptic: (a.haptic > 0).then(|| HapticReport::of(&haptic_stats, &a, bridge_kills)),
+            hog_threads: a.hog,
+            hog_seconds,
+            fidelity_fallbacks: fallbacks,
+            reduced_tick_pct: 100.0 * reduced_ticks as f64 / ticks.max(1) as f64,
             chaos: chaos.map(|c| ChaosReport {
                 clients: chaos_sessions,
                 every_s: a.chaos_every.unwrap_or(0.0),
@@ -660,22 +703,27 @@ struct Groups {
     haptic: usize,
 }
 
-/// The counts a window is measured between: each session's ticks and misses, the null loop's.
+/// The counts a window is measured between: each session's ticks and misses, the null loop's;
+/// each session's fallbacks and whether it runs reduced.
 struct Sample {
     sessions: Vec<(u64, u64)>,
     null: (u64, u64),
+    fidelity: Vec<(u64, bool)>,
 }
 
 /// Samples every session's statistics (over gRPC) and the null loop's counts.
 async fn sample(sessions: &[vademecum_client::Session], null: &NullCounts) -> anyhow::Result<Sample> {
     let mut counts = Vec::with_capacity(sessions.len());
+    let mut fidelity = Vec::with_capacity(sessions.len());
     for s in sessions {
         let st = s.stats().await.with_context(|| format!("the statistics of session {}", s.id()))?;
         counts.push((st.ticks, st.deadline_misses));
+        fidelity.push((st.fidelity_fallbacks, st.fidelity_reduced));
     }
     Ok(Sample {
         sessions: counts,
         null: (null.ticks.load(Ordering::Relaxed), null.misses.load(Ordering::Relaxed)),
+        fidelity,
     })
 }
 
@@ -701,6 +749,13 @@ impl Sample {
             chaos_sessions_miss_pct: (chaos > 0).then(|| pct(delta(0..chaos))),
             haptic_sessions_miss_pct: (first_haptic < n).then(|| pct(delta(first_haptic..n))),
             kills,
+            sessions_reduced: self.fidelity.iter().filter(|f| f.1).count(),
+            fallbacks: self
+                .fidelity
+                .iter()
+                .zip(&before.fidelity)
+                .map(|(a, b)| a.0.saturating_sub(b.0))
+                .sum(),
         }
     }
 }
@@ -755,6 +810,20 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
     )?;
     writeln!(
         out,
+        "fidelity: {} fallback(s) to the reduced setting; {:.2} % of the sessions' ticks ran reduced{}",
+        r.fidelity_fallbacks,
+        r.reduced_tick_pct,
+        if r.hog_threads > 0 {
+            format!(
+                " (a CPU hog of {} thread(s) ran for the first {:.0} s)",
+                r.hog_threads, r.hog_seconds
+            )
+        } else {
+            String::new()
+        }
+    )?;
+    writeln!(
+        out,
         "tool states: {} sent = {} answered + {} refused + {} in flight when a client was killed + {} lost; {} frames to viewers",
         r.states_sent, r.states_answered, r.states_refused, r.states_in_flight_at_kill, r.states_lost, r.frames_received
     )?;
@@ -806,21 +875,23 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
     if r.windows.len() > 1 {
         writeln!(
             out,
-            "| t (s) | RSS (MiB) | null loop misses | sessions' misses | chaos sessions' misses | device sessions' misses | kills |"
+            "| t (s) | RSS (MiB) | null loop misses | sessions' misses | chaos sessions' misses | device sessions' misses | kills | fallbacks | sessions reduced |"
         )?;
-        writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|")?;
+        writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
         let opt = |p: Option<f64>| p.map_or("—".into(), |p| format!("{p:.3} %"));
         for w in &r.windows {
             writeln!(
                 out,
-                "| {:.0} | {:.1} | {:.3} % | {:.3} % | {} | {} | {} |",
+                "| {:.0} | {:.1} | {:.3} % | {:.3} % | {} | {} | {} | {} | {} |",
                 w.t_s,
                 w.server_rss_mib,
                 w.null_miss_pct,
                 w.sessions_miss_pct,
                 opt(w.chaos_sessions_miss_pct),
                 opt(w.haptic_sessions_miss_pct),
-                w.kills
+                w.kills,
+                w.fallbacks,
+                w.sessions_reduced
             )?;
         }
         let (first, last) = (&r.windows[0], &r.windows[r.windows.len() - 1]);

@@ -39,6 +39,10 @@ struct Summary {
     tick_rate_hz: f64,
     deadline_misses: u64,
     miss_rate: f64,
+    /// Times the session fell back to its reduced fidelity under load, and the ticks it ran
+    /// reduced (the forces of those ticks carry `REDUCED_FIDELITY` in their events).
+    fidelity_fallbacks: u64,
+    reduced_ticks: u64,
     tick_work_us: Percentiles,
     tick_lateness_us: Percentiles,
     peak_force_n: f64,
@@ -562,6 +566,8 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         tick_rate_hz: 1.0 / period_s,
         deadline_misses: stats.misses,
         miss_rate: stats.misses as f64 / stats.ticks.max(1) as f64,
+        fidelity_fallbacks: stats.fallbacks,
+        reduced_ticks: stats.reduced_ticks,
         tick_work_us: stats.work_us,
         tick_lateness_us: stats.lateness_us,
         peak_force_n: peak,
@@ -593,6 +599,15 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             s.deadline_misses,
             100.0 * s.miss_rate
         )?;
+        if s.fidelity_fallbacks > 0 {
+            writeln!(
+                out,
+                "  fidelity       fell back {} time(s) under load: {} ticks ({:.1} %) at the reduced setting (fidelity.fallback)",
+                s.fidelity_fallbacks,
+                s.reduced_ticks,
+                100.0 * s.reduced_ticks as f64 / s.ticks.max(1) as f64
+            )?;
+        }
         let p = |x: &Percentiles| {
             format!(
                 "p50 {:.1} µs, p99 {:.1} µs, p99.9 {:.1} µs, max {:.1} µs",

@@ -99,6 +99,10 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         frame_workers: crate::session::FrameWorkersConfig {
             workers: a.frame_workers.unwrap_or(crate::session::FrameWorkersConfig::default().workers),
         },
+        session: crate::session::SessionConfig {
+            fallback: !a.no_fidelity_fallback,
+            ..ServerConfig::default().session
+        },
         ..ServerConfig::default()
     };
     // held while the server runs (released when dropped)
