@@ -768,7 +768,7 @@ fn study_sweeps_modes_and_storage_marks_the_front_and_resumes() {
 }
 
 #[test]
-fn build_target_error_keeps_the_fewest_modes_that_meet_it_or_refuses() {
+fn build_targets_keep_the_fewest_modes_that_meet_them_or_refuse() {
     let dir = tempfile::tempdir().unwrap();
     let scene = coarse_organ(dir.path());
     let s = scene.to_str().unwrap();
@@ -797,4 +797,23 @@ fn build_target_error_keeps_the_fewest_modes_that_meet_it_or_refuses() {
         stderr(&o)
     );
     assert!(!dir.path().join("b2").exists());
+    // a frame-time target: met by any build when generous, refused with what fits when no
+    // frame can be that fast (a femtosecond), nothing written
+    let o = vademecum(
+        &["build", s, "--out", "b3", "--target-error", "1e-2", "--target-tick-us", "1e6"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert!(stderr(&o).contains("within --target-tick-us"), "{}", stderr(&o));
+    assert!(dir.path().join("b3").exists());
+    let o = vademecum(&["build", s, "--out", "b4", "--target-tick-us", "1e-9"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("over --target-tick-us"), "{}", stderr(&o));
+    assert!(!dir.path().join("b4").exists());
+    let o = vademecum(&["build", s, "--out", "b5", "--target-tick-us=-3"], dir.path());
+    assert!(
+        !o.status.success() && stderr(&o).contains("--target-tick-us must be"),
+        "{}",
+        stderr(&o)
+    );
 }

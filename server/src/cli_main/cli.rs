@@ -223,6 +223,14 @@ pub struct BuildArgs {
     /// whole trade-off.
     #[arg(long, value_name = "E")]
     pub target_error: Option<f64>,
+    /// Also require the online cost that depends on the modes — the surface displacement
+    /// field of one frame, timed here on 64 real contacts (p50) — to be at most T µs: keep the
+    /// fewest modes meeting the error target (E, or the scene's tolerance) if they do; refuse
+    /// (exit 1, no bundle written) saying how many modes and what error fit within T when they
+    /// do not. The haptic force costs the same at every number of modes (exact local
+    /// compliances).
+    #[arg(long, value_name = "T")]
+    pub target_tick_us: Option<f64>,
     /// Print the build report as JSON on stdout.
     #[arg(long)]
     pub json: bool,

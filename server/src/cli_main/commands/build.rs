@@ -93,6 +93,42 @@ pub(crate) fn ensure_bundles(scene: &Scene, dir: &Path) -> anyhow::Result<Vec<Ar
     Ok(out)
 }
 
+/// Frames timed per prefix by `--target-tick-us`.
+const TIMED_FRAMES: usize = 400;
+
+/// Whether the kept modes of `built` evaluate a frame within `target_us` (their p50, µs), or
+/// why not: their time, and the most modes of the build's error curve that fit, with their
+/// error.
+fn within_tick(built: &offline::Built, target_us: f64) -> anyhow::Result<Result<f64, String>> {
+    let v = &built.vademecum;
+    let frames = super::study::Frames::of(v, &built.model.boundary.triangles())?;
+    let kept = v.modes();
+    let p50 = frames.p50_us(v, kept, TIMED_FRAMES);
+    if p50 <= target_us {
+        return Ok(Ok(p50));
+    }
+    // the most modes within the target: the frame's cost grows with the modes
+    let mut fit = None;
+    for &(k, e) in built.report.error_curve.iter().rev().filter(|&&(k, _)| k < kept) {
+        let t = frames.p50_us(v, k, TIMED_FRAMES);
+        if t <= target_us {
+            fit = Some((k, e, t));
+            break;
+        }
+    }
+    let r = &built.report;
+    Ok(Err(match fit {
+        Some((k, e, t)) => format!(
+            "the {kept} modes that meet the error target {:.1e} take {p50:.1} µs per frame (p50), over --target-tick-us {target_us}; within it the most is {k} modes ({t:.1} µs) at error {e:.3e}: ask --target-error {e:.1e} for them",
+            r.tolerance
+        ),
+        None => format!(
+            "the {kept} modes that meet the error target {:.1e} take {p50:.1} µs per frame (p50), over --target-tick-us {target_us}, and no prefix the build measured fits within it",
+            r.tolerance
+        ),
+    }))
+}
+
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
@@ -103,6 +139,12 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     if let Some(e) = a.target_error {
         anyhow::ensure!(e > 0.0 && e < 1.0, "--target-error must lie in (0, 1), got {e}");
         opts.tolerance = e;
+    }
+    if let Some(t) = a.target_tick_us {
+        anyhow::ensure!(
+            t > 0.0 && t.is_finite(),
+            "--target-tick-us must be a positive number of µs, got {t}"
+        );
     }
     let mut reports = Vec::new();
     let mut stdout = std::io::stdout().lock();
@@ -120,6 +162,18 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             );
             return Ok(ExitCode::FAILURE);
         }
+        let mut frame_p50 = None;
+        if let Some(t) = a.target_tick_us {
+            bar.stage("timing the frames");
+            match within_tick(&built, t)? {
+                Ok(p50) => frame_p50 = Some((p50, t)),
+                Err(why) => {
+                    bar.finish();
+                    eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
+                    return Ok(ExitCode::FAILURE);
+                }
+            }
+        }
         bar.stage("writing bundle");
         let dir = out.join(format!("{name}.bundle"));
         offline::write_bundle(&dir, &scene, &built).with_context(|| format!("cannot write bundle {}", dir.display()))?;
@@ -128,6 +182,12 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             eprintln!(
                 "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
                 r.modes, r.greedy.modes, r.error
+            );
+        }
+        if let Some((p50, t)) = frame_p50 {
+            eprintln!(
+                "organ '{name}': its {} modes (error {:.3e}) take {p50:.1} µs per frame (p50 on this machine), within --target-tick-us {t}",
+                r.modes, r.error
             );
         }
         if !a.json {

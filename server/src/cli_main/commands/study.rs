@@ -19,6 +19,7 @@ use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
+use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
 use vademecum_engine::scene::Scene;
@@ -132,18 +133,18 @@ fn build(a: &StudyArgs, scene: &Scene, out: &Path) -> anyhow::Result<(BuildRecor
 
 /// What a frame evaluates: the surface nodes, and the mode coefficients (f32, every mode) of
 /// 64 real contacts — a unit force at random points of the loadable surface.
-struct Frames {
+pub(super) struct Frames {
     nodes: Vec<usize>,
     coeffs: Vec<Vec<f32>>,
 }
 
 impl Frames {
-    fn of(b: &LoadedBundle) -> anyhow::Result<Self> {
-        let v = &b.vademecum;
-        let mut nodes: Vec<usize> = b.surface.iter().flatten().copied().collect();
+    /// The frames of vademecum `v` on the boundary `surface`.
+    pub(super) fn of(v: &Vademecum, surface: &[[usize; 3]]) -> anyhow::Result<Self> {
+        let mut nodes: Vec<usize> = surface.iter().flatten().copied().collect();
         nodes.sort_unstable();
         nodes.dedup();
-        let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
+        let tris: Vec<[usize; 3]> = surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
         if tris.is_empty() {
             bail!("the bundle has no surface triangle whose three nodes are loadable");
         }
@@ -159,6 +160,20 @@ impl Frames {
             })
             .collect();
         Ok(Self { nodes, coeffs })
+    }
+
+    /// The p50 time (µs) of one frame's surface field with the first `modes` modes of `v`
+    /// stored node-major in f32 (what a session's frames evaluate), over `repeat` frames.
+    pub(super) fn p50_us(&self, v: &Vademecum, modes: usize, repeat: usize) -> f64 {
+        let field = NodeMajorField::from_mode_major(v.f_raw(), v.n_nodes(), modes, &self.nodes);
+        let mut out = vec![0.0f32; 3 * self.nodes.len()];
+        let mut i = 0;
+        let times = time_n(repeat, || {
+            i = (i + 1) % self.coeffs.len();
+            field.eval(&self.coeffs[i][..modes], &mut out);
+            out[0] as f64
+        });
+        stat("frame", times).p50_us
     }
 }
 
@@ -288,7 +303,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         .unwrap_or_else(|| PathBuf::from("out").join(&scene_name).join("study"));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create {}", out.display()))?;
     let (rec, bundle) = build(&a, &scene, &out)?;
-    let frames = Frames::of(&bundle)?;
+    let frames = Frames::of(&bundle.vademecum, &bundle.surface)?;
 
     // resume: the points already measured on this build
     let points_path = out.join("points.jsonl");
