@@ -33,8 +33,12 @@ pub struct Sample {
     pub point_m: [f64; 3],
     /// The press's depth (m).
     pub depth_m: f64,
-    /// Whether the served law was extrapolated past the lattice's paths (large only).
+    /// Whether the served law was extrapolated past the paths of a lattice position it blends
+    /// (large only).
     pub beyond_range: bool,
+    /// Whether the state's force is within the lattice's (`max_force`; large only: the full
+    /// model is pushed [`PAST_THE_LATTICE`] times past it). Linear: always.
+    pub within_force: bool,
     /// The served value: the force magnitude (N, linear) or the nonlinear-to-linear ratio
     /// (large; the force is the ratio times the exact linear force, so relative errors agree).
     pub served: f64,
@@ -174,6 +178,7 @@ pub fn linear_samples(model: &OrganModel, bundle: &LoadedBundle, count: usize) -
             point_m,
             depth_m: depth,
             beyond_range: false,
+            within_force: true,
             served: norm(served),
             truth: norm(truth),
             error: norm([0, 1, 2].map(|k| served[k] - truth[k])),
@@ -206,16 +211,40 @@ pub fn large_samples(
     lattice: &AnmLattice,
     params: &AnmLatticeParams,
     nodes: usize,
-    mut progress: impl FnMut(usize, usize),
+    progress: impl FnMut(usize, usize),
 ) -> Result<Vec<Sample>, StudyError> {
+    let exclude: Vec<usize> = lattice.positions.iter().map(|p| p.node).collect();
+    let laws = newton_laws(
+        model,
+        &AnmLatticeParams {
+            max_force: lattice.max_force,
+            ..*params
+        },
+        &exclude,
+        nodes,
+        progress,
+    )?;
+    Ok(served(lattice, &laws, NEIGHBOURS))
+}
+
+/// The full model's force–depth laws ([`NewtonLaw`]) at `nodes` surface nodes drawn at random
+/// (repeatably) among the loadable nodes not in `exclude`, with a lattice position's load
+/// (`params`) pushed [`PAST_THE_LATTICE`] times past its force. `progress(done, total)` after
+/// each node; nodes where Newton converges no step are skipped.
+pub fn newton_laws(
+    model: &OrganModel,
+    params: &AnmLatticeParams,
+    exclude: &[usize],
+    nodes: usize,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Vec<NewtonLaw>, StudyError> {
     let Some(laws) = &model.laws else {
         return Err(StudyError::Unsupported("the organ's materials are not hyperelastic".into()));
     };
-    let rates = lattice.interpolation_rates(NEIGHBOURS);
     let normals = surface_normals(model);
     let mut pool: Vec<usize> = loadable_nodes(model, &normals)
         .into_iter()
-        .filter(|n| !lattice.positions.iter().any(|p| p.node == *n))
+        .filter(|n| !exclude.contains(n))
         .collect();
     let mut rng = Rng(0x1A77_1CE5_EED5);
     let mut chosen = Vec::new();
@@ -223,35 +252,44 @@ pub fn large_samples(
         chosen.push(pool.swap_remove((rng.next() % pool.len() as u64) as usize));
     }
     let past = AnmLatticeParams {
-        max_force: PAST_THE_LATTICE * lattice.max_force,
+        max_force: PAST_THE_LATTICE * params.max_force,
         load_steps: (PAST_THE_LATTICE * params.load_steps as f64).ceil() as usize,
         ..*params
     };
+    let mut out = Vec::with_capacity(chosen.len());
+    for (done, &node) in chosen.iter().enumerate() {
+        match NewtonLaw::at(model, laws, &past, node) {
+            Ok(law) => out.push(law),
+            Err(StudyError::Newton(_)) => {}
+            Err(e) => return Err(e),
+        }
+        progress(done + 1, chosen.len());
+    }
+    Ok(out)
+}
+
+/// Every state of `laws` served by `lattice` blending its `k` nearest positions, with the error
+/// estimate a session attaches (the lattice's own leave-one-out rates for `k`).
+pub fn served(lattice: &AnmLattice, laws: &[NewtonLaw], k: usize) -> Vec<Sample> {
+    let rates = lattice.interpolation_rates(k);
     let mut zeta = vec![0.0; lattice.max_modes()];
     let mut out = Vec::new();
-    for (done, &node) in chosen.iter().enumerate() {
-        let law = match NewtonLaw::at(model, laws, &past, node) {
-            Ok(law) => law,
-            Err(StudyError::Newton(_)) => {
-                progress(done + 1, chosen.len());
-                continue;
-            }
-            Err(e) => return Err(e),
-        };
-        for (depth, truth) in law.ratios() {
-            let s = lattice.stiffness_ratio(law.point, depth, NEIGHBOURS, &mut zeta);
+    for law in laws {
+        for &(lambda, depth) in law.steps.iter().filter(|&&(_, d)| d > 0.0) {
+            let truth = lambda * law.d_linear / depth;
+            let s = lattice.stiffness_ratio(law.point, depth, k, &mut zeta);
             out.push(Sample {
                 model: "large",
                 point_m: law.point,
                 depth_m: depth,
                 beyond_range: s.extrapolated,
+                within_force: lambda * PAST_THE_LATTICE <= 1.0 + 1e-9,
                 served: s.ratio,
                 truth,
                 error: (s.ratio - truth).abs(),
                 estimate: s.error(&rates),
             });
         }
-        progress(done + 1, chosen.len());
     }
-    Ok(out)
+    out
 }

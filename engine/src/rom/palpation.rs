@@ -99,15 +99,23 @@ pub struct Stiffening {
     pub extrapolated: bool,
     /// The distance from the point to the nearest lattice position (m).
     pub nearest_m: f64,
-    /// The positions blended (indices into [`AnmLattice::positions`]): the first `count`.
+    /// The nearest positions (indices into [`AnmLattice::positions`], nearest first): the first
+    /// `count` — those blended, and at least [`RATE_NEIGHBOURHOOD`], whose interpolation rates
+    /// the error estimate takes.
     pub blended: [usize; 8],
-    /// How many positions were blended.
+    /// How many of `blended` are set.
     pub count: usize,
     /// The uncertainty of the ratio past the paths' ends: the largest over the neighbours
     /// blended whose path ended before this depth (0 within the paths) of
     /// `max(|s_i(δ) − s_i(d_end)|, |1 − s_i(d_end)| (δ − d_end) / d_end)`.
     pub beyond: f64,
 }
+
+/// The positions around a contact whose interpolation rates its error estimate takes (the
+/// largest), however many it blends: one position's own rate is one leave-one-out draw, and a
+/// contact at the reduced fidelity (the nearest position alone) is no better known than one
+/// blending four.
+pub const RATE_NEIGHBOURHOOD: usize = 4;
 
 /// The relative error of a lattice position's own ANM-POD path against full Newton at the same
 /// position: the floor of [`Stiffening::error`]. The lattice test holds the path's load factor
@@ -127,7 +135,7 @@ impl Stiffening {
     ///
     /// `e = rate · |1 − s| · dist + beyond + PATH_RELATIVE_ERROR · s`,
     ///
-    /// with `rate` the largest of the blended positions' [`AnmLattice::interpolation_rates`]
+    /// with `rate` the largest of the nearest positions' [`AnmLattice::interpolation_rates`]
     /// (1/m): the interpolated nonlinear correction `1 − s` is uncertain in proportion to the
     /// distance to the nearest position whose path was computed, and past the paths the
     /// correction may keep growing at the rate it grew along them ([`Stiffening::beyond`]).
@@ -366,13 +374,16 @@ impl AnmLattice {
         // the k nearest, by insertion into a small fixed array (no allocation)
         let mut best = [(f64::INFINITY, usize::MAX); 8];
         let k = k.clamp(1, best.len()).min(usable);
+        // the neighbourhood whose rates the error estimate takes: at least the four nearest,
+        // whatever the blend
+        let hood = k.max(RATE_NEIGHBOURHOOD.min(usable));
         for (i, p) in self.positions.iter().enumerate() {
             if Some(i) == skip {
                 continue;
             }
             let d = dist2(p.point, point);
-            if d < best[k - 1].0 {
-                let mut j = k - 1;
+            if d < best[hood - 1].0 {
+                let mut j = hood - 1;
                 while j > 0 && best[j - 1].0 > d {
                     best[j] = best[j - 1];
                     j -= 1;
@@ -394,7 +405,7 @@ impl AnmLattice {
                     extrapolated: ex,
                     nearest_m,
                     blended,
-                    count: 1,
+                    count: hood,
                     beyond,
                 };
             }
@@ -408,7 +419,7 @@ impl AnmLattice {
             extrapolated,
             nearest_m,
             blended,
-            count: k,
+            count: hood,
             beyond: beyond_max,
         }
     }

@@ -94,11 +94,20 @@ and measure each: one build at --tolerance measures the error of every prefix of
 the exact parametric solution (relative L2 over all load states); each prefix, with its modes stored \
 in f32 or quantised to i16, is a point whose online cost (the surface displacement field of one frame, \
 p50 and p99 beside a null loop) and offline cost (bundle bytes, build time) are measured.\n\n\
+Then it checks the error estimate every answer carries (ToolResponse.force_error_n) against the full \
+model: --estimate-points random contacts of the linear law against the full model's compliance, and, \
+for a scene with large deformations, full Newton at --estimate-nodes surface nodes off the lattice \
+pushed 1.5 times past its force. Exit status 1 when it bounds fewer than 95 % of the states.\n\n\
+With large deformations it also sweeps the lattice: a quarter, half, one and two times \
+fidelity.large.positions, blending 1 or 4 positions per contact; each point's force error against \
+full Newton off the lattice, the estimate's coverage, the law's cost per tick, its build time and \
+bundle bytes.\n\n\
 Writes <OUT>/study.csv, study.json, error_vs_online.svg and error_vs_bundle.svg (the Pareto front \
-marked) and verdict.txt (the cheapest point meeting the scene's fidelity.pgd.tolerance). Resumable: \
-a second run reuses the build (same scene and tolerance) and the points already measured.\n\n\
-This version sweeps the PGD vademecum (modes, storage); the contact force comes from exact local \
-compliances and has no mode error. Default OUT: out/<scene name>/study."
+marked), estimate.csv and estimate_vs_error.svg, lattice.csv and lattice_error_vs_tick.svg (large \
+deformations) and verdict.txt. Resumable: a second run reuses the build (same scene and tolerance), \
+the points already measured, the estimate's check and the lattice sweep.\n\n\
+The contact force comes from exact local compliances and has no mode error. Default OUT: \
+out/<scene name>/study."
     )]
     Study(StudyArgs),
     /// Run the numerical self-checks (the hard-case suite).

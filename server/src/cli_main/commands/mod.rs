@@ -25,6 +25,7 @@ mod serve;
 mod solve;
 mod study;
 mod study_estimate;
+mod study_lattice;
 
 use std::process::ExitCode;
 

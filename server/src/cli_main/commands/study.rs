@@ -76,7 +76,7 @@ fn fnv(text: &str) -> String {
 }
 
 /// Marks the points no other point beats in both `cost` and error (ties kept).
-fn pareto(points: &[(f64, f64)]) -> Vec<bool> {
+pub(super) fn pareto(points: &[(f64, f64)]) -> Vec<bool> {
     points
         .iter()
         .map(|&(c, e)| !points.iter().any(|&(c2, e2)| c2 <= c && e2 <= e && (c2 < c || e2 < e)))
@@ -268,14 +268,24 @@ fn plot(
             .label(format!("modes stored in {storage}"))
             .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
     }
-    let mut f: Vec<(f64, f64)> = points
+    let f: Vec<(f64, f64)> = points
         .iter()
         .filter(|p| front(p))
         .map(|p| (cost(p), p.field_error.max(1e-16)))
         .collect();
-    f.sort_by(|a, b| a.0.total_cmp(&b.0));
+    draw_front(&mut chart, f)?;
+    root.present()?;
+    Ok(())
+}
+
+/// Draws the Pareto front `front` (its points, in any order) as a line, and the legend.
+pub(super) fn draw_front<'a>(
+    chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>,
+    mut front: Vec<(f64, f64)>,
+) -> anyhow::Result<()> {
+    front.sort_by(|a, b| a.0.total_cmp(&b.0));
     chart
-        .draw_series(LineSeries::new(f, BLACK.stroke_width(2)))?
+        .draw_series(LineSeries::new(front, BLACK.stroke_width(2)))?
         .label("Pareto front")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
     chart
@@ -284,7 +294,6 @@ fn plot(
         .background_style(WHITE.mix(0.9))
         .border_style(BLACK)
         .draw()?;
-    root.present()?;
     Ok(())
 }
 
@@ -335,6 +344,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     }
     bar.finish_and_clear();
     let estimate = super::study_estimate::check(&scene, &bundle, &rec.key, a.estimate_points, a.estimate_nodes, &out)?;
+    let lattice = super::study_lattice::sweep(&scene, &rec.key, a.estimate_nodes, &out)?;
 
     let mut points: Vec<Point> = done.into_values().collect();
     points.sort_by(|a, b| (a.storage.as_str(), a.modes).cmp(&(b.storage.as_str(), b.modes)));
@@ -368,7 +378,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     std::fs::write(
         out.join("study.json"),
         serde_json::to_string_pretty(
-            &serde_json::json!({ "scene": scene_name, "build": rec, "points": points, "estimate": estimate.coverage }),
+            &serde_json::json!({ "scene": scene_name, "build": rec, "points": points, "estimate": estimate.coverage, "lattice": lattice }),
         )?,
     )?;
     plot(
@@ -440,10 +450,22 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         rec.load_states,
         super::study_estimate::verdict(&estimate)
     );
+    let verdict = match &lattice {
+        Some(l) => format!(
+            "{verdict} {}",
+            super::study_lattice::verdict(l, scene.spec.fidelity.large.positions)
+        ),
+        None => verdict,
+    };
     writeln!(
         o,
-        "\n{verdict}\n\nwritten: {}/study.csv, study.json, error_vs_online.svg, error_vs_bundle.svg, estimate.csv, estimate_vs_error.svg",
-        out.display()
+        "\n{verdict}\n\nwritten: {}/study.csv, study.json, error_vs_online.svg, error_vs_bundle.svg, estimate.csv, estimate_vs_error.svg{}",
+        out.display(),
+        if lattice.is_some() {
+            ", lattice.csv, lattice_error_vs_tick.svg"
+        } else {
+            ""
+        }
     )?;
     std::fs::write(out.join("verdict.txt"), verdict + "\n")?;
     Ok(if super::study_estimate::holds(&estimate) {
