@@ -39,6 +39,7 @@ pub mod mesh;
 pub mod meshless;
 pub mod pgd;
 pub mod pipeline;
+pub mod rng;
 pub mod rom;
 pub mod scene;
 pub mod solve;

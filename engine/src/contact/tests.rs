@@ -11,7 +11,7 @@ fn lobe() -> (Vec<[f64; 3]>, Surface, Bounds) {
     (mesh.nodes, s, bounds)
 }
 
-use crate::pipeline::estimate::Rng;
+use crate::rng::Rng;
 
 fn scan(s: &Surface, p: [f64; 3]) -> (f64, SurfacePoint) {
     (0..s.len())

@@ -14,6 +14,7 @@
 use super::palpation::LINEAR_RELATIVE_ERROR;
 use crate::pgd::Vademecum;
 use crate::pgd::offline::{self, BuildError, LoadedBundle};
+use crate::rng::Rng;
 use crate::rom::palpation::{AnmLattice, AnmLatticeParams, NewtonLaw, loadable_nodes, surface_normals};
 use crate::rom::study::StudyError;
 use crate::scene::OrganModel;
@@ -58,7 +59,7 @@ impl Sample {
 }
 
 /// What the samples say of the estimate.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Coverage {
     /// States sampled.
     pub samples: usize,
@@ -97,21 +98,6 @@ impl Coverage {
     }
 }
 
-/// A tiny deterministic generator (xorshift), so the samples are repeatable.
-pub(crate) struct Rng(pub(crate) u64);
-
-impl Rng {
-    pub(crate) fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    pub(crate) fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
-
 /// `count` linear-palpation states of organ `model` (whose bundle is `bundle`): see the
 /// [module docs](self). Factors the organ's stiffness (seconds on a large organ).
 pub fn linear_samples(model: &OrganModel, bundle: &LoadedBundle, count: usize) -> Result<Vec<Sample>, BuildError> {
@@ -134,7 +120,7 @@ pub fn linear_samples(model: &OrganModel, bundle: &LoadedBundle, count: usize) -
     let mut out = Vec::with_capacity(count);
     let zero = vec![0.0; 3 * n];
     while out.len() < count {
-        let tri = tris[(rng.next() % tris.len() as u64) as usize];
+        let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
         let (a, b) = (rng.unit(), rng.unit());
         let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
         let w = [1.0 - a - b, a, b];
@@ -249,7 +235,7 @@ pub fn newton_laws(
     let mut rng = Rng(0x1A77_1CE5_EED5);
     let mut chosen = Vec::new();
     while chosen.len() < nodes && !pool.is_empty() {
-        chosen.push(pool.swap_remove((rng.next() % pool.len() as u64) as usize));
+        chosen.push(pool.swap_remove((rng.next_u64() % pool.len() as u64) as usize));
     }
     let past = AnmLatticeParams {
         max_force: PAST_THE_LATTICE * params.max_force,
@@ -275,8 +261,7 @@ pub fn served(lattice: &AnmLattice, laws: &[NewtonLaw], k: usize) -> Vec<Sample>
     let mut zeta = vec![0.0; lattice.max_modes()];
     let mut out = Vec::new();
     for law in laws {
-        for &(lambda, depth) in law.steps.iter().filter(|&&(_, d)| d > 0.0) {
-            let truth = lambda * law.d_linear / depth;
+        for (lambda, depth, truth) in law.ratios() {
             let s = lattice.stiffness_ratio(law.point, depth, k, &mut zeta);
             out.push(Sample {
                 model: "large",

@@ -583,13 +583,14 @@ impl NewtonLaw {
         })
     }
 
-    /// `(depth, ratio)` of every step: the full model's nonlinear-to-linear force ratio at the
-    /// depth it reached, `λ d_lin / d` (what [`AnmLattice::stiffness_ratio`] serves).
-    pub fn ratios(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+    /// `(λ, depth, ratio)` of every step: its load factor, and the full model's
+    /// nonlinear-to-linear force ratio at the depth it reached, `λ d_lin / d` (what
+    /// [`AnmLattice::stiffness_ratio`] serves).
+    pub fn ratios(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
         self.steps
             .iter()
             .filter(|&&(_, d)| d > 0.0)
-            .map(|&(l, d)| (d, l * self.d_linear / d))
+            .map(|&(l, d)| (l, d, l * self.d_linear / d))
     }
 }
 

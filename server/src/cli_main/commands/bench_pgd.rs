@@ -38,19 +38,8 @@ pub(crate) fn stat(what: &str, mut v: Vec<f64>) -> Stat {
     }
 }
 
-/// A tiny deterministic generator (xorshift), so runs are repeatable.
-pub(crate) struct Rng(pub(crate) u64);
-impl Rng {
-    pub(crate) fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
-    }
-    pub(crate) fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
+/// The engine's deterministic generator, so runs are repeatable.
+pub(crate) use vademecum_engine::rng::Rng;
 
 /// Times `n` calls of `f` (µs each), keeping its results alive.
 pub(crate) fn time_n(n: usize, mut f: impl FnMut() -> f64) -> Vec<f64> {
@@ -114,7 +103,7 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         null.push(t.elapsed().as_secs_f64() * 1e6);
     }
     for _ in 0..a.contacts {
-        let tri = tris[(rng.next() % tris.len() as u64) as usize];
+        let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
         let (u, w) = (rng.unit(), rng.unit());
         let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
         let bary = [1.0 - u - w, u, w];
@@ -137,7 +126,7 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
     let mut touched = 0usize;
     let mut press_points = Vec::with_capacity(a.contacts);
     for _ in 0..a.contacts {
-        let tri = tris[(rng.next() % tris.len() as u64) as usize];
+        let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
         let (u, w) = (rng.unit(), rng.unit());
         let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
         let p: Vec<f64> = (0..3)
@@ -322,7 +311,10 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         let mut zeta = vec![0.0; lattice.max_modes()];
         let pts: Vec<[f64; 3]> = lattice.positions.iter().map(|p| p.point).collect();
         let t = time_n(a.contacts, || {
-            let (i, j) = ((rng.next() % pts.len() as u64) as usize, (rng.next() % pts.len() as u64) as usize);
+            let (i, j) = (
+                (rng.next_u64() % pts.len() as u64) as usize,
+                (rng.next_u64() % pts.len() as u64) as usize,
+            );
             let w = rng.unit();
             let p = [0, 1, 2].map(|k| w * pts[i][k] + (1.0 - w) * pts[j][k]);
             lattice.stiffness_ratio(p, 2.0 * deepest * rng.unit(), 4, &mut zeta).ratio

@@ -152,7 +152,7 @@ impl Frames {
         let mut full = vec![0.0; v.modes()];
         let coeffs = (0..64)
             .map(|_| {
-                let tri = tris[(rng.next() % tris.len() as u64) as usize];
+                let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
                 let (u, w) = (rng.unit(), rng.unit());
                 let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
                 v.coefficients(tri, [1.0 - u - w, u, w], [0.0, 0.0, -1.0], &mut full);

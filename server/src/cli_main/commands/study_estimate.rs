@@ -24,37 +24,7 @@ pub(super) struct EstimateRecord {
     key: String,
     /// Per model (`linear`, `large`): samples, bounded, median estimate / true error, largest
     /// relative error.
-    pub(super) coverage: Vec<(String, CoverageRecord)>,
-}
-
-/// [`Coverage`], kept.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-pub(super) struct CoverageRecord {
-    pub(super) samples: usize,
-    pub(super) bounded: usize,
-    pub(super) median_ratio: f64,
-    pub(super) max_relative_error: f64,
-}
-
-impl CoverageRecord {
-    pub(super) fn fraction(&self) -> f64 {
-        if self.samples == 0 {
-            1.0
-        } else {
-            self.bounded as f64 / self.samples as f64
-        }
-    }
-}
-
-impl From<Coverage> for CoverageRecord {
-    fn from(c: Coverage) -> Self {
-        Self {
-            samples: c.samples,
-            bounded: c.bounded,
-            median_ratio: c.median_ratio,
-            max_relative_error: c.max_relative_error,
-        }
-    }
+    pub(super) coverage: Vec<(String, Coverage)>,
 }
 
 /// Samples the estimate of organ 0 of `scene` (its study bundle `bundle`): `points` linear
@@ -115,7 +85,7 @@ pub(super) fn check(
         .into_iter()
         .map(|m| {
             let of: Vec<Sample> = samples.iter().copied().filter(|s| s.model == m).collect();
-            (m.to_string(), CoverageRecord::from(Coverage::of(&of)))
+            (m.to_string(), Coverage::of(&of))
         })
         .filter(|(_, c)| c.samples > 0)
         .collect();
