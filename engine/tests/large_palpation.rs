@@ -35,6 +35,7 @@ fn lattice_paths_give_the_full_model_force_depth_law_at_their_positions() {
         patch_radius: 1e-3,
         load_steps: 4,
         modes: 9,
+        order: 6,
     };
     let lattice = AnmLattice::build(&organ, &laws, &params, |_, _| {}).unwrap();
     assert_eq!(lattice.positions.len(), 3);

@@ -87,3 +87,39 @@ fn the_full_integrator_takes_the_pulls_across_from_their_vademecums() {
     let along: f64 = (0..3).map(|k| uf[3 * corner + k] * t1[k]).sum();
     assert!(along > 0.0 && uf.iter().all(|x| x.is_finite()), "{along}");
 }
+
+#[test]
+fn a_vademecums_prefix_is_the_greedy_build_stopped_there() {
+    use vademecum_engine::damage::pod::DamageBasis;
+    use vademecum_engine::damage::vademecum::{self, AffineSystem, VademecumSettings};
+    let scene = Scene::builtin("cube_tear").unwrap();
+    let model = cube();
+    let (settings, _) = organ::settings(&scene);
+    let runs = build::references(&model, |_, _| {}).unwrap();
+    let snaps = build::snapshots(&runs);
+    assert_eq!(
+        snaps.len(),
+        1 + 2 * (runs[0].steps.len() - 1),
+        "the virgin state, then both runs' steps"
+    );
+    let basis = DamageBasis::from_snapshots(&snaps, settings.pod, settings.margin).unwrap();
+    let sys = AffineSystem::of(&model, &basis);
+    let build_with = |max_modes| {
+        let s = VademecumSettings {
+            max_modes,
+            ..settings.vademecum
+        };
+        vademecum::build(&sys, &basis.lo, &basis.hi, &s, |_, _| {}).unwrap()
+    };
+    let (all, ten) = (build_with(40), build_with(10));
+    assert!(all.n_modes > 10, "{} modes", all.n_modes);
+    let p = all.prefix(10);
+    assert_eq!((p.n_modes, p.patterns.as_slice()), (10, [10].as_slice()));
+    let close = |a: &[f64], b: &[f64]| {
+        let scale = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-12 * scale)
+    };
+    assert!(close(&p.spatial, &ten.spatial) && close(&p.factors, &ten.factors));
+    // a prefix longer than the vademecum is all of it
+    assert_eq!(all.prefix(1000).n_modes, all.n_modes);
+}

@@ -768,6 +768,96 @@ fn study_sweeps_modes_and_storage_marks_the_front_and_resumes() {
 }
 
 #[test]
+fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "study",
+        "--builtin",
+        "patch_cut",
+        "--out",
+        "st",
+        "--frames",
+        "50",
+        "--estimate-points",
+        "8",
+    ];
+    let o = vademecum(&args, dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let st = dir.path().join("st");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(st.join("study.json")).unwrap()).unwrap();
+    let cut = v["cut"].as_array().unwrap();
+    let err = |p: &serde_json::Value| p["force_error_max"].as_f64().unwrap();
+    // the local fields are the full XFEM's Schur complement: the served force is exact
+    let local: Vec<_> = cut.iter().filter(|p| p["discontinuous"] == "local fields").collect();
+    let same = v["cut_slivers_without_effect"].as_array().unwrap().len();
+    assert_eq!(
+        local.len() + same,
+        4,
+        "the scene's sliver and three others, measured or the same model"
+    );
+    assert_eq!(local[0]["sliver"].as_f64(), Some(1e-4), "the scene's first");
+    assert!(local.iter().all(|p| err(p) < 1e-9), "{local:?}");
+    // the bare enrichment leaves the tissue around the opening to the modes: far from exact
+    let bare: Vec<_> = cut.iter().filter(|p| p["discontinuous"] == "bare").collect();
+    assert!(!bare.is_empty() && bare.iter().all(|p| err(p) > 1e-3), "{bare:?}");
+    assert!(cut.iter().any(|p| p["front"] == true));
+    for f in ["cut.csv", "cut_error_vs_tick.svg"] {
+        assert!(st.join(f).is_file(), "{f}");
+    }
+    assert!(
+        stdout(&o).contains("Cutting — the scene's setting: local fields, sliver 1e-4"),
+        "{}",
+        stdout(&o)
+    );
+    let again = vademecum(&args, dir.path());
+    assert!(again.status.success());
+    assert!(stderr(&again).contains("the cutting sweep in"), "{}", stderr(&again));
+}
+
+#[test]
+fn study_of_a_tearing_scene_sweeps_pod_vectors_and_vademecum_prefixes_against_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "study",
+        "--builtin",
+        "cube_tear",
+        "--out",
+        "st",
+        "--frames",
+        "50",
+        "--estimate-points",
+        "8",
+    ];
+    let o = vademecum(&args, dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let st = dir.path().join("st");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(st.join("study.json")).unwrap()).unwrap();
+    let t = &v["tear"];
+    let (pod, modes) = (t["scene_pod_vectors"].as_u64().unwrap(), t["scene_pgd_modes"].as_u64().unwrap());
+    assert_eq!(pod, 3, "the seed's cube keeps 3 POD vectors");
+    let points = t["points"].as_array().unwrap();
+    let at = |k: u64, m: u64| points.iter().find(|p| p["pod_vectors"] == k && p["pgd_modes"] == m).unwrap();
+    let f = |p: &serde_json::Value, key: &str| p[key].as_f64().unwrap();
+    // the scene's setting follows the full-order reference as the seed's does (~1e-4)
+    let own = at(pod, modes);
+    assert!(f(own, "field_error") < 1e-3 && f(own, "vademecum_error") < 1e-3, "{own}");
+    // one POD vector cannot carry the cube's damage: an order of magnitude worse
+    let one = points.iter().find(|p| p["pod_vectors"] == 1).unwrap();
+    assert!(f(one, "field_error") > 10.0 * f(own, "field_error"), "{one}");
+    // the scene's basis, prefixes of its vademecum: the vademecum's own error falls with modes
+    let mut prefix: Vec<&serde_json::Value> = points.iter().filter(|p| p["pod_vectors"] == pod).collect();
+    prefix.sort_by_key(|p| p["pgd_modes"].as_u64());
+    assert!(prefix.len() >= 3 && f(prefix[0], "vademecum_error") > f(prefix.last().unwrap(), "vademecum_error"));
+    for f in ["tear.csv", "tear_error_vs_step.svg"] {
+        assert!(st.join(f).is_file(), "{f}");
+    }
+    assert!(stdout(&o).contains("Tearing (POD–PGD, h = 0"), "{}", stdout(&o));
+    let again = vademecum(&args, dir.path());
+    assert!(again.status.success());
+    assert!(stderr(&again).contains("the tearing sweep in"), "{}", stderr(&again));
+}
+
+#[test]
 fn build_targets_keep_the_fewest_modes_that_meet_them_or_refuse() {
     let dir = tempfile::tempdir().unwrap();
     let scene = coarse_organ(dir.path());

@@ -119,6 +119,7 @@ fn build_cornea_lattice(size: Size) -> Result<AnmLattice, Outcome> {
         patch_radius: 1e-3,
         load_steps: size.pick(3, large.load_steps),
         modes: size.pick(4, large.modes),
+        order: large.order,
     };
     AnmLattice::build(&organ, &laws, &params, |_, _| {}).map_err(diagnostic)
 }

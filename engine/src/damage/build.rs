@@ -103,24 +103,11 @@ pub fn build(
         return Err(TearBuildError::NothingTearable);
     }
     let t0 = Instant::now();
-    let mut runs = Vec::new();
-    for tangent in [Tangent::Secant, Tangent::Consistent] {
-        let label = if tangent == Tangent::Secant {
-            "reference h = 0"
-        } else {
-            "reference h ≠ 0"
-        };
-        runs.push(reference::run(&model, RunSettings::seed(Scheme::Explicit(tangent)), |k, n| {
-            progress(label, k as f64 / n as f64)
-        })?);
-    }
+    let runs = references(&model, &mut progress)?;
     let cross_pulls = settings.cross_pulls && model.pull_frame().is_some();
     let reference_seconds = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    // the virgin state once (every online run starts there), then every step of both runs
-    let snapshots: Vec<Vec<f64>> = std::iter::once(runs[0].steps[0].g.clone())
-        .chain(runs.iter().flat_map(|r| r.steps.iter().skip(1).map(|s| s.g.clone())))
-        .collect();
+    let snapshots = snapshots(&runs);
     let basis = DamageBasis::from_snapshots(&snapshots, settings.pod, settings.margin)?;
     let sys = AffineSystem::of(&model, &basis);
     let settle = |label: &'static str, progress: &mut dyn FnMut(&'static str, f64), m: usize, ratio: f64| {
@@ -192,8 +179,30 @@ pub fn build(
         build_seconds,
         vademecum: vad.report.clone(),
     };
-    let runs: [TearRun; 2] = runs.try_into().expect("two runs");
     Ok((TearOffline::new(model, basis, vad, ritz), report, runs))
+}
+
+/// The two explicit full-order runs the offline stage takes its snapshots from (h = 0, then
+/// h ≠ 0: the references of the simplified and the full integrator); `progress(stage,
+/// fraction)` as they go.
+pub fn references(model: &TearModel, mut progress: impl FnMut(&'static str, f64)) -> Result<[TearRun; 2], RunError> {
+    let mut run = |tangent: Tangent, label: &'static str| {
+        reference::run(model, RunSettings::seed(Scheme::Explicit(tangent)), |k, n| {
+            progress(label, k as f64 / n as f64)
+        })
+    };
+    Ok([
+        run(Tangent::Secant, "reference h = 0")?,
+        run(Tangent::Consistent, "reference h ≠ 0")?,
+    ])
+}
+
+/// The damage snapshots of `runs`: the virgin state once (every online run starts there),
+/// then every step of both runs.
+pub fn snapshots(runs: &[TearRun; 2]) -> Vec<Vec<f64>> {
+    std::iter::once(runs[0].steps[0].g.clone())
+        .chain(runs.iter().flat_map(|r| r.steps.iter().skip(1).map(|s| s.g.clone())))
+        .collect()
 }
 
 /// The relative L2 error, at each step of the model's schedule, of the online integrator on

@@ -445,6 +445,31 @@ impl DamageVademecum {
         out
     }
 
+    /// The first `m` modes of the scene's pull pattern (all of them when it has fewer): the
+    /// vademecum the greedy build would have stopped at after `m` modes — each mode is
+    /// computed given the ones before it, none is revised after — with the pulls across the
+    /// load left out. What `vademecum study` measures a smaller vademecum by.
+    pub fn prefix(&self, m: usize) -> Self {
+        let m = m.min(self.patterns.first().copied().unwrap_or(0));
+        let per_mode = self.q * self.grid;
+        let mut report = self.report.clone();
+        report.modes = m;
+        report.amplitudes.truncate(m);
+        report.iterations.truncate(m);
+        Self {
+            n_free: self.n_free,
+            q: self.q,
+            grid: self.grid,
+            n_modes: m,
+            spatial: self.spatial[..m * self.n_free].to_vec(),
+            factors: self.factors[..m * per_mode].to_vec(),
+            patterns: vec![m],
+            lo: self.lo.clone(),
+            hi: self.hi.clone(),
+            report,
+        }
+    }
+
     /// The pull pattern of each mode.
     pub fn mode_patterns(&self) -> Vec<usize> {
         self.patterns

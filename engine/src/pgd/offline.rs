@@ -72,6 +72,7 @@ impl BuildOptions {
                     patch_radius: probe_radius(scene),
                     load_steps: l.load_steps,
                     modes: l.modes,
+                    order: l.order,
                 }
             }),
             max_memory: None,

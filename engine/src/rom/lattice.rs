@@ -241,6 +241,7 @@ impl Setup<'_> {
                 patch_radius: f64::INFINITY,
                 load_steps: self.params.load_steps,
                 modes: self.params.pod.max_modes,
+                order: AnmParams::default().order,
             },
             hit,
             self.direction,

@@ -49,10 +49,13 @@ pub struct AnmLatticeParams {
     pub load_steps: usize,
     /// Most POD modes.
     pub modes: usize,
+    /// Truncation order of the ANM series (1…8; seed 001 §3): a higher order covers a longer
+    /// stretch of the path per step (fewer steps) at more numbers per step.
+    pub order: usize,
 }
 
 impl Default for AnmLatticeParams {
-    /// 16 positions, 2 N, 6 load steps, 9 modes (seed 001).
+    /// 16 positions, 2 N, 6 load steps, 9 modes, order 6 (seed 001).
     fn default() -> Self {
         Self {
             positions: 16,
@@ -60,6 +63,7 @@ impl Default for AnmLatticeParams {
             patch_radius: 0.0,
             load_steps: 6,
             modes: 9,
+            order: 6,
         }
     }
 }
@@ -333,7 +337,11 @@ impl AnmLattice {
         let model = ReducedSvk::build(mesh, laws, &pod)?;
         let f = pod.project(&problem.forces);
         let probe: Vec<f64> = (0..pod.modes).map(|k| super::mean_along(pod.mode(k), &patch, normal)).collect();
-        let path = anm::continuation(&model, &f, reached, &AnmParams::default())?;
+        let anm = AnmParams {
+            order: params.order,
+            ..AnmParams::default()
+        };
+        let path = anm::continuation(&model, &f, reached, &anm)?;
         // linear displacement under the full load: the order-1 term at the origin
         let mut k = model.k1.clone();
         crate::dense::cholesky(&mut k, pod.modes).map_err(|pivot| anm::AnmError::Unstable { lambda: 0.0, pivot })?;

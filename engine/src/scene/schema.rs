@@ -816,6 +816,9 @@ pub struct LargeFidelity {
     /// Most POD modes per position.
     #[serde(default = "default_large_modes")]
     pub modes: usize,
+    /// Truncation order of each position's ANM series (1…8).
+    #[serde(default = "default_large_order")]
+    pub order: usize,
 }
 
 fn default_large_positions() -> usize {
@@ -830,6 +833,9 @@ fn default_large_steps() -> usize {
 fn default_large_modes() -> usize {
     9
 }
+fn default_large_order() -> usize {
+    6
+}
 
 impl Default for LargeFidelity {
     fn default() -> Self {
@@ -838,6 +844,7 @@ impl Default for LargeFidelity {
             max_force: default_large_force(),
             load_steps: default_large_steps(),
             modes: default_large_modes(),
+            order: default_large_order(),
         }
     }
 }

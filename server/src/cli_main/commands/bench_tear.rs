@@ -99,7 +99,7 @@ pub const OTHER_PULLS: [[f64; 3]; 3] = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.7, 
 
 /// `(load · u) / |load|₁`-like measures: the resultant of the unit load and the displacement
 /// along it, weighted by the load (for the shear cube: stress and strain).
-fn measure(model: &TearModel) -> (f64, impl Fn(&[f64]) -> f64 + '_) {
+pub(super) fn measure(model: &TearModel) -> (f64, impl Fn(&[f64]) -> f64 + '_) {
     let total: f64 = model.load.iter().map(|f| f.abs()).sum();
     let prescribed: f64 = model.prescribed.iter().map(|f| f.abs()).sum();
     let (w, norm) = if total > 0.0 {

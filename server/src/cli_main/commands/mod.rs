@@ -24,8 +24,10 @@ mod scene;
 mod serve;
 mod solve;
 mod study;
+mod study_cut;
 mod study_estimate;
 mod study_lattice;
+mod study_tear;
 
 use std::process::ExitCode;
 

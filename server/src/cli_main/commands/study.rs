@@ -345,6 +345,8 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     bar.finish_and_clear();
     let estimate = super::study_estimate::check(&scene, &bundle, &rec.key, a.estimate_points, a.estimate_nodes, &out)?;
     let lattice = super::study_lattice::sweep(&scene, &rec.key, a.estimate_nodes, &out)?;
+    let cut = super::study_cut::sweep(&scene, &bundle.vademecum, &rec.key, &out)?;
+    let tear = super::study_tear::sweep(&scene, &rec.key, &out)?;
 
     let mut points: Vec<Point> = done.into_values().collect();
     points.sort_by(|a, b| (a.storage.as_str(), a.modes).cmp(&(b.storage.as_str(), b.modes)));
@@ -378,7 +380,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     std::fs::write(
         out.join("study.json"),
         serde_json::to_string_pretty(
-            &serde_json::json!({ "scene": scene_name, "build": rec, "points": points, "estimate": estimate.coverage, "lattice": lattice }),
+            &serde_json::json!({ "scene": scene_name, "build": rec, "points": points, "estimate": estimate.coverage, "lattice": lattice, "cut": cut.as_ref().map(|c| &c.points), "cut_slivers_without_effect": cut.as_ref().map(|c| &c.slivers_without_effect), "tear": tear }),
         )?,
     )?;
     plot(
@@ -451,9 +453,17 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         super::study_estimate::verdict(&estimate)
     );
     let verdict = match &lattice {
-        Some(l) => format!(
+        Some(l) => format!("{verdict} {}", super::study_lattice::verdict(l, &scene.spec.fidelity.large)),
+        None => verdict,
+    };
+    let verdict = match &tear {
+        Some(t) => format!("{verdict} {}", super::study_tear::verdict(t)),
+        None => verdict,
+    };
+    let verdict = match &cut {
+        Some(c) => format!(
             "{verdict} {}",
-            super::study_lattice::verdict(l, scene.spec.fidelity.large.positions)
+            super::study_cut::verdict(c, scene.spec.fidelity.xfem.sliver, scene.spec.fidelity.xfem.discontinuous)
         ),
         None => verdict,
     };
@@ -461,11 +471,15 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         o,
         "\n{verdict}\n\nwritten: {}/study.csv, study.json, error_vs_online.svg, error_vs_bundle.svg, estimate.csv, estimate_vs_error.svg{}",
         out.display(),
-        if lattice.is_some() {
-            ", lattice.csv, lattice_error_vs_tick.svg"
-        } else {
-            ""
-        }
+        [
+            (lattice.is_some(), ", lattice.csv, lattice_error_vs_tick.svg"),
+            (cut.is_some(), ", cut.csv, cut_error_vs_tick.svg"),
+            (tear.is_some(), ", tear.csv, tear_error_vs_step.svg"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, f)| *f)
+        .collect::<String>()
     )?;
     std::fs::write(out.join("verdict.txt"), verdict + "\n")?;
     Ok(if super::study_estimate::holds(&estimate) {

@@ -1,0 +1,524 @@
+//! The study's sweep of cutting (scenes with `effects.cutting = true`; seed 000 §3.2–3.3): the
+//! scene's pre-planned cuts (or, without any, the organ's cells crossed by a plane through its
+//! centre) made at once, then for each setting of the reduced cut model the contact force a
+//! session serves against the full-order XFEM's on the same mesh and cut.
+//!
+//! A session's force on the cut organ is `(C(s) + ΔC)⁻¹ δ`: the vademecum's exact local
+//! compliance `C(s)` (the uncut organ's; no mode enters it) plus what the cut adds at the
+//! contact, `ΔC` ([`CutView::added_compliance`]). The settings that change `ΔC`:
+//! - what carries the discontinuous part (`fidelity.xfem.discontinuous`): the local fields
+//!   (the default; exact up to round-off, no mode enters them) or the bare enrichment on a
+//!   Ritz basis of the vademecum's first modes (`fidelity.xfem.basis`, SRB or PRB) — swept at
+//!   10, 40 and 160 modes;
+//! - the sliver rule (`fidelity.xfem.sliver`): the scene's, 10⁻³, 10⁻² and 5·10⁻², fewer nodes
+//!   enriched each, a cheaper cut and tick against the opening near the cut's edges.
+//!
+//! Per point: the relative error of the force for a unit imposed displacement along each axis
+//! at cracked surface nodes (median and largest), the enriched nodes, the cut's part of the
+//! tick (`ΔC` at a two-node patch, p50 and p99 beside a null loop), the cut thread's work for
+//! the whole cut (cracking the nodes, bordering the factor), the model's preparation when the
+//! session starts and its bytes. Kept in `cut.json` for the study's build.
+//!
+//! [`CutView::added_compliance`]: vademecum_engine::xfem::reduced::CutView::added_compliance
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use plotters::prelude::*;
+use serde::{Deserialize, Serialize};
+use vademecum_engine::pgd::Vademecum;
+use vademecum_engine::scene::{OrganModel, Scene};
+use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
+use vademecum_engine::xfem::system;
+use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
+
+use super::bench_pgd::{stat, time_n};
+
+/// Sliver thresholds swept beside the scene's.
+const SLIVERS: [f64; 3] = [1e-3, 1e-2, 5e-2];
+
+/// Mode counts of the bare enrichment's Ritz basis.
+const BARE_MODES: [usize; 3] = [10, 40, 160];
+
+/// Cracked surface nodes where the force is compared.
+const CONTACTS: usize = 4;
+
+/// Evaluations of `ΔC` timed per point.
+const TIMED: usize = 20_000;
+
+/// One point of the sweep.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(super) struct CutPoint {
+    /// `local fields` or `bare`.
+    pub(super) discontinuous: String,
+    /// The Ritz basis (`srb`, `prb`) and its modes; 0 modes with local fields.
+    pub(super) basis: String,
+    pub(super) modes: usize,
+    pub(super) sliver: f64,
+    pub(super) enriched_nodes: usize,
+    /// Relative error of the force for a unit imposed displacement along each axis at each
+    /// contact node, against the full XFEM at the scene's sliver: median and largest.
+    pub(super) force_error_median: f64,
+    pub(super) force_error_max: f64,
+    /// The cut's part of a tick: `ΔC` at a two-node patch (µs).
+    pub(super) tick_p50_us: f64,
+    pub(super) tick_p99_us: f64,
+    pub(super) null_p50_us: f64,
+    /// The cut thread's work for the whole cut (ms) and the model's preparation (s).
+    pub(super) cut_ms: f64,
+    pub(super) prepare_s: f64,
+    pub(super) bytes: usize,
+    #[serde(default)]
+    pub(super) front: bool,
+}
+
+/// What the sweep found (`cut.json` keeps it with the study's key).
+#[derive(Debug, Serialize, Deserialize)]
+pub(super) struct CutSweep {
+    key: String,
+    /// The contact nodes the forces were compared at.
+    contacts: Vec<usize>,
+    pub(super) points: Vec<CutPoint>,
+    /// Swept sliver thresholds that enrich exactly the scene's nodes on this cut (no cell is
+    /// cut near enough to a node to be a sliver): the same model, not measured again.
+    pub(super) slivers_without_effect: Vec<f64>,
+}
+
+/// The cut cells of the scene's pre-planned cuts on organ 0 (each cell once), or without any,
+/// the cells crossed by the plane through the organ's centre normal to y.
+fn cut_cells(scene: &Scene, model: &OrganModel, params: &XfemParams) -> anyhow::Result<Vec<(usize, Plane)>> {
+    let cuts = scene.organ_cuts(0)?;
+    let mut cells: Vec<(usize, Plane)> = Vec::new();
+    for cut in &cuts {
+        for (c, p) in Enrichment::cut_cells(&model.mesh, cut, params)? {
+            if !cells.iter().any(|(d, _)| *d == c) {
+                cells.push((c, p));
+            }
+        }
+    }
+    if cuts.is_empty() {
+        let (lo, hi) = model.mesh.bounding_box();
+        let plane = Plane {
+            point: [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])],
+            normal: [0.0, 1.0, 0.0],
+        };
+        cells = Enrichment::cells_crossed_by(&model.mesh, &plane);
+    }
+    Ok(cells)
+}
+
+/// Up to [`CONTACTS`] cracked nodes of `enr` on the organ's accessible surface, evenly spread
+/// over the enrichment's order (any cracked node when none is accessible).
+fn contact_nodes(model: &OrganModel, enr: &Enrichment) -> Vec<usize> {
+    let free = |a: &usize| !(0..3).any(|i| model.problem.constrained[3 * a + i]);
+    let mut pool: Vec<usize> = enr
+        .nodes
+        .iter()
+        .copied()
+        .filter(|a| free(a) && model.accessible_nodes.contains(a))
+        .collect();
+    if pool.is_empty() {
+        pool = enr.nodes.iter().copied().filter(free).collect();
+    }
+    let n = pool.len().min(CONTACTS);
+    (0..n).map(|k| pool[k * pool.len() / n.max(1)]).collect()
+}
+
+/// The compliance (3×3) at `node` of the XFEM with enrichment `enr`: three full-order solves
+/// with a unit force there.
+fn full_compliance(model: &OrganModel, enr: &Enrichment, params: &XfemParams, node: usize) -> anyhow::Result<[[f64; 3]; 3]> {
+    let mut c = [[0.0; 3]; 3];
+    for j in 0..3 {
+        let mut problem = model.problem.clone();
+        problem.forces.fill(0.0);
+        problem.prescribed.fill(0.0);
+        problem.forces[3 * node + j] = 1.0;
+        let sol = system::solve(&model.mesh, &model.materials, model.locking, &problem, enr, params)?;
+        for (i, ci) in c.iter_mut().enumerate() {
+            ci[j] = sol.u[3 * node + i];
+        }
+    }
+    Ok(c)
+}
+
+/// The relative errors of the forces of compliance `c` against `full` for a unit imposed
+/// displacement along each axis.
+fn force_errors(c: &[[f64; 3]; 3], full: &[[f64; 3]; 3]) -> [f64; 3] {
+    let mut out = [0.0; 3];
+    for (j, o) in out.iter_mut().enumerate() {
+        let mut d = [0.0; 3];
+        d[j] = 1.0;
+        let (f, g) = (Vademecum::contact_force(c, d), Vademecum::contact_force(full, d));
+        let diff = (0..3).map(|i| (f[i] - g[i]).powi(2)).sum::<f64>().sqrt();
+        *o = diff / g.iter().map(|x| x * x).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+    }
+    out
+}
+
+fn add(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + b[i][j]))
+}
+
+/// One setting: the model prepared, cut, its forces at `contacts` against `full` (the uncut
+/// compliances `uncut` plus its `ΔC`), its tick timed.
+#[allow(clippy::too_many_arguments)]
+fn measure(
+    model: &OrganModel,
+    modes: &[f64],
+    (n_modes, basis, disc): (usize, RitzBasis, Discontinuous),
+    params: &XfemParams,
+    cells: &[(usize, Plane)],
+    contacts: &[usize],
+    uncut: &[[[f64; 3]; 3]],
+    full: &[[[f64; 3]; 3]],
+) -> anyhow::Result<CutPoint> {
+    let start = Instant::now();
+    let n_dofs = model.mesh.n_dofs();
+    let mut r = ReducedCut::new(
+        &model.mesh,
+        &model.materials,
+        model.locking,
+        &model.problem,
+        &modes[..n_modes * n_dofs],
+        n_modes,
+        basis,
+        disc,
+        params,
+    )?;
+    let prepare_s = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    r.cut(&model.mesh, cells)?;
+    let cut_ms = 1e3 * start.elapsed().as_secs_f64();
+    let mut view = r.view();
+    let mut errors: Vec<f64> = contacts
+        .iter()
+        .zip(uncut.iter().zip(full))
+        .flat_map(|(&a, (c0, cf))| force_errors(&add(c0, &view.added_compliance(&[a], &[1.0])), cf))
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let a0 = contacts.first().copied().unwrap_or(0);
+    let a1 = contacts.get(1).copied().unwrap_or(a0);
+    let mut flip = 0usize;
+    let tick = stat(
+        "cut tick",
+        time_n(TIMED, || {
+            flip += 1;
+            let w = if flip.is_multiple_of(2) { [0.6, 0.4] } else { [0.4, 0.6] };
+            let c = view.added_compliance(&[a0, a1], &w);
+            c[0][0] + c[1][1] + c[2][2]
+        }),
+    );
+    let null = stat("null", time_n(TIMED, || 0.0));
+    Ok(CutPoint {
+        discontinuous: match disc {
+            Discontinuous::Bare => "bare".into(),
+            Discontinuous::LocalFields => "local fields".into(),
+        },
+        basis: if n_modes == 0 { "-".into() } else { basis.name().into() },
+        modes: n_modes,
+        sliver: params.sliver,
+        enriched_nodes: r.enrichment().len(),
+        force_error_median: errors.get(errors.len() / 2).copied().unwrap_or(f64::NAN),
+        force_error_max: errors.last().copied().unwrap_or(f64::NAN),
+        tick_p50_us: tick.p50_us,
+        tick_p99_us: tick.p99_us,
+        null_p50_us: null.p50_us,
+        cut_ms,
+        prepare_s,
+        bytes: r.bytes(),
+        front: false,
+    })
+}
+
+/// The settings swept: local fields at the scene's sliver and the others, then the bare
+/// enrichment on SRB and PRB bases of the first modes at the scene's sliver.
+fn settings(scene_sliver: f64, modes: usize) -> Vec<(usize, RitzBasis, Discontinuous, f64)> {
+    let mut out = vec![(0, RitzBasis::Srb, Discontinuous::LocalFields, scene_sliver)];
+    for s in SLIVERS {
+        if s != scene_sliver {
+            out.push((0, RitzBasis::Srb, Discontinuous::LocalFields, s));
+        }
+    }
+    for basis in [RitzBasis::Srb, RitzBasis::Prb] {
+        let mut counts: Vec<usize> = BARE_MODES.iter().map(|&m| m.min(modes)).filter(|&m| m > 0).collect();
+        counts.dedup();
+        for m in counts {
+            out.push((m, basis, Discontinuous::Bare, scene_sliver));
+        }
+    }
+    out
+}
+
+/// Sweeps cutting on organ 0 of `scene` (see the [module docs](self)) with the modes of its
+/// vademecum `v`; writes `cut.csv` and `cut_error_vs_tick.svg` to `out`. `None` for a scene
+/// without cutting.
+pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyhow::Result<Option<CutSweep>> {
+    if !scene.spec.effects.cutting {
+        return Ok(None);
+    }
+    let record_path = out.join("cut.json");
+    if let Ok(old) = std::fs::read_to_string(&record_path)
+        && let Ok(rec) = serde_json::from_str::<CutSweep>(&old)
+        && rec.key == key
+    {
+        eprintln!("resuming: the cutting sweep in {} is reused", record_path.display());
+        return Ok(Some(rec));
+    }
+    let model = scene.organ_model(0)?;
+    anyhow::ensure!(model.laws.is_none(), "cutting by XFEM needs a linear material");
+    let params = scene.spec.fidelity.xfem.params();
+    let cells = cut_cells(scene, &model, &params)?;
+    anyhow::ensure!(!cells.is_empty(), "the cut crosses no cell of organ 0");
+    let reference = Enrichment::from_cut_cells(&model.mesh, &cells, &params)?;
+    let contacts = contact_nodes(&model, &reference);
+    anyhow::ensure!(!contacts.is_empty(), "the cut cracks no node free to move");
+    let bar = ProgressBar::new((2 * contacts.len()) as u64);
+    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    bar.set_message("cutting sweep: the full XFEM's compliances, cut and uncut");
+    let uncut_enr = Enrichment::from_cut_cells(&model.mesh, &[], &params)?;
+    let (mut full, mut uncut) = (Vec::new(), Vec::new());
+    for &a in &contacts {
+        full.push(full_compliance(&model, &reference, &params, a)?);
+        bar.inc(1);
+        uncut.push(full_compliance(&model, &uncut_enr, &params, a)?);
+        bar.inc(1);
+    }
+    let todo = settings(params.sliver, v.modes());
+    bar.set_length(todo.len() as u64);
+    bar.set_position(0);
+    let (mut points, mut slivers_without_effect) = (Vec::new(), Vec::new());
+    for (m, basis, disc, sliver) in todo {
+        bar.set_message(format!(
+            "cutting sweep: {}, {m} modes, sliver {sliver:.0e}",
+            if disc == Discontinuous::Bare { "bare" } else { "local fields" }
+        ));
+        let p = XfemParams { sliver, ..params };
+        let cells = cut_cells(scene, &model, &p)?;
+        if sliver != params.sliver && Enrichment::from_cut_cells(&model.mesh, &cells, &p)?.nodes == reference.nodes {
+            slivers_without_effect.push(sliver);
+            bar.inc(1);
+            continue;
+        }
+        points.push(measure(&model, v.f_raw(), (m, basis, disc), &p, &cells, &contacts, &uncut, &full)?);
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let front = super::study::pareto(&points.iter().map(|p| (p.tick_p50_us, p.force_error_max)).collect::<Vec<_>>());
+    for (p, f) in points.iter_mut().zip(front) {
+        p.front = f;
+    }
+    let mut csv = String::from(
+        "discontinuous,basis,modes,sliver,enriched_nodes,force_error_median,force_error_max,tick_p50_us,tick_p99_us,null_p50_us,cut_ms,prepare_s,bytes,front\n",
+    );
+    for p in &points {
+        csv += &format!(
+            "{},{},{},{:e},{},{:e},{:e},{:.3},{:.3},{:.3},{:.2},{:.3},{},{}\n",
+            p.discontinuous,
+            p.basis,
+            p.modes,
+            p.sliver,
+            p.enriched_nodes,
+            p.force_error_median,
+            p.force_error_max,
+            p.tick_p50_us,
+            p.tick_p99_us,
+            p.null_p50_us,
+            p.cut_ms,
+            p.prepare_s,
+            p.bytes,
+            p.front
+        );
+    }
+    std::fs::write(out.join("cut.csv"), csv).context("cannot write cut.csv")?;
+    plot(&points, &scene.spec.scene.name, &out.join("cut_error_vs_tick.svg"))?;
+    let rec = CutSweep {
+        key: key.to_string(),
+        contacts,
+        points,
+        slivers_without_effect,
+    };
+    std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
+    Ok(Some(rec))
+}
+
+/// The sentence of the verdict: the scene's setting, and the cheapest point on the front whose
+/// largest force error is within 1 %.
+pub(super) fn verdict(sweep: &CutSweep, scene_sliver: f64, scene_disc: Discontinuous) -> String {
+    let points = &sweep.points;
+    let describe = |p: &CutPoint| {
+        let model = if p.modes == 0 {
+            p.discontinuous.clone()
+        } else {
+            format!("{} on {} {} modes", p.discontinuous, p.modes, p.basis)
+        };
+        format!(
+            "{model}, sliver {:.0e} ({} enriched nodes, force error {:.1e} median, {:.1e} largest, ΔC {:.2} µs per tick p50, the cut {:.2} ms on the cut thread)",
+            p.sliver, p.enriched_nodes, p.force_error_median, p.force_error_max, p.tick_p50_us, p.cut_ms
+        )
+    };
+    let disc = match scene_disc {
+        Discontinuous::Bare => "bare",
+        Discontinuous::LocalFields => "local fields",
+    };
+    let own = points.iter().find(|p| p.sliver == scene_sliver && p.discontinuous == disc);
+    let best = points
+        .iter()
+        .filter(|p| p.front && p.force_error_max <= 1e-2)
+        .min_by(|a, b| a.tick_p50_us.total_cmp(&b.tick_p50_us));
+    let same = if sweep.slivers_without_effect.is_empty() {
+        String::new()
+    } else {
+        format!(
+            " Sliver thresholds {} enrich the same {} nodes on this cut (none of its cells is cut near a node): the rule has nothing to trade here.",
+            sweep
+                .slivers_without_effect
+                .iter()
+                .map(|s| format!("{s:.0e}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            own.map_or(0, |p| p.enriched_nodes)
+        )
+    };
+    format!(
+        "Cutting — the scene's setting: {}; the cheapest on the front with every force within 1 % of the full XFEM's: {}.{same}",
+        own.map_or("not swept".into(), describe),
+        best.map_or("none".into(), describe)
+    )
+}
+
+/// Largest force error against the cut's part of the tick, one colour per model, the sliver
+/// or the modes beside each point, the front as a line.
+fn plot(points: &[CutPoint], scene: &str, file: &Path) -> anyhow::Result<()> {
+    let floor = 1e-16;
+    let ok: Vec<&CutPoint> = points
+        .iter()
+        .filter(|p| p.force_error_max.is_finite() && p.tick_p50_us > 0.0)
+        .collect();
+    if ok.is_empty() {
+        return Ok(());
+    }
+    let err = |p: &CutPoint| p.force_error_max.max(floor);
+    let (x0, x1) = ok
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.tick_p50_us), b.max(p.tick_p50_us)));
+    let (e0, e1) = ok.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(err(p)), b.max(err(p))));
+    let root = SVGBackend::new(file, (900, 600)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{scene}: cutting, force error against the cut's cost per tick"),
+            ("sans-serif", 18),
+        )
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d((x0 * 0.7..x1 * 1.4).log_scale(), (e0 * 0.3..e1 * 3.0).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("ΔC at the contact, per tick, p50 (µs)")
+        .y_desc("largest relative force error against the full XFEM")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    let groups = [("local fields", "-"), ("bare", "srb"), ("bare", "prb")];
+    for (c, (disc, basis)) in groups.into_iter().enumerate() {
+        let color = super::bench_anm::PALETTE[c];
+        let of: Vec<&&CutPoint> = ok.iter().filter(|p| p.discontinuous == disc && p.basis == basis).collect();
+        if of.is_empty() {
+            continue;
+        }
+        let label = if basis == "-" {
+            "local fields (sliver beside each)".to_string()
+        } else {
+            format!("bare, {} basis (modes beside each)", basis.to_uppercase())
+        };
+        chart
+            .draw_series(of.iter().map(|p| Circle::new((p.tick_p50_us, err(p)), 5, color.filled())))?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
+        chart.draw_series(of.iter().map(|p| {
+            let tag = if p.modes == 0 {
+                format!("{:.0e}", p.sliver)
+            } else {
+                format!("{}", p.modes)
+            };
+            Text::new(tag, (p.tick_p50_us * 1.05, err(p) * 1.3), ("sans-serif", 12).into_font())
+        }))?;
+    }
+    let f: Vec<(f64, f64)> = ok.iter().filter(|p| p.front).map(|p| (p.tick_p50_us, err(p))).collect();
+    super::study::draw_front(&mut chart, f)?;
+    root.present()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_force_error_is_zero_for_the_same_compliance_and_relative_otherwise() {
+        let c = [[2.0, 0.1, 0.0], [0.1, 1.0, 0.0], [0.0, 0.0, 4.0]];
+        assert_eq!(force_errors(&c, &c), [0.0; 3]);
+        // twice as compliant along z: half the force along z, the same along x and y
+        let mut soft = c;
+        soft[2][2] = 8.0;
+        let e = force_errors(&soft, &c);
+        assert!(e[0] < 1e-15 && e[1] < 1e-15 && (e[2] - 0.5).abs() < 1e-12, "{e:?}");
+    }
+
+    fn point(disc: &str, modes: usize, sliver: f64, err: f64, tick: f64, front: bool) -> CutPoint {
+        CutPoint {
+            discontinuous: disc.into(),
+            basis: if modes == 0 { "-".into() } else { "SRB".into() },
+            modes,
+            sliver,
+            enriched_nodes: 72,
+            force_error_median: err / 2.0,
+            force_error_max: err,
+            tick_p50_us: tick,
+            tick_p99_us: 2.0 * tick,
+            null_p50_us: 0.02,
+            cut_ms: 400.0,
+            prepare_s: 0.1,
+            bytes: 1000,
+            front,
+        }
+    }
+
+    #[test]
+    fn the_verdict_names_the_scenes_setting_the_cheapest_within_one_percent_and_idle_slivers() {
+        let sweep = CutSweep {
+            key: "k".into(),
+            contacts: vec![1],
+            points: vec![
+                point("local fields", 0, 1e-4, 3e-14, 24.0, true),
+                point("local fields", 0, 5e-2, 4e-3, 12.0, true),
+                // cheaper still, but 30 % off
+                point("bare", 10, 1e-4, 0.3, 8.0, true),
+            ],
+            slivers_without_effect: vec![1e-3, 1e-2],
+        };
+        let v = verdict(&sweep, 1e-4, Discontinuous::LocalFields);
+        assert!(v.contains("the scene's setting: local fields, sliver 1e-4 (72 enriched nodes, force error 1.5e-14 median, 3.0e-14 largest, ΔC 24.00 µs"), "{v}");
+        assert!(v.contains("within 1 % of the full XFEM's: local fields, sliver 5e-2 ("), "{v}");
+        assert!(v.contains("Sliver thresholds 1e-3, 1e-2 enrich the same 72 nodes"), "{v}");
+        let bare = verdict(&sweep, 1e-4, Discontinuous::Bare);
+        assert!(bare.contains("the scene's setting: bare on 10 SRB modes, sliver 1e-4"), "{bare}");
+    }
+
+    #[test]
+    fn the_settings_start_at_the_scenes_and_cap_the_modes_at_the_vademecums() {
+        let s = settings(1e-4, 30);
+        assert_eq!(s[0], (0, RitzBasis::Srb, Discontinuous::LocalFields, 1e-4));
+        assert_eq!(s.iter().filter(|x| x.2 == Discontinuous::LocalFields).count(), 4);
+        let bare: Vec<usize> = s
+            .iter()
+            .filter(|x| x.2 == Discontinuous::Bare && x.1 == RitzBasis::Srb)
+            .map(|x| x.0)
+            .collect();
+        assert_eq!(bare, [10, 30]);
+        // the scene's sliver among the swept ones is not repeated
+        assert_eq!(settings(1e-2, 300).iter().filter(|x| x.3 == 1e-2).count(), 7);
+    }
+}

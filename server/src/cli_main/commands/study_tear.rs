@@ -1,0 +1,394 @@
+//! The study's sweep of tearing (scenes with `effects.tearing = true`; seed 000 ch. 4): the
+//! POD–PGD integrator at every size of its two reductions, against the full-order explicit
+//! reference it reduces, on the scene's schedule.
+//!
+//! The full-order references run once (the two explicit schemes, h = 0 and h ≠ 0: the
+//! snapshots, and the references of the simplified and the full integrator). Then for each
+//! number of POD vectors of the damage field (1, 2, the scene's, and more when the snapshots
+//! carry them) one vademecum is built over the POD coefficients with the scene's settings, each
+//! mode timed; its prefixes of 5, 10, 20, 40 and all modes (the greedy build stopped there,
+//! [`DamageVademecum::prefix`]) are the points. The pulls across the load are left out: the
+//! error is that of the pull along the scene's load.
+//!
+//! Per point: the vademecum's own error (its increment against exact solves at the snapshots'
+//! coefficients: the PGD truncation alone), the worst relative L2 error of the displacement over the schedule's steps
+//! against the scene's integrator's reference, the worst relative error of the grasp's
+//! response (the load-weighted displacement along the load, what the grasper feels), the online
+//! step's cost (p50, p99 beside a null loop), the offline cost (POD + vademecum to that mode +
+//! Ritz form, the shared references apart) and the offline data's bytes. Kept in `tear.json`.
+//!
+//! [`DamageVademecum::prefix`]: vademecum_engine::damage::vademecum::DamageVademecum::prefix
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use plotters::prelude::*;
+use serde::{Deserialize, Serialize};
+use vademecum_engine::damage::build;
+use vademecum_engine::damage::online::{OnlineTear, RitzOperator, TearOffline, Variant};
+use vademecum_engine::damage::organ;
+use vademecum_engine::damage::pod::DamageBasis;
+use vademecum_engine::damage::reference;
+use vademecum_engine::damage::vademecum::{self, AffineSystem};
+use vademecum_engine::rom::pod::PodCriterion;
+use vademecum_engine::scene::Scene;
+
+use super::bench_pgd::{stat, time_n};
+
+/// Prefixes of each vademecum measured (capped at its modes; all of them always).
+const PREFIXES: [usize; 4] = [5, 10, 20, 40];
+
+/// Online steps timed per point (whole schedules).
+const TIMED_STEPS: usize = 2000;
+
+/// One point of the sweep.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(super) struct TearPoint {
+    pub(super) pod_vectors: usize,
+    pub(super) pgd_modes: usize,
+    /// The vademecum's own error: the largest relative error of its unit-step increment
+    /// against the exact `K(ξ)⁻¹ b(ξ)` at the snapshots' POD coefficients (the PGD truncation
+    /// alone, without the integrator's stepping).
+    #[serde(default)]
+    pub(super) vademecum_error: f64,
+    /// Worst relative L2 error of the displacement over the steps, and of the grasp's response.
+    pub(super) field_error: f64,
+    pub(super) response_error: f64,
+    pub(super) step_p50_us: f64,
+    pub(super) step_p99_us: f64,
+    pub(super) null_p50_us: f64,
+    /// POD + vademecum to this mode + Ritz form (s), the references apart.
+    pub(super) build_s: f64,
+    pub(super) bytes: usize,
+    #[serde(default)]
+    pub(super) front: bool,
+}
+
+/// What the sweep found (`tear.json`).
+#[derive(Debug, Serialize, Deserialize)]
+pub(super) struct TearSweep {
+    key: String,
+    /// The scene's integrator, POD vectors and vademecum modes.
+    pub(super) variant: String,
+    pub(super) scene_pod_vectors: usize,
+    pub(super) scene_pgd_modes: usize,
+    /// The full-order references' time (s), shared by every point.
+    pub(super) reference_s: f64,
+    pub(super) points: Vec<TearPoint>,
+}
+
+/// The POD sizes swept: 1, 2, the scene's `own`, and twice it, within the snapshots' `rank`.
+fn pod_sizes(own: usize, rank: usize) -> Vec<usize> {
+    let mut s: Vec<usize> = [1, 2, own, 2 * own].into_iter().filter(|&k| k >= 1 && k <= rank.max(1)).collect();
+    s.sort_unstable();
+    s.dedup();
+    s
+}
+
+/// The prefixes measured of a vademecum of `modes` modes.
+fn prefixes(modes: usize) -> Vec<usize> {
+    let mut p: Vec<usize> = PREFIXES.into_iter().filter(|&m| m < modes).collect();
+    p.push(modes);
+    p
+}
+
+/// Sweeps tearing on the scene's tearable organ (see the [module docs](self)); writes
+/// `tear.csv` and `tear_error_vs_step.svg` to `out`. `None` for a scene without tearing.
+pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Option<TearSweep>> {
+    if !scene.spec.effects.tearing {
+        return Ok(None);
+    }
+    let record_path = out.join("tear.json");
+    if let Ok(old) = std::fs::read_to_string(&record_path)
+        && let Ok(rec) = serde_json::from_str::<TearSweep>(&old)
+        && rec.key == key
+    {
+        eprintln!("resuming: the tearing sweep in {} is reused", record_path.display());
+        return Ok(Some(rec));
+    }
+    let i = organ::tearable_organ(scene).context("the scene tears but no organ has a damage law")?;
+    let (model, _) = organ::tear_model(scene, i)?;
+    let (settings, limits) = organ::settings(scene);
+    let variant = scene.spec.fidelity.tearing.variant;
+    let bar = ProgressBar::new(100);
+    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}% {msg} [{elapsed}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
+    let start = Instant::now();
+    let runs = build::references(&model, |what, f| {
+        bar.set_message(format!("tearing sweep: full-order {what}"));
+        bar.set_position((100.0 * f) as u64);
+    })?;
+    let reference_s = start.elapsed().as_secs_f64();
+    let truth = &runs[usize::from(variant == Variant::Full)];
+    let snapshots = build::snapshots(&runs);
+    let own = DamageBasis::from_snapshots(&snapshots, settings.pod, settings.margin)?;
+    let (_, response) = super::bench_tear::measure(&model);
+    let mut points = Vec::new();
+    let mut scene_pgd_modes = 0;
+    let sizes = pod_sizes(own.len(), snapshots.len() - 1);
+    for (n, &k) in sizes.iter().enumerate() {
+        bar.set_message(format!("tearing sweep: {k} POD vectors ({} of {})", n + 1, sizes.len()));
+        bar.set_position(0);
+        let t0 = Instant::now();
+        let basis = DamageBasis::from_snapshots(&snapshots, PodCriterion { energy: 1.0, max_modes: k }, settings.margin)?;
+        if points.iter().any(|p: &TearPoint| p.pod_vectors == basis.len()) {
+            // the snapshots hold fewer independent damage fields than asked for
+            continue;
+        }
+        let sys = AffineSystem::of(&model, &basis);
+        let pod_s = t0.elapsed().as_secs_f64();
+        // the exact increments at the snapshots' coefficients, once for every prefix
+        let exact: Vec<(Vec<f64>, Vec<f64>)> = snapshots
+            .iter()
+            .filter_map(|s| {
+                let mut xi = vec![0.0; basis.len()];
+                basis.project(s, &mut xi);
+                sys.solve(&xi).ok().map(|e| (xi, e))
+            })
+            .collect();
+        let mut mode_s = Vec::new();
+        let t1 = Instant::now();
+        let vad = vademecum::build(&sys, &basis.lo, &basis.hi, &settings.vademecum, |m, _| {
+            mode_s.push(t1.elapsed().as_secs_f64());
+            bar.set_position((100 * m / settings.vademecum.max_modes.max(1)) as u64);
+        })?;
+        if k == own.len() {
+            scene_pgd_modes = vad.n_modes;
+        }
+        for m in prefixes(vad.n_modes) {
+            let t2 = Instant::now();
+            let v = vad.prefix(m);
+            let (mut a, mut du) = (vec![0.0; v.n_modes], vec![0.0; v.n_free]);
+            let vademecum_error = exact.iter().fold(0.0f64, |w, (xi, e)| {
+                v.coefficients(xi, &mut a);
+                v.combine(&a, &mut du);
+                w.max(reference::l2_error(&du, e).1)
+            });
+            let ritz = RitzOperator::new(&v, &sys);
+            let off = Arc::new(TearOffline::new(model.clone(), basis.clone(), v, ritz));
+            let build_s = pod_s + mode_s.get(m.saturating_sub(1)).copied().unwrap_or(0.0) + t2.elapsed().as_secs_f64();
+            // the schedule, each step against the reference
+            let mut online = OnlineTear::new(off.clone(), variant, limits);
+            let (mut field_error, mut response_error) = (0.0f64, 0.0f64);
+            for (s, &ds) in off.model.schedule.iter().enumerate() {
+                online.step(ds);
+                let u = online.displacement_vec();
+                let r = &truth.steps[s + 1].u;
+                field_error = field_error.max(reference::l2_error(&u, r).1);
+                let (a, b) = (response(&u), response(r));
+                response_error = response_error.max((a - b).abs() / b.abs().max(f64::MIN_POSITIVE));
+            }
+            // the step's cost over whole schedules
+            let steps = off.model.schedule.len().max(1);
+            let mut times = Vec::with_capacity(TIMED_STEPS + steps);
+            while times.len() < TIMED_STEPS {
+                let mut online = OnlineTear::new(off.clone(), variant, limits);
+                for &ds in &off.model.schedule {
+                    let t = Instant::now();
+                    std::hint::black_box(online.step(ds));
+                    times.push(t.elapsed().as_secs_f64() * 1e6);
+                }
+            }
+            let (step, null) = (stat("step", times), stat("null", time_n(TIMED_STEPS, || 0.0)));
+            points.push(TearPoint {
+                pod_vectors: basis.len(),
+                pgd_modes: m,
+                vademecum_error,
+                field_error,
+                response_error,
+                step_p50_us: step.p50_us,
+                step_p99_us: step.p99_us,
+                null_p50_us: null.p50_us,
+                build_s,
+                bytes: off.memory_bytes(),
+                front: false,
+            });
+        }
+    }
+    bar.finish_and_clear();
+    let front = super::study::pareto(&points.iter().map(|p| (p.step_p50_us, p.field_error)).collect::<Vec<_>>());
+    for (p, f) in points.iter_mut().zip(front) {
+        p.front = f;
+    }
+    let mut csv = String::from(
+        "pod_vectors,pgd_modes,vademecum_error,field_error,response_error,step_p50_us,step_p99_us,null_p50_us,build_s,bytes,front\n",
+    );
+    for p in &points {
+        csv += &format!(
+            "{},{},{:e},{:e},{:e},{:.3},{:.3},{:.3},{:.3},{},{}\n",
+            p.pod_vectors,
+            p.pgd_modes,
+            p.vademecum_error,
+            p.field_error,
+            p.response_error,
+            p.step_p50_us,
+            p.step_p99_us,
+            p.null_p50_us,
+            p.build_s,
+            p.bytes,
+            p.front
+        );
+    }
+    std::fs::write(out.join("tear.csv"), csv).context("cannot write tear.csv")?;
+    plot(&points, &scene.spec.scene.name, &out.join("tear_error_vs_step.svg"))?;
+    let rec = TearSweep {
+        key: key.to_string(),
+        variant: variant.label().into(),
+        scene_pod_vectors: own.len(),
+        scene_pgd_modes,
+        reference_s,
+        points,
+    };
+    std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
+    Ok(Some(rec))
+}
+
+/// The sentence of the verdict: the scene's setting, and the cheapest point on the front whose
+/// worst field error over the schedule is within 1 % (or, with none, the most accurate).
+pub(super) fn verdict(s: &TearSweep) -> String {
+    let describe = |p: &TearPoint| {
+        format!(
+            "{} POD vectors, {} PGD modes (worst error over the steps {:.1e} in the field, {:.1e} in the grasp's response, the vademecum's own {:.1e}; {:.1} µs per step p50; {:.1} s of POD and vademecum)",
+            p.pod_vectors, p.pgd_modes, p.field_error, p.response_error, p.vademecum_error, p.step_p50_us, p.build_s
+        )
+    };
+    let own = s
+        .points
+        .iter()
+        .find(|p| p.pod_vectors == s.scene_pod_vectors && p.pgd_modes == s.scene_pgd_modes);
+    let best = s
+        .points
+        .iter()
+        .filter(|p| p.front && p.field_error <= 1e-2)
+        .min_by(|a, b| a.step_p50_us.total_cmp(&b.step_p50_us));
+    let best = match best {
+        Some(p) => format!("the cheapest on the front within 1 %: {}", describe(p)),
+        None => match s.points.iter().min_by(|a, b| a.field_error.total_cmp(&b.field_error)) {
+            Some(p) => format!("no point is within 1 %; the most accurate: {}", describe(p)),
+            None => "nothing was measured".into(),
+        },
+    };
+    format!(
+        "Tearing ({}, against its full-order reference; the references took {:.2} s) — the scene's setting: {}; {best}.",
+        s.variant,
+        s.reference_s,
+        own.map_or("not swept".into(), describe)
+    )
+}
+
+/// Worst field error against the step's cost, one colour per POD size, the modes beside each
+/// point, the front as a line.
+fn plot(points: &[TearPoint], scene: &str, file: &Path) -> anyhow::Result<()> {
+    let ok: Vec<&TearPoint> = points.iter().filter(|p| p.field_error.is_finite() && p.step_p50_us > 0.0).collect();
+    if ok.is_empty() {
+        return Ok(());
+    }
+    let err = |p: &TearPoint| p.field_error.max(1e-16);
+    let (x0, x1) = ok
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.step_p50_us), b.max(p.step_p50_us)));
+    let (e0, e1) = ok.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(err(p)), b.max(err(p))));
+    let root = SVGBackend::new(file, (900, 600)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{scene}: tearing, error against the online step's cost"),
+            ("sans-serif", 18),
+        )
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(70)
+        .build_cartesian_2d((x0 * 0.7..x1 * 1.4).log_scale(), (e0 * 0.3..e1 * 3.0).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("online step, p50 (µs)")
+        .y_desc("worst relative L2 error over the schedule")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    let mut sizes: Vec<usize> = ok.iter().map(|p| p.pod_vectors).collect();
+    sizes.sort_unstable();
+    sizes.dedup();
+    for (c, k) in sizes.into_iter().enumerate() {
+        let color = super::bench_anm::PALETTE[c % super::bench_anm::PALETTE.len()];
+        let of: Vec<&&TearPoint> = ok.iter().filter(|p| p.pod_vectors == k).collect();
+        chart
+            .draw_series(of.iter().map(|p| Circle::new((p.step_p50_us, err(p)), 5, color.filled())))?
+            .label(format!("{k} POD vector(s), PGD modes beside each"))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
+        chart.draw_series(of.iter().map(|p| {
+            Text::new(
+                format!("{}", p.pgd_modes),
+                (p.step_p50_us * 1.05, err(p) * 1.3),
+                ("sans-serif", 12).into_font(),
+            )
+        }))?;
+    }
+    let f: Vec<(f64, f64)> = ok.iter().filter(|p| p.front).map(|p| (p.step_p50_us, err(p))).collect();
+    super::study::draw_front(&mut chart, f)?;
+    root.present()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pod_sizes_and_prefixes_include_the_scenes_and_stay_within_what_exists() {
+        assert_eq!(pod_sizes(3, 30), [1, 2, 3, 6]);
+        assert_eq!(pod_sizes(3, 4), [1, 2, 3]);
+        assert_eq!(pod_sizes(1, 30), [1, 2]);
+        assert_eq!(prefixes(57), [5, 10, 20, 40, 57]);
+        assert_eq!(prefixes(10), [5, 10]);
+        assert_eq!(prefixes(3), [3]);
+    }
+
+    fn point(pod: usize, modes: usize, err: f64, step: f64, front: bool) -> TearPoint {
+        TearPoint {
+            pod_vectors: pod,
+            pgd_modes: modes,
+            vademecum_error: err / 10.0,
+            field_error: err,
+            response_error: err / 2.0,
+            step_p50_us: step,
+            step_p99_us: 2.0 * step,
+            null_p50_us: 0.02,
+            build_s: 1.0,
+            bytes: 1000,
+            front,
+        }
+    }
+
+    #[test]
+    fn the_verdict_names_the_scenes_setting_and_the_cheapest_within_one_percent_or_the_best() {
+        let mut s = TearSweep {
+            key: "k".into(),
+            variant: "POD–PGD, h = 0".into(),
+            scene_pod_vectors: 3,
+            scene_pgd_modes: 57,
+            reference_s: 0.5,
+            points: vec![
+                point(3, 57, 2e-4, 40.0, true),
+                point(3, 10, 5e-3, 12.0, true),
+                point(1, 5, 0.2, 3.0, true),
+            ],
+        };
+        let v = verdict(&s);
+        assert!(
+            v.contains("the scene's setting: 3 POD vectors, 57 PGD modes (worst error over the steps 2.0e-4"),
+            "{v}"
+        );
+        assert!(
+            v.contains("the cheapest on the front within 1 %: 3 POD vectors, 10 PGD modes"),
+            "{v}"
+        );
+        s.points.retain(|p| p.field_error > 1e-2);
+        let v = verdict(&s);
+        assert!(
+            v.contains("not swept") && v.contains("no point is within 1 %; the most accurate: 1 POD vectors, 5 PGD modes"),
+            "{v}"
+        );
+    }
+}
