@@ -114,6 +114,10 @@ fn a_scalpel_pressed_down_the_patch_cuts_the_top_row_and_the_tissue_there_soften
     let (before, after) = (before.unwrap(), norm(s.force_n));
     assert!(after.is_finite() && after > 0.0);
     assert!(after < 0.99 * before, "force {after} N after the cut, {before} N before");
+    // the local fields make the cut's compliance the full XFEM's: the answer keeps the linear
+    // law's round-off estimate (the study checks it against the full XFEM)
+    let e = s.force_error_n.expect("the cut organ's force carries its estimate");
+    assert!((e - 1e-9 * after).abs() <= 1e-12 * after, "{e:e} for {after} N");
     // the blade is in its cut now (the cut thread tells the next ticks)
     let seen = hold(&mut p, &blade(4.5, UPRIGHT), |s| s.events.has(Events::BLADE_IN_CUT));
     assert!(seen.last().unwrap().events.has(Events::BLADE_IN_CUT));
@@ -327,6 +331,8 @@ fn co_rotational_cutting_keeps_the_reduced_force_until_a_frame_lands_then_follow
     let mut largest_step = 0.0f64;
     for _ in 0..BLEND_TICKS {
         let (a, _) = (corot.tick(&tool), linear.tick(&tool));
+        // a rotation correction has no error estimate
+        assert_eq!(a.force_error_n, None);
         largest_step = largest_step.max(norm(std::array::from_fn(|k| a.force_n[k] - prev[k])));
         prev = a.force_n;
     }

@@ -797,6 +797,12 @@ fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
     );
     assert_eq!(local[0]["sliver"].as_f64(), Some(1e-4), "the scene's first");
     assert!(local.iter().all(|p| err(p) < 1e-9), "{local:?}");
+    // and so the estimate a session attaches to them (1e-9 of the force) bounds every one
+    let own = local[0];
+    assert!(
+        own["states"].as_u64().unwrap() >= 3 && own["estimate_bounded"] == own["states"],
+        "{own}"
+    );
     // the bare enrichment leaves the tissue around the opening to the modes: far from exact
     let bare: Vec<_> = cut.iter().filter(|p| p["discontinuous"] == "bare").collect();
     assert!(!bare.is_empty() && bare.iter().all(|p| err(p) > 1e-3), "{bare:?}");

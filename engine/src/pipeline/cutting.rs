@@ -55,7 +55,7 @@ use crate::pgd::offline::LoadedBundle;
 use crate::xfem::blade::Blade;
 use crate::xfem::online::OnlineCut;
 use crate::xfem::partial::PartialSurface;
-use crate::xfem::reduced::{CutView, ReducedCut};
+use crate::xfem::reduced::{CutView, Discontinuous, ReducedCut};
 use crate::xfem::view::CutWalls;
 
 /// The force on the blade split along it (N): `F⊥` normal to the blade plane, `F∥` in it.
@@ -418,8 +418,6 @@ impl Effect for Cutting {
             && c.loadable > 0.0
             && let Some(cv) = self.bundle.vademecum.compliance(c.nodes, c.weights)
         {
-            // the cut's compliance has no error estimate yet: the force carries none
-            state.force_error_n = None;
             let added = if self.view.enriched_unknowns() > 0 {
                 self.view.added_compliance(&c.nodes, &c.weights)
             } else {
@@ -472,6 +470,12 @@ impl Effect for Cutting {
                 state.force_n[k] += c.tissue_force_n[k] - tissue[k];
             }
             c.tissue_force_n = tissue;
+            // With local fields and no rotation the cut's compliance is the full XFEM's at the
+            // cut the tick holds (the Schur complement of the cracked nodes: `vademecum study`
+            // measures 1e-13), so the force keeps the linear law's round-off estimate; the
+            // bare enrichment and a co-rotational correction have none.
+            state.force_error_n = (self.view.discontinuous() == Discontinuous::LocalFields && now.is_none())
+                .then(|| super::palpation::LINEAR_RELATIVE_ERROR * tissue.iter().map(|x| x * x).sum::<f64>().sqrt());
         }
         if tool.kind != ToolKind::Scalpel {
             return;

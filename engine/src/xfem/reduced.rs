@@ -556,6 +556,11 @@ impl ReducedCut {
 }
 
 impl CutView {
+    /// What carries the discontinuous part.
+    pub fn discontinuous(&self) -> Discontinuous {
+        self.disc
+    }
+
     /// Bytes of the arrays its copies share (the local fields' columns, the basis, the
     /// degree-of-freedom map): counted once however many copies are in flight.
     pub fn shared_bytes(&self) -> usize {

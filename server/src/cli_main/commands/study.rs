@@ -482,7 +482,10 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         .collect::<String>()
     )?;
     std::fs::write(out.join("verdict.txt"), verdict + "\n")?;
-    Ok(if super::study_estimate::holds(&estimate) {
+    let cut_holds = cut
+        .as_ref()
+        .is_none_or(|c| super::study_cut::estimate_holds(c, scene.spec.fidelity.xfem.sliver));
+    Ok(if super::study_estimate::holds(&estimate) && cut_holds {
         ExitCode::SUCCESS
     } else {
         ExitCode::FAILURE

@@ -29,6 +29,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use vademecum_engine::pgd::Vademecum;
+use vademecum_engine::pipeline::palpation::LINEAR_RELATIVE_ERROR;
 use vademecum_engine::scene::{OrganModel, Scene};
 use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
 use vademecum_engine::xfem::system;
@@ -62,6 +63,13 @@ pub(super) struct CutPoint {
     /// contact node, against the full XFEM at the scene's sliver: median and largest.
     pub(super) force_error_median: f64,
     pub(super) force_error_max: f64,
+    /// How many of the `states` compared (contact nodes × axes) a session's error estimate
+    /// bounds: with local fields `1e-9 · |f|` (the cut's compliance is the full XFEM's); the
+    /// bare enrichment attaches none (0).
+    #[serde(default)]
+    pub(super) estimate_bounded: usize,
+    #[serde(default)]
+    pub(super) states: usize,
     /// The cut's part of a tick: `ΔC` at a two-node patch (µs).
     pub(super) tick_p50_us: f64,
     pub(super) tick_p99_us: f64,
@@ -198,6 +206,11 @@ fn measure(
         .flat_map(|(&a, (c0, cf))| force_errors(&add(c0, &view.added_compliance(&[a], &[1.0])), cf))
         .collect();
     errors.sort_by(f64::total_cmp);
+    let estimate_bounded = if disc == Discontinuous::LocalFields {
+        errors.iter().filter(|&&e| e <= LINEAR_RELATIVE_ERROR).count()
+    } else {
+        0
+    };
     let a0 = contacts.first().copied().unwrap_or(0);
     let a1 = contacts.get(1).copied().unwrap_or(a0);
     let mut flip = 0usize;
@@ -222,6 +235,8 @@ fn measure(
         enriched_nodes: r.enrichment().len(),
         force_error_median: errors.get(errors.len() / 2).copied().unwrap_or(f64::NAN),
         force_error_max: errors.last().copied().unwrap_or(f64::NAN),
+        estimate_bounded,
+        states: errors.len(),
         tick_p50_us: tick.p50_us,
         tick_p99_us: tick.p99_us,
         null_p50_us: null.p50_us,
@@ -264,6 +279,7 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
         && rec.key == key
     {
         eprintln!("resuming: the cutting sweep in {} is reused", record_path.display());
+        write_outputs(&rec.points, scene, out)?;
         return Ok(Some(rec));
     }
     let model = scene.organ_model(0)?;
@@ -309,12 +325,25 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
     for (p, f) in points.iter_mut().zip(front) {
         p.front = f;
     }
+    write_outputs(&points, scene, out)?;
+    let rec = CutSweep {
+        key: key.to_string(),
+        contacts,
+        points,
+        slivers_without_effect,
+    };
+    std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
+    Ok(Some(rec))
+}
+
+/// Writes cut.csv and cut_error_vs_tick.svg of `points` to `out` (also when the sweep is resumed).
+fn write_outputs(points: &[CutPoint], scene: &Scene, out: &Path) -> anyhow::Result<()> {
     let mut csv = String::from(
-        "discontinuous,basis,modes,sliver,enriched_nodes,force_error_median,force_error_max,tick_p50_us,tick_p99_us,null_p50_us,cut_ms,prepare_s,bytes,front\n",
+        "discontinuous,basis,modes,sliver,enriched_nodes,force_error_median,force_error_max,estimate_bounded,states,tick_p50_us,tick_p99_us,null_p50_us,cut_ms,prepare_s,bytes,front\n",
     );
-    for p in &points {
+    for p in points {
         csv += &format!(
-            "{},{},{},{:e},{},{:e},{:e},{:.3},{:.3},{:.3},{:.2},{:.3},{},{}\n",
+            "{},{},{},{:e},{},{:e},{:e},{},{},{:.3},{:.3},{:.3},{:.2},{:.3},{},{}\n",
             p.discontinuous,
             p.basis,
             p.modes,
@@ -322,6 +351,8 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
             p.enriched_nodes,
             p.force_error_median,
             p.force_error_max,
+            p.estimate_bounded,
+            p.states,
             p.tick_p50_us,
             p.tick_p99_us,
             p.null_p50_us,
@@ -332,15 +363,8 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
         );
     }
     std::fs::write(out.join("cut.csv"), csv).context("cannot write cut.csv")?;
-    plot(&points, &scene.spec.scene.name, &out.join("cut_error_vs_tick.svg"))?;
-    let rec = CutSweep {
-        key: key.to_string(),
-        contacts,
-        points,
-        slivers_without_effect,
-    };
-    std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
-    Ok(Some(rec))
+    plot(points, &scene.spec.scene.name, &out.join("cut_error_vs_tick.svg"))?;
+    Ok(())
 }
 
 /// The sentence of the verdict: the scene's setting, and the cheapest point on the front whose
@@ -381,11 +405,31 @@ pub(super) fn verdict(sweep: &CutSweep, scene_sliver: f64, scene_disc: Discontin
             own.map_or(0, |p| p.enriched_nodes)
         )
     };
+    let estimate = match own {
+        Some(p) if p.discontinuous == "local fields" => format!(
+            " The error estimate a session attaches to the cut organ's force (1e-9 of it) bounds {} of the {} forces compared ({:.1} %).",
+            p.estimate_bounded,
+            p.states,
+            100.0 * p.estimate_bounded as f64 / p.states.max(1) as f64
+        ),
+        Some(_) => " The bare enrichment's forces carry no error estimate.".into(),
+        None => String::new(),
+    };
     format!(
-        "Cutting — the scene's setting: {}; the cheapest on the front with every force within 1 % of the full XFEM's: {}.{same}",
+        "Cutting — the scene's setting: {}; the cheapest on the front with every force within 1 % of the full XFEM's: {}.{same}{estimate}",
         own.map_or("not swept".into(), describe),
         best.map_or("none".into(), describe)
     )
+}
+
+/// Whether the error estimate of the scene's setting bounds at least 95 % of the forces
+/// compared (true when its model attaches none: nothing to hold).
+pub(super) fn estimate_holds(sweep: &CutSweep, scene_sliver: f64) -> bool {
+    sweep
+        .points
+        .iter()
+        .find(|p| p.sliver == scene_sliver && p.discontinuous == "local fields")
+        .is_none_or(|p| p.estimate_bounded as f64 >= super::study_estimate::REQUIRED * p.states as f64)
 }
 
 /// Largest force error against the cut's part of the tick, one colour per model, the sliver
@@ -424,7 +468,10 @@ fn plot(points: &[CutPoint], scene: &str, file: &Path) -> anyhow::Result<()> {
     let groups = [("local fields", "-"), ("bare", "srb"), ("bare", "prb")];
     for (c, (disc, basis)) in groups.into_iter().enumerate() {
         let color = super::bench_anm::PALETTE[c];
-        let of: Vec<&&CutPoint> = ok.iter().filter(|p| p.discontinuous == disc && p.basis == basis).collect();
+        let of: Vec<&&CutPoint> = ok
+            .iter()
+            .filter(|p| p.discontinuous == disc && p.basis.eq_ignore_ascii_case(basis))
+            .collect();
         if of.is_empty() {
             continue;
         }
@@ -476,6 +523,8 @@ mod tests {
             enriched_nodes: 72,
             force_error_median: err / 2.0,
             force_error_max: err,
+            estimate_bounded: 12,
+            states: 12,
             tick_p50_us: tick,
             tick_p99_us: 2.0 * tick,
             null_p50_us: 0.02,
@@ -503,8 +552,32 @@ mod tests {
         assert!(v.contains("the scene's setting: local fields, sliver 1e-4 (72 enriched nodes, force error 1.5e-14 median, 3.0e-14 largest, ΔC 24.00 µs"), "{v}");
         assert!(v.contains("within 1 % of the full XFEM's: local fields, sliver 5e-2 ("), "{v}");
         assert!(v.contains("Sliver thresholds 1e-3, 1e-2 enrich the same 72 nodes"), "{v}");
-        let bare = verdict(&sweep, 1e-4, Discontinuous::Bare);
+        assert!(v.contains("bounds 12 of the 12 forces compared (100.0 %)"), "{v}");
+        assert!(estimate_holds(&sweep, 1e-4));
+        let mut failing = sweep;
+        failing.points[0].estimate_bounded = 11;
+        assert!(!estimate_holds(&failing, 1e-4), "11 of 12 is below 95 %");
+        let bare = verdict(&failing, 1e-4, Discontinuous::Bare);
         assert!(bare.contains("the scene's setting: bare on 10 SRB modes, sliver 1e-4"), "{bare}");
+    }
+
+    #[test]
+    fn the_plot_draws_every_point_with_its_models_legend() {
+        let points = [
+            point("local fields", 0, 1e-4, 3e-14, 4.0, true),
+            point("local fields", 0, 1e-3, 6e-3, 3.5, true),
+            point("bare", 10, 1e-4, 0.7, 6.5, false),
+            CutPoint {
+                basis: "PRB".into(),
+                ..point("bare", 10, 1e-4, 0.7, 4.6, false)
+            },
+        ];
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("cut.svg");
+        plot(&points, "s", &file).unwrap();
+        let svg = std::fs::read_to_string(&file).unwrap();
+        // four points and three legend markers (local fields, bare SRB, bare PRB)
+        assert_eq!(svg.matches("<circle").count(), 4 + 3, "{svg}");
     }
 
     #[test]

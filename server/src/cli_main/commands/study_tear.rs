@@ -107,6 +107,7 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
         && rec.key == key
     {
         eprintln!("resuming: the tearing sweep in {} is reused", record_path.display());
+        write_outputs(&rec.points, scene, out)?;
         return Ok(Some(rec));
     }
     let i = organ::tearable_organ(scene).context("the scene tears but no organ has a damage law")?;
@@ -212,10 +213,25 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
     for (p, f) in points.iter_mut().zip(front) {
         p.front = f;
     }
+    write_outputs(&points, scene, out)?;
+    let rec = TearSweep {
+        key: key.to_string(),
+        variant: variant.label().into(),
+        scene_pod_vectors: own.len(),
+        scene_pgd_modes,
+        reference_s,
+        points,
+    };
+    std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
+    Ok(Some(rec))
+}
+
+/// Writes tear.csv and tear_error_vs_step.svg of `points` to `out` (also when the sweep is resumed).
+fn write_outputs(points: &[TearPoint], scene: &Scene, out: &Path) -> anyhow::Result<()> {
     let mut csv = String::from(
         "pod_vectors,pgd_modes,vademecum_error,field_error,response_error,step_p50_us,step_p99_us,null_p50_us,build_s,bytes,front\n",
     );
-    for p in &points {
+    for p in points {
         csv += &format!(
             "{},{},{:e},{:e},{:e},{:.3},{:.3},{:.3},{:.3},{},{}\n",
             p.pod_vectors,
@@ -232,17 +248,8 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
         );
     }
     std::fs::write(out.join("tear.csv"), csv).context("cannot write tear.csv")?;
-    plot(&points, &scene.spec.scene.name, &out.join("tear_error_vs_step.svg"))?;
-    let rec = TearSweep {
-        key: key.to_string(),
-        variant: variant.label().into(),
-        scene_pod_vectors: own.len(),
-        scene_pgd_modes,
-        reference_s,
-        points,
-    };
-    std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
-    Ok(Some(rec))
+    plot(points, &scene.spec.scene.name, &out.join("tear_error_vs_step.svg"))?;
+    Ok(())
 }
 
 /// The sentence of the verdict: the scene's setting, and the cheapest point on the front whose
