@@ -347,6 +347,23 @@ fn bad_meshless_settings_and_cuts_name_the_key() {
     assert!(e.to_string().contains("not finite"), "{e}");
 }
 
+#[test]
+fn bad_large_deformation_lattice_settings_name_the_key() {
+    let ok = GOOD_SCENE.to_string() + "\n[fidelity.large]\norder = 8\n";
+    Scene::from_toml(&ok, "s.toml").unwrap();
+    for (setting, key) in [
+        ("order = 9", "fidelity.large.order"),
+        ("order = 0", "fidelity.large.order"),
+        ("load_steps = 0", "fidelity.large"),
+        ("max_force = -1.0", "fidelity.large.max_force"),
+        ("max_force = nan", "fidelity.large.max_force"),
+    ] {
+        let bad = format!("{GOOD_SCENE}\n[fidelity.large]\n{setting}\n");
+        let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+        assert_eq!(e.key.as_deref(), Some(key), "{setting}: {e}");
+    }
+}
+
 /// Reproducers the fuzzer found: a Gmsh v1 tetrahedron listing 3 nodes and a hexahedron
 /// listing 4 (the reader indexed past them), and a v4 header whose data size overflows
 /// (mshio unwrapped the overflow).

@@ -295,6 +295,23 @@ impl Scene {
         if p.max_modes == 0 || p.max_iterations == 0 || p.block == 0 {
             return Err(self.error_at(&pgd, "max_modes, max_iterations and block must be at least 1"));
         }
+        let l = &s.fidelity.large;
+        let large = |k: &'static str| [Seg::Key("fidelity"), Seg::Key("large"), Seg::Key(k)];
+        if !(1..=crate::rom::anm::MAX_ORDER).contains(&l.order) {
+            return Err(self.error_at(
+                &large("order"),
+                format!("the ANM order must lie in 1…{}", crate::rom::anm::MAX_ORDER),
+            ));
+        }
+        if l.positions == 0 || l.load_steps == 0 || l.modes == 0 {
+            return Err(self.error_at(
+                &[Seg::Key("fidelity"), Seg::Key("large")],
+                "positions, load_steps and modes must be at least 1",
+            ));
+        }
+        if !(l.max_force.is_finite() && l.max_force > 0.0) {
+            return Err(self.error_at(&large("max_force"), "max_force must be a positive force (N)"));
+        }
         self.validate_meshless()
     }
 
