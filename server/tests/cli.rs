@@ -767,13 +767,14 @@ fn study_sweeps_modes_and_storage_marks_the_front_and_resumes() {
     assert!(e.contains("build in") && e.contains("reused") && e.contains("0 to measure"), "{e}");
 }
 
-#[test]
-fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
+/// A small study of the built-in scene `name`: its `study.json` and stdout, once the study has
+/// written `files` and a second run has resumed the sweep named `resumed` without redoing it.
+fn small_study(name: &str, files: [&str; 2], resumed: &str) -> (serde_json::Value, String) {
     let dir = tempfile::tempdir().unwrap();
     let args = [
         "study",
         "--builtin",
-        "patch_cut",
+        name,
         "--out",
         "st",
         "--frames",
@@ -784,7 +785,19 @@ fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
     let o = vademecum(&args, dir.path());
     assert!(o.status.success(), "stderr: {}", stderr(&o));
     let st = dir.path().join("st");
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(st.join("study.json")).unwrap()).unwrap();
+    for f in files {
+        assert!(st.join(f).is_file(), "{f}");
+    }
+    let v = serde_json::from_str(&std::fs::read_to_string(st.join("study.json")).unwrap()).unwrap();
+    let again = vademecum(&args, dir.path());
+    assert!(again.status.success());
+    assert!(stderr(&again).contains(resumed), "{}", stderr(&again));
+    (v, stdout(&o))
+}
+
+#[test]
+fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
+    let (v, out) = small_study("patch_cut", ["cut.csv", "cut_error_vs_tick.svg"], "the cutting sweep in");
     let cut = v["cut"].as_array().unwrap();
     let err = |p: &serde_json::Value| p["force_error_max"].as_f64().unwrap();
     // the local fields are the full XFEM's Schur complement: the served force is exact
@@ -807,37 +820,12 @@ fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
     let bare: Vec<_> = cut.iter().filter(|p| p["discontinuous"] == "bare").collect();
     assert!(!bare.is_empty() && bare.iter().all(|p| err(p) > 1e-3), "{bare:?}");
     assert!(cut.iter().any(|p| p["front"] == true));
-    for f in ["cut.csv", "cut_error_vs_tick.svg"] {
-        assert!(st.join(f).is_file(), "{f}");
-    }
-    assert!(
-        stdout(&o).contains("Cutting — the scene's setting: local fields, sliver 1e-4"),
-        "{}",
-        stdout(&o)
-    );
-    let again = vademecum(&args, dir.path());
-    assert!(again.status.success());
-    assert!(stderr(&again).contains("the cutting sweep in"), "{}", stderr(&again));
+    assert!(out.contains("Cutting — the scene's setting: local fields, sliver 1e-4"), "{out}");
 }
 
 #[test]
 fn study_of_a_tearing_scene_sweeps_pod_vectors_and_vademecum_prefixes_against_the_reference() {
-    let dir = tempfile::tempdir().unwrap();
-    let args = [
-        "study",
-        "--builtin",
-        "cube_tear",
-        "--out",
-        "st",
-        "--frames",
-        "50",
-        "--estimate-points",
-        "8",
-    ];
-    let o = vademecum(&args, dir.path());
-    assert!(o.status.success(), "stderr: {}", stderr(&o));
-    let st = dir.path().join("st");
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(st.join("study.json")).unwrap()).unwrap();
+    let (v, out) = small_study("cube_tear", ["tear.csv", "tear_error_vs_step.svg"], "the tearing sweep in");
     let t = &v["tear"];
     let (pod, modes) = (t["scene_pod_vectors"].as_u64().unwrap(), t["scene_pgd_modes"].as_u64().unwrap());
     assert_eq!(pod, 3, "the seed's cube keeps 3 POD vectors");
@@ -854,13 +842,7 @@ fn study_of_a_tearing_scene_sweeps_pod_vectors_and_vademecum_prefixes_against_th
     let mut prefix: Vec<&serde_json::Value> = points.iter().filter(|p| p["pod_vectors"] == pod).collect();
     prefix.sort_by_key(|p| p["pgd_modes"].as_u64());
     assert!(prefix.len() >= 3 && f(prefix[0], "vademecum_error") > f(prefix.last().unwrap(), "vademecum_error"));
-    for f in ["tear.csv", "tear_error_vs_step.svg"] {
-        assert!(st.join(f).is_file(), "{f}");
-    }
-    assert!(stdout(&o).contains("Tearing (POD–PGD, h = 0"), "{}", stdout(&o));
-    let again = vademecum(&args, dir.path());
-    assert!(again.status.success());
-    assert!(stderr(&again).contains("the tearing sweep in"), "{}", stderr(&again));
+    assert!(out.contains("Tearing (POD–PGD, h = 0"), "{out}");
 }
 
 #[test]

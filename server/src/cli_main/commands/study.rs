@@ -227,6 +227,7 @@ fn measure(b: &LoadedBundle, rec: &BuildRecord, frames: &Frames, storage: &str, 
     }
 }
 
+/// Field error against `cost`, one colour per storage, the `front` points joined.
 fn plot(
     points: &[Point],
     cost: fn(&Point) -> f64,
@@ -235,45 +236,90 @@ fn plot(
     title: &str,
     file: &Path,
 ) -> anyhow::Result<()> {
+    let err = |p: &Point| p.field_error.max(1e-16);
+    let groups: Vec<Group> = ["f32", "i16"]
+        .into_iter()
+        .map(|storage| Group {
+            label: format!("modes stored in {storage}"),
+            triangles: false,
+            points: points
+                .iter()
+                .filter(|p| p.storage == storage)
+                .map(|p| (cost(p), err(p), String::new()))
+                .collect(),
+        })
+        .collect();
+    let f = points.iter().filter(|p| front(p)).map(|p| (cost(p), err(p))).collect();
+    scatter(file, title, (x_desc, "relative L2 error of the displacement field"), &groups, f)
+}
+
+/// One group of points of a study's scatter plot ([`scatter`]).
+pub(super) struct Group {
+    pub(super) label: String,
+    /// Triangles (their tags below them) instead of circles.
+    pub(super) triangles: bool,
+    /// `(cost, error, the tag written beside the point; none when empty)`.
+    pub(super) points: Vec<(f64, f64, String)>,
+}
+
+/// A sweep's error against its cost, log–log: each group in its colour with its legend, each
+/// point's tag beside it, the Pareto front `front` as a line. Points without a positive
+/// finite cost and error are left out (a log scale has no place for them); nothing is
+/// written when none is left.
+pub(super) fn scatter(
+    file: &Path,
+    title: &str,
+    (x_desc, y_desc): (&str, &str),
+    groups: &[Group],
+    front: Vec<(f64, f64)>,
+) -> anyhow::Result<()> {
+    let drawable = |p: &&(f64, f64, String)| p.0.is_finite() && p.0 > 0.0 && p.1.is_finite() && p.1 > 0.0;
+    let all: Vec<&(f64, f64, String)> = groups.iter().flat_map(|g| &g.points).filter(drawable).collect();
+    if all.is_empty() {
+        return Ok(());
+    }
+    let range = |f: fn(&(f64, f64, String)) -> f64| all.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(f(p)), b.max(f(p))));
+    let ((x0, x1), (e0, e1)) = (range(|p| p.0), range(|p| p.1));
     let root = SVGBackend::new(file, (900, 600)).into_drawing_area();
     root.fill(&WHITE)?;
-    let xs: Vec<f64> = points.iter().map(cost).collect();
-    let es: Vec<f64> = points.iter().map(|p| p.field_error.max(1e-16)).collect();
-    let (x0, x1) = (
-        xs.iter().copied().fold(f64::INFINITY, f64::min),
-        xs.iter().copied().fold(0.0, f64::max),
-    );
-    let (e0, e1) = (es.iter().copied().fold(1.0, f64::min), es.iter().copied().fold(1e-12, f64::max));
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 18))
         .margin(14)
         .x_label_area_size(44)
         .y_label_area_size(70)
-        .build_cartesian_2d((x0 * 0.8..x1 * 1.25).log_scale(), (e0 * 0.5..e1 * 2.0).log_scale())?;
+        .build_cartesian_2d((x0 * 0.7..x1 * 1.4).log_scale(), (e0 * 0.3..e1 * 3.0).log_scale())?;
     chart
         .configure_mesh()
         .x_desc(x_desc)
-        .y_desc("relative L2 error of the displacement field")
+        .y_desc(y_desc)
         .y_label_formatter(&|v| format!("{v:.0e}"))
         .draw()?;
-    for (k, storage) in ["f32", "i16"].iter().enumerate() {
-        let color = super::bench_anm::PALETTE[k];
-        let pts: Vec<(f64, f64)> = points
-            .iter()
-            .filter(|p| p.storage == *storage)
-            .map(|p| (cost(p), p.field_error.max(1e-16)))
-            .collect();
-        chart
-            .draw_series(pts.iter().map(|&(x, e)| Circle::new((x, e), 4, color.filled())))?
-            .label(format!("modes stored in {storage}"))
-            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+    for (c, g) in groups.iter().enumerate() {
+        let points: Vec<&(f64, f64, String)> = g.points.iter().filter(drawable).collect();
+        if points.is_empty() {
+            continue;
+        }
+        let color = super::bench_anm::PALETTE[c % super::bench_anm::PALETTE.len()];
+        if g.triangles {
+            chart
+                .draw_series(points.iter().map(|p| TriangleMarker::new((p.0, p.1), 6, color.filled())))?
+                .label(&g.label)
+                .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, color.filled()));
+        } else {
+            chart
+                .draw_series(points.iter().map(|p| Circle::new((p.0, p.1), 5, color.filled())))?
+                .label(&g.label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
+        }
+        let dy = if g.triangles { 0.8 } else { 1.3 };
+        chart.draw_series(
+            points
+                .iter()
+                .filter(|p| !p.2.is_empty())
+                .map(|p| Text::new(p.2.clone(), (p.0 * 1.05, p.1 * dy), ("sans-serif", 12).into_font())),
+        )?;
     }
-    let f: Vec<(f64, f64)> = points
-        .iter()
-        .filter(|p| front(p))
-        .map(|p| (cost(p), p.field_error.max(1e-16)))
-        .collect();
-    draw_front(&mut chart, f)?;
+    draw_front(&mut chart, front)?;
     root.present()?;
     Ok(())
 }

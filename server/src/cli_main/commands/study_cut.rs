@@ -26,7 +26,6 @@ use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pipeline::palpation::LINEAR_RELATIVE_ERROR;
@@ -36,6 +35,7 @@ use vademecum_engine::xfem::system;
 use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
 
 use super::bench_pgd::{stat, time_n};
+use super::study::{Group, scatter};
 
 /// Sliver thresholds swept beside the scene's.
 const SLIVERS: [f64; 3] = [1e-3, 1e-2, 5e-2];
@@ -435,68 +435,41 @@ pub(super) fn estimate_holds(sweep: &CutSweep, scene_sliver: f64) -> bool {
 /// Largest force error against the cut's part of the tick, one colour per model, the sliver
 /// or the modes beside each point, the front as a line.
 fn plot(points: &[CutPoint], scene: &str, file: &Path) -> anyhow::Result<()> {
-    let floor = 1e-16;
-    let ok: Vec<&CutPoint> = points
-        .iter()
-        .filter(|p| p.force_error_max.is_finite() && p.tick_p50_us > 0.0)
-        .collect();
-    if ok.is_empty() {
-        return Ok(());
-    }
-    let err = |p: &CutPoint| p.force_error_max.max(floor);
-    let (x0, x1) = ok
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.tick_p50_us), b.max(p.tick_p50_us)));
-    let (e0, e1) = ok.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(err(p)), b.max(err(p))));
-    let root = SVGBackend::new(file, (900, 600)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{scene}: cutting, force error against the cut's cost per tick"),
-            ("sans-serif", 18),
-        )
-        .margin(14)
-        .x_label_area_size(44)
-        .y_label_area_size(70)
-        .build_cartesian_2d((x0 * 0.7..x1 * 1.4).log_scale(), (e0 * 0.3..e1 * 3.0).log_scale())?;
-    chart
-        .configure_mesh()
-        .x_desc("ΔC at the contact, per tick, p50 (µs)")
-        .y_desc("largest relative force error against the full XFEM")
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()?;
-    let groups = [("local fields", "-"), ("bare", "srb"), ("bare", "prb")];
-    for (c, (disc, basis)) in groups.into_iter().enumerate() {
-        let color = super::bench_anm::PALETTE[c];
-        let of: Vec<&&CutPoint> = ok
-            .iter()
-            .filter(|p| p.discontinuous == disc && p.basis.eq_ignore_ascii_case(basis))
-            .collect();
-        if of.is_empty() {
-            continue;
-        }
-        let label = if basis == "-" {
-            "local fields (sliver beside each)".to_string()
-        } else {
-            format!("bare, {} basis (modes beside each)", basis.to_uppercase())
-        };
-        chart
-            .draw_series(of.iter().map(|p| Circle::new((p.tick_p50_us, err(p)), 5, color.filled())))?
-            .label(label)
-            .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
-        chart.draw_series(of.iter().map(|p| {
-            let tag = if p.modes == 0 {
-                format!("{:.0e}", p.sliver)
+    let err = |p: &CutPoint| p.force_error_max.max(1e-16);
+    let groups: Vec<Group> = [("local fields", "-"), ("bare", "srb"), ("bare", "prb")]
+        .into_iter()
+        .map(|(disc, basis)| Group {
+            label: if basis == "-" {
+                "local fields (sliver beside each)".into()
             } else {
-                format!("{}", p.modes)
-            };
-            Text::new(tag, (p.tick_p50_us * 1.05, err(p) * 1.3), ("sans-serif", 12).into_font())
-        }))?;
-    }
-    let f: Vec<(f64, f64)> = ok.iter().filter(|p| p.front).map(|p| (p.tick_p50_us, err(p))).collect();
-    super::study::draw_front(&mut chart, f)?;
-    root.present()?;
-    Ok(())
+                format!("bare, {} basis (modes beside each)", basis.to_uppercase())
+            },
+            triangles: false,
+            points: points
+                .iter()
+                .filter(|p| p.discontinuous == disc && p.basis.eq_ignore_ascii_case(basis))
+                .map(|p| {
+                    let tag = if p.modes == 0 {
+                        format!("{:.0e}", p.sliver)
+                    } else {
+                        p.modes.to_string()
+                    };
+                    (p.tick_p50_us, err(p), tag)
+                })
+                .collect(),
+        })
+        .collect();
+    let front = points.iter().filter(|p| p.front).map(|p| (p.tick_p50_us, err(p))).collect();
+    scatter(
+        file,
+        &format!("{scene}: cutting, force error against the cut's cost per tick"),
+        (
+            "ΔC at the contact, per tick, p50 (µs)",
+            "largest relative force error against the full XFEM",
+        ),
+        &groups,
+        front,
+    )
 }
 
 #[cfg(test)]

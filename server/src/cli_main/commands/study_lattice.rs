@@ -18,7 +18,6 @@ use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use vademecum_engine::pgd::offline::BuildOptions;
 use vademecum_engine::pipeline::estimate;
@@ -27,6 +26,7 @@ use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::LargeFidelity;
 
 use super::bench_pgd::{stat, time_n};
+use super::study::{Group, scatter};
 
 /// Positions blended per contact: the reduced fidelity's one, and the session's four.
 const NEIGHBOURS: [usize; 2] = [1, 4];
@@ -390,76 +390,42 @@ pub(super) fn verdict(points: &[LatticePoint], large: &LargeFidelity) -> String 
     )
 }
 
-/// Largest error within the paths against the law's cost per tick, one marker per blend, the
+/// Largest error within the paths against the law's cost per tick, one colour per blend, the
 /// lattice size written beside each point; the path settings (scene's positions, blending
-/// four) in a third colour, their setting beside each; the front drawn as a line.
+/// four) as triangles, their setting beside each; the front drawn as a line.
 fn plot(points: &[LatticePoint], scene: &str, large: &LargeFidelity, file: &Path) -> anyhow::Result<()> {
-    let ok: Vec<&LatticePoint> = points.iter().filter(|p| p.max_error.is_finite() && p.max_error > 0.0).collect();
-    if ok.is_empty() {
-        return Ok(());
-    }
-    let (x0, x1) = ok
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.tick_mean_us), b.max(p.tick_mean_us)));
-    let (e0, e1) = ok
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.max_error), b.max(p.max_error)));
-    let root = SVGBackend::new(file, (900, 600)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{scene}: large-deformation lattice, error against cost per tick"),
-            ("sans-serif", 18),
-        )
-        .margin(14)
-        .x_label_area_size(44)
-        .y_label_area_size(70)
-        .build_cartesian_2d((x0 * 0.7..x1 * 1.4).log_scale(), (e0 * 0.5..e1 * 2.0).log_scale())?;
-    chart
-        .configure_mesh()
-        .x_desc("the law's evaluation per tick, mean over the sampled states (µs)")
-        .y_desc("largest relative force error within the lattice's force")
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()?;
-    for (c, k) in NEIGHBOURS.into_iter().enumerate() {
-        let color = super::bench_anm::PALETTE[c];
-        let of: Vec<&&LatticePoint> = ok.iter().filter(|p| p.neighbours == k && scenes_paths(p, large)).collect();
-        chart
-            .draw_series(of.iter().map(|p| Circle::new((p.tick_mean_us, p.max_error), 5, color.filled())))?
-            .label(format!("blending {k} position(s)"))
-            .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
-        chart.draw_series(of.iter().map(|p| {
-            Text::new(
-                format!("{}", p.positions),
-                (p.tick_mean_us * 1.05, p.max_error * 1.1),
-                ("sans-serif", 13).into_font(),
-            )
-        }))?;
-    }
-    let color = super::bench_anm::PALETTE[NEIGHBOURS.len()];
-    let paths: Vec<&&LatticePoint> = ok.iter().filter(|p| !scenes_paths(p, large)).collect();
-    chart
-        .draw_series(
-            paths
+    let mut groups: Vec<Group> = NEIGHBOURS
+        .into_iter()
+        .map(|k| Group {
+            label: format!("blending {k} position(s)"),
+            triangles: false,
+            points: points
                 .iter()
-                .map(|p| TriangleMarker::new((p.tick_mean_us, p.max_error), 6, color.filled())),
-        )?
-        .label(format!(
-            "{} positions, other path settings (steps s, modes m, ANM order o)",
-            large.positions
-        ))
-        .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, color.filled()));
-    chart.draw_series(paths.iter().map(|p| {
-        Text::new(
-            format!("s{} m{} o{}", p.load_steps, p.modes, p.order),
-            (p.tick_mean_us * 1.05, p.max_error * 0.8),
-            ("sans-serif", 12).into_font(),
-        )
-    }))?;
-    let f: Vec<(f64, f64)> = ok.iter().filter(|p| p.front).map(|p| (p.tick_mean_us, p.max_error)).collect();
-    super::study::draw_front(&mut chart, f)?;
-    root.present()?;
-    Ok(())
+                .filter(|p| p.neighbours == k && scenes_paths(p, large))
+                .map(|p| (p.tick_mean_us, p.max_error, p.positions.to_string()))
+                .collect(),
+        })
+        .collect();
+    groups.push(Group {
+        label: format!("{} positions, other path settings (steps s, modes m, ANM order o)", large.positions),
+        triangles: true,
+        points: points
+            .iter()
+            .filter(|p| !scenes_paths(p, large))
+            .map(|p| (p.tick_mean_us, p.max_error, format!("s{} m{} o{}", p.load_steps, p.modes, p.order)))
+            .collect(),
+    });
+    let front = points.iter().filter(|p| p.front).map(|p| (p.tick_mean_us, p.max_error)).collect();
+    scatter(
+        file,
+        &format!("{scene}: large-deformation lattice, error against cost per tick"),
+        (
+            "the law's evaluation per tick, mean over the sampled states (µs)",
+            "largest relative force error within the lattice's force",
+        ),
+        &groups,
+        front,
+    )
 }
 
 #[cfg(test)]

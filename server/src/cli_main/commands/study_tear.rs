@@ -25,7 +25,6 @@ use std::time::Instant;
 
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
-use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use vademecum_engine::damage::build;
 use vademecum_engine::damage::online::{OnlineTear, RitzOperator, TearOffline, Variant};
@@ -37,6 +36,7 @@ use vademecum_engine::rom::pod::PodCriterion;
 use vademecum_engine::scene::Scene;
 
 use super::bench_pgd::{stat, time_n};
+use super::study::{Group, scatter};
 
 /// Prefixes of each vademecum measured (capped at its modes; all of them always).
 const PREFIXES: [usize; 4] = [5, 10, 20, 40];
@@ -288,54 +288,30 @@ pub(super) fn verdict(s: &TearSweep) -> String {
 /// Worst field error against the step's cost, one colour per POD size, the modes beside each
 /// point, the front as a line.
 fn plot(points: &[TearPoint], scene: &str, file: &Path) -> anyhow::Result<()> {
-    let ok: Vec<&TearPoint> = points.iter().filter(|p| p.field_error.is_finite() && p.step_p50_us > 0.0).collect();
-    if ok.is_empty() {
-        return Ok(());
-    }
     let err = |p: &TearPoint| p.field_error.max(1e-16);
-    let (x0, x1) = ok
-        .iter()
-        .fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.step_p50_us), b.max(p.step_p50_us)));
-    let (e0, e1) = ok.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(err(p)), b.max(err(p))));
-    let root = SVGBackend::new(file, (900, 600)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("{scene}: tearing, error against the online step's cost"),
-            ("sans-serif", 18),
-        )
-        .margin(14)
-        .x_label_area_size(44)
-        .y_label_area_size(70)
-        .build_cartesian_2d((x0 * 0.7..x1 * 1.4).log_scale(), (e0 * 0.3..e1 * 3.0).log_scale())?;
-    chart
-        .configure_mesh()
-        .x_desc("online step, p50 (µs)")
-        .y_desc("worst relative L2 error over the schedule")
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()?;
-    let mut sizes: Vec<usize> = ok.iter().map(|p| p.pod_vectors).collect();
+    let mut sizes: Vec<usize> = points.iter().map(|p| p.pod_vectors).collect();
     sizes.sort_unstable();
     sizes.dedup();
-    for (c, k) in sizes.into_iter().enumerate() {
-        let color = super::bench_anm::PALETTE[c % super::bench_anm::PALETTE.len()];
-        let of: Vec<&&TearPoint> = ok.iter().filter(|p| p.pod_vectors == k).collect();
-        chart
-            .draw_series(of.iter().map(|p| Circle::new((p.step_p50_us, err(p)), 5, color.filled())))?
-            .label(format!("{k} POD vector(s), PGD modes beside each"))
-            .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
-        chart.draw_series(of.iter().map(|p| {
-            Text::new(
-                format!("{}", p.pgd_modes),
-                (p.step_p50_us * 1.05, err(p) * 1.3),
-                ("sans-serif", 12).into_font(),
-            )
-        }))?;
-    }
-    let f: Vec<(f64, f64)> = ok.iter().filter(|p| p.front).map(|p| (p.step_p50_us, err(p))).collect();
-    super::study::draw_front(&mut chart, f)?;
-    root.present()?;
-    Ok(())
+    let groups: Vec<Group> = sizes
+        .into_iter()
+        .map(|k| Group {
+            label: format!("{k} POD vector(s), PGD modes beside each"),
+            triangles: false,
+            points: points
+                .iter()
+                .filter(|p| p.pod_vectors == k)
+                .map(|p| (p.step_p50_us, err(p), p.pgd_modes.to_string()))
+                .collect(),
+        })
+        .collect();
+    let front = points.iter().filter(|p| p.front).map(|p| (p.step_p50_us, err(p))).collect();
+    scatter(
+        file,
+        &format!("{scene}: tearing, error against the online step's cost"),
+        ("online step, p50 (µs)", "worst relative L2 error over the schedule"),
+        &groups,
+        front,
+    )
 }
 
 #[cfg(test)]
