@@ -760,11 +760,83 @@ fn study_sweeps_modes_and_storage_marks_the_front_and_resumes() {
     }
     assert!(stdout(&o).contains("The contact force does not depend on the modes"));
 
+    // the mesh at half, once and 1.5 times the scene's divisions, each with its vademecum
+    let m = &v["mesh"];
+    let levels = m["levels"].as_array().unwrap();
+    let div: Vec<&str> = levels.iter().map(|l| l["mesh"].as_str().unwrap()).collect();
+    assert_eq!(div, ["divisions [4, 3, 2]", "divisions [8, 5, 3]", "divisions [12, 8, 5]"]);
+    assert_eq!(m["scene_level"], 1);
+    let num = |l: &serde_json::Value, k: &str| l[k].as_f64().unwrap();
+    for w in levels.windows(2) {
+        assert!(num(&w[1], "nodes") > num(&w[0], "nodes") && num(&w[1], "cell_size") < num(&w[0], "cell_size"));
+    }
+    assert_eq!(m["probes"].as_array().unwrap().len(), 8);
+    // probes inside the accessible region stay loadable on every level (a pressing force)
+    for l in levels {
+        let forces = l["forces"].as_array().unwrap();
+        assert!(forces.iter().filter(|f| f.as_f64().is_some_and(|f| f > 0.0)).count() >= 6, "{l}");
+    }
+    let finest = levels.last().unwrap();
+    assert_eq!(num(finest, "force_error_median"), 0.0);
+    // the coarsest mesh is farthest from the finest
+    assert!(num(&levels[0], "force_error_median") > num(&levels[1], "force_error_median"));
+    assert!(st.join("mesh.csv").is_file() && st.join("mesh_error_vs_cost.svg").is_file());
+    assert!(stdout(&o).contains("Mesh (difference from the finest level"));
+
     // a second run reuses the build and every point
     let again = vademecum(&args, dir.path());
     assert!(again.status.success());
     let e = stderr(&again);
     assert!(e.contains("build in") && e.contains("reused") && e.contains("0 to measure"), "{e}");
+    assert!(e.contains("the mesh sweep in"), "{e}");
+
+    // refinements are factors of the divisions
+    let o = vademecum(
+        &["study", scene.to_str().unwrap(), "--out", "st", "--refinements", "0,1"],
+        dir.path(),
+    );
+    assert!(
+        !o.status.success() && stderr(&o).contains("--refinements are factors"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn study_sweeps_a_file_mesh_against_the_finer_files_given() {
+    let dir = tempfile::tempdir().unwrap();
+    // two meshes of the organ, written by `solve` (its .vtu holds the mesh)
+    let organ = stdout(&vademecum(&["scene", "show", "organ"], dir.path()));
+    for (name, div) in [("coarse", "[4, 3, 2]"), ("fine", "[6, 4, 3]")] {
+        let text = organ.replace("divisions = [16, 10, 6]", &format!("divisions = {div}"));
+        std::fs::write(dir.path().join(format!("{name}.toml")), text).unwrap();
+        let o = vademecum(&["solve", &format!("{name}.toml"), "--out", name], dir.path());
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let text = organ.replace(
+        "builtin = \"lobe\"\nsemi_axes = [0.08, 0.05, 0.025]      # m\nbend = 0.6\ndivisions = [16, 10, 6]",
+        "file = \"coarse/lobe.vtu\"",
+    );
+    assert!(text.contains("coarse/lobe.vtu"), "{text}");
+    std::fs::write(dir.path().join("file.toml"), text).unwrap();
+    let mut args = vec!["study", "file.toml", "--out", "st", "--frames", "20", "--estimate-points", "4"];
+    let o = vademecum(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    // one mesh is no sweep
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("st/study.json")).unwrap()).unwrap();
+    assert!(v["mesh"].is_null(), "{}", v["mesh"]);
+    args.extend(["--mesh-file", "fine/lobe.vtu"]);
+    let o = vademecum(&args, dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("st/study.json")).unwrap()).unwrap();
+    let levels = v["mesh"]["levels"].as_array().unwrap();
+    let names: Vec<&str> = levels.iter().map(|l| l["mesh"].as_str().unwrap()).collect();
+    assert_eq!(names, ["coarse/lobe.vtu", "fine/lobe.vtu"]);
+    assert_eq!(v["mesh"]["scene_level"], 0);
+    assert!(levels[0]["force_error_median"].as_f64().unwrap() > 0.0);
+    // a missing file is named
+    let o = vademecum(&["study", "file.toml", "--out", "st", "--mesh-file", "nowhere.vtu"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("nowhere.vtu"), "{}", stderr(&o));
 }
 
 /// A small study of the built-in scene `name`: its `study.json` and stdout, once the study has
@@ -843,6 +915,54 @@ fn study_of_a_tearing_scene_sweeps_pod_vectors_and_vademecum_prefixes_against_th
     prefix.sort_by_key(|p| p["pgd_modes"].as_u64());
     assert!(prefix.len() >= 3 && f(prefix[0], "vademecum_error") > f(prefix.last().unwrap(), "vademecum_error"));
     assert!(out.contains("Tearing (POD–PGD, h = 0"), "{out}");
+}
+
+#[test]
+fn study_of_a_meshless_scene_sweeps_support_integration_and_tolerance_against_the_fe_solve() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = stdout(&vademecum(&["scene", "show", "stretch"], dir.path())).replace("divisions = [12, 12, 12]", "divisions = [5, 5, 5]");
+    assert!(text.contains("[5, 5, 5]"));
+    std::fs::write(dir.path().join("small.toml"), text).unwrap();
+    let args = ["study", "small.toml", "--out", "st", "--frames", "50", "--estimate-points", "4"];
+    let o = vademecum(&args, dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let st = dir.path().join("st");
+    for f in ["meshless.csv", "meshless_error_vs_time.svg"] {
+        assert!(st.join(f).is_file(), "{f}");
+    }
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(st.join("study.json")).unwrap()).unwrap();
+    let m = &v["meshless"];
+    let points = m["points"].as_array().unwrap();
+    assert_eq!(points.len(), 9, "3 supports x 2 integrations, and 3 more tolerances");
+    let f = |p: &serde_json::Value, k: &str| p[k].as_f64().unwrap();
+    let at = |support: f64, q: u64, tol: f64| {
+        points
+            .iter()
+            .find(|p| f(p, "support") == support && p["integration"] == q && (f(p, "tolerance") / tol - 1.0).abs() < 1e-9)
+            .unwrap()
+    };
+    // the scene's setting: the same continuum as the finite elements on the same nodes,
+    // within the two discretisations' distance on so coarse a mesh (2.7 % in the field, 0.7 %
+    // in the reactions on 6³ nodes; 0.8 % and 0.2 % on the scene's 13³)
+    let own = at(2.2, 2, 1e-7);
+    assert!(own["failure"].is_null(), "{own}");
+    assert!(f(own, "field_error") < 0.05 && f(own, "reaction_error") < 0.02, "{own}");
+    // past the discretisation, the relaxation's tolerance changes nothing: 1e-7 and 1e-8 agree
+    let tight = at(2.2, 2, 1e-8);
+    assert!((f(tight, "field_error") - f(own, "field_error")).abs() < 1e-3 * f(own, "field_error"));
+    assert!(f(tight, "steps") >= f(own, "steps"));
+    // four times the points per cell cost more than one
+    assert!(f(own, "integration_points") == 8.0 * f(at(2.2, 1, 1e-7), "integration_points"));
+    assert!(points.iter().any(|p| p["front"] == true));
+    assert!(
+        stdout(&o).contains("Meshless solver ('cube', against the finite-element Newton solve"),
+        "{}",
+        stdout(&o)
+    );
+
+    let again = vademecum(&args, dir.path());
+    assert!(again.status.success());
+    assert!(stderr(&again).contains("has 9 points, 0 to solve"), "{}", stderr(&again));
 }
 
 #[test]

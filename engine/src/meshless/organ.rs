@@ -37,6 +37,8 @@ pub struct OrganSettings {
 pub struct OrganSolution {
     /// The loaded organ before its cuts (when it has any).
     pub uncut: Option<EfgSolution>,
+    /// Its reactions at the mesh's nodes (3 per node, N), as [`OrganSolution::reactions`].
+    pub uncut_reactions: Option<Vec<f64>>,
     /// The final state.
     pub solution: EfgSolution,
     /// The final node cloud (the mesh's nodes first, then the nodes the cuts added).
@@ -257,12 +259,17 @@ pub fn solve(
         }
     }
     let displacement = solution.displacement[..3 * mesh.n_nodes()].to_vec();
-    let mut reactions = vec![0.0; 3 * mesh.n_nodes()];
-    for (&(node, k, _), r) in problem.prescribed.iter().zip(&solution.reactions) {
-        reactions[3 * node + k] += r;
-    }
+    let node_reactions = |s: &EfgSolution| {
+        let mut reactions = vec![0.0; 3 * mesh.n_nodes()];
+        for (&(node, k, _), r) in problem.prescribed.iter().zip(&s.reactions) {
+            reactions[3 * node + k] += r;
+        }
+        reactions
+    };
+    let reactions = node_reactions(&solution);
     let von_mises = cell_von_mises(mesh, &problem.cloud, &solution.field, &law);
     Ok(OrganSolution {
+        uncut_reactions: uncut.as_ref().map(node_reactions),
         uncut,
         solution,
         cloud: problem.cloud,

@@ -782,7 +782,7 @@ impl Scene {
             }
             (None, Some(BuiltinMesh::Block)) => {
                 let size = m.size.unwrap_or([1.0; 3]);
-                let div = m.divisions.unwrap_or([4, 4, 4]);
+                let div = m.divisions.unwrap_or(DEFAULT_BLOCK_DIVISIONS);
                 let origin = m.origin.unwrap_or([0.0; 3]);
                 match m.cell.unwrap_or(CellKind::Hex8) {
                     CellKind::Hex8 => procedural::block_hex(origin, size, div),
@@ -1117,6 +1117,25 @@ impl Scene {
 
 /// Most cells a built-in mesh may produce (its memory alone would be gigabytes).
 pub const MAX_BUILTIN_CELLS: usize = 20_000_000;
+
+/// Divisions of a `builtin = "block"` mesh that gives none.
+pub const DEFAULT_BLOCK_DIVISIONS: [usize; 3] = [4, 4, 4];
+
+impl MeshSpec {
+    /// The divisions a procedural mesh is generated with: the given ones, or its generator's
+    /// default; `None` for a mesh file.
+    pub fn effective_divisions(&self) -> Option<[usize; 3]> {
+        if self.file.is_some() {
+            return None;
+        }
+        let default = match self.builtin? {
+            BuiltinMesh::Lobe => procedural::LobeParams::default().divisions,
+            BuiltinMesh::Dome => procedural::DomeParams::default().divisions,
+            BuiltinMesh::Block => DEFAULT_BLOCK_DIVISIONS,
+        };
+        Some(self.divisions.unwrap_or(default))
+    }
+}
 
 /// Poisson's ratio above which a plain linear tetrahedron (or a fully integrated hexahedron)
 /// is noticeably too stiff: at ν = 0.45 the Lamé cylinder of tetrahedra is 2.4 % stiff at its

@@ -141,6 +141,15 @@ pub struct StudyArgs {
     /// estimate (one Newton path each, pushed 1.5× past the lattice's force).
     #[arg(long, default_value_t = 12, value_name = "N")]
     pub estimate_nodes: usize,
+    /// The mesh sweep's levels, as factors of a procedural mesh's divisions (give 1 alone to
+    /// skip the sweep). Each level builds its own vademecum.
+    #[arg(long, value_delimiter = ',', default_values_t = [0.5, 1.0, 1.5], value_name = "F,F,...")]
+    pub refinements: Vec<f64>,
+    /// A coarser or finer mesh of the first organ (same units and `scale` as the scene's file),
+    /// a level of the mesh sweep beside the scene's own (repeat for more). For scenes whose
+    /// mesh is a file.
+    #[arg(long, value_name = "FILE")]
+    pub mesh_file: Vec<PathBuf>,
 }
 
 /// `vademecum check …`.

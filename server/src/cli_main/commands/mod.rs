@@ -27,6 +27,8 @@ mod study;
 mod study_cut;
 mod study_estimate;
 mod study_lattice;
+mod study_mesh;
+mod study_meshless;
 mod study_tear;
 
 use std::process::ExitCode;

@@ -11,6 +11,7 @@ use vademecum_engine::fem::hyperelastic::Volumetric;
 use vademecum_engine::fem::linear_static::{self, Timings};
 use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
 use vademecum_engine::fem::{assembly, element};
+use vademecum_engine::material::hyperelastic::Hyperelastic;
 use vademecum_engine::mesh::Mesh;
 use vademecum_engine::mesh::vtk::{self, Field};
 use vademecum_engine::meshless::cut::Cut;
@@ -473,28 +474,27 @@ pub(crate) fn solve_enriched(
 
 /// `fidelity.solver = "meshless"`: the organ by EFG and adaptive dynamic relaxation (seed 004),
 /// with its pre-planned cuts; the same summary and .vtu as the finite-element solve.
-fn solve_meshless(
-    scene: &Scene,
-    index: usize,
-    model: &OrganModel,
-    out: &std::path::Path,
-    progress: &Stages,
-) -> anyhow::Result<OrganSummary> {
+/// The organ's one hyperelastic law, or why the meshless solver cannot take the organ.
+pub(crate) fn meshless_law(model: &OrganModel) -> anyhow::Result<Hyperelastic> {
     let name = &model.name;
     if model.problem.springs.iter().any(|&k| k != 0.0) || !model.problem.pressures.is_empty() {
         anyhow::bail!(
             "organ '{name}': the meshless solver takes rigid supports and forces; elastic foundations and pressures need the finite-element solver"
         );
     }
-    let law = match &model.laws {
-        Some(laws) if laws.laws.len() == 1 => laws.laws[0],
+    match &model.laws {
+        Some(laws) if laws.laws.len() == 1 => Ok(laws.laws[0]),
         Some(_) => anyhow::bail!("organ '{name}': the meshless solver takes one material per organ"),
         None => anyhow::bail!(
             "organ '{name}': the meshless solver is nonlinear; give the organ a hyperelastic material (neo_hookean, stvk or mooney_rivlin)"
         ),
-    };
+    }
+}
+
+/// The scene's `[fidelity.meshless]` as the solver's settings.
+pub(crate) fn meshless_settings(scene: &Scene) -> OrganSettings {
     let f = &scene.spec.fidelity.meshless;
-    let settings = OrganSettings {
+    OrganSettings {
         support: f.support,
         integration: f.integration,
         params: AdrParams {
@@ -503,7 +503,19 @@ fn solve_meshless(
             max_steps: f.max_steps,
             ..AdrParams::default()
         },
-    };
+    }
+}
+
+fn solve_meshless(
+    scene: &Scene,
+    index: usize,
+    model: &OrganModel,
+    out: &std::path::Path,
+    progress: &Stages,
+) -> anyhow::Result<OrganSummary> {
+    let name = &model.name;
+    let law = meshless_law(model)?;
+    let settings = meshless_settings(scene);
     let cuts = scene.organ_cuts(index)?;
     let started = std::time::Instant::now();
     progress.stage("meshless: shape functions");

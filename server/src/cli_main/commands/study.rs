@@ -350,7 +350,16 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     if a.frames == 0 {
         bail!("--frames must be at least 1");
     }
+    if let Some(f) = a.refinements.iter().find(|f| !(f.is_finite() && **f > 0.0 && **f <= 4.0)) {
+        bail!("--refinements are factors of the divisions in (0, 4], got {f}");
+    }
     let scene = load_scene(&a.source)?;
+    if !a.mesh_file.is_empty() && scene.spec.organs[0].mesh.file.is_none() {
+        bail!("--mesh-file is for a scene whose first organ's mesh is a file; a procedural mesh is refined by --refinements");
+    }
+    if let Some(f) = a.mesh_file.iter().find(|f| !f.is_file()) {
+        bail!("--mesh-file {}: no such file", f.display());
+    }
     let scene_name = scene.spec.scene.name.clone();
     let out = a
         .out
@@ -393,6 +402,8 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     let lattice = super::study_lattice::sweep(&scene, &rec.key, a.estimate_nodes, &out)?;
     let cut = super::study_cut::sweep(&scene, &bundle.vademecum, &rec.key, &out)?;
     let tear = super::study_tear::sweep(&scene, &rec.key, &out)?;
+    let meshless = super::study_meshless::sweep(&scene, &rec.key, &out)?;
+    let mesh = super::study_mesh::sweep(&scene, &rec.key, &a.refinements, &a.mesh_file, &out)?;
 
     let mut points: Vec<Point> = done.into_values().collect();
     points.sort_by(|a, b| (a.storage.as_str(), a.modes).cmp(&(b.storage.as_str(), b.modes)));
@@ -426,7 +437,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     std::fs::write(
         out.join("study.json"),
         serde_json::to_string_pretty(
-            &serde_json::json!({ "scene": scene_name, "build": rec, "points": points, "estimate": estimate.coverage, "lattice": lattice, "cut": cut.as_ref().map(|c| &c.points), "cut_slivers_without_effect": cut.as_ref().map(|c| &c.slivers_without_effect), "tear": tear }),
+            &serde_json::json!({ "scene": scene_name, "build": rec, "points": points, "estimate": estimate.coverage, "lattice": lattice, "cut": cut.as_ref().map(|c| &c.points), "cut_slivers_without_effect": cut.as_ref().map(|c| &c.slivers_without_effect), "tear": tear, "meshless": meshless, "mesh": mesh }),
         )?,
     )?;
     plot(
@@ -506,6 +517,14 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         Some(t) => format!("{verdict} {}", super::study_tear::verdict(t)),
         None => verdict,
     };
+    let verdict = match &meshless {
+        Some(m) => format!("{verdict} {}", super::study_meshless::verdict(m)),
+        None => verdict,
+    };
+    let verdict = match &mesh {
+        Some(m) => format!("{verdict} {}", super::study_mesh::verdict(m)),
+        None => verdict,
+    };
     let verdict = match &cut {
         Some(c) => format!(
             "{verdict} {}",
@@ -521,6 +540,8 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
             (lattice.is_some(), ", lattice.csv, lattice_error_vs_tick.svg"),
             (cut.is_some(), ", cut.csv, cut_error_vs_tick.svg"),
             (tear.is_some(), ", tear.csv, tear_error_vs_step.svg"),
+            (meshless.is_some(), ", meshless.csv, meshless_error_vs_time.svg"),
+            (mesh.is_some(), ", mesh.csv, mesh_error_vs_cost.svg"),
         ]
         .iter()
         .filter(|(on, _)| *on)

@@ -283,7 +283,14 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
         return Ok(Some(rec));
     }
     let model = scene.organ_model(0)?;
-    anyhow::ensure!(model.laws.is_none(), "cutting by XFEM needs a linear material");
+    if model.laws.is_some() {
+        // a hyperelastic organ is cut by the meshless solver (the scene refuses XFEM for it)
+        eprintln!(
+            "the cutting sweep is skipped: organ '{}' is hyperelastic, its cuts are the meshless solver's (the meshless sweep makes them)",
+            model.name
+        );
+        return Ok(None);
+    }
     let params = scene.spec.fidelity.xfem.params();
     let cells = cut_cells(scene, &model, &params)?;
     anyhow::ensure!(!cells.is_empty(), "the cut crosses no cell of organ 0");
