@@ -1,4 +1,4 @@
-//! Built-in scenes parse and solve; the patch model of seed 000 §3.5.1 solves, satisfies
+//! Built-in scenes parse and solve (and report their procedural divisions); the patch model of seed 000 §3.5.1 solves, satisfies
 //! equilibrium and Clapeyron's theorem, and round-trips through `.vtu`.
 
 use vademecum_engine::fem::linear_static;
@@ -86,4 +86,19 @@ fn docs_scene_example_is_valid() {
     let s = Scene::from_toml(&block[toml_start..toml_end], "docs/scene.md").unwrap();
     let m = s.organ_model(0).unwrap();
     linear_static::solve(&m.mesh, &m.materials, m.locking, &m.problem, &mut |_| {}).unwrap();
+}
+
+#[test]
+fn a_procedural_mesh_reports_the_divisions_it_is_generated_with() {
+    let organ = Scene::builtin("organ").unwrap();
+    assert_eq!(organ.spec.organs[0].mesh.effective_divisions(), Some([16, 10, 6]));
+    // a block without divisions gets the generator's default, and the mesh has that many cells
+    let text = Scene::builtin("stretch").unwrap().source.replace("divisions = [12, 12, 12]\n", "");
+    let block = Scene::from_toml(&text, "block.toml").unwrap();
+    let d = block.spec.organs[0].mesh.effective_divisions().unwrap();
+    assert_eq!(block.organ_mesh(0).unwrap().n_cells(), d.iter().product::<usize>());
+    // a mesh file has none
+    let mut file = organ.spec.organs[0].mesh.clone();
+    file.file = Some("liver.msh".into());
+    assert_eq!(file.effective_divisions(), None);
 }

@@ -98,14 +98,20 @@ Then it checks the error estimate every answer carries (ToolResponse.force_error
 model: --estimate-points random contacts of the linear law against the full model's compliance, and, \
 for a scene with large deformations, full Newton at --estimate-nodes surface nodes off the lattice \
 pushed 1.5 times past its force. Exit status 1 when it bounds fewer than 95 % of the states.\n\n\
-With large deformations it also sweeps the lattice: a quarter, half, one and two times \
-fidelity.large.positions, blending 1 or 4 positions per contact; each point's force error against \
-full Newton off the lattice, the estimate's coverage, the law's cost per tick, its build time and \
-bundle bytes.\n\n\
+Then, for the effects the scene names: large deformations — the lattice at a quarter, half, one and \
+two times fidelity.large.positions blending 1 or 4 positions, and each path's load steps, POD modes \
+and ANM order, against full Newton; cutting — local fields or bare enrichment on mode prefixes and \
+the sliver rule, the served force against the full XFEM; tearing — POD vectors × vademecum prefixes \
+against the full-order reference; the meshless solver (fidelity.solver = \"meshless\") — support × \
+integration and the relaxation's tolerance, against the finite-element Newton solve of the same mesh. \
+And the mesh itself: the first organ at --refinements of a procedural mesh's divisions (or the \
+scene's file and each --mesh-file), each level's own vademecum, its contact force and strain energy \
+against the finest level, with Richardson's order and limit when they converge.\n\n\
 Writes <OUT>/study.csv, study.json, error_vs_online.svg and error_vs_bundle.svg (the Pareto front \
-marked), estimate.csv and estimate_vs_error.svg, lattice.csv and lattice_error_vs_tick.svg (large \
-deformations) and verdict.txt. Resumable: a second run reuses the build (same scene and tolerance), \
-the points already measured, the estimate's check and the lattice sweep.\n\n\
+marked), estimate.csv and estimate_vs_error.svg, one CSV and plot per sweep (lattice, cut, tear, \
+meshless, mesh) and verdict.txt. Resumable: a second run reuses the build (same scene and tolerance), \
+the points already measured, the estimate's check and every sweep done (the meshless solves one by \
+one).\n\n\
 The contact force comes from exact local compliances and has no mode error. Default OUT: \
 out/<scene name>/study."
     )]

@@ -41,6 +41,8 @@ use super::study::{Frames, Group, scatter};
 
 /// Points of the accessible surface where the contact force is compared.
 pub(super) const PROBES: usize = 8;
+/// Frames timed per level.
+const FRAMES: usize = 1000;
 /// Indentation of the compared contact force (m).
 const INDENTATION: f64 = 1e-3;
 
@@ -59,9 +61,14 @@ pub(super) struct MeshLevel {
     pub(super) modes: usize,
     pub(super) build_s: f64,
     pub(super) bundle_bytes: u64,
-    /// A frame's surface field (µs p50; `None` when the level has no fully loadable surface
-    /// triangle to make frames from).
+    /// A frame's surface field at all the level's modes (µs p50, p99, and a null loop's p50
+    /// in the same run; `None` when the level has no fully loadable surface triangle to make
+    /// frames from).
     pub(super) frame_p50_us: Option<f64>,
+    #[serde(default)]
+    pub(super) frame_p99_us: Option<f64>,
+    #[serde(default)]
+    pub(super) null_p50_us: Option<f64>,
     /// The normal contact force at each probe (N; `None` where the probe is not loadable).
     pub(super) forces: Vec<Option<f64>>,
     /// The strain energy under the scene's static loads (J), when it has loads.
@@ -90,6 +97,8 @@ impl MeshLevel {
             build_s: 0.0,
             bundle_bytes: 0,
             frame_p50_us: None,
+            frame_p99_us: None,
+            null_p50_us: None,
             forces: Vec::new(),
             energy_j: None,
             force_error_median: None,
@@ -312,8 +321,8 @@ pub(super) fn extrapolate(h: [f64; 3], q: [f64; 3]) -> Option<Extrapolation> {
     })
 }
 
-/// Sweeps the mesh (see the [module docs](self)); writes `mesh.csv` and
-/// `mesh_error_vs_cost.svg` to `out`. `None` when there is a single level.
+/// Sweeps the mesh (see the [module docs](self)); writes `mesh.csv`, `mesh_error_vs_cost.svg`
+/// and `mesh_error_vs_frame.svg` to `out`. `None` when there is a single level.
 pub(super) fn sweep(scene: &Scene, key: &str, factors: &[f64], files: &[PathBuf], out: &Path) -> anyhow::Result<Option<MeshSweep>> {
     let key = format!("{key} {factors:?} {files:?}");
     let record_path = out.join("mesh.json");
@@ -367,7 +376,11 @@ pub(super) fn sweep(scene: &Scene, key: &str, factors: &[f64], files: &[PathBuf]
 /// Builds and measures one level; the first call (the scene's own level) places the probes.
 fn measure(l: &Level, probe_points: &mut Vec<[f64; 3]>, tmp: &Path, stage: impl Fn(&str)) -> anyhow::Result<MeshLevel> {
     stage("building");
-    let opts = BuildOptions::for_scene(&l.scene, true);
+    // a level too large for this machine fails with the build's memory diagnostic, not the OOM killer
+    let opts = BuildOptions {
+        max_memory: super::build::memory_limit(None)?,
+        ..BuildOptions::for_scene(&l.scene, true)
+    };
     let t = Instant::now();
     let built = offline::build_organ(&l.scene, 0, &opts, &mut |_| {}).context("the build failed")?;
     let build_s = t.elapsed().as_secs_f64();
@@ -378,9 +391,9 @@ fn measure(l: &Level, probe_points: &mut Vec<[f64; 3]>, tmp: &Path, stage: impl 
         *probe_points = probes(&b.vademecum, &b.nodes, &b.surface, PROBES);
     }
     stage("measuring");
-    let frame_p50_us = Frames::of(&b.vademecum, &b.surface)
+    let timing = Frames::of(&b.vademecum, &b.surface)
         .ok()
-        .map(|f| f.p50_us(&b.vademecum, b.vademecum.modes(), 500));
+        .map(|f| f.timing(&b.vademecum, b.vademecum.modes(), FRAMES));
     let model = &built.model;
     let p = &model.problem;
     let energy_j = if p.forces.iter().any(|&f| f != 0.0) || p.prescribed.iter().any(|&u| u != 0.0) || !p.pressures.is_empty() {
@@ -400,7 +413,9 @@ fn measure(l: &Level, probe_points: &mut Vec<[f64; 3]>, tmp: &Path, stage: impl 
         modes: built.report.modes,
         build_s,
         bundle_bytes,
-        frame_p50_us,
+        frame_p50_us: timing.map(|t| t.0),
+        frame_p99_us: timing.map(|t| t.1),
+        null_p50_us: timing.map(|t| t.2),
         forces: probe_forces(&b.vademecum, &b.nodes, &b.surface, probe_points),
         energy_j,
         force_error_median: None,
@@ -448,15 +463,17 @@ fn finish(rec: &mut MeshSweep) {
     }
 }
 
-/// Writes mesh.csv and mesh_error_vs_cost.svg (also when the sweep is resumed).
+/// Writes mesh.csv, mesh_error_vs_cost.svg and mesh_error_vs_frame.svg (also when the sweep
+/// is resumed).
 fn write_outputs(s: &MeshSweep, scene: &str, out: &Path) -> anyhow::Result<()> {
     let opt = |v: Option<f64>, precision: usize| v.map_or(String::new(), |v| format!("{v:.precision$e}"));
+    let us = |v: Option<f64>| v.map_or(String::new(), |t| format!("{t:.3}"));
     let mut csv = String::from(
-        "mesh,nodes,cells,cell_size_m,modes,build_s,bundle_bytes,frame_p50_us,force_error_median,force_error_max,energy_j,energy_error,scene,front,failure\n",
+        "mesh,nodes,cells,cell_size_m,modes,build_s,bundle_bytes,frame_p50_us,frame_p99_us,null_p50_us,force_error_median,force_error_max,energy_j,energy_error,scene,front,failure\n",
     );
     for (i, l) in s.levels.iter().enumerate() {
         csv += &format!(
-            "\"{}\",{},{},{:e},{},{:.3},{},{},{},{},{},{},{},{},\"{}\"\n",
+            "\"{}\",{},{},{:e},{},{:.3},{},{},{},{},{},{},{},{},{},{},\"{}\"\n",
             l.mesh,
             l.nodes,
             l.cells,
@@ -464,7 +481,9 @@ fn write_outputs(s: &MeshSweep, scene: &str, out: &Path) -> anyhow::Result<()> {
             l.modes,
             l.build_s,
             l.bundle_bytes,
-            l.frame_p50_us.map_or(String::new(), |t| format!("{t:.3}")),
+            us(l.frame_p50_us),
+            us(l.frame_p99_us),
+            us(l.null_p50_us),
             opt(l.force_error_median, 6),
             opt(l.force_error_max, 6),
             opt(l.energy_j, 9),
@@ -484,29 +503,54 @@ fn write_outputs(s: &MeshSweep, scene: &str, out: &Path) -> anyhow::Result<()> {
         .filter(|(i, l)| l.failure.is_none() && Some(*i) != finest)
         .map(|(_, l)| l)
         .collect();
-    let group = |label: &str, err: fn(&MeshLevel) -> Option<f64>, triangles: bool| Group {
-        label: label.into(),
-        triangles,
-        points: coarser
+    let plot = |cost: fn(&MeshLevel) -> Option<f64>, (file, against, x_desc): (&str, &str, &str)| {
+        let group = |label: &str, err: fn(&MeshLevel) -> Option<f64>, triangles: bool| Group {
+            label: label.into(),
+            triangles,
+            points: coarser
+                .iter()
+                .map(|l| {
+                    (
+                        cost(l).unwrap_or(f64::NAN),
+                        err(l).unwrap_or(f64::NAN),
+                        format!("{} nodes", l.nodes),
+                    )
+                })
+                .collect(),
+        };
+        let groups = [
+            group("contact force at the probes (median)", |l| l.force_error_median, false),
+            group("strain energy under the scene's loads", |l| l.energy_error, true),
+        ];
+        let costs: Vec<(f64, f64)> = coarser
             .iter()
-            .map(|l| (l.build_s, err(l).unwrap_or(f64::NAN), format!("{} nodes", l.nodes)))
-            .collect(),
+            .map(|l| (cost(l).unwrap_or(f64::INFINITY), l.force_error_median.unwrap_or(f64::INFINITY)))
+            .collect();
+        let front = coarser
+            .iter()
+            .zip(super::study::pareto(&costs))
+            .filter(|(_, f)| *f)
+            .filter_map(|(l, _)| Some((cost(l)?, l.force_error_median?)))
+            .collect();
+        scatter(
+            &out.join(file),
+            &format!("{scene} '{}': the mesh, difference from the finest against {against}", s.organ),
+            (x_desc, "relative difference from the finest level"),
+            &groups,
+            front,
+        )
     };
-    let groups = [
-        group("contact force at the probes (median)", |l| l.force_error_median, false),
-        group("strain energy under the scene's loads", |l| l.energy_error, true),
-    ];
-    let front = coarser
-        .iter()
-        .filter(|l| l.front)
-        .filter_map(|l| Some((l.build_s, l.force_error_median?)))
-        .collect();
-    scatter(
-        &out.join("mesh_error_vs_cost.svg"),
-        &format!("{scene} '{}': the mesh, difference from the finest against the build", s.organ),
-        ("build of the level's vademecum (s)", "relative difference from the finest level"),
-        &groups,
-        front,
+    plot(
+        |l| Some(l.build_s),
+        ("mesh_error_vs_cost.svg", "the build", "build of the level's vademecum (s)"),
+    )?;
+    plot(
+        |l| l.frame_p50_us,
+        (
+            "mesh_error_vs_frame.svg",
+            "a frame",
+            "surface field of one frame at all modes, p50 (µs)",
+        ),
     )
 }
 
