@@ -1,5 +1,6 @@
-//! Built-in scenes parse and solve (and report their procedural divisions); the patch model of seed 000 §3.5.1 solves, satisfies
-//! equilibrium and Clapeyron's theorem, and round-trips through `.vtu`.
+//! Built-in scenes parse and solve (and report their procedural divisions); the patch model
+//! of seed 000 §3.5.1 solves, satisfies equilibrium and Clapeyron's theorem, and round-trips
+//! through `.vtu`.
 
 use vademecum_engine::fem::linear_static;
 use vademecum_engine::mesh::{self, vtk};
