@@ -770,11 +770,15 @@ fn study_sweeps_modes_and_storage_marks_the_front_and_resumes() {
     for w in levels.windows(2) {
         assert!(num(&w[1], "nodes") > num(&w[0], "nodes") && num(&w[1], "cell_size") < num(&w[0], "cell_size"));
     }
-    assert_eq!(m["probes"].as_array().unwrap().len(), 8);
+    let probes = m["probes"].as_array().unwrap().len();
+    assert!((8..=16).contains(&probes), "{probes}");
     // probes inside the accessible region stay loadable on every level (a pressing force)
     for l in levels {
         let forces = l["forces"].as_array().unwrap();
-        assert!(forces.iter().filter(|f| f.as_f64().is_some_and(|f| f > 0.0)).count() >= 6, "{l}");
+        assert!(
+            4 * forces.iter().filter(|f| f.as_f64().is_some_and(|f| f > 0.0)).count() >= 3 * probes,
+            "{l}"
+        );
     }
     let finest = levels.last().unwrap();
     assert_eq!(num(finest, "force_error_median"), 0.0);

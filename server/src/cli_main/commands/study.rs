@@ -75,6 +75,12 @@ fn fnv(text: &str) -> String {
     format!("{h:016x}")
 }
 
+/// JSON has no NaN: serde writes it as `null`, read back here as NaN (a measurement that
+/// could not be made, kept in a resumable record).
+pub(super) fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
 /// Marks the points no other point beats in both `cost` and error (ties kept).
 pub(super) fn pareto(points: &[(f64, f64)]) -> Vec<bool> {
     points

@@ -10,7 +10,8 @@
 //! What a session serves on each level is compared with the finest level's:
 //!
 //! - **the contact force** at fixed points of the accessible surface (up to [`PROBES`]
-//!   loadable nodes of the scene's own mesh, spread by farthest-point sampling): the force
+//!   loadable nodes of the scene's own mesh inside the loadable region, drawn uniformly with a
+//!   fixed seed): the force
 //!   `C(s)⁻¹ δ` for a 1 mm indentation along the surface normal, with `C(s)` the vademecum's
 //!   exact compliance at the nearest point `s` of that level's surface (the tool's footprint
 //!   of `probe_radius` spreads the load, so it converges once cells are smaller than the
@@ -40,7 +41,7 @@ use vademecum_engine::scene::schema::DeformationModel;
 use super::study::{Frames, Group, scatter};
 
 /// Points of the accessible surface where the contact force is compared.
-pub(super) const PROBES: usize = 8;
+pub(super) const PROBES: usize = 16;
 /// Frames timed per level.
 const FRAMES: usize = 1000;
 /// Indentation of the compared contact force (m).
@@ -56,7 +57,9 @@ pub(super) struct MeshLevel {
     pub(super) failure: Option<String>,
     pub(super) nodes: usize,
     pub(super) cells: usize,
-    /// A typical cell size: the mean length of the edges at a node, over the nodes (m).
+    /// A typical cell size: the mean length of the edges at a node, over the nodes (m; NaN
+    /// for a failed level).
+    #[serde(deserialize_with = "super::study::nan_if_null")]
     pub(super) cell_size: f64,
     pub(super) modes: usize,
     pub(super) build_s: f64,
@@ -223,29 +226,23 @@ fn probes(v: &Vademecum, nodes: &[[f64; 3]], tris: &[[usize; 3]], n: usize) -> V
         }
     }
     let cand: Vec<[f64; 3]> = v.load_nodes().iter().filter(|&&i| inside[i]).map(|&i| nodes[i]).collect();
-    farthest_points(&cand, n)
+    sample(&cand, n)
 }
 
-/// Up to `n` of `cand` by farthest-point sampling from the first: each next point is the one
-/// farthest from those chosen.
-fn farthest_points(cand: &[[f64; 3]], n: usize) -> Vec<[f64; 3]> {
-    let Some(&first) = cand.first() else {
-        return Vec::new();
-    };
-    let d2 = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
-    let mut out = vec![first];
-    let mut far: Vec<f64> = cand.iter().map(|&p| d2(p, first)).collect();
-    while out.len() < n.min(cand.len()) {
-        let (i, _) = far
-            .iter()
-            .enumerate()
-            .fold((0, -1.0), |b, (i, &d)| if d > b.1 { (i, d) } else { b });
-        out.push(cand[i]);
-        for (f, &p) in far.iter_mut().zip(cand) {
-            *f = f.min(d2(p, cand[i]));
-        }
+/// Up to `n` distinct points of `cand` drawn uniformly (a partial Fisher–Yates shuffle with a
+/// fixed seed: the same probes on every run). Uniform, not spread to the extremes: farthest-point
+/// sampling picks the region's rim, next to the supports, where the mesh matters most, and would
+/// make the sweep speak for the rim alone.
+fn sample(cand: &[[f64; 3]], n: usize) -> Vec<[f64; 3]> {
+    let mut pool = cand.to_vec();
+    let mut rng = vademecum_engine::rng::Rng(0x9E37_79B9_7F4A_7C15);
+    let n = n.min(pool.len());
+    for i in 0..n {
+        let j = i + (rng.next_u64() % (pool.len() - i) as u64) as usize;
+        pool.swap(i, j);
     }
-    out
+    pool.truncate(n);
+    pool
 }
 
 /// The normal contact force for a 1 mm indentation at the surface point nearest each probe
@@ -666,13 +663,23 @@ mod tests {
         // the forces 1, 2, 4 do not converge: their differences grow
         assert_eq!(rec.force_extrapolation, None);
         assert!(verdict(&rec).contains("finer: not measured (out of memory)"), "{}", verdict(&rec));
+        // the record, failed level and all, survives its round trip through mesh.json
+        let back: MeshSweep = serde_json::from_str(&serde_json::to_string(&rec).unwrap()).unwrap();
+        assert!(back.levels[3].cell_size.is_nan() && back.levels[3].failure.is_some());
     }
 
     #[test]
-    fn probes_spread_to_the_farthest_loadable_points() {
-        let pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.5, 0.0, 0.0]];
-        assert_eq!(farthest_points(&pts, 3), [pts[0], pts[1], pts[3]]);
-        assert_eq!(farthest_points(&pts, 9).len(), 4);
-        assert!(farthest_points(&[], 3).is_empty());
+    fn probes_are_distinct_candidates_the_same_on_every_run() {
+        let pts: Vec<[f64; 3]> = (0..50).map(|i| [i as f64, 0.0, 0.0]).collect();
+        let a = sample(&pts, 16);
+        assert_eq!(a, sample(&pts, 16));
+        let mut x: Vec<f64> = a.iter().map(|p| p[0]).collect();
+        x.sort_by(f64::total_cmp);
+        x.dedup();
+        assert_eq!(x.len(), 16, "distinct");
+        // spread over the candidates, not bunched at one end
+        assert!(x[0] < 15.0 && x[15] > 35.0, "{x:?}");
+        assert_eq!(sample(&pts[..3], 16).len(), 3);
+        assert!(sample(&[], 3).is_empty());
     }
 }

@@ -55,11 +55,11 @@ pub(super) struct MeshlessPoint {
     /// Against the finite-element solve, before any cut: the displacement at the mesh's nodes,
     /// the reactions over the named regions (relative L2) and the strain energy (`NaN`, kept
     /// as `null`, when the solve failed).
-    #[serde(deserialize_with = "nan_if_null")]
+    #[serde(deserialize_with = "super::study::nan_if_null")]
     pub(super) field_error: f64,
-    #[serde(deserialize_with = "nan_if_null")]
+    #[serde(deserialize_with = "super::study::nan_if_null")]
     pub(super) reaction_error: f64,
-    #[serde(deserialize_with = "nan_if_null")]
+    #[serde(deserialize_with = "super::study::nan_if_null")]
     pub(super) energy_error: f64,
     /// After the cuts (scenes with cuts): the reactions' relative difference from the most
     /// accurate setting's (filled when the outputs are written).
@@ -78,11 +78,6 @@ pub(super) struct MeshlessPoint {
 /// Equal to 1e-12: serde_json reads a float back to within an ulp, not always exactly.
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-12 * b.abs()
-}
-
-/// JSON has no NaN: serde writes it as `null`, read back here.
-fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
 impl MeshlessPoint {
