@@ -81,6 +81,11 @@ pub(super) fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64,
     Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
+/// `|a − b| / |b|` (a vanishing `b` divides by the least positive number, not by zero).
+pub(super) fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
+}
+
 /// Marks the points no other point beats in both `cost` and error (ties kept).
 pub(super) fn pareto(points: &[(f64, f64)]) -> Vec<bool> {
     points

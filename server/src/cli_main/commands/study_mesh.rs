@@ -3,7 +3,7 @@
 //!
 //! Levels: a procedural mesh (`builtin`) at its `divisions` times each factor of
 //! `--refinements` (default ½, 1, 1.5; rounded, at least 1), or a mesh file and the files given
-//! with `--mesh-file` (ordered by their node count). Each level is built as a palpation scene
+//! with `--mesh-file` (ordered by their cell count). Each level is built as a palpation scene
 //! (linear, no cutting or tearing: the mesh's own cost, not the effects', which have their own
 //! sweeps) at the scene's PGD settings.
 //!
@@ -14,8 +14,8 @@
 //!   fixed seed): the force
 //!   `C(s)⁻¹ δ` for a 1 mm indentation along the surface normal, with `C(s)` the vademecum's
 //!   exact compliance at the nearest point `s` of that level's surface (the tool's footprint
-//!   of `probe_radius` spreads the load, so it converges once cells are smaller than the
-//!   footprint; a point load's would not);
+//!   of `probe_radius` spreads the load, so it can converge once cells are smaller than the
+//!   footprint; a point load's cannot);
 //! - **the strain energy** under the scene's static loads (the full-order linear solve), when it
 //!   has loads.
 //!
@@ -23,7 +23,8 @@
 //! "Procedure for estimation and reporting of uncertainty due to discretization in CFD
 //! applications") on the three finest gives the observed order of convergence and an estimate
 //! of the finest level's own error. Cost: the build's wall time, the bundle's bytes, modes,
-//! and a frame's surface field (p50). Kept in `mesh.json`, resumed as a whole.
+//! and a frame's surface field (p50, p99 beside a null loop). Kept in `mesh.json`, resumed as
+//! a whole.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -38,10 +39,10 @@ use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::DeformationModel;
 
-use super::study::{Frames, Group, scatter};
+use super::study::{Frames, Group, rel, scatter};
 
 /// Points of the accessible surface where the contact force is compared.
-pub(super) const PROBES: usize = 16;
+const PROBES: usize = 16;
 /// Frames timed per level.
 const FRAMES: usize = 1000;
 /// Indentation of the compared contact force (m).
@@ -261,11 +262,6 @@ fn probe_forces(v: &Vademecum, nodes: &[[f64; 3]], tris: &[[usize; 3]], probes: 
         .collect()
 }
 
-/// `|a − b| / |b|`.
-fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
-}
-
 /// The median of the finite values of `v` (`NaN` when none).
 fn median(mut v: Vec<f64>) -> f64 {
     v.retain(|x| x.is_finite());
@@ -278,13 +274,13 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 /// Celik et al. (2008)'s generalised Richardson extrapolation of `q` on three levels of cell
 /// sizes `h` (coarse to fine, `h[0] > h[1] > h[2]`): the observed order `p` solves
-/// `p = |ln|ε₃₂/ε₂₁| + ln((r₂₁ᵖ − s)/(r₃₂ᵖ − s))| / ln r₂₁` (fixed-point iterations), with
+/// `p = (ln|ε₃₂/ε₂₁| + ln((r₂₁ᵖ − s)/(r₃₂ᵖ − s))) / ln r₂₁` (fixed-point iterations), with
 /// `ε₂₁ = q_fine − q_mid`, `ε₃₂ = q_mid − q_coarse`, `r` the size ratios and `s` the sign of
 /// `ε₃₂/ε₂₁`; then `q_ext = (r₂₁ᵖ q_fine − q_mid)/(r₂₁ᵖ − 1)`. `None` when the differences
 /// vanish, change sign or grow with refinement (no monotone convergence to extrapolate: the
 /// order is taken without Celik's absolute value, and must stay positive), or `p` is not
 /// finite.
-pub(super) fn extrapolate(h: [f64; 3], q: [f64; 3]) -> Option<Extrapolation> {
+fn extrapolate(h: [f64; 3], q: [f64; 3]) -> Option<Extrapolation> {
     let (r21, r32) = (h[1] / h[2], h[0] / h[1]);
     let (e21, e32) = (q[2] - q[1], q[1] - q[0]);
     if !(r21 > 1.0 && r32 > 1.0) || e21 == 0.0 || e32 == 0.0 || !q.iter().all(|x| x.is_finite()) {

@@ -26,6 +26,7 @@ use std::time::Instant;
 use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
+use vademecum_engine::damage::reference::l2_error;
 use vademecum_engine::fem::hyperelastic::Volumetric;
 use vademecum_engine::fem::nonlinear_static::{self, NewtonParams};
 use vademecum_engine::meshless::organ::{self, OrganSettings};
@@ -33,7 +34,7 @@ use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::SolverKind;
 
 use super::solve::{meshless_law, meshless_settings};
-use super::study::{Group, scatter};
+use super::study::{Group, rel, scatter};
 
 /// Influence radii swept beside the scene's (mean edge lengths at the node).
 const SUPPORTS: [f64; 2] = [1.6, 3.0];
@@ -122,13 +123,6 @@ fn settings(own: &OrganSettings) -> Vec<OrganSettings> {
         out.push(s);
     }
     out
-}
-
-/// Relative L2 distance of `a` from `b` (0 when both vanish).
-fn relative(a: &[f64], b: &[f64]) -> f64 {
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
-    let den: f64 = b.iter().map(|y| y * y).sum();
-    if den > 0.0 { (num / den).sqrt() } else { num.sqrt() }
 }
 
 /// The reactions over the named regions (3 per region) of node reactions `r`.
@@ -241,9 +235,9 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
                 let loaded = r.uncut.as_ref().unwrap_or(&r.solution);
                 let u = &loaded.displacement[..reference.u.len()];
                 let reactions = r.uncut_reactions.as_ref().unwrap_or(&r.reactions);
-                p.field_error = relative(u, &reference.u);
-                p.reaction_error = relative(&region_reactions(&model.named_regions, reactions), &reference_reactions);
-                p.energy_error = (loaded.energy - reference.strain_energy).abs() / reference.strain_energy.abs().max(f64::MIN_POSITIVE);
+                p.field_error = l2_error(u, &reference.u).1;
+                p.reaction_error = l2_error(&region_reactions(&model.named_regions, reactions), &reference_reactions).1;
+                p.energy_error = rel(loaded.energy, reference.strain_energy);
                 p.final_reactions = region_reactions(&model.named_regions, &r.reactions);
                 p.steps = loaded.steps + if r.uncut.is_some() { r.solution.steps } else { 0 };
             }
@@ -289,7 +283,7 @@ fn finish(points: &mut [MeshlessPoint], own: &OrganSettings, cut: bool) {
             .map(|p| p.final_reactions.clone());
         for p in points.iter_mut() {
             p.cut_reaction_error = match (&reference, &p.failure) {
-                (Some(r), None) => Some(relative(&p.final_reactions, r)),
+                (Some(r), None) => Some(l2_error(&p.final_reactions, r).1),
                 _ => None,
             };
         }

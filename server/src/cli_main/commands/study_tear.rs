@@ -179,7 +179,7 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
                 let r = &truth.steps[s + 1].u;
                 field_error = field_error.max(reference::l2_error(&u, r).1);
                 let (a, b) = (response(&u), response(r));
-                response_error = response_error.max((a - b).abs() / b.abs().max(f64::MIN_POSITIVE));
+                response_error = response_error.max(super::study::rel(a, b));
             }
             // the step's cost over whole schedules
             let steps = off.model.schedule.len().max(1);
