@@ -11,7 +11,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use util::{HapticRun, assert_forces_match_engine, bridge_bin, channel, engine, norm, read_trace};
+use util::{HapticRun, assert_forces_match_engine, bridge_bin, channel, engine, norm, read_trace, vademecum};
 
 /// A hand script of `reps` built-in palpations back to back (5 s each).
 fn repeated_palpation(record: &Path, reps: usize, out: &Path) {
@@ -184,20 +184,34 @@ fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
     // `vademecum run --haptic` on patch_cut writes its scripted incision (with the blade's
     // columns) as the hand script; the bridge's simulated stylus plays it: the blade state
     // crosses shared memory, the session cuts, and every force the device renders stays
-    // within the scalpel's and the device's limits
+    // within the scalpel's and the device's limits.
+    //
+    // The scene is the built-in patch_cut with a tenth of its cut force (0.1 N). At the seed's
+    // 1 N the blade's midpoint reaches the threshold 0.52 m deep in a strip 1 m thick, past the
+    // 0.5 m where the strip's surface normals (45° at its two edges) meet: there the proxy's
+    // projection has no unique answer, and which way it slides — so whether the force stays
+    // over 1 N — depends on the blade states the session happened to read. Three CI runs on a
+    // loaded machine cut along 73–75 mm and then stopped, without a cell (docs/contact.md,
+    // "The proxy"). At 0.1 N the blade cuts from 5 cm deep, far from that point, and the
+    // force it then meets stays well over the threshold on every branch (six loaded runs: the
+    // whole descent cut each time). This test is about the blade's path over shared memory.
     let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("patch_cut.toml");
+    let toml = String::from_utf8(vademecum(dir.path(), &["scene", "show", "patch_cut"]).stdout).unwrap();
+    let line = toml
+        .lines()
+        .find(|l| l.starts_with("cut_force"))
+        .expect("patch_cut has a cut_force");
+    std::fs::write(&scene, toml.replace(line, "cut_force = 0.1")).unwrap();
     let ch = channel("scalpel");
     let record = dir.path().join("run");
-    let mut server = HapticRun::start_with("patch_cut", &ch, &record, &["--builtin", "patch_cut", "--duration", "12"]);
+    let mut server = HapticRun::start_with("patch_cut", &ch, &record, &[scene.to_str().unwrap(), "--duration", "12"]);
     let script = std::fs::read_to_string(record.join("trajectory.csv")).unwrap();
     assert!(script.lines().next().unwrap().contains("bx_m"), "the hand script carries the blade");
     let trace = dir.path().join("trace.csv");
     // the patch is metres wide: the device's workspace and hand speed widened to it; the
-    // device renders a tenth of the organ's force: at full scale the simulated hand (coupled
-    // to the stylus at 300 N/m) is pushed back by up to 33 mm by the 10 N the device may
-    // render, a closed loop whose course depends on the answers' timing — in two CI runs on
-    // a loaded machine the blade then cut along 73–75 mm and no cell, against 792 mm and a
-    // cell otherwise. This test is about the blade's path over shared memory, not that loop.
+    // device renders a tenth of the organ's force (the simulated hand, coupled to the stylus
+    // at 300 N/m, then follows its script within a few millimetres)
     let out = Command::new(bridge_bin())
         .args(["--session", &ch, "--device", "sim", "--no-realtime", "--json", "--max-speed", "50"])
         .args(["--force-scale", "0.1"])
@@ -216,10 +230,9 @@ fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
     let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(record.join("summary.json")).unwrap()).unwrap();
     let cut = &summary["cut"];
     assert!(cut["cells"].as_u64().unwrap() >= 1, "the blade cut the patch: {summary}");
-    assert!(
-        cut["cracked_nodes"].as_u64().unwrap() >= 4 && cut["path_mm"].as_f64().unwrap() > 0.0,
-        "{summary}"
-    );
+    assert!(cut["cracked_nodes"].as_u64().unwrap() >= 4, "{summary}");
+    // it cut along its whole descent (5.0 → 3.95 m): the force never fell under the threshold
+    assert!(cut["path_mm"].as_f64().unwrap() > 900.0, "the blade cut all the way: {summary}");
     assert_eq!(summary["rejected_inputs"], 0, "every blade state was a blade: {summary}");
     let rows = read_trace(&trace);
     assert!(rows.iter().filter(|r| r.fresh).count() > 1000);
