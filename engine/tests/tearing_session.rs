@@ -96,6 +96,10 @@ fn the_grasper_takes_hold_pulls_and_lets_go_smoothly() {
         let lateral = s.force_n[0].hypot(s.force_n[1]);
         assert!(lateral <= 0.5 * fz(&s).abs() + 1e-12, "tick {k}: {:?}", s.force_n);
         last = fz(&s);
+        // each held force carries its calibrated error estimate: a few per cent at most
+        // (tearing_estimate.rs checks it against the full-order model)
+        let e = s.force_error_n.expect("a held force has an error estimate");
+        assert!(e > 0.0 && e <= 0.1 * fz(&s).abs() + 1e-12, "tick {k}: {e} N on {} N", fz(&s));
         tearing += s.events.has(Events::TEARING) as u32;
         assert!(!s.events.has(Events::TISSUE_TORN), "beta = 0.4 never reaches D = 0.8");
     }
@@ -114,6 +118,10 @@ fn the_grasper_takes_hold_pulls_and_lets_go_smoothly() {
     for _ in 0..FADE_TICKS {
         let s = p.tick(&jaws(up(0.05), 0.0));
         let now = -fz(&s);
+        assert!(
+            now == 0.0 || s.force_error_n.is_none(),
+            "a fading force is the fade's, not the tissue's"
+        );
         assert!(prev - now <= peak / f64::from(FADE_TICKS) + 1e-9, "a jump of {} N", prev - now);
         prev = now;
     }

@@ -445,6 +445,15 @@ fn run_grasps_and_pulls_a_tearable_cube_until_it_tears_and_records_the_damage() 
     let rec = dir.path().join("out/cube_tear/run");
     let forces = std::fs::read_to_string(rec.join("forces.csv")).unwrap();
     assert!(forces.lines().next().unwrap().ends_with(",closure"), "the jaw column");
+    // the held forces carry their error estimate (the build's calibration)
+    let header: Vec<&str> = forces.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "force_error_n").unwrap();
+    let estimated = forces
+        .lines()
+        .skip(1)
+        .filter(|l| l.split(',').nth(col).is_some_and(|e| e.parse::<f64>().is_ok_and(|e| e > 0.0)))
+        .count();
+    assert!(estimated > 100, "{estimated} answers with an estimate");
     // the frames: damage as cell data while the cube holds, its triangles gone once torn
     let pvd = std::fs::read_to_string(rec.join("cube.pvd")).unwrap();
     let files: Vec<&str> = pvd.split("file=\"").skip(1).map(|f| f.split('"').next().unwrap()).collect();
@@ -919,6 +928,16 @@ fn study_of_a_tearing_scene_sweeps_pod_vectors_and_vademecum_prefixes_against_th
     prefix.sort_by_key(|p| p["pgd_modes"].as_u64());
     assert!(prefix.len() >= 3 && f(prefix[0], "vademecum_error") > f(prefix.last().unwrap(), "vademecum_error"));
     assert!(out.contains("Tearing (POD–PGD, h = 0"), "{out}");
+    // the held force's error estimate, checked on mixed pulls against the full-order model
+    let tearing = v["estimate"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c[0] == "tearing")
+        .expect("the tearing estimate is checked");
+    let (n, bounded) = (tearing[1]["samples"].as_u64().unwrap(), tearing[1]["bounded"].as_u64().unwrap());
+    assert!(n >= 30 && bounded as f64 >= 0.95 * n as f64, "{tearing}");
+    assert!(out.contains("tearing: the estimate bounds the full model's error in"), "{out}");
 }
 
 #[test]

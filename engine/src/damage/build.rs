@@ -73,6 +73,12 @@ pub struct TearBuildReport {
     pub build_seconds: f64,
     /// The vademecum builder's own report.
     pub vademecum: vademecum::VademecumReport,
+    /// The calibrated relative error of the grasper's force at the schedule's last load
+    /// level, over the pulls along and across the load ([`force_error_table`]; NaN when the
+    /// calibration failed, and the bundle then carries no estimate).
+    pub force_error: f64,
+    /// Time of the calibration's full-order runs across the load and online pulls (s).
+    pub calibration_seconds: f64,
 }
 
 /// The offline stage failed.
@@ -163,23 +169,31 @@ pub fn build(
             }
         }
     }
+    let mut off = TearOffline::new(model, basis, vad, ritz);
+    progress("force error calibration", 0.0);
+    let t2 = Instant::now();
+    let shared = std::sync::Arc::new(off.clone());
+    off.force_error = force_error_table(&shared, &runs[0]).unwrap_or_default();
+    let calibration_seconds = t2.elapsed().as_secs_f64();
     let report = TearBuildReport {
         snapshots: snapshots.len(),
-        pod_vectors: basis.len(),
-        captured: basis.pod.captured,
-        lo: basis.lo.clone(),
-        hi: basis.hi.clone(),
-        min_g_over_box: basis.min_over_box(),
-        pgd_modes: vad.n_modes,
-        pattern_modes: vad.patterns.clone(),
-        ritz_size: ritz.m,
+        pod_vectors: off.basis.len(),
+        captured: off.basis.pod.captured,
+        lo: off.basis.lo.clone(),
+        hi: off.basis.hi.clone(),
+        min_g_over_box: off.basis.min_over_box(),
+        pgd_modes: off.vademecum.n_modes,
+        pattern_modes: off.vademecum.patterns.clone(),
+        ritz_size: off.ritz.m,
         vademecum_error: worst[0],
         cross_vademecum_error: worst[1],
         reference_seconds,
         build_seconds,
-        vademecum: vad.report.clone(),
+        vademecum: off.vademecum.report.clone(),
+        force_error: off.force_error.last().map_or(f64::NAN, |r| r[1]),
+        calibration_seconds,
     };
-    Ok((TearOffline::new(model, basis, vad, ritz), report, runs))
+    Ok((off, report, runs))
 }
 
 /// The two explicit full-order runs the offline stage takes its snapshots from (h = 0, then
@@ -232,6 +246,100 @@ pub fn pull_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3]) -> Result<V
         .map(|(k, &ds)| {
             online.step_pull(mix.map(|m| m * ds));
             reference::l2_error(&online.displacement_vec(), &exact.steps[k + 1].u).1
+        })
+        .collect())
+}
+
+/// The error of the force the grasper renders under a pull `mix` (multipliers of the patterns
+/// along the load and across it, as [`pull_errors`]), at each step of the model's schedule:
+/// rows `[t_k, t′_k, e_k]` with `t_k = |mix| Σ_{j≤k} Δs_j` the load level (unit steps).
+///
+/// The session holds the grasp by displacement control: it renders `|R| s` for the load `s`
+/// at which its reduced model reaches the device's displacement. At step `k` the online
+/// integrator (whole steps, as [`pull_errors`]) has the grasp at `w_r = (L_p·u)/|R|` under
+/// `t_k·mix`; the full-order model (explicit, h = 0; `exact` if already run, else run here)
+/// reaches the same displacement — measured along `w_r` — at the load level `t′`, linear
+/// between its steps. The forces for the same displacement differ by `|R| |t_k − t′| |mix|`:
+/// `e_k = |t_k − t′| / t_k`. Ends at the first step where the full-order run does not reach
+/// `w_r` (its last segment does not rise), or where the reduced grasp does not move.
+pub fn force_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3], exact: Option<&TearRun>) -> Result<Vec<[f64; 3]>, RunError> {
+    use super::online::{OnlineTear, StepLimits, Variant};
+    let model = &off.model;
+    let loads: Vec<Vec<f64>> = (0..off.patterns()).map(|p| model.pull_load(p)).collect();
+    let ran;
+    let exact = match exact {
+        Some(r) => r,
+        None => {
+            let mut loaded = model.clone();
+            loaded.load = (0..loaded.load.len())
+                .map(|d| (0..loads.len()).map(|p| mix[p] * loads[p][d]).sum())
+                .collect();
+            loaded.prescribed.iter_mut().for_each(|x| *x *= mix[0]);
+            ran = reference::run(&loaded, RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {})?;
+            &ran
+        }
+    };
+    let grasp =
+        |u: &[f64]| -> [f64; 3] { std::array::from_fn(|p| loads.get(p).map_or(0.0, |l| l.iter().zip(u).map(|(a, b)| a * b).sum())) };
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let size = mix.iter().map(|m| m * m).sum::<f64>().sqrt();
+    // the full-order run's levels and grasps
+    let mut level = 0.0;
+    let full: Vec<(f64, [f64; 3])> = std::iter::once((0.0, grasp(&exact.steps[0].u)))
+        .chain(model.schedule.iter().zip(&exact.steps[1..]).map(|(ds, st)| {
+            level += ds * size;
+            (level, grasp(&st.u))
+        }))
+        .collect();
+    let whole = StepLimits {
+        max_damage_increment: f64::INFINITY,
+        max_substeps: 1,
+    };
+    let mut online = OnlineTear::new(off.clone(), Variant::Simplified, whole);
+    let mut out = Vec::with_capacity(model.schedule.len());
+    let mut t = 0.0;
+    for &ds in &model.schedule {
+        online.step_pull(mix.map(|m| m * ds));
+        t += ds * size;
+        let w = grasp(&online.displacement_vec());
+        let reach = dot(w, w).sqrt();
+        if !(reach > 0.0 && reach.is_finite()) {
+            break;
+        }
+        let dir = w.map(|x| x / reach);
+        let phi: Vec<f64> = full.iter().map(|(_, g)| dot(*g, dir)).collect();
+        let cross = phi.windows(2).position(|p| p[0] < reach && p[1] >= reach);
+        let j = match cross {
+            Some(j) => j,
+            // past the full run's last step: its last segment, if it rises
+            None if phi.len() >= 2 && phi[phi.len() - 1] > phi[phi.len() - 2] && reach > phi[phi.len() - 1] => phi.len() - 2,
+            None => break,
+        };
+        let s = (reach - phi[j]) / (phi[j + 1] - phi[j]);
+        let t_full = full[j].0 + s * (full[j + 1].0 - full[j].0);
+        out.push([t, t_full, (t - t_full).abs() / t]);
+    }
+    Ok(out)
+}
+
+/// The calibration a bundle stores ([`TearOffline::force_error`]): [`force_errors`] of the
+/// pull along the load (its full-order run is the build's own, `along`) and, when the
+/// vademecum follows them, of the two pulls across it, merged into one envelope — at each
+/// level the largest error of any pull up to that level. A mixed pull is not calibrated:
+/// `vademecum study` checks how often the envelope bounds mixed pulls' true errors.
+pub fn force_error_table(off: &std::sync::Arc<TearOffline>, along: &TearRun) -> Result<Vec<[f64; 2]>, RunError> {
+    let mut pulls = vec![force_errors(off, [1.0, 0.0, 0.0], Some(along))?];
+    if off.patterns() == 3 {
+        for mix in [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] {
+            pulls.push(force_errors(off, mix, None)?);
+        }
+    }
+    let steps = pulls.iter().map(Vec::len).min().unwrap_or(0);
+    let mut worst: f64 = 0.0;
+    Ok((0..steps)
+        .map(|k| {
+            worst = pulls.iter().map(|p| p[k][2]).fold(worst, f64::max);
+            [pulls[0][k][0], worst]
         })
         .collect())
 }

@@ -217,6 +217,10 @@ pub struct TearOffline {
     pub local: LocalDofs,
     /// The pull pattern of each vademecum mode (0: the scene's load; 1, 2: across it).
     pub mode_pattern: Vec<usize>,
+    /// The calibrated error of the grasper's force ([`crate::damage::build::force_error_table`]):
+    /// rows `[load level, relative error]`, levels increasing, errors non-decreasing. Empty:
+    /// no estimate (a bundle built before it, or built without it).
+    pub force_error: Vec<[f64; 2]>,
 }
 
 impl TearOffline {
@@ -283,7 +287,34 @@ impl TearOffline {
             ritz,
             local,
             mode_pattern,
+            force_error: Vec::new(),
         }
+    }
+
+    /// The relative error of the grasper's force at load level `level` (`|s|`, unit steps)
+    /// from [`Self::force_error`]: the envelope's value at the first calibrated level at or
+    /// past `level` (an upper step, so the estimate never interpolates downwards); `None`
+    /// without a calibration or past its last level (no full-order run went that far).
+    pub fn force_error_at(&self, level: f64) -> Option<f64> {
+        let last = self.force_error.last()?;
+        if level.is_nan() || level > last[0] * (1.0 + 1e-9) {
+            return None;
+        }
+        self.force_error.iter().find(|r| r[0] >= level * (1.0 - 1e-9)).map(|r| r[1])
+    }
+
+    /// The relative error of the grasper's force under the load factors `s` (along the load
+    /// and across it): [`Self::force_error_at`] `|s|₂` times `|s|₁ / |s|₂`. The calibration
+    /// pulls along each direction alone; where the response is linear the errors of a mixed
+    /// pull superpose, `|Σ_p s_p ε_p| ≤ |s|₁ max_p |ε_p|`, a bound the factor (at most √3)
+    /// keeps. `None` as [`Self::force_error_at`], and for no load.
+    pub fn force_error_for(&self, s: [f64; 3]) -> Option<f64> {
+        let l2 = s.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let l1: f64 = s.iter().map(|x| x.abs()).sum();
+        if l2.is_nan() || l2 <= 0.0 {
+            return None;
+        }
+        self.force_error_at(l2).map(|e| e * l1 / l2)
     }
 }
 

@@ -47,6 +47,8 @@ pub struct TearArrays {
     pub load_nodes: Vec<usize>,
     /// The force per unit step on each of them (N), `3 × load_nodes`.
     pub load_forces: Vec<f64>,
+    /// [`TearOffline::force_error`], flattened (`[level, error]` pairs; empty: none).
+    pub force_error: Vec<f64>,
 }
 
 impl TearOffline {
@@ -70,6 +72,7 @@ impl TearOffline {
             m: r.m,
             load_nodes: Vec::new(),
             load_forces: Vec::new(),
+            force_error: self.force_error.concat(),
         }
     }
 
@@ -171,6 +174,19 @@ impl TearOffline {
                 seconds: 0.0,
             },
         };
+        let force_error: Vec<[f64; 2]> = a.force_error.chunks_exact(2).map(|r| [r[0], r[1]]).collect();
+        let increasing = force_error.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
+        if !a.force_error.len().is_multiple_of(2)
+            || !increasing
+            || force_error
+                .iter()
+                .any(|r| !(r[0] > 0.0 && r[0].is_finite() && r[1] >= 0.0 && r[1].is_finite()))
+        {
+            return Err(
+                "tearing array force_error is not a table of increasing load levels and non-decreasing errors; rebuild the bundle with `vademecum build`"
+                    .into(),
+            );
+        }
         let mm = a.m * a.m;
         let ritz = RitzOperator {
             m: a.m,
@@ -178,6 +194,8 @@ impl TearOffline {
             k: a.ritz_k.chunks_exact(mm).map(<[f64]>::to_vec).collect(),
             b: a.ritz_b.chunks_exact(a.m).map(<[f64]>::to_vec).collect(),
         };
-        Ok(Self::new(model, basis, vademecum, ritz))
+        let mut off = Self::new(model, basis, vademecum, ritz);
+        off.force_error = force_error;
+        Ok(off)
     }
 }

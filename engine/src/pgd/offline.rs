@@ -743,6 +743,13 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
         if t.patterns.len() > 1 {
             arrays.push((name("patterns"), len(&small.patterns), ArrayData::F64(&small.patterns)));
         }
+        if !t.force_error.is_empty() {
+            arrays.push((
+                name("force_error"),
+                vec![t.force_error.len() as u64 / 2, 2],
+                ArrayData::F64(&t.force_error),
+            ));
+        }
         if !t.load_nodes.is_empty() {
             arrays.push((
                 name("load_nodes"),
@@ -813,7 +820,7 @@ impl LoadedBundle {
 }
 
 /// The arrays of a grasp site's tearing stage, after its prefix ([`tear_prefix`]).
-const TEAR_ARRAYS: [&str; 13] = [
+const TEAR_ARRAYS: [&str; 14] = [
     "meta",
     "pod_basis",
     "singular_values",
@@ -827,6 +834,7 @@ const TEAR_ARRAYS: [&str; 13] = [
     "patterns",
     "load_nodes",
     "load",
+    "force_error",
 ];
 
 /// The bundle's names of grasp site `k`'s tearing arrays: `tear_…` for the scene's grasp
@@ -884,7 +892,9 @@ fn read_tear(dir: &Path, manifest: &Manifest, prefix: &str) -> Result<TearArrays
     } else {
         (Vec::new(), Vec::new())
     };
+    let force_error = if has("force_error") { f("force_error")?.1 } else { Vec::new() };
     Ok(TearArrays {
+        force_error,
         patterns,
         pod_basis: f("pod_basis")?.1,
         singular_values: f("singular_values")?.1,

@@ -10,6 +10,10 @@
 //!   position's load taken 1.5 times past the lattice's force ([`NewtonLaw`]): at each depth
 //!   Newton reached, the served ratio against the full model's, the part past the lattice's
 //!   paths included (where the estimate must cover the extrapolation).
+//! - **Tearing**: the grasp pulled from virgin tissue in directions that mix the load and the
+//!   two across it ([`TEAR_MIXES`]; the calibration pulls along each alone), at each step of
+//!   the schedule the force the reduced model renders for its grasp displacement against the
+//!   full-order model's for the same displacement ([`crate::damage::build::force_errors`]).
 
 use super::palpation::LINEAR_RELATIVE_ERROR;
 use crate::pgd::Vademecum;
@@ -24,6 +28,58 @@ const NEIGHBOURS: usize = 4;
 
 /// How far past the lattice's force the full model is pushed to sample the extrapolation.
 pub const PAST_THE_LATTICE: f64 = 1.5;
+
+/// The pull directions the tearing samples take (multipliers of the patterns along the load
+/// and the two across it, normalised): each mixes directions the calibration pulls alone, in
+/// both senses across.
+pub const TEAR_MIXES: [[f64; 3]; 6] = [
+    [1.0, 1.0, 0.0],
+    [1.0, -1.0, 0.0],
+    [1.0, 0.0, 1.0],
+    [1.0, 0.0, -1.0],
+    [1.0, 1.0, 1.0],
+    [2.0, 1.0, -1.0],
+];
+
+/// The tearing samples of the grasp site `off` (module docs): one per pull of [`TEAR_MIXES`]
+/// and step of its schedule within the calibrated load levels; `done(k, n)` after each pull.
+/// Empty when the site follows the pull along its load only (nothing mixes).
+pub fn tear_samples(
+    off: &std::sync::Arc<crate::damage::online::TearOffline>,
+    mut done: impl FnMut(usize, usize),
+) -> Result<Vec<Sample>, crate::damage::reference::RunError> {
+    if off.patterns() != 3 || off.force_error.is_empty() {
+        return Ok(Vec::new());
+    }
+    let Some((_, centre, r)) = off.model.grasp() else {
+        return Ok(Vec::new());
+    };
+    let resultant = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+    let mut out = Vec::new();
+    for (k, mix) in TEAR_MIXES.iter().enumerate() {
+        let size = mix.iter().map(|m| m * m).sum::<f64>().sqrt();
+        let unit = mix.map(|m| m / size);
+        for [level, full, _] in crate::damage::build::force_errors(off, unit, None)? {
+            let Some(e) = off.force_error_for(unit.map(|m| m * level)) else {
+                continue;
+            };
+            let served = resultant * level;
+            out.push(Sample {
+                model: "tearing",
+                point_m: centre,
+                depth_m: 0.0,
+                beyond_range: false,
+                within_force: true,
+                served,
+                truth: resultant * full,
+                error: resultant * (level - full).abs(),
+                estimate: served * e,
+            });
+        }
+        done(k + 1, TEAR_MIXES.len());
+    }
+    Ok(out)
+}
 
 /// One sampled state.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

@@ -36,6 +36,18 @@
 //! only. The step's damage growth is limited by the integrator's sub-steps
 //! (`[fidelity.tearing] max_damage_increment`).
 //!
+//! # The error estimate of each force
+//! While held, each force carries an estimate of its error against the full-order model
+//! ([`TickState::force_error_n`]): `e(|s|₂)·(|s|₁/|s|₂)·|f|`, with `e` the bundle's
+//! calibration ([`TearOffline::force_error_for`], built by
+//! [`crate::damage::build::force_error_table`]): how far the reduced model's force for the
+//! same grasp displacement is from the full model's along the pulls along and across the load,
+//! from virgin tissue, the largest up to that load level; the factor bounds how the
+//! directions' errors add up in a mixed pull. Past the calibrated levels, while the force
+//! fades, and with a bundle built before the calibration the answer has none. Mixed pulls are
+//! not calibrated, and neither is tissue another site damaged: `vademecum study` measures how
+//! often the estimate bounds mixed pulls.
+//!
 //! # Tearing, losing the grasp
 //! When the damage of a cell of the tearable tissue reaches the scene's `torn` threshold
 //! (default 0.8, as the seed: "levels of damage exceeding certain threshold indicate the full
@@ -508,10 +520,16 @@ impl Effect for Tearing {
         if matches!(self.phase, Phase::Held { .. }) {
             state.events.0 |= Events::CONTACT;
         }
-        // the tissue's reaction, −|R| Σ_p s_p t̂_p (no error estimate: the force carries none)
+        // the tissue's reaction, −|R| Σ_p s_p t̂_p, with the calibrated relative error at its
+        // load level while held (module docs); none while it fades (the force is then the
+        // fade's, not the tissue's) or without a calibration
         let site = &self.sites[self.active];
         if self.s.iter().any(|&s| s != 0.0) {
-            state.force_error_n = None;
+            let level = self.s.iter().map(|x| x * x).sum::<f64>().sqrt();
+            state.force_error_n = match self.phase {
+                Phase::Held { .. } => site.off.force_error_for(self.s).map(|e| e * level * site.resultant_n),
+                _ => None,
+            };
         }
         for (s, t) in self.s.iter().zip(&site.frame) {
             for k in 0..3 {

@@ -254,12 +254,13 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                     t.reference_seconds,
                     t.build_seconds
                 )?;
+                writeln!(stdout, "  force error      {}", force_error_line(t))?;
             }
             for (k, s) in r.tear_sites.iter().enumerate() {
                 let t = &s.build;
                 writeln!(
                     stdout,
-                    "  grasp site {:<5} at {} m pulled along {}, {} nodes: {} POD vectors, PGD modes {:?}; vademecum error {:.2e} along, {:.2e} across; {:.1} s",
+                    "  grasp site {:<5} at {} m pulled along {}, {} nodes: {} POD vectors, PGD modes {:?}; vademecum error {:.2e} along, {:.2e} across; {:.1} s; force error {}",
                     k + 2,
                     super::vec3(s.centre_m, 4),
                     super::vec3(s.pull_direction, 2),
@@ -268,7 +269,8 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                     t.pattern_modes,
                     t.vademecum_error,
                     t.cross_vademecum_error,
-                    t.reference_seconds + t.build_seconds
+                    t.reference_seconds + t.build_seconds + t.calibration_seconds,
+                    force_error_line(t)
                 )?;
             }
             writeln!(
@@ -303,6 +305,19 @@ fn mem_available(meminfo: &str) -> Option<u64> {
     let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
+}
+
+/// What a grasp site's force error calibration found, for the build's report.
+fn force_error_line(t: &vademecum_engine::damage::build::TearBuildReport) -> String {
+    if t.force_error.is_finite() {
+        format!(
+            "calibrated: within {:.2} % of the full-order force at the schedule's last load, pulled along or across ({:.1} s)",
+            100.0 * t.force_error,
+            t.calibration_seconds
+        )
+    } else {
+        "not calibrated (a full-order pull across the load failed): the grasper's forces carry no error estimate".into()
+    }
 }
 
 #[cfg(test)]

@@ -60,6 +60,19 @@ pub(super) fn check(
             bar.set_message(format!("error estimate: full Newton at nodes off the lattice, {done}/{total}"))
         })?);
     }
+    if scene.spec.effects.tearing
+        && vademecum_engine::damage::organ::tearable_organ(scene) == Some(0)
+        && let Some(arrays) = bundle.tear.first()
+    {
+        let (tear_model, _) = vademecum_engine::damage::organ::tear_model(scene, 0)?;
+        let off = std::sync::Arc::new(
+            vademecum_engine::damage::online::TearOffline::from_arrays(tear_model, (**arrays).clone()).map_err(anyhow::Error::msg)?,
+        );
+        bar.set_message("error estimate: the grasp pulled in mixed directions against the full-order model");
+        samples.extend(estimate::tear_samples(&off, |done, total| {
+            bar.set_message(format!("error estimate: mixed pulls against the full-order model, {done}/{total}"))
+        })?);
+    }
     bar.finish_and_clear();
 
     let mut csv = String::from("model,x_m,y_m,z_m,depth_m,beyond_range,served,truth,error,estimate,bounded\n");
@@ -81,7 +94,7 @@ pub(super) fn check(
     }
     std::fs::write(out.join("estimate.csv"), csv).context("cannot write estimate.csv")?;
     plot(&samples, &scene.spec.scene.name, &out.join("estimate_vs_error.svg"))?;
-    let coverage = ["linear", "large"]
+    let coverage = ["linear", "large", "tearing"]
         .into_iter()
         .map(|m| {
             let of: Vec<Sample> = samples.iter().copied().filter(|s| s.model == m).collect();
@@ -167,10 +180,11 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .draw_series(LineSeries::new([(lo, lo), (hi, hi)], BLACK.stroke_width(1)))?
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
-    let groups: [(&str, bool, &str); 3] = [
+    let groups: [(&str, bool, &str); 4] = [
         ("linear", false, "linear law"),
         ("large", false, "large deformations, within the lattice's paths"),
         ("large", true, "large deformations, past the paths"),
+        ("tearing", false, "tearing, mixed pulls"),
     ];
     for (k, (model, beyond, label)) in groups.into_iter().enumerate() {
         let color = super::bench_anm::PALETTE[k];

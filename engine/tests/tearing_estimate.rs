@@ -1,0 +1,77 @@
+//! The error estimate of the grasper's force (`force_error_n` while the jaws hold): the build
+//! calibrates it on the pulls along and across the load; mixed pulls, which it never saw, are
+//! checked against the full-order explicit reference, on the seed's cube (seed 000 §4.6.1.1).
+
+use std::sync::Arc;
+
+use vademecum_engine::damage::online::TearOffline;
+use vademecum_engine::damage::{build, organ};
+use vademecum_engine::pipeline::estimate::{self, Coverage};
+use vademecum_engine::scene::Scene;
+
+fn built() -> (Arc<TearOffline>, build::TearBuildReport) {
+    let scene = Scene::builtin("cube_tear").unwrap();
+    let (model, _) = organ::tear_model(&scene, 0).unwrap();
+    let (settings, _) = organ::settings(&scene);
+    let (off, report, _) = build::build(model, &settings, |_, _| {}).unwrap();
+    (Arc::new(off), report)
+}
+
+#[test]
+fn the_build_calibrates_the_force_error_and_mixed_pulls_stay_within_it() {
+    let (off, report) = built();
+    let table = &off.force_error;
+    // one row per step of the schedule, levels increasing, the envelope never decreasing
+    assert_eq!(table.len(), off.model.schedule.len(), "{table:?}");
+    assert!(table.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]), "{table:?}");
+    assert_eq!(report.force_error, table.last().unwrap()[1]);
+    // the pull along the load is the vademecum's own accuracy (< 1e-3 in tearing_pulls.rs);
+    // across it the damage is projected on the along-pull's basis: errors of a few per cent
+    let along = build::force_errors(&off, [1.0, 0.0, 0.0], None).unwrap();
+    let worst_along = along.iter().map(|r| r[2]).fold(0.0, f64::max);
+    assert!(worst_along < 1e-2, "along the load: {along:?}");
+    let last = table.last().unwrap()[1];
+    assert!(last > worst_along && last < 0.5, "the envelope: {table:?}");
+    // the estimate's lookup: the envelope's value at the first level at or past the asked
+    assert_eq!(off.force_error_at(0.5 * table[0][0]), Some(table[0][1]));
+    assert_eq!(off.force_error_at(table[1][0]), Some(table[1][1]));
+    assert_eq!(
+        off.force_error_at(2.0 * table.last().unwrap()[0]),
+        None,
+        "past the calibrated loads"
+    );
+    // mixed pulls: the estimate bounds the true error of ≥ 95 % of the steps
+    let samples = estimate::tear_samples(&off, |_, _| {}).unwrap();
+    let c = Coverage::of(&samples);
+    eprintln!("tearing estimate: {c:?}; envelope {table:?}");
+    for s in &samples {
+        eprintln!(
+            "  served {:.4e} truth {:.4e} error {:.3e} estimate {:.3e}",
+            s.served, s.truth, s.error, s.estimate
+        );
+    }
+    assert!(c.samples >= 6 * off.model.schedule.len() / 2, "{c:?}");
+    assert!(c.fraction() >= 0.95, "{c:?}");
+}
+
+#[test]
+fn a_bundle_keeps_the_calibration_and_refuses_a_corrupt_one() {
+    let (off, _) = built();
+    let arrays = off.to_arrays();
+    let scene = Scene::builtin("cube_tear").unwrap();
+    let model = organ::tear_model(&scene, 0).unwrap().0;
+    let back = TearOffline::from_arrays(model.clone(), arrays.clone()).unwrap();
+    assert_eq!(back.force_error, off.force_error);
+    // a bundle without it (built before the calibration) gives no estimate
+    let mut old = arrays.clone();
+    old.force_error.clear();
+    let back = TearOffline::from_arrays(model.clone(), old).unwrap();
+    assert_eq!(back.force_error_at(0.1), None);
+    // levels out of order, a negative error, an odd length: refused with the rebuild advice
+    for bad in [vec![2.0, 0.1, 1.0, 0.2], vec![1.0, -0.1], vec![1.0, 0.1, 2.0], vec![1.0, f64::NAN]] {
+        let mut a = arrays.clone();
+        a.force_error = bad;
+        let e = TearOffline::from_arrays(model.clone(), a).unwrap_err();
+        assert!(e.contains("force_error") && e.contains("rebuild"), "{e}");
+    }
+}
