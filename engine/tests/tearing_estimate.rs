@@ -1,6 +1,7 @@
 //! The error estimate of the grasper's force (`force_error_n` while the jaws hold): the build
-//! calibrates it on the pulls along and across the load; mixed pulls, which it never saw, are
-//! checked against the full-order explicit reference, on the seed's cube (seed 000 §4.6.1.1).
+//! calibrates it on nine pulls (along the load, across it both ways, the four diagonals);
+//! mixed pulls it never made are checked against the full-order explicit reference, on the
+//! seed's cube (seed 000 §4.6.1.1).
 
 use std::sync::Arc;
 
@@ -26,7 +27,8 @@ fn the_build_calibrates_the_force_error_and_mixed_pulls_stay_within_it() {
     assert!(table.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]), "{table:?}");
     assert_eq!(report.force_error, table.last().unwrap()[1]);
     // the pull along the load is the vademecum's own accuracy (< 1e-3 in tearing_pulls.rs);
-    // across it the damage is projected on the along-pull's basis: errors of a few per cent
+    // across it the damage is projected on the along-pull's basis: errors of a few per cent,
+    // the envelope's (the scene's grasp: 5.3 % at the last load)
     let along = build::force_errors(&off, [1.0, 0.0, 0.0], None).unwrap();
     let worst_along = along.iter().map(|r| r[2]).fold(0.0, f64::max);
     assert!(worst_along < 1e-2, "along the load: {along:?}");
@@ -40,18 +42,14 @@ fn the_build_calibrates_the_force_error_and_mixed_pulls_stay_within_it() {
         None,
         "past the calibrated loads"
     );
-    // mixed pulls: the estimate bounds the true error of ≥ 95 % of the steps
+    // mixed pulls: the estimate bounds the true error of ≥ 95 % of the steps (measured: all
+    // 60, at a median of 2.4 times the error; calibrated on the axes alone, 57)
     let samples = estimate::tear_samples(&off, |_, _| {}).unwrap();
     let c = Coverage::of(&samples);
-    eprintln!("tearing estimate: {c:?}; envelope {table:?}");
-    for s in &samples {
-        eprintln!(
-            "  served {:.4e} truth {:.4e} error {:.3e} estimate {:.3e}",
-            s.served, s.truth, s.error, s.estimate
-        );
-    }
     assert!(c.samples >= 6 * off.model.schedule.len() / 2, "{c:?}");
-    assert!(c.fraction() >= 0.95, "{c:?}");
+    assert!(c.fraction() >= 0.95, "{c:?}; envelope {table:?}");
+    // and it is a usable error bar, not a blanket: within ten times the error at the median
+    assert!(c.median_ratio > 1.0 && c.median_ratio < 10.0, "{c:?}");
 }
 
 #[test]

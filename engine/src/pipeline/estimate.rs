@@ -30,14 +30,15 @@ const NEIGHBOURS: usize = 4;
 pub const PAST_THE_LATTICE: f64 = 1.5;
 
 /// The pull directions the tearing samples take (multipliers of the patterns along the load
-/// and the two across it, normalised): each mixes directions the calibration pulls alone, in
-/// both senses across.
+/// and the two across it, normalised): none is one the calibration pulls
+/// ([`crate::damage::build::force_error_table`]: the axes and the four diagonals), each lies
+/// between them, in both senses across.
 pub const TEAR_MIXES: [[f64; 3]; 6] = [
     [1.0, 1.0, 0.0],
     [1.0, -1.0, 0.0],
     [1.0, 0.0, 1.0],
     [1.0, 0.0, -1.0],
-    [1.0, 1.0, 1.0],
+    [1.0, 2.0, 1.0],
     [2.0, 1.0, -1.0],
 ];
 

@@ -311,7 +311,7 @@ fn mem_available(meminfo: &str) -> Option<u64> {
 fn force_error_line(t: &vademecum_engine::damage::build::TearBuildReport) -> String {
     if t.force_error.is_finite() {
         format!(
-            "calibrated: within {:.2} % of the full-order force at the schedule's last load, pulled along or across ({:.1} s)",
+            "calibrated: within {:.2} % of the full-order force at the schedule's last load, pulled along, across or diagonally ({:.1} s)",
             100.0 * t.force_error,
             t.calibration_seconds
         )

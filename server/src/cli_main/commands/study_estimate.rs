@@ -28,7 +28,8 @@ pub(super) struct EstimateRecord {
 }
 
 /// Samples the estimate of organ 0 of `scene` (its study bundle `bundle`): `points` linear
-/// states, and `nodes` nodes off the lattice when the scene has large deformations; writes
+/// states, `nodes` nodes off the lattice when the scene has large deformations, and each grasp
+/// site pulled in the mixed directions of `estimate::TEAR_MIXES` when it tears; writes
 /// `estimate.csv` and `estimate_vs_error.svg` to `out`. Reuses `estimate.json` when it was made
 /// for build `key`.
 pub(super) fn check(
@@ -60,18 +61,22 @@ pub(super) fn check(
             bar.set_message(format!("error estimate: full Newton at nodes off the lattice, {done}/{total}"))
         })?);
     }
-    if scene.spec.effects.tearing
-        && vademecum_engine::damage::organ::tearable_organ(scene) == Some(0)
-        && let Some(arrays) = bundle.tear.first()
-    {
+    if scene.spec.effects.tearing && vademecum_engine::damage::organ::tearable_organ(scene) == Some(0) {
+        // every grasp site's calibration, each pulled in mixed directions
         let (tear_model, _) = vademecum_engine::damage::organ::tear_model(scene, 0)?;
-        let off = std::sync::Arc::new(
-            vademecum_engine::damage::online::TearOffline::from_arrays(tear_model, (**arrays).clone()).map_err(anyhow::Error::msg)?,
-        );
-        bar.set_message("error estimate: the grasp pulled in mixed directions against the full-order model");
-        samples.extend(estimate::tear_samples(&off, |done, total| {
-            bar.set_message(format!("error estimate: mixed pulls against the full-order model, {done}/{total}"))
-        })?);
+        let sites = bundle.tear.len();
+        for (k, arrays) in bundle.tear.iter().enumerate() {
+            let off = std::sync::Arc::new(
+                vademecum_engine::damage::online::TearOffline::from_arrays(tear_model.clone(), (**arrays).clone())
+                    .map_err(anyhow::Error::msg)?,
+            );
+            samples.extend(estimate::tear_samples(&off, |done, total| {
+                bar.set_message(format!(
+                    "error estimate: grasp site {} of {sites}, mixed pulls against the full-order model, {done}/{total}",
+                    k + 1
+                ))
+            })?);
+        }
     }
     bar.finish_and_clear();
 
