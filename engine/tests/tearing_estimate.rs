@@ -73,3 +73,68 @@ fn a_bundle_keeps_the_calibration_and_refuses_a_corrupt_one() {
         assert!(e.contains("force_error") && e.contains("rebuild"), "{e}");
     }
 }
+
+#[test]
+fn a_target_force_error_keeps_the_fewest_modes_that_meet_it_or_all_of_them() {
+    let scene = Scene::builtin("cube_tear").unwrap();
+    let (model, _) = organ::tear_model(&scene, 0).unwrap();
+    let (settings, _) = organ::settings(&scene);
+    let (all, all_report) = built();
+    let with = |target: f64| {
+        let s = build::TearSettings {
+            target_force_error: Some(target),
+            ..settings
+        };
+        build::build(model.clone(), &s, |_, _| {}).unwrap()
+    };
+    assert_eq!(all_report.target, None, "no target, no selection");
+    let most = *all.vademecum.patterns.iter().max().unwrap();
+    assert!(
+        most > 10,
+        "the cube's build makes more than ten modes a pattern: {:?}",
+        all.vademecum.patterns
+    );
+
+    // a loose target: the first prefix (five modes a pattern) meets it
+    let (off, report, _) = with(0.5);
+    let t = report.target.clone().unwrap();
+    assert!(t.met, "{t:?}");
+    assert_eq!(t.built_modes, all.vademecum.patterns);
+    let five: Vec<usize> = all.vademecum.patterns.iter().map(|&n| n.min(5)).collect();
+    assert_eq!(off.vademecum.patterns, five);
+    assert_eq!(report.pattern_modes, five);
+    assert_eq!(t.tried.len(), 1);
+    // it is the prefix of the whole build, with a Ritz basis of its own and its own calibration
+    assert_eq!(off.vademecum.spatial, all.vademecum.pattern_prefix(&five).spatial);
+    assert!(
+        off.ritz.m <= 5 && off.ritz.m < all.ritz.m,
+        "Ritz size {} of {}",
+        off.ritz.m,
+        all.ritz.m
+    );
+    assert_eq!(off.force_error.len(), all.force_error.len());
+    assert_eq!(t.tried[0].1, report.force_error);
+    assert!(report.force_error <= 0.5 && report.force_error == off.force_error.last().unwrap()[1]);
+    // the bundle's arrays carry the prefix and its calibration
+    let back = TearOffline::from_arrays(model.clone(), off.to_arrays()).unwrap();
+    assert_eq!(
+        (back.vademecum.patterns.clone(), back.force_error.clone()),
+        (five, off.force_error.clone())
+    );
+
+    // a target between the prefixes' errors: the kept prefix meets it and every fewer one missed
+    let (_, report, _) = with(all_report.force_error * 1.01);
+    let t = report.target.unwrap();
+    assert!(t.met && report.force_error <= t.error, "{t:?}");
+    let (kept, others) = t.tried.split_last().unwrap();
+    assert!(others.iter().all(|(_, e)| e.is_nan() || *e > t.error), "{t:?}");
+    assert_eq!(kept.0, report.pattern_modes);
+
+    // no prefix meets a target under the whole build's own error: all the modes are kept
+    let (off, report, _) = with(all_report.force_error * 0.5);
+    let t = report.target.unwrap();
+    assert!(!t.met, "{t:?}");
+    assert_eq!(off.vademecum.patterns, all.vademecum.patterns);
+    assert_eq!(t.tried.last().unwrap(), &(all.vademecum.patterns.clone(), all_report.force_error));
+    assert_eq!(off.force_error, all.force_error);
+}

@@ -123,3 +123,28 @@ fn a_vademecums_prefix_is_the_greedy_build_stopped_there() {
     // a prefix longer than the vademecum is all of it
     assert_eq!(all.prefix(1000).n_modes, all.n_modes);
 }
+
+#[test]
+fn a_pattern_prefix_keeps_the_first_modes_of_each_pull_pattern() {
+    let scene = vademecum_engine::scene::Scene::builtin("cube_tear").unwrap();
+    let (model, _) = organ::tear_model(&scene, 0).unwrap();
+    let (settings, _) = organ::settings(&scene);
+    let (off, _, _) = build::build(model, &settings, |_, _| {}).unwrap();
+    let v = &off.vademecum;
+    assert_eq!(v.patterns.len(), 3, "{:?}", v.patterns);
+    let p = v.pattern_prefix(&[4, 2, 1000]);
+    assert_eq!(p.patterns, vec![4, 2, v.patterns[2]]);
+    assert_eq!(p.n_modes, 6 + v.patterns[2]);
+    // mode by mode: the first four of the pull along the load, the first two across it one
+    // way, every mode across it the other way
+    let first = [0, v.patterns[0], v.patterns[0] + v.patterns[1]];
+    let picked: Vec<usize> = (0..4).chain(first[1]..first[1] + 2).chain(first[2]..v.n_modes).collect();
+    for (i, &j) in picked.iter().enumerate() {
+        assert_eq!(p.mode(i), v.mode(j), "mode {i}");
+        let per = v.q * v.grid;
+        assert_eq!(p.factors[i * per..(i + 1) * per], v.factors[j * per..(j + 1) * per], "mode {i}");
+    }
+    assert_eq!(p.report.amplitudes.len(), p.n_modes);
+    // the prefix of the scene's pattern alone is `prefix`
+    assert_eq!(v.pattern_prefix(&[3]), v.prefix(3));
+}

@@ -53,6 +53,7 @@ fn built(max_modes: usize) -> (Scene, offline::Built) {
         load_radius: offline::probe_radius(&scene),
         large: None,
         max_memory: None,
+        tear_target_error: None,
     };
     let b = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
     (scene, b)
@@ -484,6 +485,7 @@ fn the_build_keeps_the_fewest_modes_meeting_the_target() {
             load_radius: offline::probe_radius(&scene),
             large: None,
             max_memory: None,
+            tear_target_error: None,
         };
         let r = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap().report;
         assert!(r.target_met && r.error <= tolerance, "error {} for target {tolerance}", r.error);
@@ -509,6 +511,7 @@ fn the_build_keeps_the_fewest_modes_meeting_the_target() {
         load_radius: 0.0,
         large: None,
         max_memory: None,
+        tear_target_error: None,
     };
     let r = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap().report;
     assert!(!r.target_met && r.modes == 5 && r.error > 1e-6);

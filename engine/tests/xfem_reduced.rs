@@ -41,6 +41,7 @@ fn built(scene: &Scene, tolerance: f64) -> offline::Built {
         load_radius: 0.0,
         large: None,
         max_memory: None,
+        tear_target_error: None,
     };
     offline::build_organ(scene, 0, &opts, &mut |_| {}).unwrap()
 }

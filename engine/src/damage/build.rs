@@ -23,6 +23,10 @@ pub struct TearSettings {
     /// Also build the vademecums of the two pulls across the scene's load (the grasper then
     /// follows the device in every direction; [`TearModel::pull_load`]).
     pub cross_pulls: bool,
+    /// Keep, of the modes the build made, the fewest per pull pattern whose calibrated force
+    /// error ([`force_error_table`], at the last load level) is at most this (relative);
+    /// `None`: keep them all. `vademecum build --target-error`.
+    pub target_force_error: Option<f64>,
 }
 
 impl Default for TearSettings {
@@ -37,6 +41,7 @@ impl Default for TearSettings {
             margin: 0.1,
             vademecum: VademecumSettings::default(),
             cross_pulls: true,
+            target_force_error: None,
         }
     }
 }
@@ -79,6 +84,23 @@ pub struct TearBuildReport {
     pub force_error: f64,
     /// Time of the calibration's full-order runs across the load and online pulls (s).
     pub calibration_seconds: f64,
+    /// What [`TearSettings::target_force_error`] asked and what the build kept (`None`
+    /// without a target).
+    pub target: Option<TearTarget>,
+}
+
+/// The modes a build kept for a target force error ([`TearSettings::target_force_error`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TearTarget {
+    /// The target (relative error of the grasper's force at the last load level).
+    pub error: f64,
+    /// Whether the kept modes meet it (when none do, all the modes are kept: the closest).
+    pub met: bool,
+    /// The modes the build made, per pull pattern.
+    pub built_modes: Vec<usize>,
+    /// Each prefix tried, fewest modes first: the modes per pattern and its calibrated force
+    /// error (NaN when the calibration ended before the last load level).
+    pub tried: Vec<(Vec<usize>, f64)>,
 }
 
 /// The offline stage failed.
@@ -149,14 +171,34 @@ pub fn build(
     let vad = DamageVademecum::merge(parts);
     let ritz = RitzOperator::new(&vad, &sys);
     let build_seconds = t1.elapsed().as_secs_f64();
+    progress("force error calibration", 0.0);
+    let t2 = Instant::now();
+    let full = std::sync::Arc::new(TearOffline::new(model, basis, vad, ritz));
+    // a failed calibration leaves the bundle without an estimate (and meets no target)
+    let calibration = Calibration::run(&full, &runs[0]).ok();
+    let table = |off: &std::sync::Arc<TearOffline>| calibration.as_ref().and_then(|c| c.table(off).ok()).unwrap_or_default();
+    let full_table = table(&full);
+    let (off, target) = match settings.target_force_error {
+        None => {
+            let mut off = unshare(full);
+            off.force_error = full_table;
+            (off, None)
+        }
+        Some(e) => {
+            let (off, t) = keep_for_target(full, full_table, e, |vad| RitzOperator::new(vad, &sys), &table);
+            (off, Some(t))
+        }
+    };
+    let calibration_seconds = t2.elapsed().as_secs_f64();
     // each pattern's vademecum against exact solves at the snapshots' coefficients
-    let (mut xi, mut a) = (vec![0.0; basis.len()], vec![0.0; vad.n_modes]);
+    let vad = &off.vademecum;
+    let (mut xi, mut a) = (vec![0.0; off.basis.len()], vec![0.0; vad.n_modes]);
     let mut du = vec![0.0; vad.n_free];
     let mut worst = [0.0f64; 2];
     let patterns = vad.mode_patterns();
     for (k, s) in snapshots.iter().enumerate() {
         progress("validation", k as f64 / snapshots.len() as f64);
-        basis.project(s, &mut xi);
+        off.basis.project(s, &mut xi);
         vad.coefficients(&xi, &mut a);
         for (p, system) in std::iter::once(&sys).chain(&cross).enumerate() {
             let only: Vec<f64> = a.iter().zip(&patterns).map(|(x, &q)| if q == p { *x } else { 0.0 }).collect();
@@ -169,12 +211,6 @@ pub fn build(
             }
         }
     }
-    let mut off = TearOffline::new(model, basis, vad, ritz);
-    progress("force error calibration", 0.0);
-    let t2 = Instant::now();
-    let shared = std::sync::Arc::new(off.clone());
-    off.force_error = force_error_table(&shared, &runs[0]).unwrap_or_default();
-    let calibration_seconds = t2.elapsed().as_secs_f64();
     let report = TearBuildReport {
         snapshots: snapshots.len(),
         pod_vectors: off.basis.len(),
@@ -192,8 +228,72 @@ pub fn build(
         vademecum: off.vademecum.report.clone(),
         force_error: off.force_error.last().map_or(f64::NAN, |r| r[1]),
         calibration_seconds,
+        target,
     };
     Ok((off, report, runs))
+}
+
+/// The modes per pull pattern of the first prefix [`TearSettings::target_force_error`] tries
+/// (then twice as many, …).
+pub const FEWEST_TARGET_MODES: usize = 5;
+
+/// The offline data out of its `Arc` (a copy only while something else still holds it).
+fn unshare(off: std::sync::Arc<TearOffline>) -> TearOffline {
+    std::sync::Arc::try_unwrap(off).unwrap_or_else(|a| (*a).clone())
+}
+
+/// The fewest modes per pull pattern of `full` whose calibrated force error (`table`, at the
+/// last load level; a calibration short of `full_table`'s levels does not meet it) is at
+/// most `target`: prefixes of 5, 10, 20, … modes of every pattern, then all of them — the
+/// closest when no prefix meets it. `ritz` makes a prefix's Ritz operator. The offline data
+/// kept carries its own calibration.
+fn keep_for_target(
+    full: std::sync::Arc<TearOffline>,
+    full_table: Vec<[f64; 2]>,
+    target: f64,
+    ritz: impl Fn(&DamageVademecum) -> RitzOperator,
+    table: &dyn Fn(&std::sync::Arc<TearOffline>) -> Vec<[f64; 2]>,
+) -> (TearOffline, TearTarget) {
+    let built = full.vademecum.patterns.clone();
+    let last = |t: &[[f64; 2]]| match t.last() {
+        Some(r) if t.len() == full_table.len() => r[1],
+        _ => f64::NAN,
+    };
+    let mut tried = Vec::new();
+    let most = built.iter().copied().max().unwrap_or(0);
+    let mut k = FEWEST_TARGET_MODES;
+    while k < most {
+        let keep: Vec<usize> = built.iter().map(|&n| n.min(k)).collect();
+        let vad = full.vademecum.pattern_prefix(&keep);
+        let r = ritz(&vad);
+        let off = std::sync::Arc::new(TearOffline::new(full.model.clone(), full.basis.clone(), vad, r));
+        let t = table(&off);
+        let e = last(&t);
+        tried.push((keep, e));
+        if e <= target {
+            let mut off = unshare(off);
+            off.force_error = t;
+            let t = TearTarget {
+                error: target,
+                met: true,
+                built_modes: built,
+                tried,
+            };
+            return (off, t);
+        }
+        k *= 2;
+    }
+    let e = last(&full_table);
+    tried.push((built.clone(), e));
+    let t = TearTarget {
+        error: target,
+        met: e <= target,
+        built_modes: built,
+        tried,
+    };
+    let mut off = unshare(full);
+    off.force_error = full_table;
+    (off, t)
 }
 
 /// The two explicit full-order runs the offline stage takes its snapshots from (h = 0, then
@@ -228,12 +328,7 @@ pub fn snapshots(runs: &[TearRun; 2]) -> Vec<Vec<f64>> {
 pub fn pull_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3]) -> Result<Vec<f64>, RunError> {
     use super::online::{OnlineTear, StepLimits, Variant};
     let model = &off.model;
-    let mut loaded = model.clone();
-    let loads: Vec<Vec<f64>> = (0..3).map(|p| model.pull_load(p)).collect();
-    loaded.load = (0..loaded.load.len()).map(|d| (0..3).map(|p| mix[p] * loads[p][d]).sum()).collect();
-    // the prescribed displacements go with the pull along the load
-    loaded.prescribed.iter_mut().for_each(|x| *x *= mix[0]);
-    let exact = reference::run(&loaded, RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {})?;
+    let exact = reference::run(&pulled(model, mix), RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {})?;
     let whole = StepLimits {
         max_damage_increment: f64::INFINITY,
         max_substeps: 1,
@@ -248,6 +343,16 @@ pub fn pull_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3]) -> Result<V
             reference::l2_error(&online.displacement_vec(), &exact.steps[k + 1].u).1
         })
         .collect())
+}
+
+/// `model` under the pull mix `mix`: the load `Σ_p mix_p L_p` ([`TearModel::pull_load`]),
+/// the prescribed displacements (which go with the pull along the load) times `mix_0`.
+fn pulled(model: &TearModel, mix: [f64; 3]) -> TearModel {
+    let mut loaded = model.clone();
+    let loads: Vec<Vec<f64>> = (0..3).map(|p| model.pull_load(p)).collect();
+    loaded.load = (0..loaded.load.len()).map(|d| (0..3).map(|p| mix[p] * loads[p][d]).sum()).collect();
+    loaded.prescribed.iter_mut().for_each(|x| *x *= mix[0]);
+    loaded
 }
 
 /// The error of the force the grasper renders under a pull `mix` (multipliers of the patterns
@@ -270,12 +375,7 @@ pub fn force_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3], exact: Opt
     let exact = match exact {
         Some(r) => r,
         None => {
-            let mut loaded = model.clone();
-            loaded.load = (0..loaded.load.len())
-                .map(|d| (0..loads.len()).map(|p| mix[p] * loads[p][d]).sum())
-                .collect();
-            loaded.prescribed.iter_mut().for_each(|x| *x *= mix[0]);
-            ran = reference::run(&loaded, RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {})?;
+            ran = reference::run(&pulled(model, mix), RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {})?;
             &ran
         }
     };
@@ -332,28 +432,59 @@ pub fn force_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3], exact: Opt
 /// mixed pulls are not calibrated: `vademecum study` checks how often the envelope bounds
 /// them.
 pub fn force_error_table(off: &std::sync::Arc<TearOffline>, along: &TearRun) -> Result<Vec<[f64; 2]>, RunError> {
-    let mut pulls = vec![force_errors(off, [1.0, 0.0, 0.0], Some(along))?];
-    if off.patterns() == 3 {
-        let r = 1.0 / 3f64.sqrt();
-        for mix in [
-            [0.0, 1.0, 0.0],
-            [0.0, -1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [0.0, 0.0, -1.0],
-            [r, r, r],
-            [r, -r, r],
-            [r, r, -r],
-            [r, -r, -r],
-        ] {
-            pulls.push(force_errors(off, mix, None)?);
+    Calibration::run(off, along)?.table(off)
+}
+
+/// The full-order runs of the calibration's pulls ([`force_error_table`]), run once and
+/// reused for every vademecum of the same model (the prefixes a target tries).
+pub struct Calibration<'a> {
+    along: &'a TearRun,
+    across: Vec<([f64; 3], TearRun)>,
+}
+
+impl<'a> Calibration<'a> {
+    /// The pulls across the load and the diagonals, when `off`'s vademecum follows them.
+    pub fn run(off: &TearOffline, along: &'a TearRun) -> Result<Self, RunError> {
+        let mut across = Vec::new();
+        if off.patterns() == 3 {
+            let r = 1.0 / 3f64.sqrt();
+            for mix in [
+                [0.0, 1.0, 0.0],
+                [0.0, -1.0, 0.0],
+                [0.0, 0.0, 1.0],
+                [0.0, 0.0, -1.0],
+                [r, r, r],
+                [r, -r, r],
+                [r, r, -r],
+                [r, -r, -r],
+            ] {
+                let run = reference::run(
+                    &pulled(&off.model, mix),
+                    RunSettings::seed(Scheme::Explicit(Tangent::Secant)),
+                    |_, _| {},
+                )?;
+                across.push((mix, run));
+            }
         }
+        Ok(Self { along, across })
     }
-    let steps = pulls.iter().map(Vec::len).min().unwrap_or(0);
-    let mut worst: f64 = 0.0;
-    Ok((0..steps)
-        .map(|k| {
-            worst = pulls.iter().map(|p| p[k][2]).fold(worst, f64::max);
-            [pulls[0][k][0], worst]
-        })
-        .collect())
+
+    /// The envelope of `off`'s force errors over the calibrated pulls: rows `[level, error]`,
+    /// at each level the largest error of any pull up to it.
+    pub fn table(&self, off: &std::sync::Arc<TearOffline>) -> Result<Vec<[f64; 2]>, RunError> {
+        let mut pulls = vec![force_errors(off, [1.0, 0.0, 0.0], Some(self.along))?];
+        if off.patterns() == 3 {
+            for (mix, run) in &self.across {
+                pulls.push(force_errors(off, *mix, Some(run))?);
+            }
+        }
+        let steps = pulls.iter().map(Vec::len).min().unwrap_or(0);
+        let mut worst: f64 = 0.0;
+        Ok((0..steps)
+            .map(|k| {
+                worst = pulls.iter().map(|p| p[k][2]).fold(worst, f64::max);
+                [pulls[0][k][0], worst]
+            })
+            .collect())
+    }
 }

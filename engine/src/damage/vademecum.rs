@@ -450,20 +450,42 @@ impl DamageVademecum {
     /// computed given the ones before it, none is revised after — with the pulls across the
     /// load left out. What `vademecum study` measures a smaller vademecum by.
     pub fn prefix(&self, m: usize) -> Self {
-        let m = m.min(self.patterns.first().copied().unwrap_or(0));
+        self.pattern_prefix(&[m])
+    }
+
+    /// The first `keep[p]` modes of each pull pattern `p` (all of a pattern's when it has
+    /// fewer; the patterns past `keep`'s length left out): each pattern's own greedy build
+    /// stopped there. What `vademecum build --target-error` keeps when fewer modes meet it.
+    pub fn pattern_prefix(&self, keep: &[usize]) -> Self {
         let per_mode = self.q * self.grid;
         let mut report = self.report.clone();
-        report.modes = m;
-        report.amplitudes.truncate(m);
-        report.iterations.truncate(m);
+        let (mut spatial, mut factors, mut patterns) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut amplitudes, mut iterations) = (Vec::new(), Vec::new());
+        let mut first = 0;
+        for (p, &n) in self.patterns.iter().enumerate() {
+            let m = keep.get(p).map_or(0, |&k| k.min(n));
+            if p < keep.len() {
+                let modes = first..first + m;
+                spatial.extend_from_slice(&self.spatial[modes.start * self.n_free..modes.end * self.n_free]);
+                factors.extend_from_slice(&self.factors[modes.start * per_mode..modes.end * per_mode]);
+                amplitudes.extend(report.amplitudes.get(modes.clone()).unwrap_or(&[]));
+                iterations.extend(report.iterations.get(modes).unwrap_or(&[]));
+                patterns.push(m);
+            }
+            first += n;
+        }
+        let n_modes = patterns.iter().sum();
+        report.modes = n_modes;
+        report.amplitudes = amplitudes;
+        report.iterations = iterations;
         Self {
             n_free: self.n_free,
             q: self.q,
             grid: self.grid,
-            n_modes: m,
-            spatial: self.spatial[..m * self.n_free].to_vec(),
-            factors: self.factors[..m * per_mode].to_vec(),
-            patterns: vec![m],
+            n_modes,
+            spatial,
+            factors,
+            patterns,
             lo: self.lo.clone(),
             hi: self.hi.clone(),
             report,

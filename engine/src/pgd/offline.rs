@@ -47,6 +47,10 @@ pub struct BuildOptions {
     /// Refuse an organ whose direct solve is estimated to need more than this many bytes
     /// ([`crate::solve::memory`]); `None`: no limit.
     pub max_memory: Option<u64>,
+    /// Keep the fewest tearing modes whose calibrated force error meets this (relative;
+    /// [`crate::damage::build::TearSettings::target_force_error`]); `None`: all the modes the
+    /// scene's `fidelity.tearing` makes.
+    pub tear_target_error: Option<f64>,
 }
 
 impl BuildOptions {
@@ -76,6 +80,7 @@ impl BuildOptions {
                 }
             }),
             max_memory: None,
+            tear_target_error: None,
         }
     }
 }
@@ -588,7 +593,8 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         use crate::damage::organ;
         let fail = |e: String| BuildError::Tearing(e);
         let (tear_model, _) = organ::tear_model(scene, index).map_err(|e| fail(e.to_string()))?;
-        let (settings, _) = organ::settings(scene);
+        let (mut settings, _) = organ::settings(scene);
+        settings.target_force_error = opts.tear_target_error;
         let extra = organ::extra_sites(scene, index, &tear_model).map_err(|e| fail(e.to_string()))?;
         let sites = 1 + extra.len();
         let (off, tear_report, _) = crate::damage::build::build(tear_model.clone(), &settings, |what, fraction| {

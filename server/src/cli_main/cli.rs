@@ -244,9 +244,11 @@ pub struct BuildArgs {
     #[arg(long, value_name = "GB")]
     pub max_memory: Option<f64>,
     /// Keep the fewest modes whose measured error (relative L2 over all load states) meets E,
-    /// instead of the scene's fidelity.pgd.tolerance; refuse (exit 1, no bundle written) with
-    /// the closest achievable error when no prefix meets it. `vademecum study` shows the
-    /// whole trade-off.
+    /// instead of the scene's fidelity.pgd.tolerance; on a tearing scene also the fewest
+    /// tearing PGD modes (5, 10, 20, … per pull pattern) whose grasper's force, calibrated
+    /// against the full-order model on nine pulls, is within E (relative) at the last load.
+    /// Refuse (exit 1, no bundle written) with the closest achievable error when no prefix
+    /// meets it. `vademecum study` shows the whole trade-off.
     #[arg(long, value_name = "E")]
     pub target_error: Option<f64>,
     /// Also require the online cost that depends on the modes — the surface displacement

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use std::sync::Arc;
 
 use anyhow::Context;
+use vademecum_engine::damage::build::{TearBuildReport, TearTarget};
 use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle};
 use vademecum_engine::scene::Scene;
 
@@ -129,6 +130,63 @@ fn within_tick(built: &offline::Built, target_us: f64) -> anyhow::Result<Result<
     }))
 }
 
+/// Tearing steps timed per grasp site by `--target-tick-us`.
+const TIMED_TEAR_STEPS: usize = 1000;
+
+/// The p50 (µs) of one tearing step of each grasp site of organ `i` — on the tick path while
+/// the jaws hold, pulled along the diagonal of the load and the two directions across it so
+/// that every pattern's modes are stepped — when all are within `target_us`; else why not:
+/// the first site over it, and the time of the fewest modes `--target-error` keeps.
+/// With the p50s, that of a null loop timed the same way (µs).
+fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> Result<(Vec<f64>, f64), String> {
+    use vademecum_engine::damage::online::{RitzOperator, TearOffline};
+    use vademecum_engine::damage::{organ, vademecum::AffineSystem};
+    if built.tear.is_empty() {
+        return Ok((Vec::new(), 0.0));
+    }
+    let model = organ::tear_model(scene, i).map_err(|e| e.to_string())?.0;
+    let (_, limits) = organ::settings(scene);
+    let variant = scene.spec.fidelity.tearing.variant;
+    let mix = [1.0 / 3f64.sqrt(); 3];
+    let p50 = |off: &Arc<TearOffline>| {
+        let times = super::study_tear::step_times(off, variant, limits, mix, TIMED_TEAR_STEPS);
+        if times.is_empty() {
+            0.0
+        } else {
+            super::bench_pgd::stat("step", times).p50_us
+        }
+    };
+    let null = super::bench_pgd::stat("null", super::bench_pgd::time_n(TIMED_TEAR_STEPS, || 0.0)).p50_us;
+    let mut out = Vec::new();
+    for ((site, _), arrays) in tear_builds(&built.report).zip(&built.tear) {
+        let off = Arc::new(TearOffline::from_arrays(model.clone(), arrays.clone())?);
+        let t = p50(&off);
+        if t > target_us {
+            let keep: Vec<usize> = off
+                .vademecum
+                .patterns
+                .iter()
+                .map(|&n| n.min(vademecum_engine::damage::build::FEWEST_TARGET_MODES))
+                .collect();
+            let sys = AffineSystem::of(&off.model, &off.basis);
+            let v = off.vademecum.pattern_prefix(&keep);
+            let r = RitzOperator::new(&v, &sys);
+            let q = p50(&Arc::new(TearOffline::new(off.model.clone(), off.basis.clone(), v, r)));
+            return Err(format!(
+                "tearing{site}: a step of the PGD modes {:?} takes {t:.2} µs (p50 on this machine, pulled in every direction; null loop {null:.2} µs), over --target-tick-us {target_us}; the fewest --target-error keeps, {keep:?}, take {q:.2} µs{}",
+                off.vademecum.patterns,
+                if q <= target_us {
+                    ": a larger --target-error keeps fewer modes"
+                } else {
+                    " — no setting of the tearing vademecum fits"
+                }
+            ));
+        }
+        out.push(t);
+    }
+    Ok((out, null))
+}
+
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
@@ -139,6 +197,7 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     if let Some(e) = a.target_error {
         anyhow::ensure!(e > 0.0 && e < 1.0, "--target-error must lie in (0, 1), got {e}");
         opts.tolerance = e;
+        opts.tear_target_error = Some(e);
     }
     if let Some(t) = a.target_tick_us {
         anyhow::ensure!(
@@ -162,16 +221,23 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             );
             return Ok(ExitCode::FAILURE);
         }
-        let mut frame_p50 = None;
+        if let Some(why) = tear_target_missed(r) {
+            bar.finish();
+            eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
+            return Ok(ExitCode::FAILURE);
+        }
+        let (mut frame_p50, mut tear_p50) = (None, None);
         if let Some(t) = a.target_tick_us {
             bar.stage("timing the frames");
-            match within_tick(&built, t)? {
-                Ok(p50) => frame_p50 = Some((p50, t)),
-                Err(why) => {
-                    bar.finish();
-                    eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
-                    return Ok(ExitCode::FAILURE);
-                }
+            let timed = within_tick(&built, t)?.map(|p50| frame_p50 = Some((p50, t)));
+            if !built.tear.is_empty() && timed.is_ok() {
+                bar.stage("timing the tearing step");
+            }
+            let timed = timed.and_then(|()| tear_within_tick(&scene, i, &built, t).map(|p| tear_p50 = Some(p)));
+            if let Err(why) = timed {
+                bar.finish();
+                eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
+                return Ok(ExitCode::FAILURE);
             }
         }
         bar.stage("writing bundle");
@@ -183,12 +249,24 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
                 r.modes, r.greedy.modes, r.error
             );
+            for (site, t) in tear_builds(r) {
+                if let Some(line) = t.target.as_ref().map(tear_target_line) {
+                    eprintln!("organ '{name}': tearing{site}: {line}");
+                }
+            }
         }
         if let Some((p50, t)) = frame_p50 {
             eprintln!(
                 "organ '{name}': its {} modes (error {:.3e}) take {p50:.1} µs per frame (p50 on this machine), within --target-tick-us {t}",
                 r.modes, r.error
             );
+            let (steps, null) = tear_p50.clone().unwrap_or_default();
+            for ((site, b), p50) in tear_builds(r).zip(&steps) {
+                eprintln!(
+                    "organ '{name}': tearing{site}: a step of its PGD modes {:?} takes {p50:.2} µs (p50 on this machine, pulled in every direction; null loop {null:.2} µs), within --target-tick-us {t}",
+                    b.pattern_modes
+                );
+            }
         }
         if !a.json {
             writeln!(
@@ -307,8 +385,70 @@ fn mem_available(meminfo: &str) -> Option<u64> {
     Some(kb * 1024)
 }
 
+/// Each tearing build of a report: the scene's grasp, then the other grasp sites, each with
+/// how the messages name it.
+fn tear_builds(r: &offline::BuildReport) -> impl Iterator<Item = (String, &TearBuildReport)> {
+    let first = r.tear.iter().map(|t| (String::new(), t));
+    let sites = r
+        .tear_sites
+        .iter()
+        .enumerate()
+        .map(|(k, s)| (format!(", grasp site {}", k + 2), &s.build));
+    first.chain(sites)
+}
+
+/// Why the tearing modes miss `--target-error` (`None` when they meet it or no target was
+/// set): the first grasp site that misses, its closest calibrated force error with every mode
+/// the build made, and the least target every site meets.
+fn tear_target_missed(r: &offline::BuildReport) -> Option<String> {
+    let closest = |t: &TearTarget| t.tried.last().map_or(f64::NAN, |(_, e)| *e);
+    let (site, target) = tear_builds(r).find_map(|(site, t)| Some((site, t.target.as_ref().filter(|g| !g.met)?)))?;
+    let least = tear_builds(r)
+        .filter_map(|(_, t)| t.target.as_ref().map(closest))
+        .fold(0.0, f64::max);
+    Some(format!(
+        "tearing{site}: no prefix of the PGD modes {:?} (along the pull, then across it) meets --target-error {:.1e} on the grasper's force: the closest is {} with all of them — the rest is the POD basis's and the integrator's (docs/accuracy.md, \"Tearing\"); {}",
+        target.built_modes,
+        target.error,
+        percent(closest(target)),
+        if least.is_finite() {
+            format!("every grasp site meets --target-error {:.1e}", next_up(least))
+        } else {
+            "a site's calibration failed: no target can be met".into()
+        },
+    ))
+}
+
+/// A relative error as a percentage for messages ("not calibrated" for NaN).
+fn percent(e: f64) -> String {
+    if e.is_finite() {
+        format!("{:.2} %", 100.0 * e)
+    } else {
+        "not calibrated".into()
+    }
+}
+
+/// `e` rounded up to two significant digits: a target it meets, as the messages print it.
+fn next_up(e: f64) -> f64 {
+    let scale = 10f64.powi(e.log10().floor() as i32 - 1);
+    (e / scale).ceil() * scale
+}
+
+/// What `--target-error` kept of a tearing build, for its message.
+fn tear_target_line(t: &TearTarget) -> String {
+    let (modes, e) = t.tried.last().map_or((&t.built_modes, f64::NAN), |(m, e)| (m, *e));
+    let tried: Vec<String> = t.tried.iter().map(|(m, e)| format!("{m:?}: {}", percent(*e))).collect();
+    format!(
+        "kept the PGD modes {modes:?} of the {:?} built, the fewest whose calibrated force error ({}) meets --target-error {:.1e} (tried {})",
+        t.built_modes,
+        percent(e),
+        t.error,
+        tried.join(", ")
+    )
+}
+
 /// What a grasp site's force error calibration found, for the build's report.
-fn force_error_line(t: &vademecum_engine::damage::build::TearBuildReport) -> String {
+fn force_error_line(t: &TearBuildReport) -> String {
     if t.force_error.is_finite() {
         format!(
             "calibrated: within {:.2} % of the full-order force at the schedule's last load, pulled along, across or diagonally ({:.1} s)",

@@ -27,7 +27,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use vademecum_engine::damage::build;
-use vademecum_engine::damage::online::{OnlineTear, RitzOperator, TearOffline, Variant};
+use vademecum_engine::damage::online::{OnlineTear, RitzOperator, StepLimits, TearOffline, Variant};
 use vademecum_engine::damage::organ;
 use vademecum_engine::damage::pod::DamageBasis;
 use vademecum_engine::damage::reference;
@@ -43,6 +43,25 @@ const PREFIXES: [usize; 4] = [5, 10, 20, 40];
 
 /// Online steps timed per point (whole schedules).
 const TIMED_STEPS: usize = 2000;
+
+/// The online step's times (µs), at least `n` of them, over whole schedules of `off` from the
+/// virgin state, each step pulling with the multipliers `mix` of the schedule's increment
+/// (`[1, 0, 0]`: along the load; a mix of all three engages every pull pattern's modes).
+pub(crate) fn step_times(off: &Arc<TearOffline>, variant: Variant, limits: StepLimits, mix: [f64; 3], n: usize) -> Vec<f64> {
+    let mut times = Vec::with_capacity(n + off.model.schedule.len());
+    while times.len() < n {
+        let mut online = OnlineTear::new(off.clone(), variant, limits);
+        for &ds in &off.model.schedule {
+            let t = Instant::now();
+            std::hint::black_box(online.step_pull(mix.map(|m| m * ds)));
+            times.push(t.elapsed().as_secs_f64() * 1e6);
+        }
+        if off.model.schedule.is_empty() {
+            break;
+        }
+    }
+    times
+}
 
 /// One point of the sweep.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -182,16 +201,7 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
                 response_error = response_error.max(super::study::rel(a, b));
             }
             // the step's cost over whole schedules
-            let steps = off.model.schedule.len().max(1);
-            let mut times = Vec::with_capacity(TIMED_STEPS + steps);
-            while times.len() < TIMED_STEPS {
-                let mut online = OnlineTear::new(off.clone(), variant, limits);
-                for &ds in &off.model.schedule {
-                    let t = Instant::now();
-                    std::hint::black_box(online.step(ds));
-                    times.push(t.elapsed().as_secs_f64() * 1e6);
-                }
-            }
+            let times = step_times(&off, variant, limits, [1.0, 0.0, 0.0], TIMED_STEPS);
             let (step, null) = (stat("step", times), stat("null", time_n(TIMED_STEPS, || 0.0)));
             points.push(TearPoint {
                 pod_vectors: basis.len(),
