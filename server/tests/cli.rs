@@ -335,6 +335,42 @@ fn a_large_deformation_scene_builds_its_lattice_and_runs() {
     let peak = s["peak_force_n"].as_f64().unwrap();
     assert!(peak.is_finite() && peak > 0.0, "{s}");
     assert_eq!(s["dropped_answers"], 0);
+    // 0.3 mm is past the lattice's paths: answers flagged BEYOND_RANGE (16)
+    let beyond = |rec: &str| {
+        let forces = std::fs::read_to_string(dir.path().join(rec).join("forces.csv")).unwrap();
+        let header: Vec<&str> = forces.lines().next().unwrap().split(',').collect();
+        let (c, e) = (
+            header.iter().position(|h| *h == "contact").unwrap(),
+            header.iter().position(|h| *h == "events").unwrap(),
+        );
+        let rows: Vec<(bool, u32)> = forces
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .map(|c_| (c_[c] == "1", c_[e].parse().unwrap()))
+            .collect();
+        let contact = rows.iter().filter(|r| r.0).count();
+        (contact, rows.iter().filter(|r| r.0 && r.1 & 16 != 0).count())
+    };
+    let (contact, past) = beyond("out/cornea/run");
+    assert!(
+        contact > 100 && past > contact / 2,
+        "{past} of {contact} contact ticks past the paths"
+    );
+    // without --depth the built-in palpation stays within them
+    let o = vademecum(
+        &["run", "cornea.toml", "--bundles", "b", "--record", "within", "--json"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let t = s["trajectory"].as_str().unwrap();
+    assert!(
+        t.contains("where the large-deformation lattice's paths around the slide end"),
+        "{t}"
+    );
+    let (contact, past) = beyond("within");
+    assert!(contact > 100 && past == 0, "{past} of {contact} contact ticks past the paths");
 }
 
 /// `fidelity.solver = "meshless"`: the same summary, from element-free Galerkin, with the

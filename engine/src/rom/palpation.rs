@@ -365,6 +365,27 @@ impl AnmLattice {
         self.blend(point, depth, k, None, zeta)
     }
 
+    /// The depth (m) within which a contact at any of `points` is answered from the paths
+    /// themselves: the shallowest end of the paths of the positions around those points (the
+    /// [`RATE_NEIGHBOURHOOD`] nearest of each, those whose laws a contact there blends and
+    /// whose rates its estimate takes). Deeper, some blended law is extrapolated past its path
+    /// ([`Stiffening::extrapolated`]) and the answer's error estimate grows with the depth.
+    /// `None` without positions or paths. Allocates: call it once, to plan a trajectory.
+    pub fn reach_at(&self, points: &[[f64; 3]]) -> Option<f64> {
+        let mut zeta = vec![0.0; self.max_modes()];
+        let mut reach = f64::INFINITY;
+        for &x in points {
+            let st = self.stiffness_ratio(x, f64::MIN_POSITIVE, RATE_NEIGHBOURHOOD, &mut zeta);
+            for &i in &st.blended[..st.count] {
+                let p = &self.positions[i];
+                if let Some((d, _)) = p.path_end(&mut zeta[..p.probe.len()]).filter(|&(d, _)| d > 0.0 && d.is_finite()) {
+                    reach = reach.min(d);
+                }
+            }
+        }
+        reach.is_finite().then_some(reach)
+    }
+
     /// [`AnmLattice::stiffness_ratio`] without position `skip` (the leave-one-out of
     /// [`AnmLattice::spread_factor`]).
     fn blend(&self, point: [f64; 3], depth: f64, k: usize, skip: Option<usize>, zeta: &mut [f64]) -> Stiffening {

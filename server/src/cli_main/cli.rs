@@ -284,9 +284,12 @@ pub struct RunArgs {
     /// Frames recorded per second (at most 60).
     #[arg(long, default_value_t = 30.0, value_name = "HZ")]
     pub frame_rate: f64,
-    /// How deep the built-in palpation presses (m).
-    #[arg(long, default_value_t = 0.004, value_name = "M")]
-    pub depth: f64,
+    /// How deep the built-in palpation presses (m). Default: 4 mm, or less on a
+    /// large-deformation scene: 90 % of the depth where the lattice's paths around the slide
+    /// end, so that every answer comes from them (deeper, the law is extrapolated and the
+    /// answers' error estimates grow: docs/accuracy.md).
+    #[arg(long, value_name = "M")]
+    pub depth: Option<f64>,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,

@@ -106,11 +106,27 @@ pub fn builtin_grasp(centre: [f64; 3], direction: [f64; 3], pull_m: f64, seconds
 
 /// The built-in palpation of an organ: a probe of radius `radius_m` comes down on the
 /// middle of the accessible surface along its normal, presses `depth_m` deep, holds,
-/// slides `slide_m` along the surface, and lifts off — five seconds in all.
-///
-/// "Middle" is the load node nearest the centroid of the load nodes; the normal is the
-/// area-weighted mean of the accessible triangles around it.
+/// slides `slide_m` along the surface, and lifts off — five seconds in all
+/// ([`palpation_frame`] says where).
 pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m: f64) -> Result<Trajectory, String> {
+    let (p, n, t) = palpation_frame(b)?;
+    let at = |along_n: f64, along_t: f64| -> [f64; 3] { [0, 1, 2].map(|k| p[k] + along_n * n[k] + along_t * t[k]) };
+    let (up, down) = (radius_m + 0.003, radius_m - depth_m);
+    Trajectory::new(vec![
+        (0.0, at(up, 0.0), 0.0),
+        (1.0, at(down, 0.0), 0.0),
+        (1.5, at(down, 0.0), 0.0),
+        (3.5, at(down, slide_m), 0.0),
+        (4.5, at(up, slide_m), 0.0),
+        (5.0, at(up, slide_m), 0.0),
+    ])
+}
+
+/// Where the built-in palpation presses: the "middle" of the accessible surface — the load
+/// node nearest the centroid of the load nodes —, the outward normal there (the area-weighted
+/// mean of the accessible triangles around it) and the tangent the slide follows (the axis
+/// least aligned with the normal, made orthogonal to it): `(point, normal, tangent)`.
+pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]), String> {
     let v = &b.vademecum;
     let loads = v.load_nodes();
     if loads.is_empty() {
@@ -146,15 +162,18 @@ pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m:
     let t = [axis[0] - dot * n[0], axis[1] - dot * n[1], axis[2] - dot * n[2]];
     let tl = t.iter().map(|x| x * x).sum::<f64>().sqrt();
     let t = t.map(|x| x / tl);
-    let p = b.nodes[s];
-    let at = |along_n: f64, along_t: f64| -> [f64; 3] { [0, 1, 2].map(|k| p[k] + along_n * n[k] + along_t * t[k]) };
-    let (up, down) = (radius_m + 0.003, radius_m - depth_m);
-    Trajectory::new(vec![
-        (0.0, at(up, 0.0), 0.0),
-        (1.0, at(down, 0.0), 0.0),
-        (1.5, at(down, 0.0), 0.0),
-        (3.5, at(down, slide_m), 0.0),
-        (4.5, at(up, slide_m), 0.0),
-        (5.0, at(up, slide_m), 0.0),
-    ])
+    Ok((b.nodes[s], n, t))
+}
+
+/// How deep the built-in palpation may press into a large-deformation bundle while every
+/// answer comes from the lattice's paths (m): where the paths of the positions around its
+/// slide (`slide_m` from the middle, [`palpation_frame`]) end
+/// ([`vademecum_engine::rom::palpation::AnmLattice::reach_at`]); `None` without a lattice.
+pub fn palpation_reach(b: &LoadedBundle, slide_m: f64) -> Result<Option<f64>, String> {
+    let Some(lattice) = &b.anm else {
+        return Ok(None);
+    };
+    let (p, _, t) = palpation_frame(b)?;
+    let points: Vec<[f64; 3]> = (0..=8).map(|k| [0, 1, 2].map(|c| p[c] + slide_m * k as f64 / 8.0 * t[c])).collect();
+    Ok(lattice.reach_at(&points))
 }

@@ -147,6 +147,39 @@ struct Row {
     a: Answer,
 }
 
+/// How deep the built-in palpation presses without `--depth` (m), unless a large-deformation
+/// lattice's paths end sooner ([`palpation_depth`]).
+const PALPATION_DEPTH_M: f64 = 0.004;
+
+/// How far the built-in palpation slides (m).
+const PALPATION_SLIDE_M: f64 = 0.015;
+
+/// The share of the lattice's reach the default palpation presses to: short of the paths'
+/// end, where the law is still a path's and not an extrapolation.
+const WITHIN_REACH: f64 = 0.9;
+
+/// The built-in palpation's depth (m) and why, when it is not the user's `--depth`: 4 mm, or
+/// [`WITHIN_REACH`] of the depth where the lattice's paths around the slide end when that is
+/// shallower (`crate::session::palpation_reach`).
+fn palpation_depth(b: &vademecum_engine::pgd::offline::LoadedBundle, asked: Option<f64>) -> anyhow::Result<(f64, String)> {
+    if let Some(d) = asked {
+        return Ok((d, String::new()));
+    }
+    let reach =
+        crate::session::palpation_reach(b, PALPATION_SLIDE_M).map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?;
+    Ok(match reach {
+        Some(r) if WITHIN_REACH * r < PALPATION_DEPTH_M => (
+            WITHIN_REACH * r,
+            format!(
+                ": {:.0} % of the {:.3} mm where the large-deformation lattice's paths around the slide end; --depth presses deeper",
+                100.0 * WITHIN_REACH,
+                r * 1e3
+            ),
+        ),
+        _ => (PALPATION_DEPTH_M, String::new()),
+    })
+}
+
 pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     if a.haptic.is_none() && (a.duration.is_some() || a.haptic_wait.is_some()) {
         bail!("--duration and --haptic-wait apply to haptic runs: add --haptic CHANNEL");
@@ -154,8 +187,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     if !(a.frame_rate > 0.0 && a.frame_rate <= 60.0) {
         bail!("--frame-rate must lie in (0, 60] frames per second, got {}", a.frame_rate);
     }
-    if !(a.depth > 0.0 && a.depth < 0.05) {
-        bail!("--depth must lie in (0, 0.05) m, got {}", a.depth);
+    if let Some(d) = a.depth
+        && !(d > 0.0 && d < 0.05)
+    {
+        bail!("--depth must lie in (0, 0.05) m, got {d}");
     }
     let scene = Arc::new(load_scene(&a.source)?);
     let base = PathBuf::from("out").join(&scene.spec.scene.name);
@@ -230,15 +265,19 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             )
         }
         _ if tearing => builtin_grasp(&scene)?,
-        _ => (
-            crate::session::builtin_palpation(&bundles[0], radius, a.depth, 0.015)
-                .map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?,
-            format!(
-                "built-in palpation of '{}' ({} mm deep, 15 mm slide)",
-                scene.spec.organs[0].name,
-                a.depth * 1e3
-            ),
-        ),
+        _ => {
+            let (depth, why) = palpation_depth(&bundles[0], a.depth)?;
+            (
+                crate::session::builtin_palpation(&bundles[0], radius, depth, PALPATION_SLIDE_M)
+                    .map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?,
+                format!(
+                    "built-in palpation of '{}' ({:.3} mm deep{why}, {:.0} mm slide)",
+                    scene.spec.organs[0].name,
+                    depth * 1e3,
+                    PALPATION_SLIDE_M * 1e3
+                ),
+            )
+        }
     };
     let frames_dir = record.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("cannot create {}", frames_dir.display()))?;
