@@ -890,7 +890,7 @@ fn study_sweeps_a_file_mesh_against_the_finer_files_given() {
 
 /// A small study of the built-in scene `name`: its `study.json` and stdout, once the study has
 /// written `files` and a second run has resumed the sweep named `resumed` without redoing it.
-fn small_study(name: &str, files: [&str; 2], resumed: &str) -> (serde_json::Value, String) {
+fn small_study(name: &str, files: &[&str], resumed: &str) -> (serde_json::Value, String) {
     let dir = tempfile::tempdir().unwrap();
     let args = [
         "study",
@@ -918,7 +918,7 @@ fn small_study(name: &str, files: [&str; 2], resumed: &str) -> (serde_json::Valu
 
 #[test]
 fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
-    let (v, out) = small_study("patch_cut", ["cut.csv", "cut_error_vs_tick.svg"], "the cutting sweep in");
+    let (v, out) = small_study("patch_cut", &["cut.csv", "cut_error_vs_tick.svg"], "the cutting sweep in");
     let cut = v["cut"].as_array().unwrap();
     let err = |p: &serde_json::Value| p["force_error_max"].as_f64().unwrap();
     // the local fields are the full XFEM's Schur complement: the served force is exact
@@ -946,7 +946,11 @@ fn study_of_a_cutting_scene_sweeps_the_cut_model_against_the_full_xfem() {
 
 #[test]
 fn study_of_a_tearing_scene_sweeps_pod_vectors_and_vademecum_prefixes_against_the_reference() {
-    let (v, out) = small_study("cube_tear", ["tear.csv", "tear_error_vs_step.svg"], "the tearing sweep in");
+    let (v, out) = small_study(
+        "cube_tear",
+        &["tear.csv", "tear_target.csv", "tear_error_vs_step.svg"],
+        "the tearing sweep in",
+    );
     let t = &v["tear"];
     let (pod, modes) = (t["scene_pod_vectors"].as_u64().unwrap(), t["scene_pgd_modes"].as_u64().unwrap());
     assert_eq!(pod, 3, "the seed's cube keeps 3 POD vectors");
@@ -964,6 +968,18 @@ fn study_of_a_tearing_scene_sweeps_pod_vectors_and_vademecum_prefixes_against_th
     prefix.sort_by_key(|p| p["pgd_modes"].as_u64());
     assert!(prefix.len() >= 3 && f(prefix[0], "vademecum_error") > f(prefix.last().unwrap(), "vademecum_error"));
     assert!(out.contains("Tearing (POD–PGD, h = 0"), "{out}");
+    // what --target-error tries of the scene's whole vademecum (its pulls across the load
+    // too): the fewest modes first, all of them last, each with its calibrated force error
+    let target = t["target"].as_array().unwrap();
+    assert!(target.len() >= 2, "{t}");
+    assert_eq!(target[0]["modes"], serde_json::json!([5, 5, 5]), "{t}");
+    let all = target.last().unwrap();
+    assert!(all["modes"].as_array().unwrap().iter().all(|m| m.as_u64().unwrap() > 5), "{t}");
+    for p in target {
+        let e = f(p, "force_error");
+        assert!(e > 0.0 && e < 0.5 && f(p, "step_p50_us") > 0.0, "{p}");
+    }
+    assert!(out.contains("`vademecum build --target-error` keeps the fewest"), "{out}");
     // the held force's error estimate, checked on mixed pulls against the full-order model
     let tearing = v["estimate"]
         .as_array()

@@ -104,7 +104,8 @@ Then, for the effects the scene names: large deformations — the lattice at a q
 two times fidelity.large.positions blending 1 or 4 positions, and each path's load steps, POD modes \
 and ANM order, against full Newton; cutting — local fields or bare enrichment on mode prefixes and \
 the sliver rule, the served force against the full XFEM; tearing — POD vectors × vademecum prefixes \
-against the full-order reference; the meshless solver (fidelity.solver = \"meshless\") — support × \
+against the full-order reference, and the prefixes build --target-error tries of the whole vademecum \
+(its pulls across the load too) by the grasper's force on nine pulls (tear_target.csv); the meshless solver (fidelity.solver = \"meshless\") — support × \
 integration and the relaxation's tolerance, against the finite-element Newton solve of the same mesh. \
 And the mesh itself: the first organ at --refinements of a procedural mesh's divisions (or the \
 scene's file and each --mesh-file), each level's own vademecum, its contact force and strain energy \

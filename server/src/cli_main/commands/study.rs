@@ -556,7 +556,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         [
             (lattice.is_some(), ", lattice.csv, lattice_error_vs_tick.svg"),
             (cut.is_some(), ", cut.csv, cut_error_vs_tick.svg"),
-            (tear.is_some(), ", tear.csv, tear_error_vs_step.svg"),
+            (tear.is_some(), ", tear.csv, tear_target.csv, tear_error_vs_step.svg"),
             (meshless.is_some(), ", meshless.csv, meshless_error_vs_time.svg"),
             (mesh.is_some(), ", mesh.csv, mesh_error_vs_cost.svg, mesh_error_vs_frame.svg"),
         ]

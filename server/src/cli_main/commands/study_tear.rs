@@ -27,6 +27,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use vademecum_engine::damage::build;
+use vademecum_engine::damage::model::TearModel;
 use vademecum_engine::damage::online::{OnlineTear, RitzOperator, StepLimits, TearOffline, Variant};
 use vademecum_engine::damage::organ;
 use vademecum_engine::damage::pod::DamageBasis;
@@ -97,6 +98,26 @@ pub(super) struct TearSweep {
     /// The full-order references' time (s), shared by every point.
     pub(super) reference_s: f64,
     pub(super) points: Vec<TearPoint>,
+    /// The scene's whole vademecum (with its pulls across the load) and the prefixes of it
+    /// `vademecum build --target-error` tries ([`target_points`]).
+    #[serde(default)]
+    pub(super) target: Vec<TargetPoint>,
+}
+
+/// A prefix `vademecum build --target-error` tries of the scene's whole tearing vademecum:
+/// what it keeps, how close the grasper's force is to the full-order model's, what a step
+/// costs.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(super) struct TargetPoint {
+    /// Modes per pull pattern (along the load, then across it).
+    pub(super) modes: Vec<usize>,
+    /// The calibrated relative error of the grasper's force at the last load level, over the
+    /// nine pulls (NaN: the calibration did not reach it).
+    pub(super) force_error: f64,
+    /// One step pulled along the diagonal of the three directions (every pattern stepped).
+    pub(super) step_p50_us: f64,
+    pub(super) step_p99_us: f64,
+    pub(super) null_p50_us: f64,
 }
 
 /// The POD sizes swept: 1, 2, the scene's `own`, and twice it, within the snapshots' `rank`.
@@ -115,7 +136,7 @@ fn prefixes(modes: usize) -> Vec<usize> {
 }
 
 /// Sweeps tearing on the scene's tearable organ (see the [module docs](self)); writes
-/// `tear.csv` and `tear_error_vs_step.svg` to `out`. `None` for a scene without tearing.
+/// `tear.csv`, `tear_target.csv` and `tear_error_vs_step.svg` to `out`. `None` for a scene without tearing.
 pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Option<TearSweep>> {
     if !scene.spec.effects.tearing {
         return Ok(None);
@@ -126,7 +147,7 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
         && rec.key == key
     {
         eprintln!("resuming: the tearing sweep in {} is reused", record_path.display());
-        write_outputs(&rec.points, scene, out)?;
+        write_outputs(&rec, scene, out)?;
         return Ok(Some(rec));
     }
     let i = organ::tearable_organ(scene).context("the scene tears but no organ has a damage law")?;
@@ -218,12 +239,14 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
             });
         }
     }
-    bar.finish_and_clear();
     let front = super::study::pareto(&points.iter().map(|p| (p.step_p50_us, p.field_error)).collect::<Vec<_>>());
     for (p, f) in points.iter_mut().zip(front) {
         p.front = f;
     }
-    write_outputs(&points, scene, out)?;
+    bar.set_message("tearing sweep: the prefixes --target-error tries (nine calibration pulls)");
+    bar.set_position(0);
+    let target = target_points(model.clone(), &settings, variant, limits)?;
+    bar.finish_and_clear();
     let rec = TearSweep {
         key: key.to_string(),
         variant: variant.label().into(),
@@ -231,13 +254,77 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
         scene_pgd_modes,
         reference_s,
         points,
+        target,
     };
+    write_outputs(&rec, scene, out)?;
     std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
     Ok(Some(rec))
 }
 
-/// Writes tear.csv and tear_error_vs_step.svg of `points` to `out` (also when the sweep is resumed).
-fn write_outputs(points: &[TearPoint], scene: &Scene, out: &Path) -> anyhow::Result<()> {
+/// The scene's whole tearing vademecum, built as `vademecum build` builds it (with its pulls
+/// across the load and its nine-pull calibration), and every prefix `--target-error` tries of
+/// it — 5, 10, 20, … modes a pattern, then all —, each with its calibrated force error (a
+/// build asked for an unreachable target of 0 tries them all) and the cost of a step pulled
+/// in every direction.
+fn target_points(
+    model: TearModel,
+    settings: &build::TearSettings,
+    variant: Variant,
+    limits: StepLimits,
+) -> anyhow::Result<Vec<TargetPoint>> {
+    let s = build::TearSettings {
+        target_force_error: Some(0.0),
+        ..*settings
+    };
+    let (full, report, _) = build::build(model, &s, |_, _| {}).context("building the scene's tearing vademecum")?;
+    let full = Arc::new(full);
+    let sys = AffineSystem::of(&full.model, &full.basis);
+    let mix = [1.0 / 3f64.sqrt(); 3];
+    let tried = report.target.map(|t| t.tried).unwrap_or_default();
+    Ok(tried
+        .into_iter()
+        .map(|(modes, force_error)| {
+            let off = if modes == full.vademecum.patterns {
+                full.clone()
+            } else {
+                let v = full.vademecum.pattern_prefix(&modes);
+                let r = RitzOperator::new(&v, &sys);
+                Arc::new(TearOffline::new(full.model.clone(), full.basis.clone(), v, r))
+            };
+            let (step, null) = (
+                stat("step", step_times(&off, variant, limits, mix, TIMED_STEPS)),
+                stat("null", time_n(TIMED_STEPS, || 0.0)),
+            );
+            TargetPoint {
+                modes,
+                force_error,
+                step_p50_us: step.p50_us,
+                step_p99_us: step.p99_us,
+                null_p50_us: null.p50_us,
+            }
+        })
+        .collect())
+}
+
+/// Writes tear.csv, tear_target.csv and tear_error_vs_step.svg of `rec` to `out` (also when
+/// the sweep is resumed).
+fn write_outputs(rec: &TearSweep, scene: &Scene, out: &Path) -> anyhow::Result<()> {
+    let points = &rec.points;
+    let mut target = String::from("modes_along,modes_across_1,modes_across_2,force_error,step_p50_us,step_p99_us,null_p50_us\n");
+    for p in &rec.target {
+        let m = |k: usize| p.modes.get(k).map_or(String::new(), usize::to_string);
+        target += &format!(
+            "{},{},{},{:e},{:.3},{:.3},{:.3}\n",
+            m(0),
+            m(1),
+            m(2),
+            p.force_error,
+            p.step_p50_us,
+            p.step_p99_us,
+            p.null_p50_us
+        );
+    }
+    std::fs::write(out.join("tear_target.csv"), target).context("cannot write tear_target.csv")?;
     let mut csv = String::from(
         "pod_vectors,pgd_modes,vademecum_error,field_error,response_error,step_p50_us,step_p99_us,null_p50_us,build_s,bytes,front\n",
     );
@@ -288,10 +375,43 @@ pub(super) fn verdict(s: &TearSweep) -> String {
         },
     };
     format!(
-        "Tearing ({}, against its full-order reference; the references took {:.2} s) — the scene's setting: {}; {best}.",
+        "Tearing ({}, against its full-order reference; the references took {:.2} s) — the scene's setting: {}; {best}.{}",
         s.variant,
         s.reference_s,
-        own.map_or("not swept".into(), describe)
+        own.map_or("not swept".into(), describe),
+        target_verdict(&s.target)
+    )
+}
+
+/// The sentence on what `--target-error` keeps: the grasper's force error and step of the
+/// fewest modes it tries against all of them (empty without the points).
+fn target_verdict(t: &[TargetPoint]) -> String {
+    let (Some(first), Some(all)) = (t.first(), t.last()) else {
+        return String::new();
+    };
+    let pct = |e: f64| {
+        if e.is_finite() {
+            format!("{:.2} %", 100.0 * e)
+        } else {
+            "not calibrated".into()
+        }
+    };
+    if t.len() == 1 {
+        return format!(
+            " The grasper's force is within {} of the full-order model's with its modes {:?} ({:.2} µs per step pulled in every direction).",
+            pct(all.force_error),
+            all.modes,
+            all.step_p50_us
+        );
+    }
+    format!(
+        " The grasper's force, calibrated on nine pulls: {} with all the modes {:?} ({:.2} µs per step pulled in every direction), {} with {:?} ({:.2} µs): `vademecum build --target-error` keeps the fewest that meet its target (tear_target.csv).",
+        pct(all.force_error),
+        all.modes,
+        all.step_p50_us,
+        pct(first.force_error),
+        first.modes,
+        first.step_p50_us
     )
 }
 
@@ -362,6 +482,7 @@ mod tests {
             scene_pod_vectors: 3,
             scene_pgd_modes: 57,
             reference_s: 0.5,
+            target: Vec::new(),
             points: vec![
                 point(3, 57, 2e-4, 40.0, true),
                 point(3, 10, 5e-3, 12.0, true),
