@@ -158,7 +158,7 @@ fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> R
     };
     let null = super::bench_pgd::stat("null", super::bench_pgd::time_n(TIMED_TEAR_STEPS, || 0.0)).p50_us;
     let mut out = Vec::new();
-    for ((site, _), arrays) in tear_builds(&built.report).zip(&built.tear) {
+    for ((site, report), arrays) in tear_builds(&built.report).zip(&built.tear) {
         let off = Arc::new(TearOffline::from_arrays(model.clone(), arrays.clone())?);
         let t = p50(&off);
         if t > target_us {
@@ -175,10 +175,15 @@ fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> R
             return Err(format!(
                 "tearing{site}: a step of the PGD modes {:?} takes {t:.2} µs (p50 on this machine, pulled in every direction; null loop {null:.2} µs), over --target-tick-us {target_us}; the fewest --target-error keeps, {keep:?}, take {q:.2} µs{}",
                 off.vademecum.patterns,
-                if q <= target_us {
-                    ": a larger --target-error keeps fewer modes"
-                } else {
-                    " — no setting of the tearing vademecum fits"
+                match report.target.as_ref().and_then(|t| t.tried.iter().find(|(m, _)| *m == keep)) {
+                    // what a target tried of these modes: their force error, the target that keeps them
+                    Some((_, e)) if q <= target_us && e.is_finite() => format!(
+                        " at a force error of {}: --target-error {:.1e} keeps them",
+                        percent(*e),
+                        next_up(*e)
+                    ),
+                    _ if q <= target_us => ": a larger --target-error keeps fewer modes".into(),
+                    _ => " — no setting of the tearing vademecum fits".into(),
                 }
             ));
         }
