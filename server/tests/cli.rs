@@ -20,6 +20,28 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// A recording's `forces.csv`: its rows, each a map from column name to value.
+fn forces_csv(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().expect("a header").split(',').collect();
+    lines
+        .map(|l| {
+            header
+                .iter()
+                .zip(l.split(','))
+                .map(|(h, v)| (h.to_string(), v.to_string()))
+                .collect()
+        })
+        .collect()
+}
+
+/// A numeric column of a `forces.csv` row (NaN when empty: no estimate).
+fn num(row: &std::collections::HashMap<String, String>, column: &str) -> f64 {
+    let v = row.get(column).unwrap_or_else(|| panic!("no column {column}"));
+    v.parse().unwrap_or(f64::NAN)
+}
+
 #[test]
 fn solve_without_arguments_solves_the_default_organ_and_writes_vtu() {
     let dir = tempfile::tempdir().unwrap();
@@ -154,23 +176,14 @@ fn run_builds_the_missing_vademecum_plays_the_palpation_and_records_it() {
     assert!(s["contact_ticks"].as_u64().unwrap() > 1000, "{s}");
     assert_eq!(s["dropped_answers"], 0);
     let rec = dir.path().join("out/organ/run");
-    let forces = std::fs::read_to_string(rec.join("forces.csv")).unwrap();
-    assert_eq!(forces.lines().count() as u64, ticks + 1, "one row per tick plus the header");
+    let rows = forces_csv(&rec.join("forces.csv"));
+    assert_eq!(rows.len() as u64, ticks, "one row per tick");
     // the recording keeps each force's error estimate: finite, and nonzero in contact
-    let header: Vec<&str> = forces.lines().next().unwrap().split(',').collect();
-    let col = |name: &str| {
-        header
-            .iter()
-            .position(|h| *h == name)
-            .unwrap_or_else(|| panic!("{name} in {header:?}"))
-    };
-    let (contact, error) = (col("contact"), col("force_error_n"));
-    let rows: Vec<Vec<&str>> = forces.lines().skip(1).map(|l| l.split(',').collect()).collect();
     assert!(
         rows.iter()
-            .all(|r| r[error].parse::<f64>().is_ok_and(|e| e.is_finite() && e >= 0.0))
+            .all(|r| num(r, "force_error_n").is_finite() && num(r, "force_error_n") >= 0.0)
     );
-    assert!(rows.iter().any(|r| r[contact] == "1" && r[error].parse::<f64>().unwrap() > 0.0));
+    assert!(rows.iter().any(|r| r["contact"] == "1" && num(r, "force_error_n") > 0.0));
     assert!(rec.join("lobe.pvd").is_file() && rec.join("summary.json").is_file());
     assert!(s["frames"].as_u64().unwrap() > 10, "{s}");
     // a second run reuses the bundle
@@ -337,20 +350,13 @@ fn a_large_deformation_scene_builds_its_lattice_and_runs() {
     assert_eq!(s["dropped_answers"], 0);
     // 0.3 mm is past the lattice's paths: answers flagged BEYOND_RANGE (16)
     let beyond = |rec: &str| {
-        let forces = std::fs::read_to_string(dir.path().join(rec).join("forces.csv")).unwrap();
-        let header: Vec<&str> = forces.lines().next().unwrap().split(',').collect();
-        let (c, e) = (
-            header.iter().position(|h| *h == "contact").unwrap(),
-            header.iter().position(|h| *h == "events").unwrap(),
-        );
-        let rows: Vec<(bool, u32)> = forces
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').collect::<Vec<_>>())
-            .map(|c_| (c_[c] == "1", c_[e].parse().unwrap()))
+        let rows = forces_csv(&dir.path().join(rec).join("forces.csv"));
+        let contact: Vec<u32> = rows
+            .iter()
+            .filter(|r| r["contact"] == "1")
+            .map(|r| r["events"].parse().unwrap())
             .collect();
-        let contact = rows.iter().filter(|r| r.0).count();
-        (contact, rows.iter().filter(|r| r.0 && r.1 & 16 != 0).count())
+        (contact.len(), contact.iter().filter(|&&e| e & 16 != 0).count())
     };
     let (contact, past) = beyond("out/cornea/run");
     assert!(
@@ -482,12 +488,9 @@ fn run_grasps_and_pulls_a_tearable_cube_until_it_tears_and_records_the_damage() 
     let forces = std::fs::read_to_string(rec.join("forces.csv")).unwrap();
     assert!(forces.lines().next().unwrap().ends_with(",closure"), "the jaw column");
     // the held forces carry their error estimate (the build's calibration)
-    let header: Vec<&str> = forces.lines().next().unwrap().split(',').collect();
-    let col = header.iter().position(|h| *h == "force_error_n").unwrap();
-    let estimated = forces
-        .lines()
-        .skip(1)
-        .filter(|l| l.split(',').nth(col).is_some_and(|e| e.parse::<f64>().is_ok_and(|e| e > 0.0)))
+    let estimated = forces_csv(&rec.join("forces.csv"))
+        .iter()
+        .filter(|r| num(r, "force_error_n") > 0.0)
         .count();
     assert!(estimated > 100, "{estimated} answers with an estimate");
     // the frames: damage as cell data while the cube holds, its triangles gone once torn
@@ -1125,18 +1128,14 @@ fn build_target_error_keeps_the_fewest_tearing_modes_whose_force_meets_it_or_ref
         dir.path(),
     );
     assert!(o.status.success(), "stderr: {}", stderr(&o));
-    let forces = std::fs::read_to_string(dir.path().join("run/forces.csv")).unwrap();
-    let header: Vec<&str> = forces.lines().next().unwrap().split(',').collect();
-    let (f, e) = (
-        header.iter().position(|h| *h == "fx_n").unwrap(),
-        header.iter().position(|h| *h == "force_error_n").unwrap(),
-    );
-    let within = forces.lines().skip(1).filter_map(|l| {
-        let c: Vec<f64> = l.split(',').map(|x| x.parse().unwrap_or(f64::NAN)).collect();
-        let norm = (c[f] * c[f] + c[f + 1] * c[f + 1] + c[f + 2] * c[f + 2]).sqrt();
-        c[e].is_finite().then(|| c[e] <= 0.1 * 3f64.sqrt() * norm * (1.0 + 1e-9))
-    });
-    let within: Vec<bool> = within.collect();
+    let within: Vec<bool> = forces_csv(&dir.path().join("run/forces.csv"))
+        .iter()
+        .filter(|r| num(r, "force_error_n").is_finite())
+        .map(|r| {
+            let norm = ["fx_n", "fy_n", "fz_n"].map(|c| num(r, c).powi(2)).iter().sum::<f64>().sqrt();
+            num(r, "force_error_n") <= 0.1 * 3f64.sqrt() * norm * (1.0 + 1e-9)
+        })
+        .collect();
     assert!(within.len() > 100 && within.iter().all(|&w| w), "{} estimates", within.len());
     // a step of the kept modes on the tick path, timed against a generous tick target
     let o = vademecum(

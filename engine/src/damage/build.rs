@@ -185,7 +185,7 @@ pub fn build(
             (off, None)
         }
         Some(e) => {
-            let (off, t) = keep_for_target(full, full_table, e, |vad| RitzOperator::new(vad, &sys), &table);
+            let (off, t) = keep_for_target(full, full_table, e, &sys, &table);
             (off, Some(t))
         }
     };
@@ -245,13 +245,13 @@ fn unshare(off: std::sync::Arc<TearOffline>) -> TearOffline {
 /// The fewest modes per pull pattern of `full` whose calibrated force error (`table`, at the
 /// last load level; a calibration short of `full_table`'s levels does not meet it) is at
 /// most `target`: prefixes of 5, 10, 20, … modes of every pattern, then all of them — the
-/// closest when no prefix meets it. `ritz` makes a prefix's Ritz operator. The offline data
-/// kept carries its own calibration.
+/// closest when no prefix meets it. `sys` is the model's affine system (each prefix's Ritz
+/// basis). The offline data kept carries its own calibration.
 fn keep_for_target(
     full: std::sync::Arc<TearOffline>,
     full_table: Vec<[f64; 2]>,
     target: f64,
-    ritz: impl Fn(&DamageVademecum) -> RitzOperator,
+    sys: &AffineSystem,
     table: &dyn Fn(&std::sync::Arc<TearOffline>) -> Vec<[f64; 2]>,
 ) -> (TearOffline, TearTarget) {
     let built = full.vademecum.patterns.clone();
@@ -264,9 +264,7 @@ fn keep_for_target(
     let mut k = FEWEST_TARGET_MODES;
     while k < most {
         let keep: Vec<usize> = built.iter().map(|&n| n.min(k)).collect();
-        let vad = full.vademecum.pattern_prefix(&keep);
-        let r = ritz(&vad);
-        let off = std::sync::Arc::new(TearOffline::new(full.model.clone(), full.basis.clone(), vad, r));
+        let off = std::sync::Arc::new(full.pattern_prefix(&keep, sys));
         let t = table(&off);
         let e = last(&t);
         tried.push((keep, e));

@@ -291,6 +291,17 @@ impl TearOffline {
         }
     }
 
+    /// The first `keep[p]` modes of each pull pattern `p`
+    /// ([`DamageVademecum::pattern_prefix`](super::vademecum::DamageVademecum::pattern_prefix))
+    /// with a Ritz basis of their own on `sys` (the affine system of this model and basis,
+    /// [`super::vademecum::AffineSystem::of`]); no force-error calibration (it needs the
+    /// full-order runs: [`crate::damage::build::Calibration`]).
+    pub fn pattern_prefix(&self, keep: &[usize], sys: &super::vademecum::AffineSystem) -> Self {
+        let vad = self.vademecum.pattern_prefix(keep);
+        let ritz = RitzOperator::new(&vad, sys);
+        Self::new(self.model.clone(), self.basis.clone(), vad, ritz)
+    }
+
     /// The relative error of the grasper's force at load level `level` (`|s|`, unit steps)
     /// from [`Self::force_error`]: the envelope's value at the first calibrated level at or
     /// past `level` (an upper step, so the estimate never interpolates downwards); `None`
@@ -305,8 +316,8 @@ impl TearOffline {
 
     /// The relative error of the grasper's force under the load factors `s` (along the load
     /// and across it): [`Self::force_error_at`] `|s|₂` times `|s|₁ / |s|₂`. The calibration
-    /// pulls along each direction alone; where the response is linear the errors of a mixed
-    /// pull superpose, `|Σ_p s_p ε_p| ≤ |s|₁ max_p |ε_p|`, a bound the factor (at most √3)
+    /// pulls along each direction and the diagonals; where the response is linear the errors
+    /// of a mixed pull superpose, `|Σ_p s_p ε_p| ≤ |s|₁ max_p |ε_p|`, a bound the factor (at most √3)
     /// keeps. `None` as [`Self::force_error_at`], and for no load.
     pub fn force_error_for(&self, s: [f64; 3]) -> Option<f64> {
         let l2 = s.iter().map(|x| x * x).sum::<f64>().sqrt();

@@ -41,8 +41,8 @@
 //! ([`TickState::force_error_n`]): `e(|s|₂)·(|s|₁/|s|₂)·|f|`, with `e` the bundle's
 //! calibration ([`TearOffline::force_error_for`], built by
 //! [`crate::damage::build::force_error_table`]): how far the reduced model's force for the
-//! same grasp displacement is from the full model's along the pulls along and across the load,
-//! from virgin tissue, the largest up to that load level; the factor bounds how the
+//! same grasp displacement is from the full model's on nine pulls from virgin tissue (along the
+//! load, across it both ways, the four diagonals), the largest up to that load level; the factor bounds how the
 //! directions' errors add up in a mixed pull. Past the calibrated levels, while the force
 //! fades, and with a bundle built before the calibration the answer has none. Mixed pulls are
 //! not calibrated, and neither is tissue another site damaged: `vademecum study` measures how

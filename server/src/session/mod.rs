@@ -65,7 +65,7 @@ pub use devices::{DeviceWorkers, DeviceWorkersConfig};
 pub use frames::{Frame, FrameWorkers, FrameWorkersConfig, SurfaceGeometry};
 pub use memory::SessionMemory;
 pub use scheduler::{PlaceError, SchedulerConfig, TickScheduler};
-pub use script::{builtin_grasp, builtin_incisions, builtin_palpation, palpation_frame, palpation_reach, tool_at};
+pub use script::{builtin_grasp, builtin_incisions, builtin_palpation, palpation_reach, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
 pub use tick::MAX_COMMANDS_PER_TICK;
 pub use vademecum_bridge::trajectory::Trajectory;

@@ -139,7 +139,7 @@ const TIMED_TEAR_STEPS: usize = 1000;
 /// the first site over it, and the time of the fewest modes `--target-error` keeps.
 /// With the p50s, that of a null loop timed the same way (µs).
 fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> Result<(Vec<f64>, f64), String> {
-    use vademecum_engine::damage::online::{RitzOperator, TearOffline};
+    use vademecum_engine::damage::online::TearOffline;
     use vademecum_engine::damage::{organ, vademecum::AffineSystem};
     if built.tear.is_empty() {
         return Ok((Vec::new(), 0.0));
@@ -147,9 +147,8 @@ fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> R
     let model = organ::tear_model(scene, i).map_err(|e| e.to_string())?.0;
     let (_, limits) = organ::settings(scene);
     let variant = scene.spec.fidelity.tearing.variant;
-    let mix = [1.0 / 3f64.sqrt(); 3];
     let p50 = |off: &Arc<TearOffline>| {
-        let times = super::study_tear::step_times(off, variant, limits, mix, TIMED_TEAR_STEPS);
+        let times = super::study_tear::step_times(off, variant, limits, super::study_tear::EVERY_DIRECTION, TIMED_TEAR_STEPS);
         if times.is_empty() {
             0.0
         } else {
@@ -168,10 +167,7 @@ fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> R
                 .iter()
                 .map(|&n| n.min(vademecum_engine::damage::build::FEWEST_TARGET_MODES))
                 .collect();
-            let sys = AffineSystem::of(&off.model, &off.basis);
-            let v = off.vademecum.pattern_prefix(&keep);
-            let r = RitzOperator::new(&v, &sys);
-            let q = p50(&Arc::new(TearOffline::new(off.model.clone(), off.basis.clone(), v, r)));
+            let q = p50(&Arc::new(off.pattern_prefix(&keep, &AffineSystem::of(&off.model, &off.basis))));
             return Err(format!(
                 "tearing{site}: a step of the PGD modes {:?} takes {t:.2} µs (p50 on this machine, pulled in every direction; null loop {null:.2} µs), over --target-tick-us {target_us}; the fewest --target-error keeps, {keep:?}, take {q:.2} µs{}",
                 off.vademecum.patterns,
