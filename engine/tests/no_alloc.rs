@@ -9,7 +9,7 @@ use std::cell::Cell;
 use std::sync::Arc;
 
 use vademecum_engine::pgd::offline::{self, BuildOptions};
-use vademecum_engine::pipeline::{Events, Pipeline, ToolInput};
+use vademecum_engine::pipeline::{Events, Fidelity, Pipeline, ToolInput};
 use vademecum_engine::scene::Scene;
 
 struct Counting;
@@ -318,6 +318,13 @@ fn a_grasper_tick_allocates_nothing() {
     COUNT.with(|n| n.set(0));
     COUNTING.with(|c| c.set(true));
     for k in 0..4000 {
+        // the fidelity fallback comes and goes mid-pull (the tick thread switches it)
+        if k % 1000 == 300 {
+            p.set_fidelity(Fidelity::Reduced);
+        }
+        if k % 1000 == 700 {
+            p.set_fidelity(Fidelity::Full);
+        }
         seen |= p.tick(&jaws(0.8 * k as f64 / 4000.0, 1.0)).events.0;
     }
     for _ in 0..50 {

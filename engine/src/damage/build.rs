@@ -5,7 +5,9 @@
 use std::time::Instant;
 
 use super::model::TearModel;
-use super::online::{RitzOperator, TearOffline};
+use std::sync::Arc;
+
+use super::online::{RitzOperator, TearFallback, TearOffline};
 use super::pod::DamageBasis;
 use super::reference::{self, RunError, RunSettings, Scheme, Tangent, TearRun};
 use super::vademecum::{self, AffineSystem, DamageVademecum, VademecumError, VademecumSettings};
@@ -87,6 +89,10 @@ pub struct TearBuildReport {
     /// What [`TearSettings::target_force_error`] asked and what the build kept (`None`
     /// without a target).
     pub target: Option<TearTarget>,
+    /// The cheaper setting a session falls back to under load ([`fallback_for`]): the modes
+    /// per pull pattern and their calibrated force error at the last load level; `None`
+    /// when no prefix qualifies.
+    pub fallback: Option<(Vec<usize>, f64)>,
 }
 
 /// The modes a build kept for a target force error ([`TearSettings::target_force_error`]).
@@ -178,7 +184,7 @@ pub fn build(
     let calibration = Calibration::run(&full, &runs[0]).ok();
     let table = |off: &std::sync::Arc<TearOffline>| calibration.as_ref().and_then(|c| c.table(off).ok()).unwrap_or_default();
     let full_table = table(&full);
-    let (off, target) = match settings.target_force_error {
+    let (mut off, target) = match settings.target_force_error {
         None => {
             let mut off = unshare(full);
             off.force_error = full_table;
@@ -189,6 +195,7 @@ pub fn build(
             (off, Some(t))
         }
     };
+    off.fallback = fallback_for(&off, &sys, &table);
     let calibration_seconds = t2.elapsed().as_secs_f64();
     // each pattern's vademecum against exact solves at the snapshots' coefficients
     let vad = &off.vademecum;
@@ -229,6 +236,7 @@ pub fn build(
         force_error: off.force_error.last().map_or(f64::NAN, |r| r[1]),
         calibration_seconds,
         target,
+        fallback: off.fallback.as_ref().map(|f| (f.modes.clone(), f.force_error.last().map_or(f64::NAN, |r| r[1]))),
     };
     Ok((off, report, runs))
 }
@@ -236,6 +244,49 @@ pub fn build(
 /// The modes per pull pattern of the first prefix [`TearSettings::target_force_error`] tries
 /// (then twice as many, …).
 pub const FEWEST_TARGET_MODES: usize = 5;
+
+/// How much larger than the kept modes' calibrated force error (at the last load level) the
+/// fallback's may be ([`fallback_for`]).
+pub const FALLBACK_ERROR_GROWTH: f64 = 1.25;
+
+/// The prefixes a build tries, fewest modes first: [`FEWEST_TARGET_MODES`] modes of every
+/// pull pattern (all of a pattern's when it has fewer), then twice as many, …, while some
+/// pattern has more than that (`built`: the modes of each pattern).
+fn prefixes(built: &[usize]) -> impl Iterator<Item = Vec<usize>> + '_ {
+    let most = built.iter().copied().max().unwrap_or(0);
+    std::iter::successors(Some(FEWEST_TARGET_MODES), |k| Some(2 * k))
+        .take_while(move |&k| k < most)
+        .map(move |k| built.iter().map(|&n| n.min(k)).collect())
+}
+
+/// The last calibrated error of `t` when it reaches as many load levels as `reference`, NaN
+/// otherwise (a calibration that ended early meets no target).
+fn last_error(t: &[[f64; 2]], reference: &[[f64; 2]]) -> f64 {
+    match t.last() {
+        Some(r) if t.len() == reference.len() => r[1],
+        _ => f64::NAN,
+    }
+}
+
+/// The cheaper setting a session of `off` falls back to under load
+/// ([`TearOffline::fallback`]): the fewest modes per pull pattern ([`prefixes`], fewer than
+/// `off` holds) whose calibrated force error (`table`) at the last load level is at most
+/// [`FALLBACK_ERROR_GROWTH`] times `off`'s own — a cheaper step whose answers stay about as
+/// accurate, and say their own estimate. `None` without a calibration of `off`, or when no
+/// prefix qualifies (`off` is already that small: `build --target-error` kept few modes).
+pub fn fallback_for(off: &TearOffline, sys: &AffineSystem, table: &dyn Fn(&Arc<TearOffline>) -> Vec<[f64; 2]>) -> Option<TearFallback> {
+    let own = last_error(&off.force_error, &off.force_error);
+    if !own.is_finite() {
+        return None;
+    }
+    prefixes(&off.vademecum.patterns).find_map(|keep| {
+        let t = table(&Arc::new(off.pattern_prefix(&keep, sys)));
+        (last_error(&t, &off.force_error) <= FALLBACK_ERROR_GROWTH * own).then_some(TearFallback {
+            modes: keep,
+            force_error: t,
+        })
+    })
+}
 
 /// The offline data out of its `Arc` (a copy only while something else still holds it).
 fn unshare(off: std::sync::Arc<TearOffline>) -> TearOffline {
@@ -255,15 +306,10 @@ fn keep_for_target(
     table: &dyn Fn(&std::sync::Arc<TearOffline>) -> Vec<[f64; 2]>,
 ) -> (TearOffline, TearTarget) {
     let built = full.vademecum.patterns.clone();
-    let last = |t: &[[f64; 2]]| match t.last() {
-        Some(r) if t.len() == full_table.len() => r[1],
-        _ => f64::NAN,
-    };
+    let last = |t: &[[f64; 2]]| last_error(t, &full_table);
     let mut tried = Vec::new();
-    let most = built.iter().copied().max().unwrap_or(0);
-    let mut k = FEWEST_TARGET_MODES;
-    while k < most {
-        let keep: Vec<usize> = built.iter().map(|&n| n.min(k)).collect();
+    let tries: Vec<Vec<usize>> = prefixes(&built).collect();
+    for keep in tries {
         let off = std::sync::Arc::new(full.pattern_prefix(&keep, sys));
         let t = table(&off);
         let e = last(&t);
@@ -279,7 +325,6 @@ fn keep_for_target(
             };
             return (off, t);
         }
-        k *= 2;
     }
     let e = last(&full_table);
     tried.push((built.clone(), e));

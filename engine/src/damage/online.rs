@@ -221,6 +221,45 @@ pub struct TearOffline {
     /// rows `[load level, relative error]`, levels increasing, errors non-decreasing. Empty:
     /// no estimate (a bundle built before it, or built without it).
     pub force_error: Vec<[f64; 2]>,
+    /// The cheaper setting a session falls back to under load, when the build found one.
+    pub fallback: Option<TearFallback>,
+}
+
+/// The cheaper setting of tearing a session falls back to under load (the server's fidelity
+/// governor, [`crate::pipeline::Fidelity::Reduced`]): the first `modes[p]` modes of each pull
+/// pattern `p`, stepped by the simplified integrator — exactly what
+/// [`TearOffline::pattern_prefix`] of those modes steps, since a mode's coefficient is its own
+/// factors' product — with that prefix's calibrated force error. Chosen by the build
+/// ([`crate::damage::build::fallback_for`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TearFallback {
+    /// Modes kept per pull pattern: at most the pattern's, fewer in all.
+    pub modes: Vec<usize>,
+    /// Their calibrated force error, as [`TearOffline::force_error`].
+    pub force_error: Vec<[f64; 2]>,
+}
+
+/// The relative error at load level `level` of a calibration `table` (rows `[level, error]`):
+/// the envelope's value at the first calibrated level at or past `level` (an upper step, so
+/// the estimate never interpolates downwards); `None` for an empty table or past its last
+/// level (no full-order run went that far).
+fn error_at(table: &[[f64; 2]], level: f64) -> Option<f64> {
+    let last = table.last()?;
+    if level.is_nan() || level > last[0] * (1.0 + 1e-9) {
+        return None;
+    }
+    table.iter().find(|r| r[0] >= level * (1.0 - 1e-9)).map(|r| r[1])
+}
+
+/// The relative error of the grasper's force under the load factors `s` from a calibration
+/// `table`: [`error_at`] `|s|₂` times `|s|₁ / |s|₂` (see [`TearOffline::force_error_for`]).
+fn error_for(table: &[[f64; 2]], s: [f64; 3]) -> Option<f64> {
+    let l2 = s.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let l1: f64 = s.iter().map(|x| x.abs()).sum();
+    if l2.is_nan() || l2 <= 0.0 {
+        return None;
+    }
+    error_at(table, l2).map(|e| e * l1 / l2)
 }
 
 impl TearOffline {
@@ -288,7 +327,26 @@ impl TearOffline {
             local,
             mode_pattern,
             force_error: Vec::new(),
+            fallback: None,
         }
+    }
+
+    /// The vademecum's coefficients at `xi` into `a` (length `n_modes`), as
+    /// [`DamageVademecum::coefficients`]; `reduced` with a [`Self::fallback`]: those of its
+    /// modes only, the others zero (and not evaluated). Returns whether some coefficient was
+    /// clamped. No allocation.
+    pub fn coefficients(&self, xi: &[f64], a: &mut [f64], reduced: bool) -> bool {
+        let vad = &self.vademecum;
+        let Some(fallback) = self.fallback.as_ref().filter(|_| reduced) else {
+            return vad.coefficients(xi, a);
+        };
+        a.fill(0.0);
+        let (mut first, mut clamped) = (0, false);
+        for (&n, &keep) in vad.patterns.iter().zip(&fallback.modes) {
+            clamped |= vad.coefficients_from(xi, first, &mut a[first..first + keep.min(n)]);
+            first += n;
+        }
+        clamped
     }
 
     /// The first `keep[p]` modes of each pull pattern `p`
@@ -307,11 +365,7 @@ impl TearOffline {
     /// past `level` (an upper step, so the estimate never interpolates downwards); `None`
     /// without a calibration or past its last level (no full-order run went that far).
     pub fn force_error_at(&self, level: f64) -> Option<f64> {
-        let last = self.force_error.last()?;
-        if level.is_nan() || level > last[0] * (1.0 + 1e-9) {
-            return None;
-        }
-        self.force_error.iter().find(|r| r[0] >= level * (1.0 - 1e-9)).map(|r| r[1])
+        error_at(&self.force_error, level)
     }
 
     /// The relative error of the grasper's force under the load factors `s` (along the load
@@ -320,12 +374,7 @@ impl TearOffline {
     /// of a mixed pull superpose, `|Σ_p s_p ε_p| ≤ |s|₁ max_p |ε_p|`, a bound the factor (at most √3)
     /// keeps. `None` as [`Self::force_error_at`], and for no load.
     pub fn force_error_for(&self, s: [f64; 3]) -> Option<f64> {
-        let l2 = s.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let l1: f64 = s.iter().map(|x| x.abs()).sum();
-        if l2.is_nan() || l2 <= 0.0 {
-            return None;
-        }
-        self.force_error_at(l2).map(|e| e * l1 / l2)
+        error_for(&self.force_error, s)
     }
 }
 
@@ -430,6 +479,8 @@ pub struct OnlineTear {
     eqs: Vec<Option<usize>>,
     /// Energy dissipated so far (J).
     pub dissipated: f64,
+    /// Stepping the cheaper setting ([`Self::set_reduced`]).
+    reduced: bool,
 }
 
 impl OnlineTear {
@@ -485,7 +536,31 @@ impl OnlineTear {
             bv: vec![0.0; nodal],
             eqs: vec![None; nodal],
             dissipated: 0.0,
+            reduced: false,
             off,
+        }
+    }
+
+    /// Steps the cheaper setting from now on (`reduced`), or the scene's: the simplified
+    /// integrator on the [`TearOffline::fallback`]'s modes (all the modes without one) — the
+    /// state, the displacement and the amplitudes carry on, so the force does not jump; the
+    /// modes left out keep what they accumulated and stop growing. No allocation.
+    pub fn set_reduced(&mut self, reduced: bool) {
+        self.reduced = reduced;
+    }
+
+    /// Whether it steps the cheaper setting.
+    pub fn reduced(&self) -> bool {
+        self.reduced
+    }
+
+    /// The relative error of the grasper's force under the load factors `s`, from the
+    /// calibration of the setting it steps: [`TearOffline::force_error_for`], or the
+    /// fallback's while [`Self::reduced`].
+    pub fn force_error_for(&self, s: [f64; 3]) -> Option<f64> {
+        match (&self.off.fallback, self.reduced) {
+            (Some(f), true) => error_for(&f.force_error, s),
+            _ => self.off.force_error_for(s),
         }
     }
 
@@ -616,7 +691,7 @@ impl OnlineTear {
         // Σ_p ds_p Σ_{i ∈ p} a_i F_i (`a` then holds the coefficients)
         let vademecum = |this: &mut Self, out: &mut OnlineStep, first: usize| {
             let nm = off.vademecum.n_modes;
-            out.clamped |= off.vademecum.coefficients(&this.xi, &mut this.a[..nm]);
+            out.clamped |= off.coefficients(&this.xi, &mut this.a[..nm], this.reduced);
             for (i, &ai) in this.a[..nm].iter().enumerate().skip(first) {
                 let w = ds[off.mode_pattern[i]] * ai;
                 if w == 0.0 {
@@ -628,7 +703,7 @@ impl OnlineTear {
                 }
             }
         };
-        match self.variant {
+        match if self.reduced { Variant::Simplified } else { self.variant } {
             Variant::Simplified => {
                 self.du[..nl].fill(0.0);
                 vademecum(self, &mut out, 0);
@@ -686,7 +761,7 @@ impl OnlineTear {
             *gi = self.state[p].g;
         }
         self.off.basis.project(&self.g, &mut self.xi);
-        self.off.vademecum.coefficients(&self.xi, &mut self.coef);
+        self.off.coefficients(&self.xi, &mut self.coef, self.reduced);
         &self.coef
     }
 

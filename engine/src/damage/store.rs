@@ -6,7 +6,7 @@
 //! ([`super::sites`]) also stores its load, which replaces the scene's in the rebuilt model.
 
 use super::model::TearModel;
-use super::online::{RitzOperator, TearOffline};
+use super::online::{RitzOperator, TearFallback, TearOffline};
 use super::pod::DamageBasis;
 use super::sites::SiteLoad;
 use super::vademecum::{DamageVademecum, VademecumReport};
@@ -49,6 +49,10 @@ pub struct TearArrays {
     pub load_forces: Vec<f64>,
     /// [`TearOffline::force_error`], flattened (`[level, error]` pairs; empty: none).
     pub force_error: Vec<f64>,
+    /// The fallback's modes per pull pattern ([`TearOffline::fallback`]; empty: none).
+    pub fallback_modes: Vec<usize>,
+    /// The fallback's calibrated force error, flattened as [`Self::force_error`].
+    pub fallback_force_error: Vec<f64>,
 }
 
 impl TearOffline {
@@ -73,6 +77,8 @@ impl TearOffline {
             load_nodes: Vec::new(),
             load_forces: Vec::new(),
             force_error: self.force_error.concat(),
+            fallback_modes: self.fallback.as_ref().map_or_else(Vec::new, |f| f.modes.clone()),
+            fallback_force_error: self.fallback.as_ref().map_or_else(Vec::new, |f| f.force_error.concat()),
         }
     }
 
@@ -145,6 +151,24 @@ impl TearOffline {
         {
             return Err("tearing arrays hold non-finite values or an empty coefficient range".into());
         }
+        let force_error = calibration_table("force_error", &a.force_error)?;
+        let fallback = if a.fallback_modes.is_empty() {
+            None
+        } else {
+            let fits = a.fallback_modes.len() == a.patterns.len()
+                && a.fallback_modes.iter().zip(&a.patterns).all(|(&k, &n)| k >= 1 && k <= n)
+                && a.fallback_modes.iter().sum::<usize>() < a.n_modes;
+            if !fits {
+                return Err(format!(
+                    "tearing array fallback_modes {:?} is not fewer modes of the pull patterns {:?}; rebuild the bundle with `vademecum build`",
+                    a.fallback_modes, a.patterns
+                ));
+            }
+            Some(TearFallback {
+                modes: a.fallback_modes,
+                force_error: calibration_table("fallback_force_error", &a.fallback_force_error)?,
+            })
+        };
         let basis = DamageBasis {
             pod: Pod {
                 n: nt,
@@ -174,19 +198,6 @@ impl TearOffline {
                 seconds: 0.0,
             },
         };
-        let force_error: Vec<[f64; 2]> = a.force_error.chunks_exact(2).map(|r| [r[0], r[1]]).collect();
-        let increasing = force_error.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
-        if !a.force_error.len().is_multiple_of(2)
-            || !increasing
-            || force_error
-                .iter()
-                .any(|r| !(r[0] > 0.0 && r[0].is_finite() && r[1] >= 0.0 && r[1].is_finite()))
-        {
-            return Err(
-                "tearing array force_error is not a table of increasing load levels and non-decreasing errors; rebuild the bundle with `vademecum build`"
-                    .into(),
-            );
-        }
         let mm = a.m * a.m;
         let ritz = RitzOperator {
             m: a.m,
@@ -196,6 +207,23 @@ impl TearOffline {
         };
         let mut off = Self::new(model, basis, vademecum, ritz);
         off.force_error = force_error;
+        off.fallback = fallback;
         Ok(off)
     }
+}
+
+/// A force-error calibration read from the flattened array `name`: `[level, error]` rows,
+/// levels positive and increasing, errors finite, non-negative and non-decreasing.
+fn calibration_table(name: &str, flat: &[f64]) -> Result<Vec<[f64; 2]>, String> {
+    let table: Vec<[f64; 2]> = flat.chunks_exact(2).map(|r| [r[0], r[1]]).collect();
+    let increasing = table.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
+    if !flat.len().is_multiple_of(2)
+        || !increasing
+        || table.iter().any(|r| !(r[0] > 0.0 && r[0].is_finite() && r[1] >= 0.0 && r[1].is_finite()))
+    {
+        return Err(format!(
+            "tearing array {name} is not a table of increasing load levels and non-decreasing errors; rebuild the bundle with `vademecum build`"
+        ));
+    }
+    Ok(table)
 }

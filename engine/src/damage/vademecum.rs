@@ -504,6 +504,12 @@ impl DamageVademecum {
     /// The products `a_i = Π_K G_K^i(ξ_K)` into `a` (length `n_modes`), each `ξ_K` clamped to
     /// its range. Returns whether some coefficient was clamped. No allocation.
     pub fn coefficients(&self, xi: &[f64], a: &mut [f64]) -> bool {
+        self.coefficients_from(xi, 0, a)
+    }
+
+    /// [`Self::coefficients`] of the modes `first..first + a.len()` only, into `a`: a mode's
+    /// coefficient is its own factors' product, whatever the other modes. No allocation.
+    pub fn coefficients_from(&self, xi: &[f64], first: usize, a: &mut [f64]) -> bool {
         let mut clamped = false;
         a.fill(1.0);
         for k in 0..self.q {
@@ -513,7 +519,7 @@ impl DamageVademecum {
             let m = (t.floor() as usize).min(self.grid - 2);
             let f = t - m as f64;
             for (i, ai) in a.iter_mut().enumerate() {
-                let g = &self.factors[(i * self.q + k) * self.grid..][..self.grid];
+                let g = &self.factors[((first + i) * self.q + k) * self.grid..][..self.grid];
                 *ai *= (1.0 - f) * g[m] + f * g[m + 1];
             }
         }

@@ -756,6 +756,14 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
                 ArrayData::F64(&t.force_error),
             ));
         }
+        if !t.fallback_modes.is_empty() {
+            arrays.push((name("fallback_modes"), len(&small.fallback_modes), ArrayData::F64(&small.fallback_modes)));
+            arrays.push((
+                name("fallback_force_error"),
+                vec![t.fallback_force_error.len() as u64 / 2, 2],
+                ArrayData::F64(&t.fallback_force_error),
+            ));
+        }
         if !t.load_nodes.is_empty() {
             arrays.push((
                 name("load_nodes"),
@@ -826,7 +834,7 @@ impl LoadedBundle {
 }
 
 /// The arrays of a grasp site's tearing stage, after its prefix ([`tear_prefix`]).
-const TEAR_ARRAYS: [&str; 14] = [
+const TEAR_ARRAYS: [&str; 16] = [
     "meta",
     "pod_basis",
     "singular_values",
@@ -841,6 +849,8 @@ const TEAR_ARRAYS: [&str; 14] = [
     "load_nodes",
     "load",
     "force_error",
+    "fallback_modes",
+    "fallback_force_error",
 ];
 
 /// The bundle's names of grasp site `k`'s tearing arrays: `tear_…` for the scene's grasp
@@ -853,6 +863,7 @@ fn tear_prefix(k: usize) -> String {
 struct TearSmall {
     meta: [f64; 2],
     patterns: Vec<f64>,
+    fallback_modes: Vec<f64>,
     load_nodes: Vec<i64>,
 }
 
@@ -861,6 +872,7 @@ impl TearSmall {
         Self {
             meta: [t.captured, t.grid as f64],
             patterns: t.patterns.iter().map(|&n| n as f64).collect(),
+            fallback_modes: t.fallback_modes.iter().map(|&n| n as f64).collect(),
             load_nodes: t.load_nodes.iter().map(|&n| n as i64).collect(),
         }
     }
@@ -880,15 +892,18 @@ fn read_tear(dir: &Path, manifest: &Manifest, prefix: &str) -> Result<TearArrays
         ));
     }
     let n_modes = fs[0] as usize;
-    let patterns = if has("patterns") {
-        let p = f("patterns")?.1;
-        if !p.iter().all(|&n| n >= 0.0 && n.fract() == 0.0 && n <= 1e6) {
-            return Err(format!("{prefix}patterns holds {p:?}: mode counts expected"));
+    // mode counts per pull pattern (empty when the bundle has no such array)
+    let counts = |name: &str| -> Result<Vec<usize>, String> {
+        if !has(name) {
+            return Ok(Vec::new());
         }
-        p.iter().map(|&n| n as usize).collect()
-    } else {
-        vec![n_modes]
+        let p = f(name)?.1;
+        if !p.iter().all(|&n| n >= 0.0 && n.fract() == 0.0 && n <= 1e6) {
+            return Err(format!("{prefix}{name} holds {p:?}: mode counts expected"));
+        }
+        Ok(p.iter().map(|&n| n as usize).collect())
     };
+    let patterns = if has("patterns") { counts("patterns")? } else { vec![n_modes] };
     let (load_nodes, load_forces) = if has("load_nodes") {
         let (_, nodes) = bundle::read_i64(dir, manifest, &format!("{prefix}load_nodes")).map_err(|e| e.to_string())?;
         if nodes.iter().any(|&n| n < 0) {
@@ -898,9 +913,11 @@ fn read_tear(dir: &Path, manifest: &Manifest, prefix: &str) -> Result<TearArrays
     } else {
         (Vec::new(), Vec::new())
     };
-    let force_error = if has("force_error") { f("force_error")?.1 } else { Vec::new() };
+    let table = |name: &str| if has(name) { f(name).map(|t| t.1) } else { Ok(Vec::new()) };
     Ok(TearArrays {
-        force_error,
+        force_error: table("force_error")?,
+        fallback_modes: counts("fallback_modes")?,
+        fallback_force_error: table("fallback_force_error")?,
         patterns,
         pod_basis: f("pod_basis")?.1,
         singular_values: f("singular_values")?.1,

@@ -218,16 +218,19 @@ pub struct TickState {
     pub blade: Option<BladeForce>,
     /// An estimate of the error of `force_n` against the full-order model of the same mesh
     /// (N), set by the effects that can tell (palpation, linear and large: see
-    /// [`palpation`]); `None` when an effect that cannot (cutting, tearing) shaped the force,
-    /// or the input was rejected.
+    /// [`palpation`]; cutting with local fields; tearing while held, from the bundle's
+    /// calibration); `None` when an effect that cannot shaped the force, or the input was
+    /// rejected.
     pub force_error_n: Option<f64>,
 }
 
 /// The fidelity an effect runs at: its scene's settings, or the cheaper setting a session falls
 /// back to under load (see the server's fidelity governor). A reduced setting is one the study
 /// measures: large deformations blend the lattice's nearest position instead of four (a
-/// quarter of the series evaluations, with an error estimate calibrated for it); the frames
-/// show a prefix of the modes (the server's side).
+/// quarter of the series evaluations, with an error estimate calibrated for it); tearing steps
+/// the simplified integrator on the fewest modes whose calibrated force error stays within
+/// 1.25× of all of them ([`crate::damage::online::TearFallback`]); the frames show a prefix
+/// of the modes (the server's side).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Fidelity {
     /// The scene's settings.

@@ -62,6 +62,17 @@
 //! site torn while held cannot be taken again; the other sites can. Cells past the threshold stop rendering (the frame's
 //! per-cell damage; the recording's `.pvd` leaves them out).
 //!
+//! # Under load
+//! When the session's ticks come close to their deadline (the server's fidelity governor), the
+//! effect steps its cheaper setting ([`Fidelity::Reduced`]): the simplified integrator on the
+//! fallback modes the build chose and stored ([`crate::damage::online::TearFallback`]: the
+//! fewest modes per pull pattern whose calibrated force error is within
+//! [`crate::damage::build::FALLBACK_ERROR_GROWTH`] of all of them), from the state it holds —
+//! the damage, the displacement and the load factors carry on, so the force does not jump;
+//! the estimate of each force is then the fallback's calibration. A bundle without a fallback
+//! (built before it, or already that small) keeps its modes; a scene on the full integrator
+//! drops to the simplified one.
+//!
 //! # Frames
 //! The tick publishes, through a lock-free triple buffer, the accumulated modal amplitudes
 //! and the tearable cells' damage ([`TearPicture`]); the frame thread rebuilds the whole
@@ -69,7 +80,7 @@
 
 use std::sync::Arc;
 
-use super::{Effect, Events, TickState, ToolInput, ToolKind};
+use super::{Effect, Events, Fidelity, TickState, ToolInput, ToolKind};
 #[cfg(doc)]
 use crate::damage::model::TearModel;
 use crate::damage::online::{OnlineTear, StepLimits, TearAmplitudes, TearOffline, Variant};
@@ -527,7 +538,7 @@ impl Effect for Tearing {
         if self.s.iter().any(|&s| s != 0.0) {
             let level = self.s.iter().map(|x| x * x).sum::<f64>().sqrt();
             state.force_error_n = match self.phase {
-                Phase::Held { .. } => site.off.force_error_for(self.s).map(|e| e * level * site.resultant_n),
+                Phase::Held { .. } => site.online.force_error_for(self.s).map(|e| e * level * site.resultant_n),
                 _ => None,
             };
         }
@@ -537,6 +548,15 @@ impl Effect for Tearing {
             }
         }
         self.publish();
+    }
+
+    /// At [`Fidelity::Reduced`] every site's integrator steps its cheaper setting (the
+    /// simplified integrator on the bundle's fallback modes, [`OnlineTear::set_reduced`]),
+    /// from the state it holds: the force does not jump, and its estimate is the fallback's.
+    fn set_fidelity(&mut self, fidelity: Fidelity) {
+        for site in &mut self.sites {
+            site.online.set_reduced(fidelity == Fidelity::Reduced);
+        }
     }
 
     fn reset(&mut self) {
