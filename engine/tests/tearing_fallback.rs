@@ -32,7 +32,10 @@ fn last(t: &[[f64; 2]]) -> f64 {
 #[test]
 fn the_build_stores_the_fewest_modes_whose_force_stays_about_as_accurate() {
     let (off, report) = built(None);
-    let f = off.fallback.clone().expect("the cube's build makes more modes than the fallback keeps");
+    let f = off
+        .fallback
+        .clone()
+        .expect("the cube's build makes more modes than the fallback keeps");
     // fewer modes, each pattern's first ones, the first prefix tried that qualifies
     assert_eq!(f.modes.len(), off.vademecum.patterns.len());
     assert!(f.modes.iter().zip(&off.vademecum.patterns).all(|(&k, &n)| k >= 1 && k <= n));
@@ -152,7 +155,11 @@ fn a_session_falls_back_mid_pull_without_a_jump_and_returns() {
     let step = |v: &[TickState], k: usize| (fz(&v[k]) - fz(&v[k - 1])).abs();
     let typical = (150..450).map(|k| step(&full, k)).fold(0.0, f64::max);
     for k in 195..410 {
-        assert!(step(&mixed, k) <= 2.0 * typical + 1e-12, "tick {k}: {} N against {typical} N", step(&mixed, k));
+        assert!(
+            step(&mixed, k) <= 2.0 * typical + 1e-12,
+            "tick {k}: {} N against {typical} N",
+            step(&mixed, k)
+        );
     }
     // reduced and back, the force for the same pull stays within both settings' calibrated
     // errors of the scene's (each is within its own of the full-order model's), and each
@@ -161,9 +168,16 @@ fn a_session_falls_back_mid_pull_without_a_jump_and_returns() {
     for k in (210..=600).step_by(10) {
         let (a, b) = (fz(&mixed[k]), fz(&full[k]));
         assert!((a - b).abs() <= bound * b.abs(), "tick {k}: {a} N against {b} N");
-        let envelope = if (200..400).contains(&k) { &fallback.force_error } else { &stored.force_error };
+        let envelope = if (200..400).contains(&k) {
+            &fallback.force_error
+        } else {
+            &stored.force_error
+        };
         let e = mixed[k].force_error_n.expect("a held force has an estimate");
-        assert!(e > 0.0 && e <= last(envelope) * 3f64.sqrt() * a.abs() * (1.0 + 1e-9), "tick {k}: {e} N");
+        assert!(
+            e > 0.0 && e <= last(envelope) * 3f64.sqrt() * a.abs() * (1.0 + 1e-9),
+            "tick {k}: {e} N"
+        );
     }
     // the reduced ticks' estimates are the fallback's, not the scene's setting's
     assert!((200..400).any(|k| mixed[k].force_error_n != full[k].force_error_n));

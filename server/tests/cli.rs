@@ -639,31 +639,27 @@ fn run_liver_cut_opens_the_smooth_liver_along_the_incision_with_the_co_rotationa
     assert_eq!(shown as u64, c["partial_frames"].as_u64().unwrap(), "{s}");
 }
 
+/// Runs `vademecum bench load ARGS --rate 200 --json load.json` in `dir`, which must succeed:
+/// its output, its JSON report, and a reader of the report's counts.
+fn bench_load(args: &[&str], dir: &Path) -> (Output, serde_json::Value) {
+    let args = [&["bench", "load"], args, &["--rate", "200", "--json", "load.json"]].concat();
+    let o = vademecum(&args, dir);
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let r = serde_json::from_str(&std::fs::read_to_string(dir.join("load.json")).unwrap()).unwrap();
+    (o, r)
+}
+
+/// Count `k` of a `bench load` report.
+fn count(r: &serde_json::Value, k: &str) -> u64 {
+    r[k].as_u64().unwrap_or_else(|| panic!("{k} in {r}"))
+}
+
 #[test]
 fn bench_load_drives_a_server_over_grpc_and_accounts_for_every_tool_state() {
     let dir = tempfile::tempdir().unwrap();
-    let json = dir.path().join("load.json");
-    let o = vademecum(
-        &[
-            "bench",
-            "load",
-            "--sessions",
-            "2",
-            "--seconds",
-            "1",
-            "--rate",
-            "200",
-            "--bundles",
-            "organ",
-            "--json",
-            "load.json",
-        ],
-        dir.path(),
-    );
-    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let (o, r) = bench_load(&["--sessions", "2", "--seconds", "1", "--bundles", "organ"], dir.path());
     assert!(stdout(&o).contains("tonic echo"), "{}", stdout(&o));
-    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    let n = |k: &str| r[k].as_u64().unwrap_or_else(|| panic!("{k} in {r}"));
+    let n = |k: &str| count(&r, k);
     assert!(n("states_answered") > 0, "{r}");
     assert_eq!(
         n("states_sent"),
@@ -679,6 +675,27 @@ fn bench_load_drives_a_server_over_grpc_and_accounts_for_every_tool_state() {
     assert!(!o.status.success() && stderr(&o).contains("--sessions"), "{}", stderr(&o));
 }
 
+/// A tearing scene under load: each client's grasper holds the scene's grasp and pulls it to
+/// half its max force and back; the sessions answer every state, holding the tissue.
+#[test]
+fn bench_load_drives_a_tearing_scene_with_graspers_that_hold_the_tissue() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, r) = bench_load(&["--builtin", "cube_tear", "--sessions", "2", "--seconds", "1"], dir.path());
+    assert!(dir.path().join("out/cube_tear/cube.bundle").is_dir(), "the scene's bundle, built");
+    let n = |k: &str| count(&r, k);
+    assert!(n("states_answered") > 100, "{r}");
+    assert_eq!((n("states_refused"), n("states_lost")), (0, 0), "{r}");
+    // the jaws close on the grasp's centre: every answer holds the tissue, and half the max
+    // force does not tear the seed's cube
+    assert_eq!(n("answers_in_contact"), n("states_answered"), "{r}");
+    assert_eq!(n("answers_torn"), 0, "{r}");
+    // a scene it cannot drive, and the organ-only options, are refused with a reason
+    let o = vademecum(&["bench", "load", "--builtin", "patch"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("--builtin patch"), "{}", stderr(&o));
+    let o = vademecum(&["bench", "load", "--builtin", "cube_tear", "--haptic", "1"], dir.path());
+    assert!(!o.status.success() && stderr(&o).contains("--haptic"), "{}", stderr(&o));
+}
+
 /// Chaos: clients of their own process killed with SIGKILL while the load runs; every state
 /// their replacements and the others sent is still accounted for, and the time series has its
 /// windows.
@@ -686,14 +703,10 @@ fn bench_load_drives_a_server_over_grpc_and_accounts_for_every_tool_state() {
 fn bench_load_kills_clients_and_still_accounts_for_every_tool_state() {
     let dir = tempfile::tempdir().unwrap();
     let args = [
-        "bench",
-        "load",
         "--sessions",
         "3",
         "--seconds",
         "3",
-        "--rate",
-        "200",
         "--window",
         "1",
         "--chaos-every",
@@ -702,13 +715,9 @@ fn bench_load_kills_clients_and_still_accounts_for_every_tool_state() {
         "2",
         "--bundles",
         "organ",
-        "--json",
-        "load.json",
     ];
-    let o = vademecum(&args, dir.path());
-    assert!(o.status.success(), "stderr: {}", stderr(&o));
-    let r: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.path().join("load.json")).unwrap()).unwrap();
-    let n = |k: &str| r[k].as_u64().unwrap_or_else(|| panic!("{k} in {r}"));
+    let (o, r) = bench_load(&args, dir.path());
+    let n = |k: &str| count(&r, k);
     let c = &r["chaos"];
     assert!(c["kills"].as_u64().unwrap() >= 2, "{r}");
     assert!(c["states_answered"].as_u64().unwrap() > 0, "the chaos clients' states count: {r}");

@@ -236,7 +236,10 @@ pub fn build(
         force_error: off.force_error.last().map_or(f64::NAN, |r| r[1]),
         calibration_seconds,
         target,
-        fallback: off.fallback.as_ref().map(|f| (f.modes.clone(), f.force_error.last().map_or(f64::NAN, |r| r[1]))),
+        fallback: off
+            .fallback
+            .as_ref()
+            .map(|f| (f.modes.clone(), f.force_error.last().map_or(f64::NAN, |r| r[1]))),
     };
     Ok((off, report, runs))
 }
@@ -269,8 +272,8 @@ fn last_error(t: &[[f64; 2]], reference: &[[f64; 2]]) -> f64 {
 }
 
 /// The cheaper setting a session of `off` falls back to under load
-/// ([`TearOffline::fallback`]): the fewest modes per pull pattern ([`prefixes`], fewer than
-/// `off` holds) whose calibrated force error (`table`) at the last load level is at most
+/// ([`TearOffline::fallback`]): the fewest modes per pull pattern (5, 10, 20, … as
+/// `--target-error` tries them, fewer than `off` holds) whose calibrated force error (`table`) at the last load level is at most
 /// [`FALLBACK_ERROR_GROWTH`] times `off`'s own — a cheaper step whose answers stay about as
 /// accurate, and say their own estimate. `None` without a calibration of `off`, or when no
 /// prefix qualifies (`off` is already that small: `build --target-error` kept few modes).

@@ -219,7 +219,9 @@ fn calibration_table(name: &str, flat: &[f64]) -> Result<Vec<[f64; 2]>, String> 
     let increasing = table.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
     if !flat.len().is_multiple_of(2)
         || !increasing
-        || table.iter().any(|r| !(r[0] > 0.0 && r[0].is_finite() && r[1] >= 0.0 && r[1].is_finite()))
+        || table
+            .iter()
+            .any(|r| !(r[0] > 0.0 && r[0].is_finite() && r[1] >= 0.0 && r[1].is_finite()))
     {
         return Err(format!(
             "tearing array {name} is not a table of increasing load levels and non-decreasing errors; rebuild the bundle with `vademecum build`"

@@ -757,7 +757,11 @@ pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest
             ));
         }
         if !t.fallback_modes.is_empty() {
-            arrays.push((name("fallback_modes"), len(&small.fallback_modes), ArrayData::F64(&small.fallback_modes)));
+            arrays.push((
+                name("fallback_modes"),
+                len(&small.fallback_modes),
+                ArrayData::F64(&small.fallback_modes),
+            ));
             arrays.push((
                 name("fallback_force_error"),
                 vec![t.fallback_force_error.len() as u64 / 2, 2],

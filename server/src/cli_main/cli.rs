@@ -944,7 +944,14 @@ pub struct BenchLoadArgs {
     /// The device bridge executable for --haptic (default: `vademecum-bridge` beside this one).
     #[arg(long, value_name = "PATH")]
     pub bridge: Option<PathBuf>,
-    /// Folder of the organ's bundle (built there when missing). Default: out/organ.
+    /// The built-in scene every session plays: `organ` (a probe circling over it and pressing
+    /// in and out), or a tearing scene (`cube_tear`, `gallbladder_fat`: a grasper holding the
+    /// scene's grasp and pulling it along its direction until the force reaches half the
+    /// grasper's max_force, then back, over and over). --haptic and --chaos-every drive the
+    /// organ only.
+    #[arg(long, default_value = "organ", value_name = "NAME")]
+    pub builtin: String,
+    /// Folder of the scene's bundle (built there when missing). Default: out/NAME.
     #[arg(long, value_name = "DIR")]
     pub bundles: Option<PathBuf>,
     /// Also write the figures as JSON to this file.

@@ -1,7 +1,9 @@
 //! `vademecum bench load`: a server under many sessions, driven over real gRPC.
 //!
 //! Starts `vademecum serve` (this executable) as a child process on a free loopback port,
-//! creates `--sessions` sessions of the built-in organ, and for `--seconds` drives each with
+//! creates `--sessions` sessions of the built-in organ (or of a built-in tearing scene,
+//! `--builtin`: a grasper pulls its grasp to half its max force and back), and for
+//! `--seconds` drives each with
 //! `--clients-per-session` interaction streams sending tool states at `--rate` (each waits
 //! for its answer before the next: a frontend's round trip) and `--viewers` viewers at 30 Hz.
 //! Measured in the same run, side by side:
@@ -43,6 +45,10 @@ pub(super) struct ClientAccount {
     /// Refused: the stream could not be opened, a send failed, or it ended with an error
     /// status (the state sent then is counted here, not answered).
     pub refused: u64,
+    /// Answers in contact with the tissue (a probe touching it, a grasper holding it), and
+    /// answers that say it tore.
+    pub contact: u64,
+    pub torn: u64,
     rtt: Option<Histogram<u64>>,
 }
 
@@ -81,6 +87,10 @@ struct Report {
     states_answered: u64,
     states_refused: u64,
     states_lost: u64,
+    /// Of the gRPC clients' answers, those in contact with the tissue, and those that say it
+    /// tore.
+    answers_in_contact: u64,
+    answers_torn: u64,
     frames_received: u64,
     server_cpu_cores: f64,
     /// The server's CPU by kind of thread (cores).
@@ -322,12 +332,103 @@ fn stat_cpu(stat: &str) -> Option<Duration> {
     Some(Duration::from_nanos(ticks * 1_000_000_000 / hz))
 }
 
+/// What a load client's tool does, state after state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum Drive {
+    /// A probe circling over the built-in organ and pressing in and out ([`bench_path`]).
+    Probe,
+    /// A grasper closed on a grasp site's centre, pulling along the site's direction at `speed`
+    /// (m/s) until the force reaches `force` (N) or the pull `reach` (m), then back to where
+    /// it closed, over and over.
+    Grasp {
+        centre: [f64; 3],
+        direction: [f64; 3],
+        force: f64,
+        speed: f64,
+        reach: f64,
+    },
+}
+
+impl Drive {
+    /// The grasper's drive of a tearing session (`info`: its description; `size`: the organ's
+    /// bounding-box diagonal, m): the first grasp site, pulled to half the grasper's max force
+    /// (short of tearing the built-in scenes) at 5 % of the organ's size per second, at most
+    /// a fifth of its size out. `None` without a grasper or a site.
+    pub(super) fn grasp(info: &vademecum_client::pb::SessionInfo, size: f64) -> Option<Self> {
+        let tool = info.tools.iter().find(|t| !t.grasp_sites.is_empty())?;
+        let site = &tool.grasp_sites[0];
+        let v = |v: &Option<vademecum_client::pb::Vec3>| v.as_ref().map(|v| [v.x, v.y, v.z]);
+        Some(Self::Grasp {
+            centre: v(&site.centre_m)?,
+            direction: v(&site.pull_direction)?,
+            force: 0.5 * tool.max_force_n,
+            speed: 0.05 * size,
+            reach: 0.2 * size,
+        })
+    }
+}
+
+/// A [`Drive`] in motion: where the grasper's pull is and which way it goes.
+struct Driver {
+    drive: Drive,
+    /// Seconds between states.
+    dt: f64,
+    pull: f64,
+    outward: bool,
+}
+
+impl Driver {
+    fn new(drive: Drive, period: Duration) -> Self {
+        Self {
+            drive,
+            dt: period.as_secs_f64(),
+            pull: 0.0,
+            outward: true,
+        }
+    }
+
+    /// Tool state `i`, after an answer with force `force` (N, its magnitude) to the last.
+    fn state(&mut self, i: u64, force: f64) -> vademecum_client::pb::ToolState {
+        match self.drive {
+            Drive::Probe => bench_tool(i),
+            Drive::Grasp {
+                centre,
+                direction,
+                force: most,
+                speed,
+                reach,
+            } => {
+                if self.outward && (force >= most || self.pull >= reach) {
+                    self.outward = false;
+                } else if !self.outward && self.pull <= 0.0 {
+                    self.outward = true;
+                }
+                let step = speed * self.dt;
+                self.pull = if self.outward {
+                    self.pull + step
+                } else {
+                    (self.pull - step).max(0.0)
+                };
+                let at = std::array::from_fn(|k| centre[k] + self.pull * direction[k]);
+                vademecum_client::grasper_at(i, at, 1.0)
+            }
+        }
+    }
+}
+
 /// Called with a client's account after every state it sends and every answer.
 pub(super) type Progress = Box<dyn FnMut(&ClientAccount) + Send>;
 
 /// One interaction stream on a connection of its own: a tool state every `period` (each after
 /// the previous answer), until `stop`; `progress` is told the account as it changes.
-pub(super) async fn client(addr: String, id: String, period: Duration, stop: Arc<AtomicBool>, mut progress: Progress) -> ClientAccount {
+pub(super) async fn client(
+    addr: String,
+    id: String,
+    drive: Drive,
+    period: Duration,
+    stop: Arc<AtomicBool>,
+    mut progress: Progress,
+) -> ClientAccount {
     let mut account = ClientAccount::default();
     let mut h = hist();
     let Some(session) = connect(&addr, &id).await else {
@@ -339,17 +440,22 @@ pub(super) async fn client(addr: String, id: String, period: Duration, stop: Arc
     let mut ticker = tokio::time::interval(period);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut i = 0u64;
+    let (mut driver, mut force) = (Driver::new(drive, period), 0.0);
     while !stop.load(Ordering::Relaxed) {
         ticker.tick().await;
         let t0 = Instant::now();
         account.sent += 1;
         progress(&account);
-        if tools.send(bench_tool(i)).await.is_err() {
+        if tools.send(driver.state(i, force)).await.is_err() {
             account.refused += 1;
             break;
         }
         match tools.next().await {
             Ok(Some(r)) if r.seq == i => {
+                force = r.force_n.map_or(0.0, |f| (f.x * f.x + f.y * f.y + f.z * f.z).sqrt());
+                let has = |e: vademecum_client::pb::Event| r.events & e as u32 != 0;
+                account.contact += u64::from(has(vademecum_client::pb::Event::Contact));
+                account.torn += u64::from(has(vademecum_client::pb::Event::TissueTorn));
                 account.answered += 1;
                 progress(&account);
                 let _ = h.record((t0.elapsed().as_nanos() as u64).max(1));
@@ -442,8 +548,25 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
     }
     // the device sessions are the last --haptic ones
     let first_haptic = a.sessions - a.haptic;
-    let scene = Scene::builtin("organ")?;
-    let dir = a.bundles.clone().unwrap_or_else(|| PathBuf::from("out/organ"));
+    let scene = Scene::builtin(&a.builtin)?;
+    let tearing = scene.spec.effects.tearing;
+    if a.builtin != "organ" && !tearing {
+        bail!(
+            "--builtin {}: bench load drives the built-in organ with a probe or a tearing scene with a grasper",
+            a.builtin
+        );
+    }
+    if a.builtin != "organ" && (a.haptic > 0 || a.chaos_every.is_some()) {
+        bail!(
+            "--haptic and --chaos-every drive the built-in organ only (not --builtin {})",
+            a.builtin
+        );
+    }
+    let size = {
+        let (lo, hi) = scene.organ_mesh(0)?.bounding_box();
+        (0..3).map(|k| (hi[k] - lo[k]).powi(2)).sum::<f64>().sqrt()
+    };
+    let dir = a.bundles.clone().unwrap_or_else(|| PathBuf::from("out").join(&a.builtin));
     ensure_bundles(&scene, &dir)?;
     let dir = std::fs::canonicalize(&dir).with_context(|| format!("cannot resolve {}", dir.display()))?;
     let root = dir.parent().map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/"));
@@ -456,7 +579,7 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
         let (idle_rss, _) = server.rss();
         let mut sessions = Vec::new();
         for k in 0..a.sessions {
-            let scene = vademecum_client::SceneSpec::Builtin("organ".into());
+            let scene = vademecum_client::SceneSpec::Builtin(a.builtin.clone());
             let label = format!("load{k}");
             let s = if k >= first_haptic {
                 let channel = format!("load-{}-h{k}", std::process::id());
@@ -510,7 +633,19 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             // a chaos session's client is a process of its own
             for _ in 0..a.clients_per_session * usize::from(k >= chaos_sessions && k < first_haptic) {
                 let quiet: super::bench_load::Progress = Box::new(|_| {});
-                clients.push(tokio::spawn(client(addr.clone(), s.id().to_string(), period, stop.clone(), quiet)));
+                let drive = if tearing {
+                    Drive::grasp(s.info(), size).context("a tearing session without a grasp site")?
+                } else {
+                    Drive::Probe
+                };
+                clients.push(tokio::spawn(client(
+                    addr.clone(),
+                    s.id().to_string(),
+                    drive,
+                    period,
+                    stop.clone(),
+                    quiet,
+                )));
             }
             for _ in 0..a.viewers {
                 viewers.push(tokio::spawn(viewer(addr.clone(), s.id().to_string(), stop.clone())));
@@ -603,12 +738,14 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             b.finish();
         }
         let mut rtt = hist();
-        let (mut sent, mut answered, mut refused) = (0, 0, 0);
+        let (mut sent, mut answered, mut refused, mut contact, mut torn) = (0, 0, 0, 0, 0);
         for c in clients {
             let acc = c.await?;
             sent += acc.sent;
             answered += acc.answered;
             refused += acc.refused;
+            contact += acc.contact;
+            torn += acc.torn;
             if let Some(h) = acc.rtt {
                 let _ = rtt.add(&h);
             }
@@ -662,6 +799,8 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             states_answered: answered,
             states_refused: refused,
             states_lost: sent.saturating_sub(answered + refused + in_flight),
+            answers_in_contact: contact,
+            answers_torn: torn,
             frames_received: frames,
             server_cpu_cores: cpu,
             server_cpu_cores_by_thread: cpu_by_thread,
@@ -826,6 +965,13 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
         out,
         "tool states: {} sent = {} answered + {} refused + {} in flight when a client was killed + {} lost; {} frames to viewers",
         r.states_sent, r.states_answered, r.states_refused, r.states_in_flight_at_kill, r.states_lost, r.frames_received
+    )?;
+    writeln!(
+        out,
+        "contact: {} of the clients' answers touched or held the tissue ({:.1} %), {} said it tore",
+        r.answers_in_contact,
+        100.0 * r.answers_in_contact as f64 / r.states_answered.max(1) as f64,
+        r.answers_torn
     )?;
     let by: Vec<String> = r.server_cpu_cores_by_thread.iter().map(|(k, c)| format!("{k} {c:.2}")).collect();
     writeln!(

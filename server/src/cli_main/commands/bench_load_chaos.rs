@@ -18,7 +18,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 
-use super::bench_load::{ClientAccount, client};
+use super::bench_load::{ClientAccount, Drive, client};
 use crate::cli_main::cli::LoadClientArgs;
 
 /// `vademecum bench load-client`: one chaos client (module docs).
@@ -41,7 +41,7 @@ pub fn run(a: LoadClientArgs) -> anyhow::Result<ExitCode> {
         .context("cannot start the async runtime")?;
     let period = Duration::from_secs_f64(1.0 / a.rate);
     let report = Box::new(|acc: &ClientAccount| print_account(acc));
-    let account = rt.block_on(client(a.addr, a.session, period, stop, report));
+    let account = rt.block_on(client(a.addr, a.session, Drive::Probe, period, stop, report));
     print_account(&account);
     Ok(ExitCode::SUCCESS)
 }

@@ -452,9 +452,13 @@ fn tear_target_line(t: &TearTarget) -> String {
 fn force_error_line(t: &TearBuildReport) -> String {
     if t.force_error.is_finite() {
         format!(
-            "calibrated: within {:.2} % of the full-order force at the schedule's last load, pulled along, across or diagonally ({:.1} s)",
+            "calibrated: within {:.2} % of the full-order force at the schedule's last load, pulled along, across or diagonally ({:.1} s); {}",
             100.0 * t.force_error,
-            t.calibration_seconds
+            t.calibration_seconds,
+            match &t.fallback {
+                Some((modes, e)) => format!("under load a session falls back to the modes {modes:?} ({})", percent(*e)),
+                None => "no fewer modes to fall back to under load".into(),
+            }
         )
     } else {
         "not calibrated (a full-order pull across the load failed): the grasper's forces carry no error estimate".into()
