@@ -191,6 +191,9 @@ pub struct FrameOutcome {
     /// Pieces the cut so far has set loose from every support, held where they came loose by
     /// the model's soft foundation ([`CorotationalXfem::loose_pieces`]).
     pub held_pieces: usize,
+    /// Whether the frame ran at the reduced fidelity: it asked the factor thread for no new
+    /// factor ([`CorotationalDeformation::set_reduced`]).
+    pub frozen: bool,
 }
 
 /// The co-rotational deformation of a cut organ, advanced one frame at a time on the frame
@@ -214,6 +217,8 @@ pub struct CorotationalDeformation {
     prescribed: Vec<f64>,
     failure: Option<String>,
     held_pieces: usize,
+    /// At the reduced fidelity: no new factor asked ([`Self::set_reduced`]).
+    reduced: bool,
     /// Factors the factor thread made and the frames installed.
     pub factors_installed: u64,
 }
@@ -286,6 +291,7 @@ impl CorotationalDeformation {
             prescribed: Vec::new(),
             failure: None,
             held_pieces: 0,
+            reduced: false,
             factors_installed: 0,
             mesh,
         };
@@ -297,6 +303,17 @@ impl CorotationalDeformation {
     /// The organ (its index in the scene).
     pub fn organ(&self) -> usize {
         self.organ
+    }
+
+    /// Runs the next frames at the reduced fidelity (`reduced`: the session's ticks come
+    /// close to their deadline) or the scene's: reduced, a frame asks the factor thread for no
+    /// new factor of the warped stiffness — its corrections keep the last factor installed (a
+    /// modified Newton with the tangent frozen; a frame whose correction would not lower the
+    /// residual still factors itself, so the deformation still converges, more slowly when the
+    /// tissue turns far), and the factorizations, most of the co-rotational work beside the
+    /// tick (`BENCHMARKS.md`), stop taking CPU. A factor already asked for still lands.
+    pub fn set_reduced(&mut self, reduced: bool) {
+        self.reduced = reduced;
     }
 
     /// The cut revision of the model (0: uncut).
@@ -491,7 +508,8 @@ impl CorotationalDeformation {
         let report = self.pool.install(|| s.frames.step(1.0, &self.prescribed))?;
         outcome.report = Some(report);
         outcome.held_pieces = self.held_pieces;
-        if !self.busy {
+        outcome.frozen = self.reduced;
+        if !self.busy && !self.reduced {
             let job = (s.frames.model().clone(), s.frames.d().to_vec(), s.frames.symbolic());
             self.busy = self.jobs.try_send(job).is_ok();
         }

@@ -440,6 +440,8 @@ impl FrameProducer {
     /// Advances the co-rotational deformation one frame and publishes its frame when watched.
     fn corotational_turn(&mut self) {
         let Some(c) = &mut self.corotational else { return };
+        // under load the deformation keeps its factor (its cheaper setting)
+        c.deformation.set_reduced(self.stats.reduced.load(Ordering::Relaxed));
         let l = *self.latest.read();
         let picture = self.cut.as_ref().and_then(|s| s.picture());
         let t = Instant::now();
