@@ -24,19 +24,24 @@ fn cornea(large: bool) -> Scene {
     Scene::from_toml(&text, ".").unwrap()
 }
 
-#[test]
-fn lattice_paths_give_the_full_model_force_depth_law_at_their_positions() {
-    let scene = cornea(false);
-    let organ = scene.organ_model(0).unwrap();
-    let laws = organ.laws.clone().unwrap();
-    let params = AnmLatticeParams {
-        positions: 3,
+/// A lattice of `positions` on the coarse cornea: its force, the probe's patch, few steps.
+fn small_lattice(positions: usize) -> AnmLatticeParams {
+    AnmLatticeParams {
+        positions,
         max_force: 0.126,
         patch_radius: 1e-3,
         load_steps: 4,
         modes: 9,
         order: 6,
-    };
+    }
+}
+
+#[test]
+fn lattice_paths_give_the_full_model_force_depth_law_at_their_positions() {
+    let scene = cornea(false);
+    let organ = scene.organ_model(0).unwrap();
+    let laws = organ.laws.clone().unwrap();
+    let params = small_lattice(3);
     let lattice = AnmLattice::build(&organ, &laws, &params, |_, _| {}).unwrap();
     assert_eq!(lattice.positions.len(), 3);
     let p = &lattice.positions[0];
@@ -225,4 +230,75 @@ fn the_error_estimate_bounds_the_full_model_off_the_lattice() {
     let cov = Coverage::of(&samples);
     assert_eq!(cov.samples, 20);
     assert_eq!(cov.bounded, 20, "{samples:#?}");
+}
+
+/// `build --target-error` on a large-deformation scene: the fewest lattice positions (2, 4, 8,
+/// … in farthest-point order, each size the first positions of the next) whose served force is
+/// within the target of full Newton at nodes off the lattice.
+#[test]
+fn a_target_error_builds_the_fewest_lattice_positions_that_meet_it() {
+    use vademecum_engine::pipeline::estimate::{lattice_error, newton_laws};
+    let scene = cornea(false);
+    let organ = scene.organ_model(0).unwrap();
+    let laws = organ.laws.clone().unwrap();
+    let params = small_lattice(8);
+    let full = AnmLattice::build(&organ, &laws, &params, |_, _| {}).unwrap();
+    let order = AnmLattice::order(&organ, &params).unwrap();
+    assert_eq!(
+        full.positions.iter().map(|p| p.node).collect::<Vec<_>>(),
+        order.iter().map(|p| p.0).collect::<Vec<_>>()
+    );
+    let exclude: Vec<usize> = order.iter().map(|p| p.0).collect();
+    let truth = newton_laws(&organ, &params, &exclude, 6, |_, _| {}).unwrap();
+    let error = |n: usize| {
+        lattice_error(
+            &AnmLattice {
+                max_force: full.max_force,
+                positions: full.positions[..n].to_vec(),
+            },
+            &truth,
+        )
+    };
+    let (e2, e4, e8) = (error(2), error(4), error(8));
+    assert!(
+        [e2, e4, e8].iter().all(|e| e.is_finite() && *e > 1e-5),
+        "off the lattice no law is exact: {e2} {e4} {e8}"
+    );
+    let build = |target: f64| {
+        let mut checked = Vec::new();
+        let (lattice, t) = AnmLattice::build_for_target(
+            &organ,
+            &laws,
+            &params,
+            target,
+            |l| {
+                checked.push(l.positions.len());
+                lattice_error(l, &truth)
+            },
+            |_, _| {},
+        )
+        .unwrap();
+        (lattice, t, checked)
+    };
+
+    // a loose target: the two first positions, the whole lattice's own
+    let (lattice, t, checked) = build(1.0);
+    assert!(t.met && t.most == 8, "{t:?}");
+    assert_eq!((t.tried.clone(), checked), (vec![(2, e2)], vec![2]));
+    assert_eq!(lattice.positions, full.positions[..2]);
+
+    // a target only the whole lattice's error meets, unless a smaller one does too: the first
+    // size within it
+    let target = e8 * (1.0 + 1e-9);
+    let (lattice, t, _) = build(target);
+    let kept = [(2, e2), (4, e4), (8, e8)].into_iter().find(|&(_, e)| e <= target).unwrap().0;
+    assert!(t.met, "{t:?}");
+    assert_eq!(lattice.positions, full.positions[..kept], "{t:?}");
+
+    // an unreachable target: every size tried, the most positions kept, not met
+    let (lattice, t, checked) = build(1e-12);
+    assert!(!t.met, "{t:?}");
+    assert_eq!(t.tried, vec![(2, e2), (4, e4), (8, e8)]);
+    assert_eq!(checked, vec![2, 4, 8]);
+    assert_eq!(lattice.positions, full.positions);
 }

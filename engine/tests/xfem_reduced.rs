@@ -42,6 +42,7 @@ fn built(scene: &Scene, tolerance: f64) -> offline::Built {
         large: None,
         max_memory: None,
         tear_target_error: None,
+        large_target_error: None,
     };
     offline::build_organ(scene, 0, &opts, &mut |_| {}).unwrap()
 }

@@ -16,6 +16,12 @@ fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
+/// The stderr of a command that must have refused (exit status 1).
+fn refused(o: &Output) -> String {
+    assert_eq!(o.status.code(), Some(1), "stderr: {}", stderr(o));
+    stderr(o)
+}
+
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -1168,15 +1174,55 @@ fn build_target_error_keeps_the_fewest_tearing_modes_whose_force_meets_it_or_ref
         "{e}"
     );
     // under the whole build's own error: refused with the closest, nothing written
-    let o = vademecum(
+    let e = refused(&vademecum(
         &["build", "--builtin", "cube_tear", "--out", "b2", "--target-error", "0.01"],
         dir.path(),
-    );
-    assert_eq!(o.status.code(), Some(1), "stderr: {}", stderr(&o));
-    let e = stderr(&o);
+    ));
     assert!(
         e.contains("tearing: no prefix") && e.contains("the closest is") && e.contains("every grasp site meets --target-error"),
         "{e}"
     );
     assert!(!dir.path().join("b2").exists());
+}
+
+/// `build --target-error` on a large-deformation scene keeps the fewest lattice positions whose
+/// force meets it against full Newton off the lattice, or refuses with every size's error.
+#[test]
+fn build_target_error_keeps_the_fewest_lattice_positions_or_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    // the built-in cornea, coarse, with a lattice of at most 2 × 2 positions
+    let o = vademecum(&["scene", "show", "cornea"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let scene = stdout(&o)
+        .replace("divisions = [24, 24, 3]", "divisions = [12, 12, 2]")
+        .replace("positions = 9", "positions = 2")
+        .replace("load_steps = 6", "load_steps = 4");
+    std::fs::write(dir.path().join("cornea.toml"), scene).unwrap();
+    let o = vademecum(
+        &["build", "cornea.toml", "--out", "b", "--target-error", "0.5", "--json"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert!(
+        stderr(&o).contains("large deformations: kept 2 lattice positions"),
+        "{}",
+        stderr(&o)
+    );
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let t = &r[0]["anm_target"];
+    assert_eq!((t["met"].as_bool(), t["most"].as_u64()), (Some(true), Some(4)), "{t}");
+    assert_eq!(r[0]["anm_positions"], 2, "{}", r[0]);
+    let e = t["tried"][0][1].as_f64().unwrap();
+    assert!(e > 0.0 && e <= 0.5, "{t}");
+    // a target the modes meet (all of them err 1e-8) and no lattice size: refused, every
+    // size's error said, no bundle
+    let err = refused(&vademecum(
+        &["build", "cornea.toml", "--out", "c", "--target-error", "1e-5"],
+        dir.path(),
+    ));
+    assert!(
+        err.contains("no lattice of up to 4 positions") && err.contains("2: ") && err.contains("4: "),
+        "{err}"
+    );
+    assert!(!dir.path().join("c/cornea.bundle").exists());
 }

@@ -176,33 +176,66 @@ struct Runner<'a> {
 }
 
 /// Runs the model's schedule with `settings`; `progress(step, of)` after each step.
-pub fn run(model: &TearModel, settings: RunSettings, mut progress: impl FnMut(usize, usize)) -> Result<TearRun, RunError> {
-    let t0 = std::time::Instant::now();
-    let n = model.points.len();
-    let mut r = Runner {
-        m: model,
-        s: settings,
-        state: model.virgin(),
-        u: vec![0.0; 3 * model.mesh.n_nodes()],
-        phi: vec![0.0; n],
-        sigma0: vec![[0.0; 6]; n],
-        chol: None,
-        factor: 0.0,
-        dissipated: 0.0,
-        work: 0.0,
-        forces: vec![0.0; 3 * model.mesh.n_nodes()],
-    };
-    let mut steps = vec![r.result(1, 0)];
-    for (k, &ds) in model.schedule.iter().enumerate() {
-        let (substeps, iterations) = r.step(k + 1, ds, 0)?;
-        steps.push(r.result(substeps, iterations));
-        progress(k + 1, model.schedule.len());
+pub fn run(model: &TearModel, settings: RunSettings, progress: impl FnMut(usize, usize)) -> Result<TearRun, RunError> {
+    Runner::at_rest(model, settings, model.virgin()).run(progress)
+}
+
+/// Runs `model`'s schedule from the damage `first`'s first `steps` steps leave (with the same
+/// settings), the tissue released in between: the secant model at rest under no load, no
+/// displacement. A second grasp of tissue a first one damaged (`model` may pull another way:
+/// [`TearModel::pull_load`]). Step 0 of the run is that released state; `progress(step, of)`
+/// after each step of `model`'s schedule.
+pub fn run_after(
+    first: &TearModel,
+    steps: usize,
+    model: &TearModel,
+    settings: RunSettings,
+    progress: impl FnMut(usize, usize),
+) -> Result<TearRun, RunError> {
+    let mut pre = Runner::at_rest(first, settings, first.virgin());
+    for (k, &ds) in first.schedule.iter().take(steps).enumerate() {
+        pre.step(k + 1, ds, 0)?;
     }
-    Ok(TearRun {
-        scheme: settings.scheme,
-        steps,
-        seconds: t0.elapsed().as_secs_f64(),
-    })
+    Runner::at_rest(model, settings, pre.state).run(progress)
+}
+
+impl<'a> Runner<'a> {
+    /// A runner of `model` at rest (no load, no displacement) with the points' `state`.
+    fn at_rest(model: &'a TearModel, settings: RunSettings, state: Vec<PointState>) -> Self {
+        let n = model.points.len();
+        Runner {
+            m: model,
+            s: settings,
+            state,
+            u: vec![0.0; 3 * model.mesh.n_nodes()],
+            phi: vec![0.0; n],
+            sigma0: vec![[0.0; 6]; n],
+            chol: None,
+            factor: 0.0,
+            dissipated: 0.0,
+            work: 0.0,
+            forces: vec![0.0; 3 * model.mesh.n_nodes()],
+        }
+    }
+
+    /// The model's schedule from here.
+    fn run(mut self, mut progress: impl FnMut(usize, usize)) -> Result<TearRun, RunError> {
+        let t0 = std::time::Instant::now();
+        let model = self.m;
+        let settings = self.s;
+        let r = &mut self;
+        let mut steps = vec![r.result(1, 0)];
+        for (k, &ds) in model.schedule.iter().enumerate() {
+            let (substeps, iterations) = r.step(k + 1, ds, 0)?;
+            steps.push(r.result(substeps, iterations));
+            progress(k + 1, model.schedule.len());
+        }
+        Ok(TearRun {
+            scheme: settings.scheme,
+            steps,
+            seconds: t0.elapsed().as_secs_f64(),
+        })
+    }
 }
 
 impl Runner<'_> {

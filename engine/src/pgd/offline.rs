@@ -51,6 +51,10 @@ pub struct BuildOptions {
     /// [`crate::damage::build::TearSettings::target_force_error`]); `None`: all the modes the
     /// scene's `fidelity.tearing` makes.
     pub tear_target_error: Option<f64>,
+    /// Build the fewest lattice positions whose served force's largest error at the positions
+    /// left out meets this (relative; [`AnmLattice::build_for_target`]); `None`: the scene's
+    /// `fidelity.large.positions`.
+    pub large_target_error: Option<f64>,
 }
 
 impl BuildOptions {
@@ -81,6 +85,7 @@ impl BuildOptions {
             }),
             max_memory: None,
             tear_target_error: None,
+            large_target_error: None,
         }
     }
 }
@@ -100,6 +105,9 @@ pub enum BuildStage {
     Exact(usize, usize),
     /// Large-deformation lattice positions done out of total.
     Lattice(usize, usize),
+    /// Full-order laws for a lattice's target error done out of total
+    /// ([`crate::pipeline::estimate::LATTICE_CHECK_NODES`]).
+    LatticeCheck(usize, usize),
     /// The Ritz basis of a cutting session.
     CutBasis,
     /// Tearing's offline stage (references, POD, vademecum) of grasp site `site` (0: the
@@ -208,6 +216,9 @@ pub struct BuildReport {
     pub anm_positions: usize,
     /// Seconds spent on it.
     pub anm_s: f64,
+    /// What [`BuildOptions::large_target_error`] asked of the lattice and what the build kept.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub anm_target: Option<crate::rom::palpation::LatticeTarget>,
     /// What was built for a cutting session (scenes with `effects.cutting`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cut: Option<CutReport>,
@@ -540,6 +551,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         full_bytes: 8 * mesh.n_dofs() * load_eqs.len(),
         anm_positions: 0,
         anm_s: 0.0,
+        anm_target: None,
         cut: None,
         tear: None,
         tear_sites: Vec::new(),
@@ -553,7 +565,32 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
                 laws: model.materials.table.iter().map(Hyperelastic::svk).collect(),
                 of_cell: model.materials.of_cell.clone(),
             };
-            let lattice = AnmLattice::build(&model, &laws, params, |done, total| on(BuildStage::Lattice(done, total)))?;
+            let lattice = match opts.large_target_error {
+                None => AnmLattice::build(&model, &laws, params, |done, total| on(BuildStage::Lattice(done, total)))?,
+                Some(e) => {
+                    use crate::pipeline::estimate;
+                    // up to twice the scene's positions (what the study sweeps), checked at
+                    // nodes none of them is
+                    let most = AnmLatticeParams {
+                        positions: 2 * params.positions,
+                        ..*params
+                    };
+                    let exclude: Vec<usize> = AnmLattice::order(&model, &most)?.iter().map(|p| p.0).collect();
+                    let truth = estimate::newton_laws(&model, params, &exclude, estimate::LATTICE_CHECK_NODES, |done, total| {
+                        on(BuildStage::LatticeCheck(done, total))
+                    })?;
+                    let (lattice, t) = AnmLattice::build_for_target(
+                        &model,
+                        &laws,
+                        &most,
+                        e,
+                        |l| estimate::lattice_error(l, &truth),
+                        |done, total| on(BuildStage::Lattice(done, total)),
+                    )?;
+                    report.anm_target = Some(t);
+                    lattice
+                }
+            };
             report.anm_positions = lattice.positions.len();
             report.anm_s = clock.elapsed().as_secs_f64();
             Some(lattice)

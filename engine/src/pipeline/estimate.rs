@@ -13,7 +13,10 @@
 //! - **Tearing**: the grasp pulled from virgin tissue in directions that mix the load and the
 //!   two across it ([`TEAR_MIXES`]; the calibration pulls along each alone), at each step of
 //!   the schedule the force the reduced model renders for its grasp displacement against the
-//!   full-order model's for the same displacement ([`crate::damage::build::force_errors`]).
+//!   full-order model's for the same displacement ([`crate::damage::build::force_errors`]);
+//!   and a second grasp of tissue a first pull along the load damaged to half the schedule,
+//!   released ([`SECOND_GRASP`], [`crate::damage::build::force_errors_after`]), pulled along
+//!   the load again and in the same mixed directions.
 
 use super::palpation::LINEAR_RELATIVE_ERROR;
 use crate::pgd::Vademecum;
@@ -23,8 +26,7 @@ use crate::rom::palpation::{AnmLattice, AnmLatticeParams, NewtonLaw, loadable_no
 use crate::rom::study::StudyError;
 use crate::scene::OrganModel;
 
-/// Lattice positions blended per evaluation, as the palpation effect blends them.
-const NEIGHBOURS: usize = 4;
+use super::palpation::NEIGHBOURS;
 
 /// How far past the lattice's force the full model is pushed to sample the extrapolation.
 pub const PAST_THE_LATTICE: f64 = 1.5;
@@ -43,8 +45,11 @@ pub const TEAR_MIXES: [[f64; 3]; 6] = [
 ];
 
 /// The tearing samples of the grasp site `off` (module docs): one per pull of [`TEAR_MIXES`]
-/// and step of its schedule within the calibrated load levels; `done(k, n)` after each pull.
-/// Empty when the site follows the pull along its load only (nothing mixes).
+/// and step of its schedule within the calibrated load levels, from virgin tissue (model
+/// `"tearing"`); then a second grasp ([`SECOND_GRASP`]) after a first pull along the load
+/// to half the schedule, released: the pull along the load again and each of
+/// [`TEAR_MIXES`]; `done(k, n)` after each pull. Empty when the site follows the pull along
+/// its load only (nothing mixes).
 pub fn tear_samples(
     off: &std::sync::Arc<crate::damage::online::TearOffline>,
     mut done: impl FnMut(usize, usize),
@@ -56,17 +61,23 @@ pub fn tear_samples(
         return Ok(Vec::new());
     };
     let resultant = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+    let half = off.model.schedule.len() / 2;
+    let pulls: Vec<(usize, &'static str, [f64; 3])> = TEAR_MIXES
+        .iter()
+        .map(|&m| (0, "tearing", m))
+        .chain(std::iter::once([1.0, 0.0, 0.0]).chain(TEAR_MIXES).map(|m| (half, SECOND_GRASP, m)))
+        .collect();
     let mut out = Vec::new();
-    for (k, mix) in TEAR_MIXES.iter().enumerate() {
+    for (k, &(pre, model, mix)) in pulls.iter().enumerate() {
         let size = mix.iter().map(|m| m * m).sum::<f64>().sqrt();
         let unit = mix.map(|m| m / size);
-        for [level, full, _] in crate::damage::build::force_errors(off, unit, None)? {
+        for [level, full, _] in crate::damage::build::force_errors_after(off, pre, unit, None)? {
             let Some(e) = off.force_error_for(unit.map(|m| m * level)) else {
                 continue;
             };
             let served = resultant * level;
             out.push(Sample {
-                model: "tearing",
+                model,
                 point_m: centre,
                 depth_m: 0.0,
                 beyond_range: false,
@@ -77,10 +88,14 @@ pub fn tear_samples(
                 estimate: served * e,
             });
         }
-        done(k + 1, TEAR_MIXES.len());
+        done(k + 1, pulls.len());
     }
     Ok(out)
 }
+
+/// The model label of the tearing samples of a second grasp, of tissue a first pull along the
+/// load damaged ([`tear_samples`]).
+pub const SECOND_GRASP: &str = "tearing (second grasp)";
 
 /// One sampled state.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -243,6 +258,34 @@ fn unit_normal(nodes: &[[f64; 3]], t: [usize; 3]) -> [f64; 3] {
     ];
     let l = c.iter().map(|x| x * x).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
     c.map(|x| x / l)
+}
+
+/// Full-order laws a lattice built for a target error is checked at
+/// ([`crate::rom::palpation::AnmLattice::build_for_target`]): as many nodes as the study
+/// samples by default.
+pub const LATTICE_CHECK_NODES: usize = 12;
+
+/// The sorted relative errors of the served force of the states of `samples` within the
+/// lattice's force.
+pub fn within_force(samples: &[Sample]) -> Vec<f64> {
+    let mut within: Vec<f64> = samples
+        .iter()
+        .filter(|s| s.within_force)
+        .map(|s| s.error / s.truth.abs().max(f64::MIN_POSITIVE))
+        .collect();
+    within.sort_by(f64::total_cmp);
+    within
+}
+
+/// The largest relative error of the force `lattice` serves (blending the session's
+/// [`NEIGHBOURS`]) against the full-order laws `truth` ([`newton_laws`]) over their states
+/// within the lattice's force: what `vademecum study` reports as the lattice's largest error,
+/// and what `build --target-error` holds a lattice to. Infinite without such a state.
+pub fn lattice_error(lattice: &AnmLattice, truth: &[NewtonLaw]) -> f64 {
+    within_force(&served(lattice, truth, NEIGHBOURS))
+        .last()
+        .copied()
+        .unwrap_or(f64::INFINITY)
 }
 
 /// Large-deformation states at `nodes` surface nodes of organ `model` off `lattice` (drawn at

@@ -71,7 +71,7 @@ pub struct Palpation {
 }
 
 /// Lattice positions blended per evaluation (seed 001 §6.1 interpolates among four).
-const NEIGHBOURS: usize = 4;
+pub const NEIGHBOURS: usize = 4;
 
 /// The relative error of the linear law's force against the full-order model: the round-off of
 /// the exact local compliances (computed by a direct solve; `vademecum study` measures it, at

@@ -236,6 +236,23 @@ impl AnmPosition {
     }
 }
 
+/// The fewest positions a lattice built for a target error tries
+/// ([`AnmLattice::build_for_target`]); then twice as many, ….
+pub const FEWEST_TARGET_POSITIONS: usize = 2;
+
+/// What a target error chose of a lattice ([`AnmLattice::build_for_target`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LatticeTarget {
+    /// The target: the largest relative error of the served force over the checked states.
+    pub error: f64,
+    /// Whether the lattice kept meets it (when none does, the most positions are kept).
+    pub met: bool,
+    /// The most positions tried.
+    pub most: usize,
+    /// Each size tried, fewest first: its positions and its largest relative error.
+    pub tried: Vec<(usize, f64)>,
+}
+
 impl AnmLattice {
     /// Builds the lattice of `organ` (St Venant–Kirchhoff with `laws`) (see the
     /// [module docs](self)); `progress(done, total)` after each position.
@@ -245,6 +262,65 @@ impl AnmLattice {
         params: &AnmLatticeParams,
         mut progress: impl FnMut(usize, usize),
     ) -> Result<Self, StudyError> {
+        let order = Self::order(organ, params)?;
+        let mut positions = Vec::with_capacity(order.len());
+        for (done, &(node, inward)) in order.iter().enumerate() {
+            positions.push(Self::position_of(organ, laws, params, node, inward)?);
+            progress(done + 1, order.len());
+        }
+        Ok(Self {
+            max_force: params.max_force,
+            positions,
+        })
+    }
+
+    /// The fewest positions, in farthest-point order, that meet a target error: the lattice
+    /// of [`FEWEST_TARGET_POSITIONS`] positions, then twice as many, … up to
+    /// `params.positions` (each size the first positions of the next: nothing is built
+    /// twice), each checked by `error_of` (the largest relative error of its served force over
+    /// states the caller checks it at: [`crate::pipeline::estimate::lattice_error`]). The first
+    /// size within `target` is kept; none within it, the most positions are kept and the
+    /// target is not met. `progress(done, most)` after each position.
+    pub fn build_for_target(
+        organ: &OrganModel,
+        laws: &LawMap,
+        params: &AnmLatticeParams,
+        target: f64,
+        mut error_of: impl FnMut(&Self) -> f64,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<(Self, LatticeTarget), StudyError> {
+        let order = Self::order(organ, params)?;
+        let most = order.len();
+        let mut lattice = Self {
+            max_force: params.max_force,
+            positions: Vec::with_capacity(most),
+        };
+        let mut tried = Vec::new();
+        let mut n = FEWEST_TARGET_POSITIONS.min(most);
+        loop {
+            for &(node, inward) in &order[lattice.positions.len()..n] {
+                lattice.positions.push(Self::position_of(organ, laws, params, node, inward)?);
+                progress(lattice.positions.len(), most);
+            }
+            let e = error_of(&lattice);
+            tried.push((n, e));
+            if e <= target || n == most {
+                let t = LatticeTarget {
+                    error: target,
+                    met: e <= target,
+                    most,
+                    tried,
+                };
+                return Ok((lattice, t));
+            }
+            n = (2 * n).min(most);
+        }
+    }
+
+    /// The positions of a lattice of `organ`: up to `params.positions` accessible surface
+    /// nodes in farthest-point order from the node nearest the accessible centroid (nested:
+    /// the first `n` of a larger lattice are the lattice of `n`), each with its inward normal.
+    pub fn order(organ: &OrganModel, params: &AnmLatticeParams) -> Result<Vec<(usize, [f64; 3])>, StudyError> {
         if params.positions == 0 || !(params.max_force.is_finite() && params.max_force > 0.0) || params.load_steps == 0 {
             return Err(StudyError::Unsupported(
                 "the lattice needs at least one position, a positive force and a load step".into(),
@@ -279,24 +355,21 @@ impl AnmLattice {
                 *f = f.min(dist2(mesh.nodes[n], mesh.nodes[next]));
             }
         }
-        let mut positions = Vec::with_capacity(chosen.len());
-        for (done, &node) in chosen.iter().enumerate() {
-            let inward = unit(normals[node]).expect("filtered").map(|x| -x);
-            positions.push(Self::position(
-                mesh,
-                laws,
-                &organ.accessible_nodes,
-                &organ.problem,
-                params,
-                node,
-                inward,
-            )?);
-            progress(done + 1, chosen.len());
-        }
-        Ok(Self {
-            max_force: params.max_force,
-            positions,
-        })
+        Ok(chosen
+            .into_iter()
+            .map(|node| (node, unit(normals[node]).expect("filtered").map(|x| -x)))
+            .collect())
+    }
+
+    /// The position at `node` pressed along `inward` ([`Self::position`] on `organ`).
+    fn position_of(
+        organ: &OrganModel,
+        laws: &LawMap,
+        params: &AnmLatticeParams,
+        node: usize,
+        inward: [f64; 3],
+    ) -> Result<AnmPosition, StudyError> {
+        Self::position(&organ.mesh, laws, &organ.accessible_nodes, &organ.problem, params, node, inward)
     }
 
     /// One position: the load `max_force` along the unit `normal` at `node`, spread over the

@@ -247,8 +247,12 @@ pub struct BuildArgs {
     /// Keep the fewest modes whose measured error (relative L2 over all load states) meets E,
     /// instead of the scene's fidelity.pgd.tolerance; on a tearing scene also the fewest
     /// tearing PGD modes (5, 10, 20, … per pull pattern) whose grasper's force, calibrated
-    /// against the full-order model on nine pulls, is within E (relative) at the last load.
-    /// Refuse (exit 1, no bundle written) with the closest achievable error when no prefix
+    /// against the full-order model on nine pulls, is within E (relative) at the last load; on a
+    /// large-deformation scene also the fewest lattice positions (2, 4, 8, … up to twice
+    /// fidelity.large.positions, in farthest-point order) whose served force is within E
+    /// (relative) of full Newton at 12 surface nodes off the lattice, at every depth within
+    /// the lattice's force.
+    /// Refuse (exit 1, no bundle written) with the closest achievable error when no setting
     /// meets it. `vademecum study` shows the whole trade-off.
     #[arg(long, value_name = "E")]
     pub target_error: Option<f64>,

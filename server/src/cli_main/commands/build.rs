@@ -8,6 +8,7 @@ use std::sync::Arc;
 use anyhow::Context;
 use vademecum_engine::damage::build::{TearBuildReport, TearTarget};
 use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle};
+use vademecum_engine::rom::palpation::LatticeTarget;
 use vademecum_engine::scene::Scene;
 
 use crate::cli_main::cli::BuildArgs;
@@ -39,6 +40,9 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
         BuildStage::Exact(done, total) => bar.stage(&format!("exact pass: compliances and errors, {done}/{total} load states")),
         BuildStage::Lattice(done, total) => bar.stage(&format!(
             "large deformations: full Newton, POD and ANM at lattice position {done}/{total}"
+        )),
+        BuildStage::LatticeCheck(done, total) => bar.stage(&format!(
+            "large deformations: full Newton off the lattice for --target-error, node {done}/{total}"
         )),
         BuildStage::CutBasis => bar.stage("cutting: the K-orthonormal Ritz basis for bare enrichment"),
         BuildStage::Tearing {
@@ -199,6 +203,7 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         anyhow::ensure!(e > 0.0 && e < 1.0, "--target-error must lie in (0, 1), got {e}");
         opts.tolerance = e;
         opts.tear_target_error = Some(e);
+        opts.large_target_error = Some(e);
     }
     if let Some(t) = a.target_tick_us {
         anyhow::ensure!(
@@ -220,6 +225,11 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 "vademecum: organ '{name}': no prefix of the {} modes built meets --target-error {e:.1e}: the closest is {:.3e} with all of them; raise fidelity.pgd.max_modes or lower fidelity.pgd.global_tolerance (no bundle written)",
                 r.greedy.modes, r.error_greedy
             );
+            return Ok(ExitCode::FAILURE);
+        }
+        if let Some(why) = r.anm_target.as_ref().filter(|t| !t.met).map(lattice_target_missed) {
+            bar.finish();
+            eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
             return Ok(ExitCode::FAILURE);
         }
         if let Some(why) = tear_target_missed(r) {
@@ -250,6 +260,9 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
                 r.modes, r.greedy.modes, r.error
             );
+            if let Some(t) = &r.anm_target {
+                eprintln!("organ '{name}': large deformations: {}", lattice_target_line(t));
+            }
             for (site, t) in tear_builds(r) {
                 if let Some(line) = t.target.as_ref().map(tear_target_line) {
                     eprintln!("organ '{name}': tearing{site}: {line}");
@@ -418,6 +431,41 @@ fn tear_target_missed(r: &offline::BuildReport) -> Option<String> {
             "a site's calibration failed: no target can be met".into()
         },
     ))
+}
+
+/// The sizes a lattice target tried, for messages.
+fn lattice_tried(t: &LatticeTarget) -> String {
+    let tried: Vec<String> = t.tried.iter().map(|(n, e)| format!("{n}: {}", percent(*e))).collect();
+    tried.join(", ")
+}
+
+/// Why no lattice met `--target-error`, for the refusal.
+fn lattice_target_missed(t: &LatticeTarget) -> String {
+    let least = t.tried.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    format!(
+        "large deformations: no lattice of up to {} positions (twice fidelity.large.positions) meets --target-error {:.1e}: the largest error of its force against full Newton at {} nodes off it, within its force, is {} (positions: error); {}",
+        t.most,
+        t.error,
+        vademecum_engine::pipeline::estimate::LATTICE_CHECK_NODES,
+        lattice_tried(t),
+        if least.is_finite() {
+            format!("--target-error {:.1e} is met", next_up(least))
+        } else {
+            "no state was checked".into()
+        }
+    )
+}
+
+/// What `--target-error` kept of a lattice, for its message.
+fn lattice_target_line(t: &LatticeTarget) -> String {
+    let (n, e) = t.tried.last().copied().unwrap_or((t.most, f64::NAN));
+    format!(
+        "kept {n} lattice positions, the fewest whose force is within {} of full Newton at {} nodes off the lattice (the largest error within its force) and meets --target-error {:.1e} (tried {})",
+        percent(e),
+        vademecum_engine::pipeline::estimate::LATTICE_CHECK_NODES,
+        t.error,
+        lattice_tried(t)
+    )
 }
 
 /// A relative error as a percentage for messages ("not calibrated" for NaN).

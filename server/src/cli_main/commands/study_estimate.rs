@@ -99,7 +99,7 @@ pub(super) fn check(
     }
     std::fs::write(out.join("estimate.csv"), csv).context("cannot write estimate.csv")?;
     plot(&samples, &scene.spec.scene.name, &out.join("estimate_vs_error.svg"))?;
-    let coverage = ["linear", "large", "tearing"]
+    let coverage = ["linear", "large", "tearing", estimate::SECOND_GRASP]
         .into_iter()
         .map(|m| {
             let of: Vec<Sample> = samples.iter().copied().filter(|s| s.model == m).collect();
@@ -185,11 +185,12 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .draw_series(LineSeries::new([(lo, lo), (hi, hi)], BLACK.stroke_width(1)))?
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
-    let groups: [(&str, bool, &str); 4] = [
+    let groups: [(&str, bool, &str); 5] = [
         ("linear", false, "linear law"),
         ("large", false, "large deformations, within the lattice's paths"),
         ("large", true, "large deformations, past the paths"),
         ("tearing", false, "tearing, mixed pulls"),
+        (estimate::SECOND_GRASP, false, "tearing, a second grasp of damaged tissue"),
     ];
     for (k, (model, beyond, label)) in groups.into_iter().enumerate() {
         let color = super::bench_anm::PALETTE[k];

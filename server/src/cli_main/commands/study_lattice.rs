@@ -20,7 +20,7 @@ use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use vademecum_engine::pgd::offline::BuildOptions;
-use vademecum_engine::pipeline::estimate;
+use vademecum_engine::pipeline::estimate::{self, within_force};
 use vademecum_engine::rom::palpation::{AnmLattice, AnmLatticeParams, NewtonLaw};
 use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::LargeFidelity;
@@ -97,17 +97,6 @@ fn lattice_bytes(lattice: &AnmLattice) -> usize {
         + a.step_ptr.len()
         + a.step_meta.len()
         + a.step_data.len())
-}
-
-/// The sorted relative errors of the states of `samples` within the lattice's force.
-fn within_force(samples: &[estimate::Sample]) -> Vec<f64> {
-    let mut within: Vec<f64> = samples
-        .iter()
-        .filter(|s| s.within_force)
-        .map(|s| s.error / s.truth.abs().max(f64::MIN_POSITIVE))
-        .collect();
-    within.sort_by(f64::total_cmp);
-    within
 }
 
 /// Measures `lattice` (built with `params`, in `build_s`) blending `k` positions against the
