@@ -497,7 +497,8 @@ pub fn force_errors_after(
 /// The calibration a bundle stores ([`TearOffline::force_error`]): [`force_errors`] of the
 /// pull along the load (its full-order run is the build's own, `along`) and, when the
 /// vademecum follows the pulls across it, of those both ways and of the four diagonals
-/// `(1, ±1, ±1)/√3` — nine pulls, merged into one envelope: at each level the largest error
+/// `(1, ±1, ±1)/√3` — nine pulls, and the same nine as second grasps, merged into one
+/// envelope: at each level the largest error
 /// of any pull up to that level. The diagonals matter: a pull that mixes the directions
 /// damages points none of the axes' pulls does, and with the axes alone mixed pulls on the
 /// cube's other grasp sites were bounded in 208 of 240 states (all 240 with them). The same

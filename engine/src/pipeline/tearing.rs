@@ -42,11 +42,12 @@
 //! calibration ([`TearOffline::force_error_for`], built by
 //! [`crate::damage::build::force_error_table`]): how far the reduced model's force for the
 //! same grasp displacement is from the full model's on nine pulls from virgin tissue (along the
-//! load, across it both ways, the four diagonals), the largest up to that load level; the factor bounds how the
-//! directions' errors add up in a mixed pull. Past the calibrated levels, while the force
-//! fades, and with a bundle built before the calibration the answer has none. Mixed pulls are
-//! not calibrated, and neither is tissue another site damaged: `vademecum study` measures how
-//! often the estimate bounds mixed pulls.
+//! load, across it both ways, the four diagonals) and the same nine as second grasps (after a
+//! first pull along the load, released), the largest up to that load level; the factor bounds
+//! how the directions' errors add up in a mixed pull. Past the calibrated levels, while the
+//! force fades, and with a bundle built before the calibration the answer has none. Mixed
+//! pulls are not calibrated, and neither is tissue another site damaged: `vademecum study`
+//! measures how often the estimate bounds mixed pulls, first and second grasps.
 //!
 //! # Tearing, losing the grasp
 //! When the damage of a cell of the tearable tissue reaches the scene's `torn` threshold

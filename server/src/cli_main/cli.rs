@@ -105,7 +105,7 @@ two times fidelity.large.positions blending 1 or 4 positions, and each path's lo
 and ANM order, against full Newton; cutting — local fields or bare enrichment on mode prefixes and \
 the sliver rule, the served force against the full XFEM; tearing — POD vectors × vademecum prefixes \
 against the full-order reference, and the prefixes build --target-error tries of the whole vademecum \
-(its pulls across the load too) by the grasper's force on nine pulls (tear_target.csv); the meshless solver (fidelity.solver = \"meshless\") — support × \
+(its pulls across the load too) by the grasper's force on the calibration's pulls (tear_target.csv); the meshless solver (fidelity.solver = \"meshless\") — support × \
 integration and the relaxation's tolerance, against the finite-element Newton solve of the same mesh. \
 And the mesh itself: the first organ at --refinements of a procedural mesh's divisions (or the \
 scene's file and each --mesh-file), each level's own vademecum, its contact force and strain energy \
@@ -247,7 +247,8 @@ pub struct BuildArgs {
     /// Keep the fewest modes whose measured error (relative L2 over all load states) meets E,
     /// instead of the scene's fidelity.pgd.tolerance; on a tearing scene also the fewest
     /// tearing PGD modes (5, 10, 20, … per pull pattern) whose grasper's force, calibrated
-    /// against the full-order model on nine pulls, is within E (relative) at the last load; on a
+    /// against the full-order model on nine pulls (from virgin tissue and as second grasps), is
+    /// within E (relative) at the last load; on a
     /// large-deformation scene also the fewest lattice positions (2, 4, 8, … up to twice
     /// fidelity.large.positions, in farthest-point order) whose served force is within E
     /// (relative) of full Newton at 12 surface nodes off the lattice, at every depth within

@@ -116,7 +116,7 @@ pub(super) struct TargetPoint {
     /// Modes per pull pattern (along the load, then across it).
     pub(super) modes: Vec<usize>,
     /// The calibrated relative error of the grasper's force at the last load level, over the
-    /// nine pulls (NaN: the calibration did not reach it).
+    /// calibration's pulls (NaN: the calibration did not reach it).
     pub(super) force_error: f64,
     /// One step pulled along the diagonal of the three directions (every pattern stepped).
     pub(super) step_p50_us: f64,
@@ -405,8 +405,23 @@ fn target_verdict(t: &[TargetPoint]) -> String {
             all.step_p50_us
         );
     }
+    // the build's fallback rule on the same prefixes (damage::build::fallback_for)
+    let fallback = t[..t.len() - 1]
+        .iter()
+        .find(|p| p.force_error <= build::FALLBACK_ERROR_GROWTH * all.force_error)
+        .map_or_else(
+            || " No fewer modes are within 1.25 times that error: a session under load keeps them.".to_string(),
+            |p| {
+                format!(
+                    " Under load a session falls back to {:?} ({}, {:.2} µs), the fewest within 1.25 times that error.",
+                    p.modes,
+                    pct(p.force_error),
+                    p.step_p50_us
+                )
+            },
+        );
     format!(
-        " The grasper's force, calibrated on nine pulls: {} with all the modes {:?} ({:.2} µs per step pulled in every direction), {} with {:?} ({:.2} µs): `vademecum build --target-error` keeps the fewest that meet its target (tear_target.csv).",
+        " The grasper's force, calibrated on nine pulls from virgin tissue and again as second grasps: {} with all the modes {:?} ({:.2} µs per step pulled in every direction), {} with {:?} ({:.2} µs): `vademecum build --target-error` keeps the fewest that meet its target (tear_target.csv).{fallback}",
         pct(all.force_error),
         all.modes,
         all.step_p50_us,
@@ -505,5 +520,25 @@ mod tests {
             v.contains("not swept") && v.contains("no point is within 1 %; the most accurate: 1 POD vectors, 5 PGD modes"),
             "{v}"
         );
+    }
+
+    #[test]
+    fn the_target_sentence_names_the_fallback_the_build_would_store() {
+        let p = |k: usize, e: f64| TargetPoint {
+            modes: vec![k; 3],
+            force_error: e,
+            step_p50_us: k as f64,
+            step_p99_us: k as f64,
+            null_p50_us: 0.02,
+        };
+        // the gallbladder's: five modes within 1.25 times all sixty's error
+        let v = target_verdict(&[p(5, 0.0521), p(10, 0.049), p(60, 0.0467)]);
+        assert!(v.contains("Under load a session falls back to [5, 5, 5] (5.21 %"), "{v}");
+        // the first prefix too far off: the next one that is not
+        let v = target_verdict(&[p(5, 0.2), p(10, 0.05), p(60, 0.045)]);
+        assert!(v.contains("falls back to [10, 10, 10] (5.00 %"), "{v}");
+        // none within it: the session keeps its modes
+        let v = target_verdict(&[p(5, 0.2), p(60, 0.045)]);
+        assert!(v.contains("a session under load keeps them"), "{v}");
     }
 }
