@@ -55,6 +55,7 @@ fn built(max_modes: usize) -> (Scene, offline::Built) {
         max_memory: None,
         tear_target_error: None,
         large_target_error: None,
+        cut_target_error: None,
     };
     let b = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
     (scene, b)
@@ -488,6 +489,7 @@ fn the_build_keeps_the_fewest_modes_meeting_the_target() {
             max_memory: None,
             tear_target_error: None,
             large_target_error: None,
+            cut_target_error: None,
         };
         let r = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap().report;
         assert!(r.target_met && r.error <= tolerance, "error {} for target {tolerance}", r.error);
@@ -515,6 +517,7 @@ fn the_build_keeps_the_fewest_modes_meeting_the_target() {
         max_memory: None,
         tear_target_error: None,
         large_target_error: None,
+        cut_target_error: None,
     };
     let r = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap().report;
     assert!(!r.target_met && r.modes == 5 && r.error > 1e-6);

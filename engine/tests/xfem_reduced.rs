@@ -43,6 +43,7 @@ fn built(scene: &Scene, tolerance: f64) -> offline::Built {
         max_memory: None,
         tear_target_error: None,
         large_target_error: None,
+        cut_target_error: None,
     };
     offline::build_organ(scene, 0, &opts, &mut |_| {}).unwrap()
 }

@@ -103,6 +103,7 @@ fn slab() -> (Arc<Scene>, Vec<Arc<LoadedBundle>>, tempfile::TempDir) {
         max_memory: None,
         tear_target_error: None,
         large_target_error: None,
+        cut_target_error: None,
     };
     let built = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();

@@ -55,6 +55,10 @@ pub struct BuildOptions {
     /// left out meets this (relative; [`AnmLattice::build_for_target`]); `None`: the scene's
     /// `fidelity.large.positions`.
     pub large_target_error: Option<f64>,
+    /// Keep the largest sliver threshold whose local-fields force stays within this of the
+    /// full XFEM's on the scene's cut ([`crate::xfem::accuracy::sliver_for_target`]); `None`:
+    /// the scene's `fidelity.xfem.sliver`.
+    pub cut_target_error: Option<f64>,
 }
 
 impl BuildOptions {
@@ -86,6 +90,7 @@ impl BuildOptions {
             max_memory: None,
             tear_target_error: None,
             large_target_error: None,
+            cut_target_error: None,
         }
     }
 }
@@ -254,6 +259,12 @@ pub struct CutReport {
     /// Directions of the K-orthonormal basis stored (0: none needed — with local fields a
     /// session adds the cut's compliance to the vademecum's own and needs no basis).
     pub basis_size: usize,
+    /// The sliver rule a session of this bundle cuts with (the scene's, or what a target
+    /// chose: [`BuildOptions::cut_target_error`]).
+    pub sliver: f64,
+    /// What the target asked and what the build kept (`None` without one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub target: Option<crate::xfem::accuracy::SliverTarget>,
     /// Seconds spent on it.
     pub seconds: f64,
 }
@@ -618,10 +629,22 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
                 size,
             });
         }
+        // a target holds the local fields' force to it through the sliver rule
+        let target = match opts.cut_target_error.filter(|_| fx.discontinuous == Discontinuous::LocalFields) {
+            None => None,
+            Some(e) => {
+                use crate::xfem::accuracy;
+                let params = fx.params();
+                let reference = accuracy::Reference::of(scene, &model, &params, |_, _| {}).map_err(BuildError::Cutting)?;
+                Some(accuracy::sliver_for_target(scene, &model, &params, e, &reference).map_err(BuildError::Cutting)?)
+            }
+        };
         report.cut = Some(CutReport {
             discontinuous: fx.discontinuous,
             basis: fx.basis,
             basis_size: cut_basis.as_ref().map_or(0, |b| b.size),
+            sliver: target.as_ref().map_or(fx.sliver, |t| t.sliver),
+            target,
             seconds: clock.elapsed().as_secs_f64(),
         });
     }
@@ -856,6 +879,21 @@ impl LoadedBundle {
             .map(|(k, _)| k)
             .min()
             .filter(|&k| k < self.vademecum.modes())
+    }
+
+    /// The sliver rule the build chose for a cutting session (`info.cut.sliver`, set by
+    /// `build --target-error`: [`CutReport::sliver`]); `None` for a bundle that does not say
+    /// (the scene's `fidelity.xfem.sliver` applies). An error for a value no sliver rule has.
+    pub fn cut_sliver(&self) -> Result<Option<f64>, String> {
+        let Some(v) = self.manifest.info.get("cut").and_then(|c| c.get("sliver")) else {
+            return Ok(None);
+        };
+        match v.as_f64() {
+            Some(s) if (0.0..0.5).contains(&s) => Ok(Some(s)),
+            _ => Err(format!(
+                "the bundle's cut sliver rule {v} is not a fraction in [0, 0.5); rebuild it with `vademecum build`"
+            )),
+        }
     }
 
     /// The vademecum's modes at `nodes` in node-major f32 ([`NodeMajorField`]): shared by

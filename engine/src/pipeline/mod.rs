@@ -679,7 +679,11 @@ fn cutting_effect(
         ));
     }
     let fx = &scene.spec.fidelity.xfem;
-    let params = fx.params();
+    // the sliver rule the build chose for a target, else the scene's
+    let params = crate::xfem::XfemParams {
+        sliver: bundle.cut_sliver().map_err(fail)?.unwrap_or(fx.sliver),
+        ..fx.params()
+    };
     let v = &bundle.vademecum;
     let stored = bundle.cut_basis.as_ref().filter(|b| b.basis == fx.basis);
     let reduced = match (fx.discontinuous, stored) {

@@ -28,6 +28,7 @@
 //! - [`visual`]: visual surfaces embedded in the tetrahedra, following each side of a cut.
 //! - [`visual_split`]: a visual surface split along a cut and closed by the cut faces.
 
+pub mod accuracy;
 pub mod blade;
 pub mod corotational;
 pub mod enrichment;

@@ -252,7 +252,9 @@ pub struct BuildArgs {
     /// large-deformation scene also the fewest lattice positions (2, 4, 8, … up to twice
     /// fidelity.large.positions, in farthest-point order) whose served force is within E
     /// (relative) of full Newton at 12 surface nodes off the lattice, at every depth within
-    /// the lattice's force.
+    /// the lattice's force; on a cutting scene with local fields also the largest sliver rule
+    /// (5e-2, 1e-2, 1e-3, else the scene's) whose force on the scene's cut is within E of the
+    /// full XFEM's (never refused: the scene's rule is exact).
     /// Refuse (exit 1, no bundle written) with the closest achievable error when no setting
     /// meets it. `vademecum study` shows the whole trade-off.
     #[arg(long, value_name = "E")]

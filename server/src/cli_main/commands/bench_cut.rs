@@ -268,6 +268,7 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
         max_memory: None,
         tear_target_error: None,
         large_target_error: None,
+        cut_target_error: None,
     };
     let built = offline::build_organ(&scene, 0, &opts, &mut |_| {}).context("building the vademecum")?;
     stages.finish();

@@ -10,6 +10,7 @@ use vademecum_engine::damage::build::{TearBuildReport, TearTarget};
 use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle};
 use vademecum_engine::rom::palpation::LatticeTarget;
 use vademecum_engine::scene::Scene;
+use vademecum_engine::xfem::accuracy::SliverTarget;
 
 use crate::cli_main::cli::BuildArgs;
 use crate::cli_main::commands::solve::load_scene;
@@ -204,6 +205,7 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         opts.tolerance = e;
         opts.tear_target_error = Some(e);
         opts.large_target_error = Some(e);
+        opts.cut_target_error = Some(e);
     }
     if let Some(t) = a.target_tick_us {
         anyhow::ensure!(
@@ -262,6 +264,14 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             );
             if let Some(t) = &r.anm_target {
                 eprintln!("organ '{name}': large deformations: {}", lattice_target_line(t));
+            }
+            if let Some(c) = &r.cut {
+                match &c.target {
+                    Some(t) => eprintln!("organ '{name}': cutting: {}", sliver_target_line(t)),
+                    None => eprintln!(
+                        "organ '{name}': cutting: the bare enrichment's force is not held to --target-error (the study measures it against the full XFEM: docs/accuracy.md, \"Cutting\"); the local fields are exact"
+                    ),
+                }
             }
             for (site, t) in tear_builds(r) {
                 if let Some(line) = t.target.as_ref().map(tear_target_line) {
@@ -431,6 +441,31 @@ fn tear_target_missed(r: &offline::BuildReport) -> Option<String> {
             "a site's calibration failed: no target can be met".into()
         },
     ))
+}
+
+/// What `--target-error` kept of the sliver rule, for its message.
+fn sliver_target_line(t: &SliverTarget) -> String {
+    let tried: Vec<String> = t
+        .tried
+        .iter()
+        .map(|(s, n, e)| format!("{s:.0e}: {n} nodes, {}", percent(*e)))
+        .collect();
+    let tried = if tried.is_empty() {
+        "no larger threshold enriches fewer nodes on this cut".to_string()
+    } else {
+        format!("tried {}", tried.join("; "))
+    };
+    match t.tried.iter().find(|r| r.0 == t.sliver) {
+        Some((s, n, e)) => format!(
+            "kept the sliver rule {s:.0e} ({n} nodes enriched), the largest whose force at the cut's cracked surface nodes is within {} of the full XFEM's, meeting --target-error {:.1e} ({tried})",
+            percent(*e),
+            t.error
+        ),
+        None => format!(
+            "kept the scene's sliver rule {:.0e}: its local fields are the full XFEM's at the cut (exact), and no larger threshold meets --target-error {:.1e} ({tried})",
+            t.sliver, t.error
+        ),
+    }
 }
 
 /// The sizes a lattice target tried, for messages.

@@ -30,8 +30,8 @@ use serde::{Deserialize, Serialize};
 use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pipeline::palpation::LINEAR_RELATIVE_ERROR;
 use vademecum_engine::scene::{OrganModel, Scene};
+use vademecum_engine::xfem::accuracy::{CONTACTS, Reference, cut_cells};
 use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
-use vademecum_engine::xfem::system;
 use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
 
 use super::bench_pgd::{stat, time_n};
@@ -42,9 +42,6 @@ const SLIVERS: [f64; 3] = [1e-3, 1e-2, 5e-2];
 
 /// Mode counts of the bare enrichment's Ritz basis.
 const BARE_MODES: [usize; 3] = [10, 40, 160];
-
-/// Cracked surface nodes where the force is compared.
-const CONTACTS: usize = 4;
 
 /// Evaluations of `ΔC` timed per point.
 const TIMED: usize = 20_000;
@@ -94,93 +91,15 @@ pub(super) struct CutSweep {
     pub(super) slivers_without_effect: Vec<f64>,
 }
 
-/// The cut cells of the scene's pre-planned cuts on organ 0 (each cell once), or without any,
-/// the cells crossed by the plane through the organ's centre normal to y.
-fn cut_cells(scene: &Scene, model: &OrganModel, params: &XfemParams) -> anyhow::Result<Vec<(usize, Plane)>> {
-    let cuts = scene.organ_cuts(0)?;
-    let mut cells: Vec<(usize, Plane)> = Vec::new();
-    for cut in &cuts {
-        for (c, p) in Enrichment::cut_cells(&model.mesh, cut, params)? {
-            if !cells.iter().any(|(d, _)| *d == c) {
-                cells.push((c, p));
-            }
-        }
-    }
-    if cuts.is_empty() {
-        let (lo, hi) = model.mesh.bounding_box();
-        let plane = Plane {
-            point: [0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2])],
-            normal: [0.0, 1.0, 0.0],
-        };
-        cells = Enrichment::cells_crossed_by(&model.mesh, &plane);
-    }
-    Ok(cells)
-}
-
-/// Up to [`CONTACTS`] cracked nodes of `enr` on the organ's accessible surface, evenly spread
-/// over the enrichment's order (any cracked node when none is accessible).
-fn contact_nodes(model: &OrganModel, enr: &Enrichment) -> Vec<usize> {
-    let free = |a: &usize| !(0..3).any(|i| model.problem.constrained[3 * a + i]);
-    let mut pool: Vec<usize> = enr
-        .nodes
-        .iter()
-        .copied()
-        .filter(|a| free(a) && model.accessible_nodes.contains(a))
-        .collect();
-    if pool.is_empty() {
-        pool = enr.nodes.iter().copied().filter(free).collect();
-    }
-    let n = pool.len().min(CONTACTS);
-    (0..n).map(|k| pool[k * pool.len() / n.max(1)]).collect()
-}
-
-/// The compliance (3×3) at `node` of the XFEM with enrichment `enr`: three full-order solves
-/// with a unit force there.
-fn full_compliance(model: &OrganModel, enr: &Enrichment, params: &XfemParams, node: usize) -> anyhow::Result<[[f64; 3]; 3]> {
-    let mut c = [[0.0; 3]; 3];
-    for j in 0..3 {
-        let mut problem = model.problem.clone();
-        problem.forces.fill(0.0);
-        problem.prescribed.fill(0.0);
-        problem.forces[3 * node + j] = 1.0;
-        let sol = system::solve(&model.mesh, &model.materials, model.locking, &problem, enr, params)?;
-        for (i, ci) in c.iter_mut().enumerate() {
-            ci[j] = sol.u[3 * node + i];
-        }
-    }
-    Ok(c)
-}
-
-/// The relative errors of the forces of compliance `c` against `full` for a unit imposed
-/// displacement along each axis.
-fn force_errors(c: &[[f64; 3]; 3], full: &[[f64; 3]; 3]) -> [f64; 3] {
-    let mut out = [0.0; 3];
-    for (j, o) in out.iter_mut().enumerate() {
-        let mut d = [0.0; 3];
-        d[j] = 1.0;
-        let (f, g) = (Vademecum::contact_force(c, d), Vademecum::contact_force(full, d));
-        let diff = (0..3).map(|i| (f[i] - g[i]).powi(2)).sum::<f64>().sqrt();
-        *o = diff / g.iter().map(|x| x * x).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
-    }
-    out
-}
-
-fn add(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + b[i][j]))
-}
-
-/// One setting: the model prepared, cut, its forces at `contacts` against `full` (the uncut
-/// compliances `uncut` plus its `ΔC`), its tick timed.
-#[allow(clippy::too_many_arguments)]
+/// One setting: the model prepared, cut, its forces at the reference's contact nodes against
+/// the full XFEM's, its tick timed.
 fn measure(
     model: &OrganModel,
     modes: &[f64],
     (n_modes, basis, disc): (usize, RitzBasis, Discontinuous),
     params: &XfemParams,
     cells: &[(usize, Plane)],
-    contacts: &[usize],
-    uncut: &[[[f64; 3]; 3]],
-    full: &[[[f64; 3]; 3]],
+    reference: &Reference,
 ) -> anyhow::Result<CutPoint> {
     let start = Instant::now();
     let n_dofs = model.mesh.n_dofs();
@@ -200,19 +119,14 @@ fn measure(
     r.cut(&model.mesh, cells)?;
     let cut_ms = 1e3 * start.elapsed().as_secs_f64();
     let mut view = r.view();
-    let mut errors: Vec<f64> = contacts
-        .iter()
-        .zip(uncut.iter().zip(full))
-        .flat_map(|(&a, (c0, cf))| force_errors(&add(c0, &view.added_compliance(&[a], &[1.0])), cf))
-        .collect();
-    errors.sort_by(f64::total_cmp);
+    let errors = reference.errors(&mut view);
     let estimate_bounded = if disc == Discontinuous::LocalFields {
         errors.iter().filter(|&&e| e <= LINEAR_RELATIVE_ERROR).count()
     } else {
         0
     };
-    let a0 = contacts.first().copied().unwrap_or(0);
-    let a1 = contacts.get(1).copied().unwrap_or(a0);
+    let a0 = reference.contacts.first().copied().unwrap_or(0);
+    let a1 = reference.contacts.get(1).copied().unwrap_or(a0);
     let mut flip = 0usize;
     let tick = stat(
         "cut tick",
@@ -292,22 +206,14 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
         return Ok(None);
     }
     let params = scene.spec.fidelity.xfem.params();
-    let cells = cut_cells(scene, &model, &params)?;
-    anyhow::ensure!(!cells.is_empty(), "the cut crosses no cell of organ 0");
-    let reference = Enrichment::from_cut_cells(&model.mesh, &cells, &params)?;
-    let contacts = contact_nodes(&model, &reference);
-    anyhow::ensure!(!contacts.is_empty(), "the cut cracks no node free to move");
-    let bar = ProgressBar::new((2 * contacts.len()) as u64);
+    let bar = ProgressBar::new(CONTACTS as u64);
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
     bar.set_message("cutting sweep: the full XFEM's compliances, cut and uncut");
-    let uncut_enr = Enrichment::from_cut_cells(&model.mesh, &[], &params)?;
-    let (mut full, mut uncut) = (Vec::new(), Vec::new());
-    for &a in &contacts {
-        full.push(full_compliance(&model, &reference, &params, a)?);
-        bar.inc(1);
-        uncut.push(full_compliance(&model, &uncut_enr, &params, a)?);
-        bar.inc(1);
-    }
+    let reference = Reference::of(scene, &model, &params, |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
+    .map_err(anyhow::Error::msg)?;
     let todo = settings(params.sliver, v.modes());
     bar.set_length(todo.len() as u64);
     bar.set_position(0);
@@ -318,13 +224,13 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
             if disc == Discontinuous::Bare { "bare" } else { "local fields" }
         ));
         let p = XfemParams { sliver, ..params };
-        let cells = cut_cells(scene, &model, &p)?;
-        if sliver != params.sliver && Enrichment::from_cut_cells(&model.mesh, &cells, &p)?.nodes == reference.nodes {
+        let cells = cut_cells(scene, &model, &p).map_err(anyhow::Error::msg)?;
+        if sliver != params.sliver && Enrichment::from_cut_cells(&model.mesh, &cells, &p)?.nodes == reference.enriched {
             slivers_without_effect.push(sliver);
             bar.inc(1);
             continue;
         }
-        points.push(measure(&model, v.f_raw(), (m, basis, disc), &p, &cells, &contacts, &uncut, &full)?);
+        points.push(measure(&model, v.f_raw(), (m, basis, disc), &p, &cells, &reference)?);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -335,7 +241,7 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
     write_outputs(&points, scene, out)?;
     let rec = CutSweep {
         key: key.to_string(),
-        contacts,
+        contacts: reference.contacts,
         points,
         slivers_without_effect,
     };
@@ -482,17 +388,6 @@ fn plot(points: &[CutPoint], scene: &str, file: &Path) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_force_error_is_zero_for_the_same_compliance_and_relative_otherwise() {
-        let c = [[2.0, 0.1, 0.0], [0.1, 1.0, 0.0], [0.0, 0.0, 4.0]];
-        assert_eq!(force_errors(&c, &c), [0.0; 3]);
-        // twice as compliant along z: half the force along z, the same along x and y
-        let mut soft = c;
-        soft[2][2] = 8.0;
-        let e = force_errors(&soft, &c);
-        assert!(e[0] < 1e-15 && e[1] < 1e-15 && (e[2] - 0.5).abs() < 1e-12, "{e:?}");
-    }
 
     fn point(disc: &str, modes: usize, sliver: f64, err: f64, tick: f64, front: bool) -> CutPoint {
         CutPoint {
