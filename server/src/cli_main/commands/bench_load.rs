@@ -1054,3 +1054,52 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The grasper's drive: closed on the site's centre, out along the pull direction at its
+    /// speed until the answered force reaches the limit (or the pull its reach), back to the
+    /// centre, and out again.
+    #[test]
+    fn the_grasp_drive_pulls_out_to_the_force_and_back_to_where_it_closed() {
+        let drive = Drive::Grasp {
+            centre: [1.0, 2.0, 3.0],
+            direction: [0.0, 0.0, 1.0],
+            force: 0.5,
+            speed: 0.1,
+            reach: 1.0,
+        };
+        let mut d = Driver::new(drive, Duration::from_millis(100));
+        let z = |s: &vademecum_client::pb::ToolState| s.position_m.as_ref().map(|p| p.z).unwrap();
+        let first = d.state(0, 0.0);
+        assert_eq!(first.closure, 1.0);
+        assert!((z(&first) - 3.01).abs() < 1e-12, "{first:?}");
+        // out while the force stays under the limit
+        for i in 1..5 {
+            assert!((z(&d.state(i, 0.1)) - (3.0 + 0.01 * (i + 1) as f64)).abs() < 1e-12);
+        }
+        // the force reached: back, never past where it closed
+        let back = d.state(5, 0.6);
+        assert!((z(&back) - 3.04).abs() < 1e-12, "{back:?}");
+        let mut last = z(&back);
+        for i in 6..20 {
+            let now = z(&d.state(i, 0.2));
+            assert!(now <= last + 1e-12 && now >= 3.0 - 1e-12, "{now} after {last}");
+            if now <= 3.0 + 1e-12 {
+                // at the centre: out again
+                assert!(z(&d.state(i + 1, 0.0)) > 3.0);
+                return;
+            }
+            last = now;
+        }
+        panic!("the drive never came back");
+    }
+
+    #[test]
+    fn the_probe_drive_is_the_benchmarks_path() {
+        let mut d = Driver::new(Drive::Probe, Duration::from_millis(1));
+        assert_eq!(d.state(7, 0.0), bench_tool(7));
+    }
+}
