@@ -510,6 +510,12 @@ pub fn force_error_table(off: &std::sync::Arc<TearOffline>, along: &TearRun) -> 
     Calibration::run(off, along)?.table(off)
 }
 
+/// The steps of the first pull along the load before a second grasp, in the calibration and
+/// the study's samples ([`force_errors_after`]): half the model's schedule.
+pub fn second_grasp_steps(model: &TearModel) -> usize {
+    model.schedule.len() / 2
+}
+
 /// The full-order runs of the calibration's pulls ([`force_error_table`]), run once and
 /// reused for every vademecum of the same model (the prefixes a target tries).
 pub struct Calibration<'a> {
@@ -545,7 +551,7 @@ impl<'a> Calibration<'a> {
             .iter()
             .map(|&mix| Ok((mix, reference::run(&pulled(model, mix), seed, |_, _| {})?)))
             .collect::<Result<Vec<_>, RunError>>()?;
-        let pre = model.schedule.len() / 2;
+        let pre = second_grasp_steps(model);
         let second = std::iter::once([1.0, 0.0, 0.0])
             .chain(mixes)
             .map(|mix| Ok((mix, reference::run_after(model, pre, &pulled(model, mix), seed, |_, _| {})?)))

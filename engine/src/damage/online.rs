@@ -549,14 +549,9 @@ impl OnlineTear {
         self.reduced = reduced;
     }
 
-    /// Whether it steps the cheaper setting.
-    pub fn reduced(&self) -> bool {
-        self.reduced
-    }
-
     /// The relative error of the grasper's force under the load factors `s`, from the
     /// calibration of the setting it steps: [`TearOffline::force_error_for`], or the
-    /// fallback's while [`Self::reduced`].
+    /// fallback's while reduced ([`Self::set_reduced`]).
     pub fn force_error_for(&self, s: [f64; 3]) -> Option<f64> {
         match (&self.off.fallback, self.reduced) {
             (Some(f), true) => error_for(&f.force_error, s),

@@ -221,17 +221,15 @@ impl<'a> Runner<'a> {
     /// The model's schedule from here.
     fn run(mut self, mut progress: impl FnMut(usize, usize)) -> Result<TearRun, RunError> {
         let t0 = std::time::Instant::now();
-        let model = self.m;
-        let settings = self.s;
-        let r = &mut self;
-        let mut steps = vec![r.result(1, 0)];
-        for (k, &ds) in model.schedule.iter().enumerate() {
-            let (substeps, iterations) = r.step(k + 1, ds, 0)?;
-            steps.push(r.result(substeps, iterations));
-            progress(k + 1, model.schedule.len());
+        let schedule = &self.m.schedule;
+        let mut steps = vec![self.result(1, 0)];
+        for (k, &ds) in schedule.iter().enumerate() {
+            let (substeps, iterations) = self.step(k + 1, ds, 0)?;
+            steps.push(self.result(substeps, iterations));
+            progress(k + 1, schedule.len());
         }
         Ok(TearRun {
-            scheme: settings.scheme,
+            scheme: self.s.scheme,
             steps,
             seconds: t0.elapsed().as_secs_f64(),
         })

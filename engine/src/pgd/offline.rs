@@ -51,8 +51,9 @@ pub struct BuildOptions {
     /// [`crate::damage::build::TearSettings::target_force_error`]); `None`: all the modes the
     /// scene's `fidelity.tearing` makes.
     pub tear_target_error: Option<f64>,
-    /// Build the fewest lattice positions whose served force's largest error at the positions
-    /// left out meets this (relative; [`AnmLattice::build_for_target`]); `None`: the scene's
+    /// Build the fewest lattice positions whose served force's largest error against full
+    /// Newton at nodes off the lattice meets this (relative; [`AnmLattice::build_for_target`],
+    /// [`crate::pipeline::estimate::lattice_error`]); `None`: the scene's
     /// `fidelity.large.positions`.
     pub large_target_error: Option<f64>,
     /// Keep the largest sliver threshold whose local-fields force stays within this of the

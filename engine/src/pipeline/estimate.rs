@@ -61,7 +61,7 @@ pub fn tear_samples(
         return Ok(Vec::new());
     };
     let resultant = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
-    let half = off.model.schedule.len() / 2;
+    let half = crate::damage::build::second_grasp_steps(&off.model);
     let pulls: Vec<(usize, &'static str, [f64; 3])> = TEAR_MIXES
         .iter()
         .map(|&m| (0, "tearing", m))

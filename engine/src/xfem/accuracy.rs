@@ -94,9 +94,7 @@ pub fn force_errors(c: &Compliance, full: &Compliance) -> [f64; 3] {
 /// its contact nodes, and their compliances cut and uncut.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Reference {
-    /// The cut cells at the scene's sliver rule.
-    pub cells: Vec<(usize, Plane)>,
-    /// The nodes it cracks.
+    /// The nodes the cut cracks at the scene's sliver rule.
     pub enriched: Vec<usize>,
     /// The cracked surface nodes compared at ([`contact_nodes`]).
     pub contacts: Vec<usize>,
@@ -127,7 +125,6 @@ impl Reference {
             progress(k + 1, contacts.len());
         }
         Ok(Self {
-            cells,
             enriched: reference.nodes,
             contacts,
             full,

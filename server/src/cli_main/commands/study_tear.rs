@@ -410,13 +410,19 @@ fn target_verdict(t: &[TargetPoint]) -> String {
         .iter()
         .find(|p| p.force_error <= build::FALLBACK_ERROR_GROWTH * all.force_error)
         .map_or_else(
-            || " No fewer modes are within 1.25 times that error: a session under load keeps them.".to_string(),
+            || {
+                format!(
+                    " No fewer modes are within {} times that error: a session under load keeps them.",
+                    build::FALLBACK_ERROR_GROWTH
+                )
+            },
             |p| {
                 format!(
-                    " Under load a session falls back to {:?} ({}, {:.2} µs), the fewest within 1.25 times that error.",
+                    " Under load a session falls back to {:?} ({}, {:.2} µs), the fewest within {} times that error.",
                     p.modes,
                     pct(p.force_error),
-                    p.step_p50_us
+                    p.step_p50_us,
+                    build::FALLBACK_ERROR_GROWTH
                 )
             },
         );
