@@ -414,22 +414,68 @@ fn pulled(model: &TearModel, mix: [f64; 3]) -> TearModel {
 /// `e_k = |t_k − t′| / t_k`. Ends at the first step where the full-order run does not reach
 /// `w_r` (its last segment does not rise), or where the reduced grasp does not move.
 pub fn force_errors(off: &std::sync::Arc<TearOffline>, mix: [f64; 3], exact: Option<&TearRun>) -> Result<Vec<[f64; 3]>, RunError> {
-    force_errors_after(off, 0, mix, exact)
+    force_errors_after(off, &[], mix, exact)
 }
 
-/// [`force_errors`] of a second grasp: the tissue first pulled along the scene's load for the
-/// first `pre` steps of its schedule and released, then pulled by `mix` — the reduced
-/// integrator taking over the first pull's damage at rest as a session does
-/// ([`super::online::OnlineTear::take_over`]), the full-order model likewise
-/// ([`reference::run_after`]; `exact`, if given, must be that run). `pre = 0` is
-/// [`force_errors`].
+/// A pull that came before a grasp ([`force_errors_after`]): the grasp site `site` (the
+/// site's own vademecum, or another site's on the same tissue) pulled by `mix` (multipliers of
+/// its patterns) for the first `steps` steps of its schedule, then released.
+#[derive(Debug, Clone)]
+pub struct Prior {
+    /// The site pulled.
+    pub site: std::sync::Arc<TearOffline>,
+    /// The pull's multipliers of the site's patterns (along its load, across it).
+    pub mix: [f64; 3],
+    /// The steps of the site's schedule pulled.
+    pub steps: usize,
+}
+
+impl Prior {
+    /// `site` pulled along its load for `steps` steps.
+    pub fn along(site: &std::sync::Arc<TearOffline>, steps: usize) -> Self {
+        Self {
+            site: site.clone(),
+            mix: [1.0, 0.0, 0.0],
+            steps,
+        }
+    }
+}
+
+/// The reduced integrator of site `off` (the simplified one, whole steps) holding the tissue
+/// after the pulls `before` (each on its site's vademecum, released, taken over at rest as a
+/// session does), [`super::online::OnlineTear::hold`] done: what a session's grasp starts from, and
+/// [`super::online::OnlineTear::force_error_for`] the estimate it attaches.
+pub fn later_grasp(off: &std::sync::Arc<TearOffline>, before: &[Prior]) -> super::online::OnlineTear {
+    use super::online::{OnlineTear, StepLimits, Variant};
+    let whole = StepLimits {
+        max_damage_increment: f64::INFINITY,
+        max_substeps: 1,
+    };
+    let mut online = OnlineTear::new(off.clone(), Variant::Simplified, whole);
+    for p in before {
+        let mut first = OnlineTear::new(p.site.clone(), Variant::Simplified, whole);
+        first.take_over(&online);
+        for &ds in p.site.model.schedule.iter().take(p.steps) {
+            first.step_pull(p.mix.map(|m| m * ds));
+        }
+        online.take_over(&first);
+    }
+    online.hold();
+    online
+}
+
+/// [`force_errors`] of a later grasp: the tissue first pulled by each of `before` in turn and
+/// released, then pulled by `mix` — the reduced integrators taking over each other's damage at
+/// rest as a session does ([`super::online::OnlineTear::take_over`]: each prior pull on its
+/// site's vademecum), the full-order model likewise ([`reference::run_after`]; `exact`, if
+/// given, must be that run). `before = []` is [`force_errors`]; `[Prior::along(off, k)]` a
+/// second grasp after a first pull along the load.
 pub fn force_errors_after(
     off: &std::sync::Arc<TearOffline>,
-    pre: usize,
+    before: &[Prior],
     mix: [f64; 3],
     exact: Option<&TearRun>,
 ) -> Result<Vec<[f64; 3]>, RunError> {
-    use super::online::{OnlineTear, StepLimits, Variant};
     let model = &off.model;
     let loads: Vec<Vec<f64>> = (0..off.patterns()).map(|p| model.pull_load(p)).collect();
     let ran;
@@ -437,10 +483,9 @@ pub fn force_errors_after(
         Some(r) => r,
         None => {
             let seed = RunSettings::seed(Scheme::Explicit(Tangent::Secant));
-            ran = match pre {
-                0 => reference::run(&pulled(model, mix), seed, |_, _| {})?,
-                _ => reference::run_after(model, pre, &pulled(model, mix), seed, |_, _| {})?,
-            };
+            let firsts: Vec<(TearModel, usize)> = before.iter().map(|p| (pulled(&p.site.model, p.mix), p.steps)).collect();
+            let firsts: Vec<(&TearModel, usize)> = firsts.iter().map(|(m, k)| (m, *k)).collect();
+            ran = reference::run_after(&firsts, &pulled(model, mix), seed, |_, _| {})?;
             &ran
         }
     };
@@ -456,18 +501,7 @@ pub fn force_errors_after(
             (level, grasp(&st.u))
         }))
         .collect();
-    let whole = StepLimits {
-        max_damage_increment: f64::INFINITY,
-        max_substeps: 1,
-    };
-    let mut online = OnlineTear::new(off.clone(), Variant::Simplified, whole);
-    if pre > 0 {
-        let mut first = OnlineTear::new(off.clone(), Variant::Simplified, whole);
-        for &ds in model.schedule.iter().take(pre) {
-            first.step_pull([ds, 0.0, 0.0]);
-        }
-        online.take_over(&first);
-    }
+    let mut online = later_grasp(off, before);
     let mut out = Vec::with_capacity(model.schedule.len());
     let mut t = 0.0;
     for &ds in &model.schedule {
@@ -554,7 +588,7 @@ impl<'a> Calibration<'a> {
         let pre = second_grasp_steps(model);
         let second = std::iter::once([1.0, 0.0, 0.0])
             .chain(mixes)
-            .map(|mix| Ok((mix, reference::run_after(model, pre, &pulled(model, mix), seed, |_, _| {})?)))
+            .map(|mix| Ok((mix, reference::run_after(&[(model, pre)], &pulled(model, mix), seed, |_, _| {})?)))
             .collect::<Result<Vec<_>, RunError>>()?;
         Ok(Self {
             along,
@@ -574,7 +608,7 @@ impl<'a> Calibration<'a> {
         }
         let steps = pulls.iter().map(Vec::len).min().unwrap_or(0);
         for (mix, run) in &self.second {
-            pulls.push(force_errors_after(off, self.pre, *mix, Some(run))?);
+            pulls.push(force_errors_after(off, &[Prior::along(off, self.pre)], *mix, Some(run))?);
         }
         let mut worst: f64 = 0.0;
         Ok((0..steps)

@@ -481,6 +481,11 @@ pub struct OnlineTear {
     pub dissipated: f64,
     /// Stepping the cheaper setting ([`Self::set_reduced`]).
     reduced: bool,
+    /// How far the damage the grasp took hold of lies outside what the basis represents
+    /// ([`Self::hold`]).
+    inherited: f64,
+    /// The same of virgin tissue, which the calibration's errors include.
+    baseline: f64,
 }
 
 impl OnlineTear {
@@ -514,7 +519,7 @@ impl OnlineTear {
         let r = off.ritz.m;
         let nodal = 3 * m.points.nodes_per_cell;
         let amplitudes = TearAmplitudes::zero(&off);
-        Self {
+        let mut this = Self {
             variant,
             limits,
             state: m.virgin(),
@@ -537,8 +542,12 @@ impl OnlineTear {
             eqs: vec![None; nodal],
             dissipated: 0.0,
             reduced: false,
+            inherited: 0.0,
+            baseline: 0.0,
             off,
-        }
+        };
+        this.baseline = this.unrepresented();
+        this
     }
 
     /// Steps the cheaper setting from now on (`reduced`), or the scene's: the simplified
@@ -549,14 +558,85 @@ impl OnlineTear {
         self.reduced = reduced;
     }
 
-    /// The relative error of the grasper's force under the load factors `s`, from the
-    /// calibration of the setting it steps: [`TearOffline::force_error_for`], or the
-    /// fallback's while reduced ([`Self::set_reduced`]).
+    /// The relative error of the grasper's force under the load factors `s`: the calibration
+    /// of the setting it steps ([`TearOffline::force_error_for`], or the fallback's while
+    /// reduced: [`Self::set_reduced`]) plus the damage the grasp took hold of that the basis
+    /// does not represent ([`Self::hold`]) — the calibration starts from virgin tissue or
+    /// from damage the site's own pull along its load made, which the basis holds.
     pub fn force_error_for(&self, s: [f64; 3]) -> Option<f64> {
-        match (&self.off.fallback, self.reduced) {
+        let calibrated = match (&self.off.fallback, self.reduced) {
             (Some(f), true) => error_for(&f.force_error, s),
             _ => self.off.force_error_for(s),
+        };
+        calibrated.map(|e| e + self.inherited)
+    }
+
+    /// Records, as a grasp takes hold of the tissue at rest, how far its damage lies outside
+    /// what the vademecum sees, as a relative error of the grasp's stiffness
+    /// (`unrepresented`, below) beyond that of virgin tissue, which the calibration's errors
+    /// already include: [`Self::force_error_for`] adds it. Zero up to the basis's truncation
+    /// on virgin tissue or the damage the site's own pull along its load made (the
+    /// snapshots'); it matters for damage another site's pull made, or a pull across the
+    /// load. Returns it; no allocation.
+    pub fn hold(&mut self) -> f64 {
+        for (gi, &p) in self.g.iter_mut().zip(&self.off.model.points.tearable) {
+            *gi = self.state[p].g;
         }
+        self.inherited = (self.unrepresented() - self.baseline).max(0.0);
+        self.inherited
+    }
+
+    /// The relative error of the grasp's stiffness that the damage `self.g` (the tearable
+    /// points' stiffness factors) makes outside the basis. The vademecum's stiffness is affine
+    /// in the basis's `g̃ = Σ ξ_K υ_K` at the projection of `g` clamped to the box, the full
+    /// model's in `g` itself: `K(g) − K(g̃) = Σ_p (g_p − g̃_p) K_p`. For each pull pattern,
+    /// with `u` the vademecum's response to a unit step of it at this damage and
+    /// `e_p = w_p Φ_p(u)²` point `p`'s share of the strain energy, the grasp's stiffness
+    /// along `u` differs by `ρ = Σ_p |g_p − g̃_p| e_p / Σ_p g̃_p e_p` (the Rayleigh quotient;
+    /// the rest of the organ left out of the denominator, so larger than the change). The
+    /// largest over the patterns. No allocation (the step's saved displacement is the
+    /// scratch: a step sets it before use).
+    fn unrepresented(&mut self) -> f64 {
+        let off = Arc::clone(&self.off);
+        let (m, basis, local) = (&off.model, &off.basis, &off.local);
+        basis.project(&self.g, &mut self.xi);
+        for (k, x) in self.xi.iter_mut().enumerate() {
+            *x = x.clamp(basis.lo[k], basis.hi[k]);
+        }
+        let nm = off.vademecum.n_modes;
+        off.coefficients(&self.xi, &mut self.coef[..nm], self.reduced);
+        let nl = local.len();
+        let mut worst: f64 = 0.0;
+        for pattern in 0..off.patterns() {
+            let u = &mut self.saved_u;
+            for (l, &d) in local.dofs.iter().enumerate() {
+                u[d] = match local.eqs[l] {
+                    Some(_) => (0..nm)
+                        .filter(|&i| off.mode_pattern[i] == pattern)
+                        .map(|i| self.coef[i] * local.modes[i * nl + l])
+                        .sum(),
+                    None if pattern == 0 => m.prescribed[d],
+                    None => 0.0,
+                };
+            }
+            let (mut changed, mut kept) = (0.0, 0.0);
+            for (i, &p) in m.points.tearable.iter().enumerate() {
+                let (phi, _) = m.points.phi(&m.mesh, p, u);
+                let e = m.points.weight[p] * phi * phi;
+                let lifted = basis.lift_at(&self.xi, i);
+                changed += (self.g[i] - lifted).abs() * e;
+                kept += lifted.max(0.0) * e;
+            }
+            if kept > 0.0 {
+                worst = worst.max(changed / kept);
+            }
+        }
+        worst
+    }
+
+    /// The last [`Self::hold`]'s `ρ` (zero before any).
+    pub fn inherited(&self) -> f64 {
+        self.inherited
     }
 
     /// Takes over the damage of `other` (an integrator of the same model with another

@@ -180,23 +180,28 @@ pub fn run(model: &TearModel, settings: RunSettings, progress: impl FnMut(usize,
     Runner::at_rest(model, settings, model.virgin()).run(progress)
 }
 
-/// Runs `model`'s schedule from the damage `first`'s first `steps` steps leave (with the same
-/// settings), the tissue released in between: the secant model at rest under no load, no
-/// displacement. A second grasp of tissue a first one damaged (`model` may pull another way:
-/// [`TearModel::pull_load`]). Step 0 of the run is that released state; `progress(step, of)`
-/// after each step of `model`'s schedule.
+/// Runs `model`'s schedule from the damage earlier grasps left: each of `before`, in order, a
+/// model (another pull direction — [`TearModel::pull_load`] — or another grasp site's model on
+/// the same mesh) run for the first `steps` steps of its schedule from the damage the one
+/// before left, the tissue released after each (the secant model at rest under no load, no
+/// displacement). `before = [(first, k)]` is a second grasp of tissue a first one damaged.
+/// Step 0 of the run is the last released state; `progress(step, of)` after each step of
+/// `model`'s schedule.
 pub fn run_after(
-    first: &TearModel,
-    steps: usize,
+    before: &[(&TearModel, usize)],
     model: &TearModel,
     settings: RunSettings,
     progress: impl FnMut(usize, usize),
 ) -> Result<TearRun, RunError> {
-    let mut pre = Runner::at_rest(first, settings, first.virgin());
-    for (k, &ds) in first.schedule.iter().take(steps).enumerate() {
-        pre.step(k + 1, ds, 0)?;
+    let mut state = model.virgin();
+    for &(first, steps) in before {
+        let mut pre = Runner::at_rest(first, settings, state);
+        for (k, &ds) in first.schedule.iter().take(steps).enumerate() {
+            pre.step(k + 1, ds, 0)?;
+        }
+        state = pre.state;
     }
-    Runner::at_rest(model, settings, pre.state).run(progress)
+    Runner::at_rest(model, settings, state).run(progress)
 }
 
 impl<'a> Runner<'a> {

@@ -16,7 +16,9 @@
 //!   full-order model's for the same displacement ([`crate::damage::build::force_errors`]);
 //!   and a second grasp of tissue a first pull along the load damaged to half the schedule,
 //!   released ([`SECOND_GRASP`], [`crate::damage::build::force_errors_after`]), pulled along
-//!   the load again and in the same mixed directions.
+//!   the load again and in the same mixed directions; a third grasp, after that first pull
+//!   and a second one in the first mixed direction ([`THIRD_GRASP`]); and a grasp of tissue
+//!   another site's pull damaged ([`OTHER_SITE`]) — neither of which the build calibrates.
 
 use super::palpation::LINEAR_RELATIVE_ERROR;
 use crate::pgd::Vademecum;
@@ -46,14 +48,19 @@ pub const TEAR_MIXES: [[f64; 3]; 6] = [
 
 /// The tearing samples of the grasp site `off` (module docs): one per pull of [`TEAR_MIXES`]
 /// and step of its schedule within the calibrated load levels, from virgin tissue (model
-/// `"tearing"`); then a second grasp ([`SECOND_GRASP`]) after a first pull along the load
-/// to half the schedule, released: the pull along the load again and each of
-/// [`TEAR_MIXES`]; `done(k, n)` after each pull. Empty when the site follows the pull along
+/// `"tearing"`); then, each time along the load and each of [`TEAR_MIXES`], later grasps of
+/// damaged tissue, released in between, every earlier pull to half its site's schedule: a
+/// second grasp ([`SECOND_GRASP`]) after a pull along the load; a third ([`THIRD_GRASP`])
+/// after that pull and one in the first of [`TEAR_MIXES`]; and, when `other` (another grasp
+/// site of the same tissue) is given, a grasp after that site's pull along its own load
+/// ([`OTHER_SITE`]). `done(k, n)` after each pull. Empty when the site follows the pull along
 /// its load only (nothing mixes).
 pub fn tear_samples(
     off: &std::sync::Arc<crate::damage::online::TearOffline>,
+    other: Option<&std::sync::Arc<crate::damage::online::TearOffline>>,
     mut done: impl FnMut(usize, usize),
 ) -> Result<Vec<Sample>, crate::damage::reference::RunError> {
+    use crate::damage::build::Prior;
     if off.patterns() != 3 || off.force_error.is_empty() {
         return Ok(Vec::new());
     }
@@ -61,18 +68,40 @@ pub fn tear_samples(
         return Ok(Vec::new());
     };
     let resultant = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
-    let half = crate::damage::build::second_grasp_steps(&off.model);
-    let pulls: Vec<(usize, &'static str, [f64; 3])> = TEAR_MIXES
+    let unit = |mix: [f64; 3]| {
+        let size = mix.iter().map(|m| m * m).sum::<f64>().sqrt();
+        mix.map(|m| m / size)
+    };
+    let half = |site: &std::sync::Arc<crate::damage::online::TearOffline>| crate::damage::build::second_grasp_steps(&site.model);
+    let second = vec![Prior::along(off, half(off))];
+    let third = vec![
+        Prior::along(off, half(off)),
+        Prior {
+            site: off.clone(),
+            mix: unit(TEAR_MIXES[0]),
+            steps: half(off),
+        },
+    ];
+    let mut befores: Vec<(&'static str, Vec<Prior>)> = vec![(SECOND_GRASP, second), (THIRD_GRASP, third)];
+    if let Some(o) = other.filter(|o| o.model.load != off.model.load) {
+        befores.push((OTHER_SITE, vec![Prior::along(o, half(o))]));
+    }
+    let later = std::iter::once([1.0, 0.0, 0.0]).chain(TEAR_MIXES);
+    let pulls: Vec<(&'static str, &[Prior], [f64; 3])> = TEAR_MIXES
         .iter()
-        .map(|&m| (0, "tearing", m))
-        .chain(std::iter::once([1.0, 0.0, 0.0]).chain(TEAR_MIXES).map(|m| (half, SECOND_GRASP, m)))
+        .map(|&m| ("tearing", &[][..], m))
+        .chain(
+            befores
+                .iter()
+                .flat_map(|(model, b)| later.clone().map(move |m| (*model, &b[..], m))),
+        )
         .collect();
     let mut out = Vec::new();
-    for (k, &(pre, model, mix)) in pulls.iter().enumerate() {
-        let size = mix.iter().map(|m| m * m).sum::<f64>().sqrt();
-        let unit = mix.map(|m| m / size);
-        for [level, full, _] in crate::damage::build::force_errors_after(off, pre, unit, None)? {
-            let Some(e) = off.force_error_for(unit.map(|m| m * level)) else {
+    for (k, &(model, before, mix)) in pulls.iter().enumerate() {
+        let unit = unit(mix);
+        let held = crate::damage::build::later_grasp(off, before);
+        for [level, full, _] in crate::damage::build::force_errors_after(off, before, unit, None)? {
+            let Some(e) = held.force_error_for(unit.map(|m| m * level)) else {
                 continue;
             };
             let served = resultant * level;
@@ -96,6 +125,17 @@ pub fn tear_samples(
 /// The model label of the tearing samples of a second grasp, of tissue a first pull along the
 /// load damaged ([`tear_samples`]).
 pub const SECOND_GRASP: &str = "tearing (second grasp)";
+
+/// The model label of the tearing samples of a third grasp, of tissue two earlier pulls
+/// damaged: along the load, then in the first of [`TEAR_MIXES`] ([`tear_samples`]).
+pub const THIRD_GRASP: &str = "tearing (third grasp)";
+
+/// The model label of the tearing samples of a grasp of tissue another grasp site's pull
+/// damaged ([`tear_samples`]).
+pub const OTHER_SITE: &str = "tearing (after another site)";
+
+/// Every model label of the samples, in the order reports list them.
+pub const MODELS: [&str; 6] = ["linear", "large", "tearing", SECOND_GRASP, THIRD_GRASP, OTHER_SITE];
 
 /// One sampled state.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

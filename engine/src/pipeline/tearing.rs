@@ -44,10 +44,14 @@
 //! same grasp displacement is from the full model's on nine pulls from virgin tissue (along the
 //! load, across it both ways, the four diagonals) and the same nine as second grasps (after a
 //! first pull along the load, released), the largest up to that load level; the factor bounds
-//! how the directions' errors add up in a mixed pull. Past the calibrated levels, while the
-//! force fades, and with a bundle built before the calibration the answer has none. Mixed
-//! pulls are not calibrated, and neither is tissue another site damaged: `vademecum study`
-//! measures how often the estimate bounds mixed pulls, first and second grasps.
+//! how the directions' errors add up in a mixed pull. To it each grasp adds, as the jaws take
+//! hold, how far the tissue's damage lies outside what the site's basis sees
+//! ([`OnlineTear::hold`]: the relative change of the grasp's stiffness that the damage the
+//! basis misses makes, beyond virgin tissue's) — damage another site's pull made, or a pull
+//! across the load, which the calibration never starts from. Past the calibrated levels, while
+//! the force fades, and with a bundle built before the calibration the answer has none.
+//! `vademecum study` measures how often the estimate bounds mixed pulls, first, second and
+//! third grasps, and grasps after another site's pull.
 //!
 //! # Tearing, losing the grasp
 //! When the damage of a cell of the tearable tissue reaches the scene's `torn` threshold
@@ -483,6 +487,7 @@ impl Effect for Tearing {
             Phase::Free => {
                 if closed && let Some(k) = self.site_at(tool.position_m) {
                     self.activate(k);
+                    self.sites[k].online.hold();
                     self.torn_points = self.count_torn(); // what was torn before this grasp
                     self.phase = Phase::Held { anchor: tool.position_m };
                     state.events.0 |= Events::GRASPED;

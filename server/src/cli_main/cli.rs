@@ -98,7 +98,8 @@ Then it checks the error estimate every answer carries (ToolResponse.force_error
 model: --estimate-points random contacts of the linear law against the full model's compliance, and, \
 for a scene with large deformations, full Newton at --estimate-nodes surface nodes off the lattice \
 pushed 1.5 times past its force, and, for a tearing scene, the grasp pulled in six directions that mix \
-the load and the two across it against the full-order reference. Exit status 1 when it bounds fewer \
+the load and the two across it against the full-order reference, from virgin tissue and as second \
+and third grasps and after another grasp site's pull. Exit status 1 when it bounds fewer \
 than 95 % of the states.\n\n\
 Then, for the effects the scene names: large deformations — the lattice at a quarter, half, one and \
 two times fidelity.large.positions blending 1 or 4 positions, and each path's load steps, POD modes \

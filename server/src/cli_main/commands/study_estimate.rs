@@ -17,11 +17,18 @@ use vademecum_engine::scene::schema::DeformationModel;
 /// The share of sampled states the estimate must bound.
 pub(super) const REQUIRED: f64 = 0.95;
 
+/// The version of the set of states the check samples: 2 added the third grasps and the grasps
+/// after another site's pull (a record without it is of version 0, redone).
+const SAMPLES: u32 = 2;
+
 /// What `estimate.json` keeps.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub(super) struct EstimateRecord {
     /// The study build's key: another build redoes the check.
     key: String,
+    /// The states sampled ([`SAMPLES`]): a record of another set is redone.
+    #[serde(default)]
+    samples: u32,
     /// Per model (`linear`, `large`): samples, bounded, median estimate / true error, largest
     /// relative error.
     pub(super) coverage: Vec<(String, Coverage)>,
@@ -44,6 +51,7 @@ pub(super) fn check(
     if let Ok(old) = std::fs::read_to_string(&record_path)
         && let Ok(rec) = serde_json::from_str::<EstimateRecord>(&old)
         && rec.key == key
+        && rec.samples == SAMPLES
     {
         eprintln!("resuming: the error estimate's check in {} is reused", record_path.display());
         return Ok(rec);
@@ -62,15 +70,22 @@ pub(super) fn check(
         })?);
     }
     if scene.spec.effects.tearing && vademecum_engine::damage::organ::tearable_organ(scene) == Some(0) {
-        // every grasp site's calibration, each pulled in mixed directions
+        // every grasp site's calibration, each pulled in mixed directions, as later grasps too
+        // (after the next site's pull, when there are several)
         let (tear_model, _) = vademecum_engine::damage::organ::tear_model(scene, 0)?;
         let sites = bundle.tear.len();
-        for (k, arrays) in bundle.tear.iter().enumerate() {
-            let off = std::sync::Arc::new(
+        let offs = bundle
+            .tear
+            .iter()
+            .map(|arrays| {
                 vademecum_engine::damage::online::TearOffline::from_arrays(tear_model.clone(), (**arrays).clone())
-                    .map_err(anyhow::Error::msg)?,
-            );
-            samples.extend(estimate::tear_samples(&off, |done, total| {
+                    .map(std::sync::Arc::new)
+                    .map_err(anyhow::Error::msg)
+            })
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        for (k, off) in offs.iter().enumerate() {
+            let other = (sites > 1).then(|| &offs[(k + 1) % sites]);
+            samples.extend(estimate::tear_samples(off, other, |done, total| {
                 bar.set_message(format!(
                     "error estimate: grasp site {} of {sites}, mixed pulls against the full-order model, {done}/{total}",
                     k + 1
@@ -99,7 +114,7 @@ pub(super) fn check(
     }
     std::fs::write(out.join("estimate.csv"), csv).context("cannot write estimate.csv")?;
     plot(&samples, &scene.spec.scene.name, &out.join("estimate_vs_error.svg"))?;
-    let coverage = ["linear", "large", "tearing", estimate::SECOND_GRASP]
+    let coverage = estimate::MODELS
         .into_iter()
         .map(|m| {
             let of: Vec<Sample> = samples.iter().copied().filter(|s| s.model == m).collect();
@@ -109,6 +124,7 @@ pub(super) fn check(
         .collect();
     let rec = EstimateRecord {
         key: key.to_string(),
+        samples: SAMPLES,
         coverage,
     };
     std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
@@ -185,12 +201,14 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .draw_series(LineSeries::new([(lo, lo), (hi, hi)], BLACK.stroke_width(1)))?
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
-    let groups: [(&str, bool, &str); 5] = [
+    let groups: [(&str, bool, &str); 7] = [
         ("linear", false, "linear law"),
         ("large", false, "large deformations, within the lattice's paths"),
         ("large", true, "large deformations, past the paths"),
         ("tearing", false, "tearing, mixed pulls"),
         (estimate::SECOND_GRASP, false, "tearing, a second grasp of damaged tissue"),
+        (estimate::THIRD_GRASP, false, "tearing, a third grasp"),
+        (estimate::OTHER_SITE, false, "tearing, after another site's pull"),
     ];
     for (k, (model, beyond, label)) in groups.into_iter().enumerate() {
         let color = super::bench_anm::PALETTE[k];
