@@ -611,13 +611,17 @@ impl OnlineTear {
             let u = &mut self.saved_u;
             for (l, &d) in local.dofs.iter().enumerate() {
                 u[d] = match local.eqs[l] {
-                    Some(_) => (0..nm)
-                        .filter(|&i| off.mode_pattern[i] == pattern)
-                        .map(|i| self.coef[i] * local.modes[i * nl + l])
-                        .sum(),
                     None if pattern == 0 => m.prescribed[d],
-                    None => 0.0,
+                    _ => 0.0,
                 };
+            }
+            for i in (0..nm).filter(|&i| off.mode_pattern[i] == pattern) {
+                let w = self.coef[i];
+                for (l, f) in local.modes[i * nl..(i + 1) * nl].iter().enumerate() {
+                    if local.eqs[l].is_some() {
+                        u[local.dofs[l]] += w * f;
+                    }
+                }
             }
             let (mut changed, mut kept) = (0.0, 0.0);
             for (i, &p) in m.points.tearable.iter().enumerate() {

@@ -199,6 +199,7 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
     let n_steps = off.model.schedule.len() * a.passes;
     timing.push(stat("null loop", time_n(n_steps, || black_box(0.0))));
     let mut session_bytes = 0;
+    let mut hold = Vec::with_capacity(n_steps);
     for variant in [Variant::Simplified, Variant::Full] {
         stages.stage(&format!("timing {}", variant.label()));
         let mut samples = Vec::with_capacity(n_steps);
@@ -215,11 +216,18 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
                 online.displacement(&mut u);
                 black_box(&u);
                 frame.push(t.elapsed().as_secs_f64() * 1e6);
+                if variant == Variant::Simplified {
+                    // what the tick that takes hold adds: the damage the basis misses
+                    let t = Instant::now();
+                    black_box(online.hold());
+                    hold.push(t.elapsed().as_secs_f64() * 1e6);
+                }
             }
         }
         timing.push(stat(&format!("online step, {}", variant.label()), samples));
         timing.push(stat(&format!("whole displacement field (a frame), {}", variant.label()), frame));
     }
+    timing.push(stat("taking hold (once per grasp: the damage the basis misses)", hold));
     stages.finish();
 
     let report = Report {
