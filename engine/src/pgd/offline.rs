@@ -116,6 +116,9 @@ pub enum BuildStage {
     LatticeCheck(usize, usize),
     /// The Ritz basis of a cutting session.
     CutBasis,
+    /// The bare enrichment's force-error calibration: full XFEM solves at cracked nodes done
+    /// out of total ([`crate::xfem::accuracy::bare_force_error`]).
+    CutCalibration(usize, usize),
     /// Tearing's offline stage (references, POD, vademecum) of grasp site `site` (0: the
     /// scene's grasp) out of `sites`: what, and the fraction done.
     Tearing {
@@ -266,6 +269,11 @@ pub struct CutReport {
     /// What the target asked and what the build kept (`None` without one).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub target: Option<crate::xfem::accuracy::SliverTarget>,
+    /// With bare enrichment, the largest relative error of its force against the full XFEM's
+    /// on the scene's cut ([`crate::xfem::accuracy::bare_force_error`]): the relative error
+    /// estimate a session attaches to the cut organ's forces. `None` with local fields (exact).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bare_force_error: Option<f64>,
     /// Seconds spent on it.
     pub seconds: f64,
 }
@@ -612,6 +620,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     if scene.spec.effects.cutting && index == 0 {
         let fx = &scene.spec.fidelity.xfem;
         let clock = Instant::now();
+        let mut bare_force_error = None;
         if fx.discontinuous == Discontinuous::Bare {
             on(BuildStage::CutBasis);
             let (x, size) = ReducedCut::orthonormal_basis(
@@ -624,11 +633,13 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
                 fx.basis,
             )
             .map_err(|e| BuildError::Cutting(e.to_string()))?;
-            cut_basis = Some(CutBasis {
-                basis: fx.basis,
-                x: x.into(),
-                size,
-            });
+            let x: Arc<[f64]> = x.into();
+            let (e, _) = crate::xfem::accuracy::bare_force_error(scene, &model, &fx.params(), fx.basis, x.clone(), size, |done, total| {
+                on(BuildStage::CutCalibration(done, total))
+            })
+            .map_err(BuildError::Cutting)?;
+            bare_force_error = Some(e);
+            cut_basis = Some(CutBasis { basis: fx.basis, x, size });
         }
         // a target holds the local fields' force to it through the sliver rule
         let target = match opts.cut_target_error.filter(|_| fx.discontinuous == Discontinuous::LocalFields) {
@@ -646,6 +657,7 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
             basis_size: cut_basis.as_ref().map_or(0, |b| b.size),
             sliver: target.as_ref().map_or(fx.sliver, |t| t.sliver),
             target,
+            bare_force_error,
             seconds: clock.elapsed().as_secs_f64(),
         });
     }
@@ -893,6 +905,23 @@ impl LoadedBundle {
             Some(s) if (0.0..0.5).contains(&s) => Ok(Some(s)),
             _ => Err(format!(
                 "the bundle's cut sliver rule {v} is not a fraction in [0, 0.5); rebuild it with `vademecum build`"
+            )),
+        }
+    }
+
+    /// The bare enrichment's calibrated force error (`info.cut.bare_force_error`: the relative
+    /// error estimate of a bare-enrichment session's forces on the cut organ,
+    /// [`CutReport::bare_force_error`]); `None` for a bundle that has none (local fields, or
+    /// built before the calibration). An error for a value that is not a finite non-negative
+    /// number.
+    pub fn cut_bare_force_error(&self) -> Result<Option<f64>, String> {
+        let Some(v) = self.manifest.info.get("cut").and_then(|c| c.get("bare_force_error")) else {
+            return Ok(None);
+        };
+        match v.as_f64() {
+            Some(e) if e.is_finite() && e >= 0.0 => Ok(Some(e)),
+            _ => Err(format!(
+                "the bundle's cut bare_force_error {v} is not a finite non-negative number; rebuild it with `vademecum build`"
             )),
         }
     }

@@ -37,6 +37,15 @@
 //! enrich its nodes), which a surgeon cannot feel; the forces of those ticks are the uncut
 //! model's, which is what the tissue was before the cut.
 //!
+//! # The error estimate of each force
+//! With the seed's local fields the cut's compliance is the full XFEM's at the cut the tick
+//! holds (the Schur complement of the cracked nodes), so the force keeps the linear law's
+//! round-off estimate ([`super::palpation::LINEAR_RELATIVE_ERROR`]). With the bare enrichment
+//! the estimate is the bundle's calibration: the largest relative error of the bare model's
+//! force against the full XFEM's at the cracked surface nodes of the scene's cut
+//! ([`crate::xfem::accuracy::bare_force_error`], `info.cut.bare_force_error`), times the
+//! force ([`force_error`]). A co-rotational correction in the force leaves it without one.
+//!
 //! A cutting scene holds one organ in this version, linear (large deformations and cutting
 //! together are refused by the pipeline).
 
@@ -288,6 +297,8 @@ pub struct Cutting {
     /// Co-rotational cutting: the frame thread's corrections, and the blend of the latest in.
     corrections: Option<Corrections>,
     blend: Blend,
+    /// The bare enrichment's calibrated relative force error ([`Self::with_bare_error`]).
+    bare_error: Option<f64>,
 }
 
 impl std::fmt::Debug for Cutting {
@@ -342,7 +353,15 @@ impl Cutting {
             worker: Some(worker),
             corrections: None,
             blend: Blend::default(),
+            bare_error: None,
         }
+    }
+
+    /// The same effect attaching the bundle's calibrated relative error of the bare
+    /// enrichment's force (`info.cut.bare_force_error`) to its answers ([`force_error`]).
+    pub fn with_bare_error(mut self, error: Option<f64>) -> Self {
+        self.bare_error = error;
+        self
     }
 
     /// The same effect taking the rotation correction of a co-rotational deformation
@@ -470,12 +489,11 @@ impl Effect for Cutting {
                 state.force_n[k] += c.tissue_force_n[k] - tissue[k];
             }
             c.tissue_force_n = tissue;
-            // With local fields and no rotation the cut's compliance is the full XFEM's at the
-            // cut the tick holds (the Schur complement of the cracked nodes: `vademecum study`
-            // measures 1e-13), so the force keeps the linear law's round-off estimate; the
-            // bare enrichment and a co-rotational correction have none.
-            state.force_error_n = (self.view.discontinuous() == Discontinuous::LocalFields && now.is_none())
-                .then(|| super::palpation::LINEAR_RELATIVE_ERROR * tissue.iter().map(|x| x * x).sum::<f64>().sqrt());
+            // the module docs' estimate; a co-rotational correction in the force has none
+            state.force_error_n = match now {
+                None => force_error(self.view.discontinuous(), self.bare_error, tissue),
+                Some(_) => None,
+            };
         }
         if tool.kind != ToolKind::Scalpel {
             return;
@@ -511,6 +529,17 @@ impl Effect for Cutting {
 
     fn reset(&mut self) {
         self.stroke = false;
+    }
+}
+
+/// The error estimate (N) of a force `f` served on the cut organ (module docs): the linear
+/// law's round-off with local fields, the calibrated `bare_error` with the bare enrichment
+/// (`None` without one: a bundle built before the calibration).
+pub fn force_error(disc: Discontinuous, bare_error: Option<f64>, f: [f64; 3]) -> Option<f64> {
+    let size = f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    match disc {
+        Discontinuous::LocalFields => Some(super::palpation::LINEAR_RELATIVE_ERROR * size),
+        Discontinuous::Bare => bare_error.map(|e| e * size),
     }
 }
 

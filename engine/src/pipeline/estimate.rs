@@ -19,6 +19,11 @@
 //!   the load again and in the same mixed directions; a third grasp, after that first pull
 //!   and a second one in the first mixed direction ([`THIRD_GRASP`]); and a grasp of tissue
 //!   another site's pull damaged ([`OTHER_SITE`]) — neither of which the build calibrates.
+//! - **Cutting**: the scene's cut made in the session's own reduced model
+//!   ([`super::session_cut_model`]), pressed at random points of the surface triangles that
+//!   touch a cracked node along each axis, against the full XFEM's compliance there
+//!   ([`crate::xfem::accuracy::patch_samples`]) — points between the cracked nodes the bare
+//!   enrichment's calibration used ([`CUT`], [`CUT_BARE`]).
 
 use super::palpation::LINEAR_RELATIVE_ERROR;
 use crate::pgd::Vademecum;
@@ -134,8 +139,55 @@ pub const THIRD_GRASP: &str = "tearing (third grasp)";
 /// damaged ([`tear_samples`]).
 pub const OTHER_SITE: &str = "tearing (after another site)";
 
+/// The model label of the cutting samples with the seed's local fields ([`cut_samples`]).
+pub const CUT: &str = "cutting";
+
+/// The model label of the cutting samples with the bare enrichment ([`cut_samples`]).
+pub const CUT_BARE: &str = "cutting (bare enrichment)";
+
 /// Every model label of the samples, in the order reports list them.
-pub const MODELS: [&str; 6] = ["linear", "large", "tearing", SECOND_GRASP, THIRD_GRASP, OTHER_SITE];
+pub const MODELS: [&str; 8] = ["linear", "large", "tearing", SECOND_GRASP, THIRD_GRASP, OTHER_SITE, CUT, CUT_BARE];
+
+/// `count` contact points on organ 0 of a cutting `scene` cut by its planned cut (module
+/// docs), each pressed along the three axes; `progress(done, count)` after each point. The
+/// estimate is the session's ([`super::cutting::force_error`]); a bare-enrichment bundle
+/// without the calibration gives none, and no samples.
+pub fn cut_samples(
+    scene: &crate::scene::Scene,
+    model: &OrganModel,
+    bundle: &LoadedBundle,
+    count: usize,
+    progress: impl FnMut(usize, usize),
+) -> Result<Vec<Sample>, String> {
+    use crate::xfem::reduced::Discontinuous;
+    let (mut reduced, params) = super::session_cut_model(scene, model, bundle)?;
+    let cells = crate::xfem::accuracy::cut_cells(scene, model, &params)?;
+    reduced.cut(&model.mesh, &cells).map_err(|e| e.to_string())?;
+    let disc = scene.spec.fidelity.xfem.discontinuous;
+    let bare = bundle.cut_bare_force_error()?;
+    let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let samples = crate::xfem::accuracy::patch_samples(scene, model, &params, &mut reduced.view(), count, progress)?;
+    Ok(samples
+        .into_iter()
+        .filter_map(|p| {
+            let estimate = super::cutting::force_error(disc, bare, p.served)?;
+            Some(Sample {
+                model: match disc {
+                    Discontinuous::LocalFields => CUT,
+                    Discontinuous::Bare => CUT_BARE,
+                },
+                point_m: p.point_m,
+                depth_m: 0.0,
+                beyond_range: false,
+                within_force: true,
+                served: norm(p.served),
+                truth: norm(p.truth),
+                error: norm(std::array::from_fn(|k| p.served[k] - p.truth[k])),
+                estimate,
+            })
+        })
+        .collect())
+}
 
 /// One sampled state.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

@@ -655,33 +655,28 @@ fn tearing_effect(
     Ok((t, pictures, offs))
 }
 
-/// The cutting effect of organ 0 of `scene` (module [`cutting`]): its mesh and model from the
-/// scene, checked against the bundle, the reduced model on the bundle's modes; with
-/// co-rotational cutting, also the co-rotational deformation coupled to it
-/// ([`corotational`]).
-fn cutting_effect(
+/// The reduced cut model a cutting session of organ 0 (`model`, the scene's organ model)
+/// starts from, with the XFEM settings it cuts with: the scene's `fidelity.xfem` at the sliver
+/// rule the bundle chose, the bare enrichment on the basis the bundle stores. Shared by the
+/// session and `vademecum study`'s check of the per-answer estimate.
+pub fn session_cut_model(
     scene: &Scene,
-    bundle: &Arc<LoadedBundle>,
-    cut_force: f64,
-) -> Result<(Cutting, Option<corotational::CorotationalDeformation>), PipelineError> {
-    use crate::xfem::online::OnlineCut;
+    model: &crate::scene::OrganModel,
+    bundle: &LoadedBundle,
+) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
     use crate::xfem::reduced::{Discontinuous, ReducedCut};
-    let fail = |message: String| PipelineError::Cutting { organ: 0, message };
-    let model = scene.organ_model(0).map_err(|e| fail(e.to_string()))?;
     let same = model.mesh.nodes.len() == bundle.nodes.len()
         && model.mesh.nodes.iter().zip(&bundle.nodes).all(|(p, q)| {
             let tol = 1e-9 * (1.0 + p.iter().chain(q).fold(0.0f64, |m, v| m.max(v.abs())));
             (0..3).all(|k| (p[k] - q[k]).abs() <= tol)
         });
     if !same {
-        return Err(fail(
-            "the bundle was built for another mesh than the scene's; rebuild it with `vademecum build`".into(),
-        ));
+        return Err("the bundle was built for another mesh than the scene's; rebuild it with `vademecum build`".into());
     }
     let fx = &scene.spec.fidelity.xfem;
     // the sliver rule the build chose for a target, else the scene's
     let params = crate::xfem::XfemParams {
-        sliver: bundle.cut_sliver().map_err(fail)?.unwrap_or(fx.sliver),
+        sliver: bundle.cut_sliver()?.unwrap_or(fx.sliver),
         ..fx.params()
     };
     let v = &bundle.vademecum;
@@ -725,14 +720,41 @@ fn cutting_effect(
             )
         }
     }
-    .map_err(|e| fail(e.to_string()))?;
+    .map_err(|e| e.to_string())?;
+    Ok((reduced, params))
+}
+
+/// The cutting effect of organ 0 of `scene` (module [`cutting`]): its mesh and model from the
+/// scene, checked against the bundle, the reduced model on the bundle's modes; with
+/// co-rotational cutting, also the co-rotational deformation coupled to it
+/// ([`corotational`]).
+fn cutting_effect(
+    scene: &Scene,
+    bundle: &Arc<LoadedBundle>,
+    cut_force: f64,
+) -> Result<(Cutting, Option<corotational::CorotationalDeformation>), PipelineError> {
+    use crate::xfem::online::OnlineCut;
+    use crate::xfem::reduced::Discontinuous;
+    let fail = |message: String| PipelineError::Cutting { organ: 0, message };
+    let model = scene.organ_model(0).map_err(|e| fail(e.to_string()))?;
+    let fx = &scene.spec.fidelity.xfem;
+    let (reduced, params) = session_cut_model(scene, &model, bundle).map_err(fail)?;
     let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(fail)?;
+    let bare_error = match fx.discontinuous {
+        Discontinuous::Bare => bundle.cut_bare_force_error().map_err(fail)?,
+        Discontinuous::LocalFields => None,
+    };
     if scene.spec.fidelity.cutting != crate::scene::schema::CuttingModel::CorotationalXfem {
-        return Ok((Cutting::new(0, bundle.clone(), model.mesh, online, cut_force), None));
+        return Ok((
+            Cutting::new(0, bundle.clone(), model.mesh, online, cut_force).with_bare_error(bare_error),
+            None,
+        ));
     }
     let visual = scene.organ_visual(0).map_err(|e| fail(e.to_string()))?;
     let (deformation, corrections) =
         corotational::CorotationalDeformation::new(0, model.mesh.clone(), model.materials, model.problem, visual).map_err(fail)?;
-    let cutting = Cutting::new(0, bundle.clone(), model.mesh, online, cut_force).with_corrections(corrections);
+    let cutting = Cutting::new(0, bundle.clone(), model.mesh, online, cut_force)
+        .with_bare_error(bare_error)
+        .with_corrections(corrections);
     Ok((cutting, Some(deformation)))
 }

@@ -45,6 +45,11 @@ pub fn cut_cells(scene: &Scene, model: &OrganModel, params: &XfemParams) -> Resu
 /// Up to [`CONTACTS`] cracked nodes of `enr` on the organ's accessible surface, evenly spread
 /// over the enrichment's order (any cracked node when none is accessible).
 pub fn contact_nodes(model: &OrganModel, enr: &Enrichment) -> Vec<usize> {
+    contact_nodes_up_to(model, enr, CONTACTS)
+}
+
+/// [`contact_nodes`], up to `most` of them.
+pub fn contact_nodes_up_to(model: &OrganModel, enr: &Enrichment, most: usize) -> Vec<usize> {
     let free = |a: &usize| !(0..3).any(|i| model.problem.constrained[3 * a + i]);
     let mut pool: Vec<usize> = enr
         .nodes
@@ -55,22 +60,37 @@ pub fn contact_nodes(model: &OrganModel, enr: &Enrichment) -> Vec<usize> {
     if pool.is_empty() {
         pool = enr.nodes.iter().copied().filter(free).collect();
     }
-    let n = pool.len().min(CONTACTS);
+    let n = pool.len().min(most);
     (0..n).map(|k| pool[k * pool.len() / n.max(1)]).collect()
 }
 
 /// The compliance at `node` of the XFEM with enrichment `enr`: three full-order solves with a
 /// unit force there.
 pub fn full_compliance(model: &OrganModel, enr: &Enrichment, params: &XfemParams, node: usize) -> Result<Compliance, String> {
+    patch_compliance(model, enr, params, &[node], &[1.0])
+}
+
+/// The compliance of the XFEM with enrichment `enr` at a load patch — `nodes` with `weights`
+/// summing to one, as a session's contact spreads its force —: three full-order solves with
+/// a unit force spread by the weights, the displacement read back with the same weights.
+pub fn patch_compliance(
+    model: &OrganModel,
+    enr: &Enrichment,
+    params: &XfemParams,
+    nodes: &[usize],
+    weights: &[f64],
+) -> Result<Compliance, String> {
     let mut c = [[0.0; 3]; 3];
     for j in 0..3 {
         let mut problem = model.problem.clone();
         problem.forces.fill(0.0);
         problem.prescribed.fill(0.0);
-        problem.forces[3 * node + j] = 1.0;
+        for (&a, &w) in nodes.iter().zip(weights) {
+            problem.forces[3 * a + j] += w;
+        }
         let sol = system::solve(&model.mesh, &model.materials, model.locking, &problem, enr, params).map_err(|e| e.to_string())?;
         for (i, ci) in c.iter_mut().enumerate() {
-            ci[j] = sol.u[3 * node + i];
+            ci[j] = nodes.iter().zip(weights).map(|(&a, &w)| w * sol.u[3 * a + i]).sum();
         }
     }
     Ok(c)
@@ -105,15 +125,27 @@ pub struct Reference {
 }
 
 impl Reference {
-    /// The reference of organ 0 of `scene` at `params`; `progress(done, total)` after each
-    /// full solve triple. An error when the cut crosses no cell or cracks no free node.
-    pub fn of(scene: &Scene, model: &OrganModel, params: &XfemParams, mut progress: impl FnMut(usize, usize)) -> Result<Self, String> {
+    /// The reference of organ 0 of `scene` at `params`, at [`CONTACTS`] nodes;
+    /// `progress(done, total)` after each full solve triple. An error when the cut crosses no
+    /// cell or cracks no free node.
+    pub fn of(scene: &Scene, model: &OrganModel, params: &XfemParams, progress: impl FnMut(usize, usize)) -> Result<Self, String> {
+        Self::at(scene, model, params, CONTACTS, progress)
+    }
+
+    /// [`Self::of`] at up to `contacts` cracked surface nodes.
+    pub fn at(
+        scene: &Scene,
+        model: &OrganModel,
+        params: &XfemParams,
+        contacts: usize,
+        mut progress: impl FnMut(usize, usize),
+    ) -> Result<Self, String> {
         let cells = cut_cells(scene, model, params)?;
         if cells.is_empty() {
             return Err("the cut crosses no cell of organ 0".into());
         }
         let reference = Enrichment::from_cut_cells(&model.mesh, &cells, params).map_err(|e| e.to_string())?;
-        let contacts = contact_nodes(model, &reference);
+        let contacts = contact_nodes_up_to(model, &reference, contacts);
         if contacts.is_empty() {
             return Err("the cut cracks no node free to move".into());
         }
@@ -182,6 +214,148 @@ pub fn local_fields_errors(
     r.cut(&model.mesh, &cells).map_err(|e| e.to_string())?;
     let enriched = r.enrichment().len();
     Ok(Some((enriched, reference.errors(&mut r.view()))))
+}
+
+/// Patches the bare enrichment's force error is calibrated at ([`bare_force_error`]): this
+/// many cracked surface nodes and as many centroids of the surface triangles around them.
+pub const BARE_CONTACTS: usize = 12;
+
+/// The calibration of the bare enrichment's force error that a build stores
+/// (`info.cut.bare_force_error`): the session's bare model — the K-orthonormal Ritz basis `x`
+/// (`size` directions of kind `basis`) the bundle stores — cut by the scene's cut, pressed by a
+/// unit displacement along each axis at up to [`BARE_CONTACTS`] cracked surface nodes and at
+/// the centroids of as many surface triangles touching a cracked node (spread evenly over
+/// them), against the full XFEM: the largest `|f − f_full| / |f|` (relative to the force
+/// served, as the session's estimate `e·|f|` is), and the forces compared. The cut is where
+/// the bare enrichment is worst (the modes, responses of the uncut organ, cannot follow the
+/// opening); `vademecum study` checks the calibration at random points of those triangles
+/// ([`patch_samples`]). `progress(done, total)` after each patch.
+#[allow(clippy::too_many_arguments)]
+pub fn bare_force_error(
+    scene: &Scene,
+    model: &OrganModel,
+    params: &XfemParams,
+    basis: super::reduced::RitzBasis,
+    x: std::sync::Arc<[f64]>,
+    size: usize,
+    progress: impl FnMut(usize, usize),
+) -> Result<(f64, usize), String> {
+    let cells = cut_cells(scene, model, params)?;
+    let cut = Enrichment::from_cut_cells(&model.mesh, &cells, params).map_err(|e| e.to_string())?;
+    let tris = crack_triangles(model, &cut);
+    let n = tris.len().min(BARE_CONTACTS);
+    let patches: Vec<([usize; 3], [f64; 3])> = contact_nodes_up_to(model, &cut, BARE_CONTACTS)
+        .into_iter()
+        .map(|a| ([a, a, a], [1.0, 0.0, 0.0]))
+        .chain((0..n).map(|k| (tris[k * tris.len() / n], [1.0 / 3.0; 3])))
+        .collect();
+    let mut r = ReducedCut::from_basis(
+        &model.mesh,
+        &model.materials,
+        model.locking,
+        &model.problem,
+        basis,
+        x,
+        size,
+        Discontinuous::Bare,
+        params,
+    )
+    .map_err(|e| e.to_string())?;
+    r.cut(&model.mesh, &cells).map_err(|e| e.to_string())?;
+    let samples = patch_forces(model, params, &cut, &mut r.view(), &patches, progress)?;
+    let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let worst = samples
+        .iter()
+        .map(|p| norm(std::array::from_fn(|k| p.served[k] - p.truth[k])) / norm(p.served).max(f64::MIN_POSITIVE))
+        .fold(0.0, f64::max);
+    Ok((worst, samples.len()))
+}
+
+/// The surface triangles of the organ, free to move, that touch a node `enr` cracks.
+pub fn crack_triangles(model: &OrganModel, enr: &Enrichment) -> Vec<[usize; 3]> {
+    let free = |a: usize| !(0..3).any(|i| model.problem.constrained[3 * a + i]);
+    model
+        .boundary
+        .triangles()
+        .into_iter()
+        .filter(|t| t.iter().all(|&a| free(a)) && t.iter().any(|&a| enr.index(a).is_some()))
+        .collect()
+}
+
+/// A contact on the cut organ ([`patch_forces`]): a unit imposed displacement along one axis
+/// at a point of a surface triangle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PatchSample {
+    /// The point (m).
+    pub point_m: [f64; 3],
+    /// The force a session serves (N per m imposed): `(C_uncut + ΔC)⁻¹ e_j`.
+    pub served: [f64; 3],
+    /// The full XFEM's for the same displacement.
+    pub truth: [f64; 3],
+}
+
+/// At each patch (a triangle's nodes and the point's barycentric weights), pressed along the
+/// three axes: the force of the uncut organ's exact compliance plus what `view` adds (a
+/// session's model, already cut by the cut that cracks `cut`) against the full XFEM's with
+/// `cut` (six full-order solves per patch, the load spread by the weights in both).
+/// `progress(done, total)` after each patch.
+pub fn patch_forces(
+    model: &OrganModel,
+    params: &XfemParams,
+    cut: &Enrichment,
+    view: &mut super::reduced::CutView,
+    patches: &[([usize; 3], [f64; 3])],
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Vec<PatchSample>, String> {
+    let uncut = Enrichment::from_cut_cells(&model.mesh, &[], params).map_err(|e| e.to_string())?;
+    let mut out = Vec::with_capacity(3 * patches.len());
+    for (k, (t, w)) in patches.iter().enumerate() {
+        let full = patch_compliance(model, cut, params, t, w)?;
+        let c0 = patch_compliance(model, &uncut, params, t, w)?;
+        let added = view.added_compliance(t, w);
+        let served: Compliance = std::array::from_fn(|i| std::array::from_fn(|j| c0[i][j] + added[i][j]));
+        let point_m = std::array::from_fn(|i| (0..3).map(|v| w[v] * model.mesh.nodes[t[v]][i]).sum());
+        for j in 0..3 {
+            let mut d = [0.0; 3];
+            d[j] = 1.0;
+            out.push(PatchSample {
+                point_m,
+                served: Vademecum::contact_force(&served, d),
+                truth: Vademecum::contact_force(&full, d),
+            });
+        }
+        progress(k + 1, patches.len());
+    }
+    Ok(out)
+}
+
+/// `count` random points of the surface triangles that touch a node the scene's cut cracks
+/// ([`crack_triangles`]), each pressed along the three axes ([`patch_forces`]): `view` is a
+/// session's model already cut by the scene's cut at `params`.
+pub fn patch_samples(
+    scene: &Scene,
+    model: &OrganModel,
+    params: &XfemParams,
+    view: &mut super::reduced::CutView,
+    count: usize,
+    progress: impl FnMut(usize, usize),
+) -> Result<Vec<PatchSample>, String> {
+    let cells = cut_cells(scene, model, params)?;
+    let cut = Enrichment::from_cut_cells(&model.mesh, &cells, params).map_err(|e| e.to_string())?;
+    let tris = crack_triangles(model, &cut);
+    if tris.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut rng = crate::rng::Rng(0x00C0_75A3_B1E5);
+    let patches: Vec<([usize; 3], [f64; 3])> = (0..count)
+        .map(|_| {
+            let t = tris[(rng.next_u64() % tris.len() as u64) as usize];
+            let (a, b) = (rng.unit(), rng.unit());
+            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+            (t, [1.0 - a - b, a, b])
+        })
+        .collect();
+    patch_forces(model, params, &cut, view, &patches, progress)
 }
 
 /// The sliver thresholds a target tries, cheapest first (more nodes left unenriched).

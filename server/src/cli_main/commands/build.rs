@@ -46,6 +46,9 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
             "large deformations: full Newton off the lattice for --target-error, node {done}/{total}"
         )),
         BuildStage::CutBasis => bar.stage("cutting: the K-orthonormal Ritz basis for bare enrichment"),
+        BuildStage::CutCalibration(done, total) => bar.stage(&format!(
+            "cutting: the bare enrichment's force against the full XFEM, cracked node {done}/{total}"
+        )),
         BuildStage::Tearing {
             site,
             sites,

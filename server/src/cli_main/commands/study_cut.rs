@@ -325,7 +325,7 @@ pub(super) fn verdict(sweep: &CutSweep, scene_sliver: f64, scene_disc: Discontin
             p.states,
             100.0 * p.estimate_bounded as f64 / p.states.max(1) as f64
         ),
-        Some(_) => " The bare enrichment's forces carry no error estimate.".into(),
+        Some(_) => " The bare enrichment's forces carry the build's calibration of its force error at the cut as their estimate (checked between the cracked nodes with the per-answer estimate above).".into(),
         None => String::new(),
     };
     format!(

@@ -18,8 +18,12 @@ use vademecum_engine::scene::schema::DeformationModel;
 pub(super) const REQUIRED: f64 = 0.95;
 
 /// The version of the set of states the check samples: 2 added the third grasps and the grasps
-/// after another site's pull (a record without it is of version 0, redone).
-const SAMPLES: u32 = 2;
+/// after another site's pull, 3 the cut organ (a record without it is of version 0, redone).
+const SAMPLES: u32 = 3;
+
+/// Contact points of the cut organ sampled (each pressed along the three axes; six full XFEM
+/// solves each).
+const CUT_POINTS: usize = 16;
 
 /// What `estimate.json` keeps.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -92,6 +96,16 @@ pub(super) fn check(
                 ))
             })?);
         }
+    }
+    if scene.spec.effects.cutting {
+        samples.extend(
+            estimate::cut_samples(scene, &model, bundle, CUT_POINTS, |done, total| {
+                bar.set_message(format!(
+                    "error estimate: the cut organ pressed between its cracked nodes against the full XFEM, {done}/{total}"
+                ))
+            })
+            .map_err(anyhow::Error::msg)?,
+        );
     }
     bar.finish_and_clear();
 
@@ -201,16 +215,19 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .draw_series(LineSeries::new([(lo, lo), (hi, hi)], BLACK.stroke_width(1)))?
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
-    let groups: [(&str, bool, &str); 7] = [
-        ("linear", false, "linear law"),
-        ("large", false, "large deformations, within the lattice's paths"),
-        ("large", true, "large deformations, past the paths"),
-        ("tearing", false, "tearing, mixed pulls"),
-        (estimate::SECOND_GRASP, false, "tearing, a second grasp of damaged tissue"),
-        (estimate::THIRD_GRASP, false, "tearing, a third grasp"),
-        (estimate::OTHER_SITE, false, "tearing, after another site's pull"),
+    // (model, past the paths, legend, colour): the two cutting models never share a scene
+    let groups: [(&str, bool, &str, usize); 9] = [
+        ("linear", false, "linear law", 0),
+        ("large", false, "large deformations, within the lattice's paths", 1),
+        ("large", true, "large deformations, past the paths", 2),
+        ("tearing", false, "tearing, mixed pulls", 3),
+        (estimate::SECOND_GRASP, false, "tearing, a second grasp of damaged tissue", 4),
+        (estimate::THIRD_GRASP, false, "tearing, a third grasp", 5),
+        (estimate::OTHER_SITE, false, "tearing, after another site's pull", 6),
+        (estimate::CUT, false, "cutting, between the cracked nodes", 7),
+        (estimate::CUT_BARE, false, "cutting, bare enrichment, between the cracked nodes", 7),
     ];
-    for (k, (model, beyond, label)) in groups.into_iter().enumerate() {
+    for (model, beyond, label, k) in groups {
         let color = super::bench_anm::PALETTE[k];
         let of: Vec<(f64, f64)> = pts
             .iter()
