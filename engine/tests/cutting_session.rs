@@ -329,12 +329,20 @@ fn co_rotational_cutting_keeps_the_reduced_force_until_a_frame_lands_then_follow
     assert_eq!(status.landings.load(Relaxed), 1, "the correction landed during the contact");
     let mut prev = a.force_n;
     let mut largest_step = 0.0f64;
+    let mut blended = Vec::new();
     for _ in 0..BLEND_TICKS {
         let (a, _) = (corot.tick(&tool), linear.tick(&tool));
-        // a rotation correction has no error estimate
-        assert_eq!(a.force_error_n, None);
         largest_step = largest_step.max(norm(std::array::from_fn(|k| a.force_n[k] - prev[k])));
         prev = a.force_n;
+        blended.push(a);
+    }
+    // each blended force carries an estimate that covers the rest of the blend: at least its
+    // distance from the force with the correction fully in (the deformation's own compliance,
+    // to the correction's solve)
+    for a in &blended {
+        let e = a.force_error_n.expect("a corrected force carries its estimate");
+        let left = norm(std::array::from_fn(|k| a.force_n[k] - prev[k]));
+        assert!(e >= left && e <= left + 1e-6 * norm(prev), "estimate {e:e}, left to blend {left:e}");
     }
     assert!(status.corrected_ticks.load(Relaxed) >= 1 && status.refused_corrections.load(Relaxed) == 0);
     // the deformation shown is small against the patch (0.08 deep in 5): its correction moves the

@@ -44,7 +44,9 @@
 //! the estimate is the bundle's calibration: the largest relative error of the bare model's
 //! force against the full XFEM's at the cracked surface nodes of the scene's cut
 //! ([`crate::xfem::accuracy::bare_force_error`], `info.cut.bare_force_error`), times the
-//! force ([`force_error`]). A co-rotational correction in the force leaves it without one.
+//! force ([`force_error`]). With a co-rotational correction in the force it adds what the
+//! blend has still to move and what the correction's solve left
+//! ([`super::corotational::corrected_force_error`]).
 //!
 //! A cutting scene holds one organ in this version, linear (large deformations and cutting
 //! together are refused by the pipeline).
@@ -489,10 +491,24 @@ impl Effect for Cutting {
                 state.force_n[k] += c.tissue_force_n[k] - tissue[k];
             }
             c.tissue_force_n = tissue;
-            // the module docs' estimate; a co-rotational correction in the force has none
+            // the module docs' estimate, and with a rotation correction in the force what the
+            // blend has still to move and the correction's solve left
+            let cut_error = force_error(self.view.discontinuous(), self.bare_error, tissue);
             state.force_error_n = match now {
-                None => force_error(self.view.discontinuous(), self.bare_error, tissue),
-                Some(_) => None,
+                None => cut_error,
+                Some(_) => {
+                    let t = self.blend.target();
+                    let shifted = |sign: f64| -> [[f64; 3]; 3] {
+                        std::array::from_fn(|i| std::array::from_fn(|j| t.delta[i][j] + sign * t.spread[i][j]))
+                    };
+                    let lag = super::corotational::corrected_force_error(
+                        tissue,
+                        force(Some(t.delta)),
+                        force(Some(shifted(1.0))),
+                        force(Some(shifted(-1.0))),
+                    );
+                    lag.zip(cut_error).map(|(a, b)| a + b)
+                }
             };
         }
         if tool.kind != ToolKind::Scalpel {

@@ -24,6 +24,12 @@
 //!   touch a cracked node along each axis, against the full XFEM's compliance there
 //!   ([`crate::xfem::accuracy::patch_samples`]) — points between the cracked nodes the bare
 //!   enrichment's calibration used ([`CUT`], [`CUT_BARE`]).
+//! - **Co-rotational cutting** (seed 003): a tool pressing a surface triangle of the organ
+//!   with a force ramped in over two seconds of frames and held, the co-rotational deformation
+//!   stepped frame by frame as a session's frame thread steps it and each frame's ticks served
+//!   as the cutting effect serves them (the latest correction blended in), against the
+//!   co-rotational model's compliance at the deformation shown — a fresh factor of its warped
+//!   stiffness at each frame's state ([`corotational_samples`], [`COROTATIONAL`]).
 
 use super::palpation::LINEAR_RELATIVE_ERROR;
 use crate::pgd::Vademecum;
@@ -145,8 +151,91 @@ pub const CUT: &str = "cutting";
 /// The model label of the cutting samples with the bare enrichment ([`cut_samples`]).
 pub const CUT_BARE: &str = "cutting (bare enrichment)";
 
+/// The model label of the co-rotational samples ([`corotational_samples`]).
+pub const COROTATIONAL: &str = "cutting (co-rotational correction)";
+
 /// Every model label of the samples, in the order reports list them.
-pub const MODELS: [&str; 8] = ["linear", "large", "tearing", SECOND_GRASP, THIRD_GRASP, OTHER_SITE, CUT, CUT_BARE];
+pub const MODELS: [&str; 9] = [
+    "linear",
+    "large",
+    "tearing",
+    SECOND_GRASP,
+    THIRD_GRASP,
+    OTHER_SITE,
+    CUT,
+    CUT_BARE,
+    COROTATIONAL,
+];
+
+/// Frames over which [`corotational_samples`] ramps the tool's force in (two seconds at
+/// 30 Hz), then holds it as long.
+pub const RAMP: u32 = 60;
+
+/// The co-rotational samples (module docs) of an organ (`mesh`, `materials`, `problem` with
+/// the scene's loads, as a session's deformation takes them), pressed at `contact` (its
+/// tissue force the full one, ramped in over [`RAMP`] frames then held as long): one sample
+/// per tick, [`super::corotational::BLEND_TICKS`] ticks a frame, each the force served under
+/// the blended correction for the imposed displacement under which the deformation's own
+/// compliance gives the contact's force, beside that force, with the session's estimate
+/// ([`super::corotational::corrected_force_error`]; the linear part's round-off added). The
+/// served compliance is the rest compliance plus the correction, as the cutting effect's is
+/// the vademecum's exact one plus the cut's plus the correction.
+pub fn corotational_samples(
+    mesh: &crate::mesh::Mesh,
+    materials: &crate::fem::assembly::MaterialMap,
+    problem: &crate::fem::linear_static::StaticProblem,
+    contact: &super::Contact,
+) -> Result<Vec<Sample>, String> {
+    use super::corotational::{BLEND_TICKS, Blend, CorotationalDeformation, contact_compliance, corrected_force_error};
+    let (mut def, mut out) = CorotationalDeformation::new(0, mesh.clone(), materials.clone(), problem.clone(), None)?;
+    let enr = crate::xfem::Enrichment::from_cut_cells(mesh, &[], &crate::xfem::XfemParams::default()).map_err(|e| e.to_string())?;
+    let model = crate::xfem::corotational::CorotationalXfem::new(mesh, materials, problem, &enr).map_err(|e| e.to_string())?;
+    let rest = model.factor_at(&vec![0.0; 3 * mesh.n_nodes()], None).map_err(|e| e.to_string())?;
+    let c0 = contact_compliance(&model, &rest, contact);
+    let add = |a: [[f64; 3]; 3], b: [[f64; 3]; 3], s: f64| -> [[f64; 3]; 3] {
+        std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + s * b[i][j]))
+    };
+    let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let point_m: [f64; 3] = std::array::from_fn(|i| (0..3).map(|v| contact.weights[v] * mesh.nodes[contact.nodes[v]][i]).sum());
+    let mut blend = Blend::default();
+    let mut out_samples = Vec::new();
+    for frame in 1..=2 * RAMP {
+        let mut c = *contact;
+        c.tissue_force_n = contact.tissue_force_n.map(|x| x * (f64::from(frame) / f64::from(RAMP)).min(1.0));
+        def.step(None, Some(&c)).map_err(|e| e.to_string())?;
+        let truth = contact_compliance(&model, &model.factor_at(def.d(), None).map_err(|e| e.to_string())?, &c);
+        let delta: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| truth[i][j] * c.tissue_force_n[j]).sum());
+        let force = |dc: [[f64; 3]; 3]| crate::pgd::Vademecum::contact_force(&add(c0, dc, 1.0), delta);
+        for _ in 0..BLEND_TICKS {
+            blend.land(*out.read(), Some(&c.nodes));
+            let Some(now) = blend.delta(&c.nodes, blend.ticks()) else {
+                continue;
+            };
+            let f = force(now);
+            let t = blend.target();
+            let Some(e) = corrected_force_error(
+                f,
+                Some(force(t.delta)),
+                Some(force(add(t.delta, t.spread, 1.0))),
+                Some(force(add(t.delta, t.spread, -1.0))),
+            ) else {
+                continue;
+            };
+            out_samples.push(Sample {
+                model: COROTATIONAL,
+                point_m,
+                depth_m: 0.0,
+                beyond_range: false,
+                within_force: true,
+                served: norm(f),
+                truth: norm(c.tissue_force_n),
+                error: norm(std::array::from_fn(|k| f[k] - c.tissue_force_n[k])),
+                estimate: e + LINEAR_RELATIVE_ERROR * norm(f),
+            });
+        }
+    }
+    Ok(out_samples)
+}
 
 /// `count` contact points on organ 0 of a cutting `scene` cut by its planned cut (module
 /// docs), each pressed along the three axes; `progress(done, count)` after each point. The

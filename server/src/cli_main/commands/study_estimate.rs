@@ -18,8 +18,9 @@ use vademecum_engine::scene::schema::DeformationModel;
 pub(super) const REQUIRED: f64 = 0.95;
 
 /// The version of the set of states the check samples: 2 added the third grasps and the grasps
-/// after another site's pull, 3 the cut organ (a record without it is of version 0, redone).
-const SAMPLES: u32 = 3;
+/// after another site's pull, 3 the cut organ, 4 the co-rotational press (a record without it
+/// is of version 0, redone).
+const SAMPLES: u32 = 4;
 
 /// Contact points of the cut organ sampled (each pressed along the three axes; six full XFEM
 /// solves each).
@@ -107,6 +108,14 @@ pub(super) fn check(
             .map_err(anyhow::Error::msg)?,
         );
     }
+    if scene.spec.effects.cutting && scene.spec.fidelity.cutting == vademecum_engine::scene::schema::CuttingModel::CorotationalXfem {
+        bar.set_message("error estimate: a co-rotational press, each tick against the deformation's own compliance");
+        if let Some(contact) = press(&model, bundle) {
+            samples.extend(
+                estimate::corotational_samples(&model.mesh, &model.materials, &model.problem, &contact).map_err(anyhow::Error::msg)?,
+            );
+        }
+    }
     bar.finish_and_clear();
 
     let mut csv = String::from("model,x_m,y_m,z_m,depth_m,beyond_range,served,truth,error,estimate,bounded\n");
@@ -143,6 +152,44 @@ pub(super) fn check(
     };
     std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
     Ok(rec)
+}
+
+/// Of the organ's smallest extent, how deep [`press`] pushes (linearly).
+const PRESS_DEPTH: f64 = 0.1;
+
+/// A press into organ `model` at the centroid of its highest accessible surface triangle (all
+/// three nodes accessible and free), along the triangle's inward normal, with the force that
+/// pushes it [`PRESS_DEPTH`] of the organ's smallest extent deep by the linear law (the
+/// vademecum's exact compliance there, `bundle`): rotations of a few degrees to tens.
+fn press(model: &vademecum_engine::scene::OrganModel, bundle: &LoadedBundle) -> Option<vademecum_engine::pipeline::Contact> {
+    use vademecum_engine::mesh::boundary::triangle_area_normal;
+    let free = |a: usize| !(0..3).any(|i| model.problem.constrained[3 * a + i]);
+    let top = model
+        .boundary
+        .triangles()
+        .into_iter()
+        .filter(|t| t.iter().all(|&a| free(a) && model.accessible_nodes.contains(&a)))
+        .max_by(|a, b| {
+            let z = |t: &[usize; 3]| t.iter().map(|&n| model.mesh.nodes[n][2]).sum::<f64>();
+            z(a).total_cmp(&z(b))
+        })?;
+    let (_, n) = triangle_area_normal(&model.mesh, top);
+    let size = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    let c = bundle.vademecum.compliance(top, [1.0 / 3.0; 3])?;
+    let along: f64 = (0..3).map(|i| (0..3).map(|j| n[i] * c[i][j] * n[j]).sum::<f64>()).sum::<f64>() / (size * size);
+    let (lo, hi) = model.mesh.bounding_box();
+    let extent = (0..3).map(|k| hi[k] - lo[k]).fold(f64::INFINITY, f64::min);
+    let force = PRESS_DEPTH * extent / along;
+    if !(force.is_finite() && force > 0.0) {
+        return None;
+    }
+    Some(vademecum_engine::pipeline::Contact {
+        nodes: top,
+        weights: [1.0 / 3.0; 3],
+        tissue_force_n: n.map(|x| -force * x / size),
+        loadable: 1.0,
+        ..Default::default()
+    })
 }
 
 /// The sentence of the verdict: per model, the share bounded and how loose the bound is.
@@ -216,7 +263,7 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
     // (model, past the paths, legend, colour): the two cutting models never share a scene
-    let groups: [(&str, bool, &str, usize); 9] = [
+    let groups: [(&str, bool, &str, usize); 10] = [
         ("linear", false, "linear law", 0),
         ("large", false, "large deformations, within the lattice's paths", 1),
         ("large", true, "large deformations, past the paths", 2),
@@ -226,6 +273,7 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         (estimate::OTHER_SITE, false, "tearing, after another site's pull", 6),
         (estimate::CUT, false, "cutting, between the cracked nodes", 7),
         (estimate::CUT_BARE, false, "cutting, bare enrichment, between the cracked nodes", 7),
+        (estimate::COROTATIONAL, false, "cutting, a co-rotational press", 4),
     ];
     for (model, beyond, label, k) in groups {
         let color = super::bench_anm::PALETTE[k];
