@@ -223,7 +223,7 @@ pub fn deformed_compliance(
     k: &SymmetricMatrix,
     factor: &Cholesky,
     c: &Contact,
-) -> ([[f64; 3]; 3], [[f64; 3]; 3]) {
+) -> ([[f64; 3]; 3], [[f64; 3]; 3], CorrectionSolve) {
     let nf = factor.n();
     let p = load_columns(model, nf, c);
     let mut x = p.clone();
@@ -231,6 +231,10 @@ pub fn deformed_compliance(
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
     let (mut r, mut z, mut q, mut kq) = (vec![0.0; nf], vec![0.0; nf], vec![0.0; nf], vec![0.0; nf]);
     let mut energy = [0.0; 3];
+    let mut solve = CorrectionSolve {
+        iterations: 0,
+        converged: true,
+    };
     for j in 0..3 {
         let (pj, xj) = (&p[j * nf..(j + 1) * nf], &mut x[j * nf..(j + 1) * nf]);
         let scale = dot(pj, pj).sqrt();
@@ -241,11 +245,13 @@ pub fn deformed_compliance(
         q.copy_from_slice(&z);
         let mut rz = dot(&r, &z);
         let mut converged = false;
+        let mut iterations = 0;
         for _ in 0..COMPLIANCE_ITERATIONS {
             if dot(&r, &r).sqrt() <= COMPLIANCE_TOLERANCE * scale || rz <= 0.0 {
                 converged = true;
                 break;
             }
+            iterations += 1;
             k.mul_vec(&q, &mut kq);
             let alpha = rz / dot(&q, &kq);
             xj.iter_mut().zip(&q).for_each(|(xv, qv)| *xv += alpha * qv);
@@ -258,13 +264,15 @@ pub fn deformed_compliance(
             q.iter_mut().zip(&z).for_each(|(qv, zv)| *qv = zv + beta * *qv);
         }
         converged |= dot(&r, &r).sqrt() <= COMPLIANCE_TOLERANCE * scale;
+        solve.iterations = solve.iterations.max(iterations);
+        solve.converged &= converged;
         // a solve that did not converge leaves no bound: the force it shapes has no estimate
         energy[j] = if converged { rz.max(0.0) } else { f64::INFINITY };
     }
     let cw = gram(&p, &x, nf);
     let spread =
         std::array::from_fn(|i| std::array::from_fn(|j| (cw[i][i].abs() * energy[j]).sqrt().max((cw[j][j].abs() * energy[i]).sqrt())));
-    (cw, spread)
+    (cw, spread, solve)
 }
 
 /// The error estimate (N) of a force `f` a blended rotation correction shaped, against the
@@ -333,6 +341,17 @@ pub struct FrameOutcome {
     /// Whether the frame ran at the reduced fidelity: it asked the factor thread for no new
     /// factor ([`CorotationalDeformation::set_reduced`]).
     pub frozen: bool,
+    /// The frame's correction solve ([`deformed_compliance`]), if it made a correction.
+    pub correction: Option<CorrectionSolve>,
+}
+
+/// How a frame's correction solve went ([`deformed_compliance`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CorrectionSolve {
+    /// Conjugate-gradient iterations of the slowest of the three columns.
+    pub iterations: usize,
+    /// Whether every column reached [`COMPLIANCE_TOLERANCE`].
+    pub converged: bool,
 }
 
 /// The co-rotational deformation of a cut organ, advanced one frame at a time on the frame
@@ -653,8 +672,9 @@ impl CorotationalDeformation {
             self.busy = self.jobs.try_send(job).is_ok();
         }
         if let Some(c) = contact.filter(|c| c.organ == self.organ)
-            && let Some((delta, spread)) = self.rotation_compliance(c)
+            && let Some((delta, spread, solve)) = self.rotation_compliance(c)
         {
+            outcome.correction = Some(solve);
             self.correction_seq += 1;
             self.corrections.write(Correction {
                 seq: self.correction_seq,
@@ -669,16 +689,16 @@ impl CorotationalDeformation {
     /// `ΔC_rot` at contact `c` (module docs) at the deformation shown
     /// ([`deformed_compliance`], the factor the frames hold its preconditioner), and its spread.
     #[allow(clippy::type_complexity)]
-    fn rotation_compliance(&self, c: &Contact) -> Option<([[f64; 3]; 3], [[f64; 3]; 3])> {
+    fn rotation_compliance(&self, c: &Contact) -> Option<([[f64; 3]; 3], [[f64; 3]; 3], CorrectionSolve)> {
         let s = self.state.as_ref()?;
         let model = s.frames.model();
         let warped = s.frames.factor()?;
-        let ((cw, spread), c0) = self.pool.install(|| {
+        let ((cw, spread, solve), c0) = self.pool.install(|| {
             let k = model.tangent(s.frames.d());
             (deformed_compliance(model, &k, warped, c), contact_compliance(model, &s.rest, c))
         });
         let delta: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cw[i][j] - 0.5 * (c0[i][j] + c0[j][i])));
-        delta.iter().flatten().all(|v| v.is_finite()).then_some((delta, spread))
+        delta.iter().flatten().all(|v| v.is_finite()).then_some((delta, spread, solve))
     }
 
     /// The displacement (m) of mesh nodes `nodes` on their own side, 3 per node, into `out`.

@@ -183,6 +183,14 @@ pub struct CorotationalStats {
     pub max_us: AtomicU64,
     /// Frame times summed (µs).
     pub sum_us: AtomicU64,
+    /// Frames that solved a correction at the deformation shown.
+    pub corrections: AtomicU64,
+    /// Their conjugate-gradient iterations (the slowest column's), summed.
+    pub correction_iterations_sum: AtomicU64,
+    /// The most iterations of one.
+    pub correction_iterations_max: AtomicU64,
+    /// Solves that did not converge (their forces carry no error estimate).
+    pub corrections_unconverged: AtomicU64,
 }
 
 impl TickStats {
@@ -198,6 +206,12 @@ impl TickStats {
         c.rebuilt.fetch_add(u64::from(o.rebuilt), Ordering::Relaxed);
         c.refused_cuts.fetch_add(u64::from(o.refused_cut), Ordering::Relaxed);
         c.held_pieces.store(o.held_pieces as u64, Ordering::Relaxed);
+        if let Some(s) = o.correction {
+            c.corrections.fetch_add(1, Ordering::Relaxed);
+            c.correction_iterations_sum.fetch_add(s.iterations as u64, Ordering::Relaxed);
+            c.correction_iterations_max.fetch_max(s.iterations as u64, Ordering::Relaxed);
+            c.corrections_unconverged.fetch_add(u64::from(!s.converged), Ordering::Relaxed);
+        }
         if let Some(r) = o.report {
             c.factored.fetch_add(u64::from(r.factored), Ordering::Relaxed);
             c.residual_bits.store(r.residual.to_bits(), Ordering::Relaxed);

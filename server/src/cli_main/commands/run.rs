@@ -84,6 +84,12 @@ struct CorotationalSummary {
     failures: u64,
     /// The last frame's relative residual.
     residual: f64,
+    /// Frames that solved the correction at the deformation shown; the conjugate-gradient
+    /// iterations of their slowest column, mean and largest; solves that did not converge.
+    corrections: u64,
+    correction_iterations_mean: f64,
+    correction_iterations_max: u64,
+    corrections_unconverged: u64,
     /// Ticks whose force took the rotation correction; corrections refused.
     corrected_ticks: u64,
     refused_corrections: u64,
@@ -702,6 +708,11 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                 "  co-rotational  {} frames, {:.1} ms mean ({:.1} max); {} factored on the frame thread, {} factors installed, {} rebuilt as the cut grew, {} cuts refused, {} failed; residual {:.1e}",
                 c.frames, c.frame_ms_mean, c.frame_ms_max, c.factored, c.installed, c.rebuilt, c.refused_cuts, c.failures, c.residual
             )?;
+            writeln!(
+                out,
+                "  correction     solved at the deformation shown in {} frames: {:.1} conjugate-gradient iterations mean ({} max) from the factor thread's factor, {} not converged (no estimate)",
+                c.corrections, c.correction_iterations_mean, c.correction_iterations_max, c.corrections_unconverged
+            )?;
             if c.held_pieces > 0 {
                 writeln!(
                     out,
@@ -845,6 +856,10 @@ fn corotational_summary(
         held_pieces: c.held_pieces.load(Relaxed),
         failures: stats.corotational_failures.load(Relaxed),
         residual: f64::from_bits(c.residual_bits.load(Relaxed)),
+        corrections: c.corrections.load(Relaxed),
+        correction_iterations_mean: c.correction_iterations_sum.load(Relaxed) as f64 / c.corrections.load(Relaxed).max(1) as f64,
+        correction_iterations_max: c.correction_iterations_max.load(Relaxed),
+        corrections_unconverged: c.corrections_unconverged.load(Relaxed),
         corrected_ticks: counter(|s| &s.corrected_ticks),
         refused_corrections: counter(|s| &s.refused_corrections),
         landings,
