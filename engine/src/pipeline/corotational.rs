@@ -277,12 +277,16 @@ pub fn deformed_compliance(
 
 /// The error estimate (N) of a force `f` a blended rotation correction shaped, against the
 /// co-rotational model's tangent at the deformation shown: `|f − f_target| + max_± |f_± −
-/// f_target|`, with `f_target` the force under the latest correction fully blended in and
-/// `f_±` under that correction plus or minus its spread ([`Correction::spread`]; each `None`
-/// where that compliance is not positive definite, and then so is the estimate). The first
-/// term is what the blend has still to move; the second, what the correction's solve left.
-pub fn corrected_force_error(f: [f64; 3], target: Option<[f64; 3]>, plus: Option<[f64; 3]>, minus: Option<[f64; 3]>) -> Option<f64> {
-    let (t, a, b) = (target?, plus?, minus?);
+/// f_target|`, with `force(ΔC)` the force the tick serves under a correction `ΔC`,
+/// `f_target = force(target.delta)` under the latest correction fully blended in and
+/// `f_± = force(target.delta ± target.spread)` ([`Correction::spread`]; `None` where `force`
+/// has none — the compliance is not positive definite —, and then so is the estimate). The
+/// first term is what the blend has still to move; the second, what the correction's solve
+/// left. No allocation (the tick's).
+pub fn corrected_force_error(f: [f64; 3], target: &Correction, force: impl Fn([[f64; 3]; 3]) -> Option<[f64; 3]>) -> Option<f64> {
+    let shifted =
+        |sign: f64| -> [[f64; 3]; 3] { std::array::from_fn(|i| std::array::from_fn(|j| target.delta[i][j] + sign * target.spread[i][j])) };
+    let (t, a, b) = (force(target.delta)?, force(shifted(1.0))?, force(shifted(-1.0))?);
     let dist = |u: [f64; 3], v: [f64; 3]| (0..3).map(|k| (u[k] - v[k]).powi(2)).sum::<f64>().sqrt();
     Some(dist(f, t) + dist(a, t).max(dist(b, t)))
 }
@@ -697,7 +701,8 @@ impl CorotationalDeformation {
             let k = model.tangent(s.frames.d());
             (deformed_compliance(model, &k, warped, c), contact_compliance(model, &s.rest, c))
         });
-        let delta: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cw[i][j] - 0.5 * (c0[i][j] + c0[j][i])));
+        // both symmetric (`gram`)
+        let delta: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|j| cw[i][j] - c0[i][j]));
         delta.iter().flatten().all(|v| v.is_finite()).then_some((delta, spread, solve))
     }
 

@@ -496,19 +496,9 @@ impl Effect for Cutting {
             let cut_error = force_error(self.view.discontinuous(), self.bare_error, tissue);
             state.force_error_n = match now {
                 None => cut_error,
-                Some(_) => {
-                    let t = self.blend.target();
-                    let shifted = |sign: f64| -> [[f64; 3]; 3] {
-                        std::array::from_fn(|i| std::array::from_fn(|j| t.delta[i][j] + sign * t.spread[i][j]))
-                    };
-                    let lag = super::corotational::corrected_force_error(
-                        tissue,
-                        force(Some(t.delta)),
-                        force(Some(shifted(1.0))),
-                        force(Some(shifted(-1.0))),
-                    );
-                    lag.zip(cut_error).map(|(a, b)| a + b)
-                }
+                Some(_) => super::corotational::corrected_force_error(tissue, self.blend.target(), |d| force(Some(d)))
+                    .zip(cut_error)
+                    .map(|(a, b)| a + b),
             };
         }
         if tool.kind != ToolKind::Scalpel {

@@ -192,9 +192,7 @@ pub fn corotational_samples(
     let model = crate::xfem::corotational::CorotationalXfem::new(mesh, materials, problem, &enr).map_err(|e| e.to_string())?;
     let rest = model.factor_at(&vec![0.0; 3 * mesh.n_nodes()], None).map_err(|e| e.to_string())?;
     let c0 = contact_compliance(&model, &rest, contact);
-    let add = |a: [[f64; 3]; 3], b: [[f64; 3]; 3], s: f64| -> [[f64; 3]; 3] {
-        std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + s * b[i][j]))
-    };
+    let add = |a: [[f64; 3]; 3], b: [[f64; 3]; 3]| -> [[f64; 3]; 3] { std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + b[i][j])) };
     let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
     let point_m: [f64; 3] = std::array::from_fn(|i| (0..3).map(|v| contact.weights[v] * mesh.nodes[contact.nodes[v]][i]).sum());
     let mut blend = Blend::default();
@@ -205,20 +203,14 @@ pub fn corotational_samples(
         def.step(None, Some(&c)).map_err(|e| e.to_string())?;
         let truth = contact_compliance(&model, &model.factor_at(def.d(), None).map_err(|e| e.to_string())?, &c);
         let delta: [f64; 3] = std::array::from_fn(|i| (0..3).map(|j| truth[i][j] * c.tissue_force_n[j]).sum());
-        let force = |dc: [[f64; 3]; 3]| crate::pgd::Vademecum::contact_force(&add(c0, dc, 1.0), delta);
+        let force = |dc: [[f64; 3]; 3]| crate::pgd::Vademecum::contact_force(&add(c0, dc), delta);
         for _ in 0..BLEND_TICKS {
             blend.land(*out.read(), Some(&c.nodes));
             let Some(now) = blend.delta(&c.nodes, blend.ticks()) else {
                 continue;
             };
             let f = force(now);
-            let t = blend.target();
-            let Some(e) = corrected_force_error(
-                f,
-                Some(force(t.delta)),
-                Some(force(add(t.delta, t.spread, 1.0))),
-                Some(force(add(t.delta, t.spread, -1.0))),
-            ) else {
+            let Some(e) = corrected_force_error(f, blend.target(), |d| Some(force(d))) else {
                 continue;
             };
             out_samples.push(Sample {
