@@ -154,6 +154,58 @@ fn bordering_step_by_step_equals_cutting_at_once() {
 }
 
 #[test]
+fn the_contact_table_answers_the_forward_substitution_as_the_cut_grows() {
+    // a model keeping the contact table of the patch's loadable nodes against the same model
+    // without one, after every step of a cut that grows, at patches of tabulated nodes (the
+    // table's answer) and with a node outside it (the substitution's): the same compliance
+    let scene = Scene::builtin("patch").unwrap();
+    let b = built(&scene, 1e-4);
+    let m = &b.model;
+    let params = XfemParams::default();
+    let cut = |depth: f64| Cut::swept(&[([2.0, -0.1, 5.1], [2.0, 1.1, 5.1]), ([2.0, -0.1, depth], [2.0, 1.1, depth])]).unwrap();
+    let loadable = b.vademecum.load_nodes().to_vec();
+    let other = (0..m.mesh.n_nodes()).find(|a| !loadable.contains(a)).unwrap();
+    for disc in [Discontinuous::Bare, Discontinuous::LocalFields] {
+        let (mut plain, mut kept) = (reduced(&b, RitzBasis::Srb, disc), reduced(&b, RitzBasis::Srb, disc));
+        kept.tabulate(&loadable);
+        assert_eq!(kept.table_bytes() > 0, !loadable.is_empty());
+        for depth in [4.0, 3.0, 2.0] {
+            let cells = Enrichment::cut_cells(&m.mesh, &cut(depth), &params).unwrap();
+            plain.cut(&m.mesh, &cells).unwrap();
+            let up = kept.cut(&m.mesh, &cells).unwrap();
+            assert!(up.tabulating_s >= 0.0);
+            let (mut p, mut k) = (plain.view(), kept.view());
+            let mut largest = 0.0f64;
+            for (n, &a) in loadable.iter().enumerate() {
+                let c = loadable[(n + 1) % loadable.len()];
+                // every fifth patch with a node out of the table, every seventh with it at
+                // zero weight (a contact's node the vademecum cannot load)
+                let third = if n % 5 == 0 || n % 7 == 0 {
+                    other
+                } else {
+                    loadable[(n + 2) % loadable.len()]
+                };
+                let w = if n % 7 == 0 { [0.6, 0.4, 0.0] } else { [0.5, 0.3, 0.2] };
+                let nodes = [a, c, third];
+                for (x, y) in [
+                    (p.added_compliance(&nodes, &w), k.added_compliance(&nodes, &w)),
+                    (p.contact_compliance(&nodes, &w), k.contact_compliance(&nodes, &w)),
+                ] {
+                    let scale = x[0][0].abs().max(x[1][1].abs()).max(x[2][2].abs()).max(1e-30);
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            assert!((x[i][j] - y[i][j]).abs() <= 1e-10 * scale, "{disc:?} {nodes:?}: {x:?} {y:?}");
+                        }
+                    }
+                }
+                largest = largest.max(p.added_compliance(&nodes, &w)[2][2]);
+            }
+            assert!(largest > 0.0, "{disc:?}: the cut adds compliance at the top");
+        }
+    }
+}
+
+#[test]
 fn the_cut_compliance_at_a_node_is_the_full_xfem_displacement_per_unit_force() {
     let scene = Scene::builtin("patch").unwrap();
     let b = built(&scene, 1e-4);

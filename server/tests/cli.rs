@@ -645,7 +645,8 @@ fn run_liver_cut_opens_the_smooth_liver_along_the_incision_with_the_co_rotationa
     assert_eq!(shown as u64, c["partial_frames"].as_u64().unwrap(), "{s}");
 
     // `build --target-error` keeps the largest sliver rule whose force on the scene's cut meets
-    // it (the study's liver: 1e-3 within 0.59 %, 1e-2 off by 19 %), and the bundle says so
+    // it (the study's liver: 1e-3 within 0.59 %, 1e-2 off by 19 %), and the bundle says so;
+    // `--target-tick-us` also times the cut's part of a tick on that cut
     let out = dir.path().join("target");
     let o = vademecum(
         &[
@@ -656,12 +657,20 @@ fn run_liver_cut_opens_the_smooth_liver_along_the_incision_with_the_co_rotationa
             out.to_str().unwrap(),
             "--target-error",
             "0.01",
+            "--target-tick-us",
+            "1e6",
             "--json",
         ],
         here,
     );
     assert!(o.status.success(), "stderr: {}", stderr(&o));
     assert!(stderr(&o).contains("cutting: kept the sliver rule 1e-3"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("cutting: the compliance the scene's cut (28 cracked nodes) adds at a contact takes")
+            && stderr(&o).contains("within --target-tick-us 1000000"),
+        "{}",
+        stderr(&o)
+    );
     let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(r[0]["cut"]["sliver"], 1e-3, "{}", r[0]["cut"]);
     assert_eq!(r[0]["cut"]["target"]["tried"].as_array().map(Vec::len), Some(3), "{}", r[0]["cut"]);

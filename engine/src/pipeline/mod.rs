@@ -657,14 +657,15 @@ fn tearing_effect(
 
 /// The reduced cut model a cutting session of organ 0 (`model`, the scene's organ model)
 /// starts from, with the XFEM settings it cuts with: the scene's `fidelity.xfem` at the sliver
-/// rule the bundle chose, the bare enrichment on the basis the bundle stores. Shared by the
-/// session and `vademecum study`'s check of the per-answer estimate.
+/// rule the bundle chose, the bare enrichment on the basis the bundle stores, keeping the
+/// contact table of the vademecum's loadable nodes
+/// ([`crate::xfem::reduced::ReducedCut::tabulate`]). Shared by the session and
+/// `vademecum study`'s check of the per-answer estimate.
 pub fn session_cut_model(
     scene: &Scene,
     model: &crate::scene::OrganModel,
     bundle: &LoadedBundle,
 ) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
-    use crate::xfem::reduced::{Discontinuous, ReducedCut};
     let same = model.mesh.nodes.len() == bundle.nodes.len()
         && model.mesh.nodes.iter().zip(&bundle.nodes).all(|(p, q)| {
             let tol = 1e-9 * (1.0 + p.iter().chain(q).fold(0.0f64, |m, v| m.max(v.abs())));
@@ -673,15 +674,28 @@ pub fn session_cut_model(
     if !same {
         return Err("the bundle was built for another mesh than the scene's; rebuild it with `vademecum build`".into());
     }
+    cut_model(scene, model, &bundle.vademecum, bundle.cut_basis.as_ref(), bundle.cut_sliver()?)
+}
+
+/// [`session_cut_model`] from the parts of a bundle: the vademecum `v` of `model`, the Ritz
+/// basis the build stored for the bare enrichment, the sliver rule it chose (`None`: the
+/// scene's). What `vademecum build --target-tick-us` times before writing the bundle.
+pub fn cut_model(
+    scene: &Scene,
+    model: &crate::scene::OrganModel,
+    v: &crate::pgd::Vademecum,
+    cut_basis: Option<&crate::pgd::offline::CutBasis>,
+    sliver: Option<f64>,
+) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
+    use crate::xfem::reduced::{Discontinuous, ReducedCut};
     let fx = &scene.spec.fidelity.xfem;
     // the sliver rule the build chose for a target, else the scene's
     let params = crate::xfem::XfemParams {
-        sliver: bundle.cut_sliver()?.unwrap_or(fx.sliver),
+        sliver: sliver.unwrap_or(fx.sliver),
         ..fx.params()
     };
-    let v = &bundle.vademecum;
-    let stored = bundle.cut_basis.as_ref().filter(|b| b.basis == fx.basis);
-    let reduced = match (fx.discontinuous, stored) {
+    let stored = cut_basis.filter(|b| b.basis == fx.basis);
+    let mut reduced = match (fx.discontinuous, stored) {
         // the basis the build stored (bundle version 2)
         (Discontinuous::Bare, Some(b)) => ReducedCut::from_basis(
             &model.mesh,
@@ -721,6 +735,8 @@ pub fn session_cut_model(
         }
     }
     .map_err(|e| e.to_string())?;
+    // the compliance at a contact in O(m) for every node the vademecum can load
+    reduced.tabulate(v.load_nodes());
     Ok((reduced, params))
 }
 

@@ -265,7 +265,9 @@ pub struct BuildArgs {
     /// fewest modes meeting the error target (E, or the scene's tolerance) if they do; refuse
     /// (exit 1, no bundle written) saying how many modes and what error fit within T when they
     /// do not. The haptic force costs the same at every number of modes (exact local
-    /// compliances).
+    /// compliances). On a tearing scene also a step of each grasp site's kept modes; on a
+    /// cutting scene also the compliance the scene's cut adds at a contact (at the kept sliver
+    /// rule, from the contact table a session keeps).
     #[arg(long, value_name = "T")]
     pub target_tick_us: Option<f64>,
     /// Print the build report as JSON on stdout.

@@ -138,6 +138,54 @@ fn within_tick(built: &offline::Built, target_us: f64) -> anyhow::Result<Result<
     }))
 }
 
+/// Contacts timed on the cut organ by `--target-tick-us`.
+const TIMED_CUT: usize = 20_000;
+
+/// The cut's part of a tick on organ `i` of a cutting scene, as `--target-tick-us` times it.
+struct CutTick {
+    /// p50 of the compliance the scene's cut adds at a contact (µs).
+    p50_us: f64,
+    /// p50 of a null loop timed the same way (µs).
+    null_us: f64,
+    /// Nodes the scene's cut cracks.
+    nodes: usize,
+}
+
+/// The cut's part of a tick (`CutView::added_compliance`, what a session adds to the
+/// vademecum's compliance at every contact once the organ is cut) on the session's own cut
+/// model ([`vademecum_engine::pipeline::cut_model`]: the settings and the sliver rule this build
+/// chose, the contact table), cut along the scene's pre-planned cuts, at the centroids of the
+/// surface triangles around the cracked nodes in turn; `None` on a scene that does not cut
+/// (or whose cut leaves no free surface triangle).
+fn cut_tick(scene: &Scene, built: &Built) -> Result<Option<CutTick>, String> {
+    use vademecum_engine::xfem::accuracy::{crack_triangles, cut_cells};
+    let Some(report) = &built.report.cut else { return Ok(None) };
+    let model = &built.model;
+    let (mut reduced, params) =
+        vademecum_engine::pipeline::cut_model(scene, model, &built.vademecum, built.cut_basis.as_ref(), Some(report.sliver))?;
+    reduced
+        .cut(&model.mesh, &cut_cells(scene, model, &params)?)
+        .map_err(|e| e.to_string())?;
+    let nodes = reduced.enrichment().len();
+    let triangles = crack_triangles(model, reduced.enrichment());
+    if triangles.is_empty() {
+        return Ok(None);
+    }
+    let mut view = reduced.view();
+    let third = 1.0 / 3.0;
+    let mut k = 0usize;
+    let times = super::bench_pgd::time_n(TIMED_CUT, || {
+        k += 1;
+        let c = view.added_compliance(&triangles[k % triangles.len()], &[third; 3]);
+        c[0][0] + c[1][1] + c[2][2]
+    });
+    Ok(Some(CutTick {
+        p50_us: super::bench_pgd::stat("cut", times).p50_us,
+        null_us: super::bench_pgd::stat("null", super::bench_pgd::time_n(TIMED_CUT, || 0.0)).p50_us,
+        nodes,
+    }))
+}
+
 /// Tearing steps timed per grasp site by `--target-tick-us`.
 const TIMED_TEAR_STEPS: usize = 1000;
 
@@ -242,7 +290,7 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
             return Ok(ExitCode::FAILURE);
         }
-        let (mut frame_p50, mut tear_p50) = (None, None);
+        let (mut frame_p50, mut tear_p50, mut cut_p50) = (None, None, None);
         if let Some(t) = a.target_tick_us {
             bar.stage("timing the frames");
             let timed = within_tick(&built, t)?.map(|p50| frame_p50 = Some((p50, t)));
@@ -250,6 +298,19 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 bar.stage("timing the tearing step");
             }
             let timed = timed.and_then(|()| tear_within_tick(&scene, i, &built, t).map(|p| tear_p50 = Some(p)));
+            if built.report.cut.is_some() && timed.is_ok() {
+                bar.stage("timing the cut's compliance at the scene's cut");
+            }
+            let timed = timed.and_then(|()| {
+                cut_p50 = cut_tick(&scene, &built)?;
+                match &cut_p50 {
+                    Some(c) if c.p50_us > t => Err(format!(
+                        "cutting: the compliance the scene's cut ({} cracked nodes) adds at a contact takes {:.2} µs (p50 on this machine; null loop {:.2} µs), over --target-tick-us {t}; it has no cheaper setting than the contact table it is read from (a larger sliver rule, which --target-error picks, cracks fewer nodes)",
+                        c.nodes, c.p50_us, c.null_us
+                    )),
+                    _ => Ok(()),
+                }
+            });
             if let Err(why) = timed {
                 bar.finish();
                 eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
@@ -292,6 +353,12 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 eprintln!(
                     "organ '{name}': tearing{site}: a step of its PGD modes {:?} takes {p50:.2} µs (p50 on this machine, pulled in every direction; null loop {null:.2} µs), within --target-tick-us {t}",
                     b.pattern_modes
+                );
+            }
+            if let Some(c) = &cut_p50 {
+                eprintln!(
+                    "organ '{name}': cutting: the compliance the scene's cut ({} cracked nodes) adds at a contact takes {:.2} µs (p50 on this machine; null loop {:.2} µs), within --target-tick-us {t}",
+                    c.nodes, c.p50_us, c.null_us
                 );
             }
         }

@@ -15,9 +15,10 @@
 //!
 //! Per point: the relative error of the force for a unit imposed displacement along each axis
 //! at cracked surface nodes (median and largest), the enriched nodes, the cut's part of the
-//! tick (`ΔC` at a two-node patch, p50 and p99 beside a null loop), the cut thread's work for
-//! the whole cut (cracking the nodes, bordering the factor), the model's preparation when the
-//! session starts and its bytes. Kept in `cut.json` for the study's build.
+//! tick (`ΔC` at a two-node patch from the contact table a session keeps, p50 and p99 beside a
+//! null loop), the cut thread's work for the whole cut (cracking the nodes, bordering the
+//! factor, extending the contact table), the model's preparation when the session starts and
+//! its bytes. Kept in `cut.json` for the study's build.
 //!
 //! [`CutView::added_compliance`]: vademecum_engine::xfem::reduced::CutView::added_compliance
 
@@ -100,6 +101,7 @@ fn measure(
     params: &XfemParams,
     cells: &[(usize, Plane)],
     reference: &Reference,
+    load_nodes: &[usize],
 ) -> anyhow::Result<CutPoint> {
     let start = Instant::now();
     let n_dofs = model.mesh.n_dofs();
@@ -116,6 +118,8 @@ fn measure(
     )?;
     let prepare_s = start.elapsed().as_secs_f64();
     let start = Instant::now();
+    // as a session keeps it: the cut's work includes the contact table's
+    r.tabulate(load_nodes);
     r.cut(&model.mesh, cells)?;
     let cut_ms = 1e3 * start.elapsed().as_secs_f64();
     let mut view = r.view();
@@ -230,7 +234,15 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
             bar.inc(1);
             continue;
         }
-        points.push(measure(&model, v.f_raw(), (m, basis, disc), &p, &cells, &reference)?);
+        points.push(measure(
+            &model,
+            v.f_raw(),
+            (m, basis, disc),
+            &p,
+            &cells,
+            &reference,
+            v.load_nodes(),
+        )?);
         bar.inc(1);
     }
     bar.finish_and_clear();
