@@ -175,12 +175,13 @@ fn later_grasps_add_the_damage_the_basis_does_not_see() {
     };
     let third = build::later_grasp(&off, &[build::Prior::along(&off, half), across]).inherited();
     assert!(after_other > 1e-2 && third > 1e-2, "{after_other} {third}");
-    // and the estimate, with it, bounds those grasps against the full-order model (measured:
-    // all 70 of each; with the calibration's envelope alone `vademecum study` found 216 of 280
-    // after another site's pull and 210 of 280 third grasps bounded over the cube's four
-    // sites, the error being there from the first step)
+    // and the estimate, with it, bounds those grasps against the full-order model, and a grasp
+    // after six pulls alternating between the two sites (measured: all 70 of each; with the
+    // calibration's envelope alone `vademecum study` found 216 of 280 after another site's
+    // pull and 210 of 280 third grasps bounded over the cube's four sites, the error being
+    // there from the first step)
     let all = estimate::tear_samples(&off, Some(&other), |_, _| {}).unwrap();
-    for model in [estimate::THIRD_GRASP, estimate::OTHER_SITE] {
+    for model in [estimate::THIRD_GRASP, estimate::OTHER_SITE, estimate::MANY_PULLS] {
         let of: Vec<_> = all.iter().copied().filter(|s| s.model == model).collect();
         let c = Coverage::of(&of);
         assert!(c.samples >= 7 * off.model.schedule.len() / 2, "{model}: {c:?}");

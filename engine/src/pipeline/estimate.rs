@@ -17,8 +17,10 @@
 //!   and a second grasp of tissue a first pull along the load damaged to half the schedule,
 //!   released ([`SECOND_GRASP`], [`crate::damage::build::force_errors_after`]), pulled along
 //!   the load again and in the same mixed directions; a third grasp, after that first pull
-//!   and a second one in the first mixed direction ([`THIRD_GRASP`]); and a grasp of tissue
-//!   another site's pull damaged ([`OTHER_SITE`]) — neither of which the build calibrates.
+//!   and a second one in the first mixed direction ([`THIRD_GRASP`]); a grasp of tissue
+//!   another site's pull damaged ([`OTHER_SITE`]); and a grasp after a long sequence of pulls
+//!   alternating between the two sites in every direction ([`MANY_PULLS`]) — none of which
+//!   the build calibrates.
 //! - **Cutting**: the scene's cut made in the session's own reduced model
 //!   ([`super::session_cut_model`]), pressed at random points of the surface triangles that
 //!   touch a cracked node along each axis, against the full XFEM's compliance there
@@ -64,8 +66,10 @@ pub const TEAR_MIXES: [[f64; 3]; 6] = [
 /// second grasp ([`SECOND_GRASP`]) after a pull along the load; a third ([`THIRD_GRASP`])
 /// after that pull and one in the first of [`TEAR_MIXES`]; and, when `other` (another grasp
 /// site of the same tissue) is given, a grasp after that site's pull along its own load
-/// ([`OTHER_SITE`]). `done(k, n)` after each pull. Empty when the site follows the pull along
-/// its load only (nothing mixes).
+/// ([`OTHER_SITE`]); and a grasp after [`MANY_PULLS_BEFORE`] pulls ([`MANY_PULLS`]):
+/// alternately at this site and the other (this one alone without `other`), along the load
+/// then in the first of [`TEAR_MIXES`] in turn. `done(k, n)` after each pull. Empty when the
+/// site follows the pull along its load only (nothing mixes).
 pub fn tear_samples(
     off: &std::sync::Arc<crate::damage::online::TearOffline>,
     other: Option<&std::sync::Arc<crate::damage::online::TearOffline>>,
@@ -94,9 +98,29 @@ pub fn tear_samples(
         },
     ];
     let mut befores: Vec<(&'static str, Vec<Prior>)> = vec![(SECOND_GRASP, second), (THIRD_GRASP, third)];
-    if let Some(o) = other.filter(|o| o.model.load != off.model.load) {
+    let other = other.filter(|o| o.model.load != off.model.load);
+    if let Some(o) = other {
         befores.push((OTHER_SITE, vec![Prior::along(o, half(o))]));
     }
+    // many pulls: the sites in turn, along their loads first, then across
+    let many = (0..MANY_PULLS_BEFORE)
+        .map(|k| {
+            let site = match other {
+                Some(o) if k % 2 == 1 => o,
+                _ => off,
+            };
+            let round = if other.is_some() { k / 2 } else { k };
+            match round {
+                0 => Prior::along(site, half(site)),
+                r => Prior {
+                    site: site.clone(),
+                    mix: unit(TEAR_MIXES[(r - 1) % TEAR_MIXES.len()]),
+                    steps: half(site),
+                },
+            }
+        })
+        .collect();
+    befores.push((MANY_PULLS, many));
     let later = std::iter::once([1.0, 0.0, 0.0]).chain(TEAR_MIXES);
     let pulls: Vec<(&'static str, &[Prior], [f64; 3])> = TEAR_MIXES
         .iter()
@@ -154,14 +178,22 @@ pub const CUT_BARE: &str = "cutting (bare enrichment)";
 /// The model label of the co-rotational samples ([`corotational_samples`]).
 pub const COROTATIONAL: &str = "cutting (co-rotational correction)";
 
+/// The model label of the tearing samples of a grasp after a long sequence of pulls at two
+/// sites ([`tear_samples`]).
+pub const MANY_PULLS: &str = "tearing (after many pulls)";
+
+/// The pulls before a [`MANY_PULLS`] grasp.
+pub const MANY_PULLS_BEFORE: usize = 6;
+
 /// Every model label of the samples, in the order reports list them.
-pub const MODELS: [&str; 9] = [
+pub const MODELS: [&str; 10] = [
     "linear",
     "large",
     "tearing",
     SECOND_GRASP,
     THIRD_GRASP,
     OTHER_SITE,
+    MANY_PULLS,
     CUT,
     CUT_BARE,
     COROTATIONAL,

@@ -18,9 +18,9 @@ use vademecum_engine::scene::schema::DeformationModel;
 pub(super) const REQUIRED: f64 = 0.95;
 
 /// The version of the set of states the check samples: 2 added the third grasps and the grasps
-/// after another site's pull, 3 the cut organ, 4 the co-rotational press (a record without it
-/// is of version 0, redone).
-const SAMPLES: u32 = 4;
+/// after another site's pull, 3 the cut organ, 4 the co-rotational press, 5 the grasps after
+/// many pulls (a record without it is of version 0, redone).
+const SAMPLES: u32 = 5;
 
 /// Contact points of the cut organ sampled (each pressed along the three axes; six full XFEM
 /// solves each).
@@ -263,7 +263,7 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
     // (model, past the paths, legend, colour): the two cutting models never share a scene
-    let groups: [(&str, bool, &str, usize); 10] = [
+    let groups: [(&str, bool, &str, usize); 11] = [
         ("linear", false, "linear law", 0),
         ("large", false, "large deformations, within the lattice's paths", 1),
         ("large", true, "large deformations, past the paths", 2),
@@ -271,6 +271,7 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         (estimate::SECOND_GRASP, false, "tearing, a second grasp of damaged tissue", 4),
         (estimate::THIRD_GRASP, false, "tearing, a third grasp", 5),
         (estimate::OTHER_SITE, false, "tearing, after another site's pull", 6),
+        (estimate::MANY_PULLS, false, "tearing, after six pulls at two sites", 1),
         (estimate::CUT, false, "cutting, between the cracked nodes", 7),
         (estimate::CUT_BARE, false, "cutting, bare enrichment, between the cracked nodes", 7),
         (estimate::COROTATIONAL, false, "cutting, a co-rotational press", 4),
