@@ -31,7 +31,9 @@
 //!   stepped frame by frame as a session's frame thread steps it and each frame's ticks served
 //!   as the cutting effect serves them (the latest correction blended in), against the
 //!   co-rotational model's compliance at the deformation shown — a fresh factor of its warped
-//!   stiffness at each frame's state ([`corotational_samples`], [`COROTATIONAL`]).
+//!   stiffness at each frame's state ([`corotational_samples`]); on the uncut organ
+//!   ([`COROTATIONAL`]) and on the organ cut by the scene's cut, pressed next to it
+//!   ([`COROTATIONAL_CUT`]).
 
 use super::palpation::LINEAR_RELATIVE_ERROR;
 use crate::pgd::Vademecum;
@@ -175,8 +177,11 @@ pub const CUT: &str = "cutting";
 /// The model label of the cutting samples with the bare enrichment ([`cut_samples`]).
 pub const CUT_BARE: &str = "cutting (bare enrichment)";
 
-/// The model label of the co-rotational samples ([`corotational_samples`]).
+/// The model label of the co-rotational samples of an uncut organ ([`corotational_samples`]).
 pub const COROTATIONAL: &str = "cutting (co-rotational correction)";
+
+/// The model label of the co-rotational samples of a cut organ ([`corotational_samples`]).
+pub const COROTATIONAL_CUT: &str = "cutting (co-rotational correction, cut organ)";
 
 /// The model label of the tearing samples of a grasp after a long sequence of pulls at two
 /// sites ([`tear_samples`]).
@@ -186,7 +191,7 @@ pub const MANY_PULLS: &str = "tearing (after many pulls)";
 pub const MANY_PULLS_BEFORE: usize = 6;
 
 /// Every model label of the samples, in the order reports list them.
-pub const MODELS: [&str; 10] = [
+pub const MODELS: [&str; 11] = [
     "linear",
     "large",
     "tearing",
@@ -197,6 +202,7 @@ pub const MODELS: [&str; 10] = [
     CUT,
     CUT_BARE,
     COROTATIONAL,
+    COROTATIONAL_CUT,
 ];
 
 /// Frames over which [`corotational_samples`] ramps the tool's force in (two seconds at
@@ -204,7 +210,8 @@ pub const MODELS: [&str; 10] = [
 pub const RAMP: u32 = 60;
 
 /// The co-rotational samples (module docs) of an organ (`mesh`, `materials`, `problem` with
-/// the scene's loads, as a session's deformation takes them), pressed at `contact` (its
+/// the scene's loads, as a session's deformation takes them), cut by `cut` if given (the
+/// deformation takes it before the first frame), pressed at `contact` (its
 /// tissue force the full one, ramped in over [`RAMP`] frames then held as long): one sample
 /// per tick, [`super::corotational::BLEND_TICKS`] ticks a frame, each the force served under
 /// the blended correction for the imposed displacement under which the deformation's own
@@ -217,12 +224,26 @@ pub fn corotational_samples(
     materials: &crate::fem::assembly::MaterialMap,
     problem: &crate::fem::linear_static::StaticProblem,
     contact: &super::Contact,
+    cut: Option<&std::sync::Arc<crate::xfem::Enrichment>>,
 ) -> Result<Vec<Sample>, String> {
     use super::corotational::{BLEND_TICKS, Blend, CorotationalDeformation, contact_compliance, corrected_force_error};
     let (mut def, mut out) = CorotationalDeformation::new(0, mesh.clone(), materials.clone(), problem.clone(), None)?;
-    let enr = crate::xfem::Enrichment::from_cut_cells(mesh, &[], &crate::xfem::XfemParams::default()).map_err(|e| e.to_string())?;
-    let model = crate::xfem::corotational::CorotationalXfem::new(mesh, materials, problem, &enr).map_err(|e| e.to_string())?;
-    let rest = model.factor_at(&vec![0.0; 3 * mesh.n_nodes()], None).map_err(|e| e.to_string())?;
+    let uncut;
+    let enr = match cut {
+        Some(e) => {
+            // the deformation takes the cut as a session's first frame after it landed would
+            if def.step(Some((1, e)), None).map_err(|e| e.to_string())?.refused_cut {
+                return Err(def.failure().unwrap_or("the co-rotational model refused the cut").to_string());
+            }
+            &**e
+        }
+        None => {
+            uncut = crate::xfem::Enrichment::from_cut_cells(mesh, &[], &crate::xfem::XfemParams::default()).map_err(|e| e.to_string())?;
+            &uncut
+        }
+    };
+    let model = crate::xfem::corotational::CorotationalXfem::new(mesh, materials, problem, enr).map_err(|e| e.to_string())?;
+    let rest = model.factor_at(&vec![0.0; model.n_dofs()], None).map_err(|e| e.to_string())?;
     let c0 = contact_compliance(&model, &rest, contact);
     let add = |a: [[f64; 3]; 3], b: [[f64; 3]; 3]| -> [[f64; 3]; 3] { std::array::from_fn(|i| std::array::from_fn(|j| a[i][j] + b[i][j])) };
     let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -246,7 +267,7 @@ pub fn corotational_samples(
                 continue;
             };
             out_samples.push(Sample {
-                model: COROTATIONAL,
+                model: if cut.is_some() { COROTATIONAL_CUT } else { COROTATIONAL },
                 point_m,
                 depth_m: 0.0,
                 beyond_range: false,

@@ -19,8 +19,9 @@ pub(super) const REQUIRED: f64 = 0.95;
 
 /// The version of the set of states the check samples: 2 added the third grasps and the grasps
 /// after another site's pull, 3 the cut organ, 4 the co-rotational press, 5 the grasps after
-/// many pulls (a record without it is of version 0, redone).
-const SAMPLES: u32 = 5;
+/// many pulls, 6 the co-rotational press beside the cut (a record without it is of version 0,
+/// redone).
+const SAMPLES: u32 = 6;
 
 /// Contact points of the cut organ sampled (each pressed along the three axes; six full XFEM
 /// solves each).
@@ -110,9 +111,21 @@ pub(super) fn check(
     }
     if scene.spec.effects.cutting && scene.spec.fidelity.cutting == vademecum_engine::scene::schema::CuttingModel::CorotationalXfem {
         bar.set_message("error estimate: a co-rotational press, each tick against the deformation's own compliance");
-        if let Some(contact) = press(&model, bundle) {
+        if let Some(contact) = press(&model, bundle, |_| true) {
             samples.extend(
-                estimate::corotational_samples(&model.mesh, &model.materials, &model.problem, &contact).map_err(anyhow::Error::msg)?,
+                estimate::corotational_samples(&model.mesh, &model.materials, &model.problem, &contact, None)
+                    .map_err(anyhow::Error::msg)?,
+            );
+        }
+        // the same beside the scene's cut, on the organ cut by it
+        bar.set_message("error estimate: a co-rotational press beside the cut, each tick against the deformation's own compliance");
+        let (_, params) = vademecum_engine::pipeline::session_cut_model(scene, &model, bundle).map_err(anyhow::Error::msg)?;
+        let cells = vademecum_engine::xfem::accuracy::cut_cells(scene, &model, &params).map_err(anyhow::Error::msg)?;
+        let cut = std::sync::Arc::new(vademecum_engine::xfem::Enrichment::from_cut_cells(&model.mesh, &cells, &params)?);
+        if let Some(contact) = press(&model, bundle, |t| t.iter().any(|&a| cut.index(a).is_some())) {
+            samples.extend(
+                estimate::corotational_samples(&model.mesh, &model.materials, &model.problem, &contact, Some(&cut))
+                    .map_err(anyhow::Error::msg)?,
             );
         }
     }
@@ -158,17 +171,22 @@ pub(super) fn check(
 const PRESS_DEPTH: f64 = 0.1;
 
 /// A press into organ `model` at the centroid of its highest accessible surface triangle (all
-/// three nodes accessible and free), along the triangle's inward normal, with the force that
+/// three nodes accessible and free) of those `near` keeps, along the triangle's inward normal,
+/// with the force that
 /// pushes it [`PRESS_DEPTH`] of the organ's smallest extent deep by the linear law (the
 /// vademecum's exact compliance there, `bundle`): rotations of a few degrees to tens.
-fn press(model: &vademecum_engine::scene::OrganModel, bundle: &LoadedBundle) -> Option<vademecum_engine::pipeline::Contact> {
+fn press(
+    model: &vademecum_engine::scene::OrganModel,
+    bundle: &LoadedBundle,
+    near: impl Fn(&[usize; 3]) -> bool,
+) -> Option<vademecum_engine::pipeline::Contact> {
     use vademecum_engine::mesh::boundary::triangle_area_normal;
     let free = |a: usize| !(0..3).any(|i| model.problem.constrained[3 * a + i]);
     let top = model
         .boundary
         .triangles()
         .into_iter()
-        .filter(|t| t.iter().all(|&a| free(a) && model.accessible_nodes.contains(&a)))
+        .filter(|t| near(t) && t.iter().all(|&a| free(a) && model.accessible_nodes.contains(&a)))
         .max_by(|a, b| {
             let z = |t: &[usize; 3]| t.iter().map(|&n| model.mesh.nodes[n][2]).sum::<f64>();
             z(a).total_cmp(&z(b))
@@ -263,7 +281,7 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
     // (model, past the paths, legend, colour): the two cutting models never share a scene
-    let groups: [(&str, bool, &str, usize); 11] = [
+    let groups: [(&str, bool, &str, usize); 12] = [
         ("linear", false, "linear law", 0),
         ("large", false, "large deformations, within the lattice's paths", 1),
         ("large", true, "large deformations, past the paths", 2),
@@ -275,6 +293,12 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         (estimate::CUT, false, "cutting, between the cracked nodes", 7),
         (estimate::CUT_BARE, false, "cutting, bare enrichment, between the cracked nodes", 7),
         (estimate::COROTATIONAL, false, "cutting, a co-rotational press", 4),
+        (
+            estimate::COROTATIONAL_CUT,
+            false,
+            "cutting, a co-rotational press beside the cut",
+            5,
+        ),
     ];
     for (model, beyond, label, k) in groups {
         let color = super::bench_anm::PALETTE[k];
