@@ -340,8 +340,20 @@ pub fn patch_samples(
     count: usize,
     progress: impl FnMut(usize, usize),
 ) -> Result<Vec<PatchSample>, String> {
-    let cells = cut_cells(scene, model, params)?;
-    let cut = Enrichment::from_cut_cells(&model.mesh, &cells, params).map_err(|e| e.to_string())?;
+    patch_samples_of(model, params, &cut_cells(scene, model, params)?, view, count, progress)
+}
+
+/// [`patch_samples`] on the cut of the cells `cells` (each with its plane), which `view` must
+/// hold.
+pub fn patch_samples_of(
+    model: &OrganModel,
+    params: &XfemParams,
+    cells: &[(usize, Plane)],
+    view: &mut super::reduced::CutView,
+    count: usize,
+    progress: impl FnMut(usize, usize),
+) -> Result<Vec<PatchSample>, String> {
+    let cut = Enrichment::from_cut_cells(&model.mesh, cells, params).map_err(|e| e.to_string())?;
     let tris = crack_triangles(model, &cut);
     if tris.is_empty() {
         return Ok(Vec::new());

@@ -19,9 +19,9 @@ pub(super) const REQUIRED: f64 = 0.95;
 
 /// The version of the set of states the check samples: 2 added the third grasps and the grasps
 /// after another site's pull, 3 the cut organ, 4 the co-rotational press, 5 the grasps after
-/// many pulls, 6 the co-rotational press beside the cut (a record without it is of version 0,
-/// redone).
-const SAMPLES: u32 = 6;
+/// many pulls, 6 the co-rotational press beside the cut, 7 the bare enrichment on the cut
+/// halfway (a record without it is of version 0, redone).
+const SAMPLES: u32 = 7;
 
 /// Contact points of the cut organ sampled (each pressed along the three axes; six full XFEM
 /// solves each).
@@ -281,7 +281,7 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         .label("estimate = error (bounded above)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
     // (model, past the paths, legend, colour): the two cutting models never share a scene
-    let groups: [(&str, bool, &str, usize); 12] = [
+    let groups: [(&str, bool, &str, usize); 13] = [
         ("linear", false, "linear law", 0),
         ("large", false, "large deformations, within the lattice's paths", 1),
         ("large", true, "large deformations, past the paths", 2),
@@ -292,6 +292,7 @@ fn plot(samples: &[Sample], scene: &str, file: &Path) -> anyhow::Result<()> {
         (estimate::MANY_PULLS, false, "tearing, after six pulls at two sites", 1),
         (estimate::CUT, false, "cutting, between the cracked nodes", 7),
         (estimate::CUT_BARE, false, "cutting, bare enrichment, between the cracked nodes", 7),
+        (estimate::CUT_BARE_HALFWAY, false, "cutting, bare enrichment, the cut halfway", 3),
         (estimate::COROTATIONAL, false, "cutting, a co-rotational press", 4),
         (
             estimate::COROTATIONAL_CUT,
