@@ -200,6 +200,11 @@ impl std::fmt::Display for RealtimeStatus {
 /// Asks for `SCHED_FIFO` at `priority` (when `Some`) and pins the calling thread to `cpu`
 /// (when `Some`); whatever the OS refuses is reported, never fatal.
 ///
+/// The policy is the calling thread's alone: it is set with `SCHED_RESET_ON_FORK`, so a thread
+/// or process the real-time thread starts later runs with normal scheduling (a library's
+/// helper thread spawned from the loop never competes with it at its priority). The threads
+/// started before keep theirs.
+///
 /// Busy-polling under `SCHED_FIFO` trips the kernel's real-time throttle (a ~50 ms stall
 /// every second by default), so callers ask for FIFO only with [`WaitStrategy::Sleep`] or
 /// [`WaitStrategy::Hybrid`].
@@ -209,7 +214,7 @@ pub fn request_realtime(priority: Option<i32>, cpu: Option<usize>) -> RealtimeSt
         Some(p) => {
             let param = libc::sched_param { sched_priority: p };
             // SAFETY: plain syscall on the calling thread with a valid parameter struct.
-            let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+            let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK, &param) };
             if rc == 0 {
                 Ok(p)
             } else {
@@ -269,6 +274,32 @@ mod tests {
             n == 3
         }));
         assert_eq!(n, 3);
+    }
+
+    /// The calling thread's scheduling policy, without the reset-on-fork flag, and the flag.
+    fn policy() -> (i32, bool) {
+        // SAFETY: plain syscall on the calling thread.
+        let p = unsafe { libc::sched_getscheduler(0) };
+        (p & !libc::SCHED_RESET_ON_FORK, p & libc::SCHED_RESET_ON_FORK != 0)
+    }
+
+    #[test]
+    fn only_the_thread_that_asks_runs_under_sched_fifo() {
+        // in a thread of its own, which ends with the test
+        std::thread::spawn(|| {
+            let rt = request_realtime(Some(10), None);
+            if let Err(why) = &rt.fifo {
+                eprintln!("skipped: SCHED_FIFO is not permitted here ({why})");
+                assert_eq!(policy().0, libc::SCHED_OTHER);
+                return;
+            }
+            assert_eq!(policy(), (libc::SCHED_FIFO, true));
+            // a thread it starts does not inherit the policy
+            let child = std::thread::spawn(policy).join().unwrap();
+            assert_eq!(child, (libc::SCHED_OTHER, false));
+        })
+        .join()
+        .unwrap();
     }
 
     #[test]
