@@ -368,6 +368,41 @@ fn tls_with_tokens_serves_remote_clients_and_refuses_plain_ones() {
     });
 }
 
+/// `vademecum health`, the probe a container's HEALTHCHECK runs (its image has no shell): 0 when
+/// the server serves, 1 for a service it does not know, 2 when nothing answers; no token needed.
+#[test]
+fn the_health_probe_says_whether_the_server_serves_by_its_exit_status() {
+    let probe = |args: &[&str]| {
+        let o = std::process::Command::new(util::vademecum_bin())
+            .arg("health")
+            .args(args)
+            .output()
+            .expect("vademecum runs");
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stdout).into_owned(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let mut server = util::Server::start(&[], &[("VADEMECUM_TOKENS", "t")]);
+    let (code, out, _) = probe(&["--addr", &server.url]);
+    assert_eq!(code, Some(0), "{out}");
+    assert!(out.contains("is serving"), "{out}");
+    let (code, _, _) = probe(&["--addr", &server.url, "--service", "vademecum.v1.Interaction"]);
+    assert_eq!(code, Some(0));
+    let (code, out, _) = probe(&["--addr", &server.url, "--service", "no.such.Service"]);
+    assert_eq!(code, Some(1), "{out}");
+    assert!(out.contains("SERVICE_UNKNOWN"), "{out}");
+    // nothing listening any more: an error, said, within the deadline
+    let url = server.url.clone();
+    server.kill();
+    let (code, _, err) = probe(&["--addr", &url, "--timeout", "5"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("cannot connect") || err.contains("no answer"), "{err}");
+    let (code, _, err) = probe(&["--addr", "not a url"]);
+    assert_eq!(code, Some(2), "{err}");
+}
+
 #[test]
 fn the_standard_health_service_and_reflection_describe_the_server() {
     use tonic_health::pb::{HealthCheckRequest, health_check_response::ServingStatus, health_client::HealthClient};

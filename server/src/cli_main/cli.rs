@@ -79,6 +79,14 @@ its token. Without either, --no-auth must be given; an empty token source is an 
 for remote clients. Limits: requests up to 1 MiB (an inline scene), responses up to 64 MiB (the \
 geometry of a large organ).")]
     Serve(ServeArgs),
+    /// Ask a running server whether it serves (grpc.health.v1): a probe for container
+    /// healthchecks and orchestrators, no shell or other tool needed.
+    #[command(long_about = "Ask a running server's standard grpc.health.v1 service (unauthenticated) \
+whether it serves, as a container's HEALTHCHECK or an orchestrator's probe would: one Check call, \
+with a deadline.\n\n\
+Exit status: 0 serving; 1 the server answered but does not serve (NOT_SERVING, or the service \
+is unknown); 2 no answer (nothing listening, a timeout, a TLS failure).")]
+    Health(HealthArgs),
     /// Show what is inside a bundle.
     Inspect(InspectArgs),
     /// Inspect meshes.
@@ -126,6 +134,24 @@ out/<scene name>/study."
     /// Measure solver performance.
     #[command(subcommand)]
     Bench(BenchCommand),
+}
+
+/// Arguments of `vademecum health`.
+#[derive(Debug, Args)]
+pub struct HealthArgs {
+    /// The server: `http://HOST:PORT`, or `https://HOST:PORT` for a server with --tls-cert.
+    #[arg(long, default_value = "http://127.0.0.1:50051", value_name = "URL")]
+    pub addr: String,
+    /// The service to ask about (e.g. `vademecum.v1.Sessions`); empty: the whole server.
+    #[arg(long, default_value = "")]
+    pub service: String,
+    /// Give up after this many seconds (connecting included).
+    #[arg(long, default_value_t = 3.0, value_name = "S")]
+    pub timeout: f64,
+    /// CA certificate (PEM) to trust for an https:// server (its own certificate when
+    /// self-signed). Default: the platform's roots.
+    #[arg(long, value_name = "PEM")]
+    pub ca: Option<std::path::PathBuf>,
 }
 
 /// Arguments of `vademecum study`.
