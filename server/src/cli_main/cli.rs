@@ -107,8 +107,11 @@ model: --estimate-points random contacts of the linear law against the full mode
 for a scene with large deformations, full Newton at --estimate-nodes surface nodes off the lattice \
 pushed 1.5 times past its force, and, for a tearing scene, the grasp pulled in six directions that mix \
 the load and the two across it against the full-order reference, from virgin tissue and as second \
-and third grasps and after another grasp site's pull. Exit status 1 when it bounds fewer \
-than 95 % of the states.\n\n\
+and third grasps, after another grasp site's pull and after six pulls at two sites; for a cutting \
+scene, points between the cracked nodes of its cut (and, with the bare enrichment, of the cut \
+halfway) against the full XFEM; for co-rotational cutting, a press of the uncut organ and one \
+beside the cut, tick by tick against the deformation's own compliance. Exit status 1 when it \
+bounds fewer than 95 % of the states.\n\n\
 Then, for the effects the scene names: large deformations — the lattice at a quarter, half, one and \
 two times fidelity.large.positions blending 1 or 4 positions, and each path's load steps, POD modes \
 and ANM order, against full Newton; cutting — local fields or bare enrichment on mode prefixes and \
