@@ -108,6 +108,11 @@ struct Args {
     /// server forever).
     #[arg(long, value_name = "S")]
     server_timeout: Option<f64>,
+    /// Say on stderr (once) what to check when no server has opened the channel this many
+    /// seconds after the start (another user, a private /tmp or /dev/shm, another channel
+    /// name); the bridge goes on waiting.
+    #[arg(long, default_value_t = 5.0, value_name = "S", allow_negative_numbers = true)]
+    warn_no_server_after: f64,
     /// Write every tick (position sent, force received, force written, freshness) as CSV.
     #[arg(long, value_name = "CSV")]
     record: Option<PathBuf>,
@@ -288,6 +293,7 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let duration = positive(a.duration, "--duration")?;
     let server_timeout = positive(a.server_timeout, "--server-timeout")?;
+    let warn_no_server = positive(Some(a.warn_no_server_after), "--warn-no-server-after")?.unwrap_or_default();
     if a.wait == WaitStrategy::Event {
         bail!(
             "--wait event is for a session waiting on its bridge (vademecum run --haptic-wait event); the bridge waits for its deadlines with sleep, spin or hybrid"
@@ -340,7 +346,12 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
         a.wait
     );
     eprintln!("vademecum-bridge: running (Ctrl-C to stop)");
-    let out = bridge_loop::run(&mut *device, &mut link, &params, &stop)?;
+    // a thread of its own, started after the loop's thread took its real-time policy (which
+    // it does not inherit) and stopped with the loop
+    let watch = crate::presence::ServerWatch::start(&channel, warn_no_server);
+    let out = bridge_loop::run(&mut *device, &mut link, &params, &stop);
+    drop(watch);
+    let out = out?;
     if let Some(p) = &a.record {
         bridge_loop::write_trace(p, &out.trace).with_context(|| format!("cannot write {}", p.display()))?;
     }

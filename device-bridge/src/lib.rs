@@ -22,6 +22,7 @@ pub mod device;
 pub mod guard;
 pub mod link;
 pub mod peer;
+pub mod presence;
 pub mod profile;
 pub mod tail;
 pub mod timing;

@@ -31,6 +31,40 @@ fn repeated_palpation(record: &Path, reps: usize, out: &Path) {
     std::fs::write(out, csv).unwrap();
 }
 
+/// A bridge whose server never appears (another user, a private /tmp, a wrong channel name)
+/// says what to check, once, and goes on waiting; with its server there it says nothing.
+#[test]
+fn a_bridge_alone_on_its_channel_says_what_to_check() {
+    let ch = channel("alone");
+    let out = Command::new(bridge_bin())
+        .args([
+            "--session",
+            &ch,
+            "--device",
+            "null",
+            "--no-realtime",
+            "--duration",
+            "1.5",
+            "--warn-no-server-after",
+            "0.3",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.matches("no server has opened channel").count(), 1, "{err}");
+    assert!(
+        err.contains("same user") && err.contains("/tmp/iceoryx2") && err.contains("PrivateTmp"),
+        "{err}"
+    );
+    let bad = Command::new(bridge_bin())
+        .args(["--session", &ch, "--device", "null", "--warn-no-server-after", "-1"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--warn-no-server-after must be a positive number"));
+}
+
 #[test]
 fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnects() {
     let dir = tempfile::tempdir().unwrap();
@@ -55,7 +89,7 @@ fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnect
         .arg("--record")
         .arg(&trace)
         .stdout(Stdio::piped())
-        .stderr(Stdio::null())
+        .stderr(Stdio::piped())
         .spawn()
         .unwrap();
     // 12 s at 1 kHz against the first server, then a crash mid-press (the third palpation
@@ -73,6 +107,9 @@ fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnect
         "the bridge waits through the crash and exits cleanly: {:?}",
         out.status
     );
+    // its server was there: no hint about a missing one
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("no server has opened channel"), "{err}");
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(summary["end"], "duration");
 
