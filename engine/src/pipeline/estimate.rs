@@ -303,7 +303,7 @@ pub fn cut_samples(
 ) -> Result<Vec<Sample>, String> {
     use crate::xfem::reduced::Discontinuous;
     let disc = scene.spec.fidelity.xfem.discontinuous;
-    let params = super::session_cut_model(scene, model, bundle)?.1;
+    let params = super::cut_params(scene, bundle.cut_sliver()?);
     let cells = crate::xfem::accuracy::cut_cells(scene, model, &params)?;
     let mut cuts = vec![(&cells[..], if disc == Discontinuous::Bare { CUT_BARE } else { CUT })];
     if disc == Discontinuous::Bare && cells.len() >= 2 {
@@ -316,7 +316,7 @@ pub fn cut_samples(
     for (k, &(cells, label)) in cuts.iter().enumerate() {
         let (mut reduced, _) = super::session_cut_model(scene, model, bundle)?;
         reduced.cut(&model.mesh, cells).map_err(|e| e.to_string())?;
-        let samples = crate::xfem::accuracy::patch_samples_of(model, &params, cells, &mut reduced.view(), count, |done, _| {
+        let samples = crate::xfem::accuracy::patch_samples(model, &params, cells, &mut reduced.view(), count, |done, _| {
             progress(k * count + done, total)
         })?;
         out.extend(samples.into_iter().filter_map(|p| {

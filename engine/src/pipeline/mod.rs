@@ -677,6 +677,16 @@ pub fn session_cut_model(
     cut_model(scene, model, &bundle.vademecum, bundle.cut_basis.as_ref(), bundle.cut_sliver()?)
 }
 
+/// The XFEM settings a session of `scene` cuts with: the scene's `fidelity.xfem` at the sliver
+/// rule `sliver` the build chose for a target (`None`: the scene's).
+pub fn cut_params(scene: &Scene, sliver: Option<f64>) -> crate::xfem::XfemParams {
+    let fx = &scene.spec.fidelity.xfem;
+    crate::xfem::XfemParams {
+        sliver: sliver.unwrap_or(fx.sliver),
+        ..fx.params()
+    }
+}
+
 /// [`session_cut_model`] from the parts of a bundle: the vademecum `v` of `model`, the Ritz
 /// basis the build stored for the bare enrichment, the sliver rule it chose (`None`: the
 /// scene's). What `vademecum build --target-tick-us` times before writing the bundle.
@@ -689,11 +699,7 @@ pub fn cut_model(
 ) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
     use crate::xfem::reduced::{Discontinuous, ReducedCut};
     let fx = &scene.spec.fidelity.xfem;
-    // the sliver rule the build chose for a target, else the scene's
-    let params = crate::xfem::XfemParams {
-        sliver: sliver.unwrap_or(fx.sliver),
-        ..fx.params()
-    };
+    let params = cut_params(scene, sliver);
     let stored = cut_basis.filter(|b| b.basis == fx.basis);
     let mut reduced = match (fx.discontinuous, stored) {
         // the basis the build stored (bundle version 2)

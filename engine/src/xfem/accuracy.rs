@@ -329,23 +329,10 @@ pub fn patch_forces(
     Ok(out)
 }
 
-/// `count` random points of the surface triangles that touch a node the scene's cut cracks
-/// ([`crack_triangles`]), each pressed along the three axes ([`patch_forces`]): `view` is a
-/// session's model already cut by the scene's cut at `params`.
+/// `count` random points of the surface triangles that touch a node the cut of the cells
+/// `cells` (each with its plane) cracks ([`crack_triangles`]), each pressed along the three axes
+/// ([`patch_forces`]): `view` is a session's model already cut by those cells at `params`.
 pub fn patch_samples(
-    scene: &Scene,
-    model: &OrganModel,
-    params: &XfemParams,
-    view: &mut super::reduced::CutView,
-    count: usize,
-    progress: impl FnMut(usize, usize),
-) -> Result<Vec<PatchSample>, String> {
-    patch_samples_of(model, params, &cut_cells(scene, model, params)?, view, count, progress)
-}
-
-/// [`patch_samples`] on the cut of the cells `cells` (each with its plane), which `view` must
-/// hold.
-pub fn patch_samples_of(
     model: &OrganModel,
     params: &XfemParams,
     cells: &[(usize, Plane)],

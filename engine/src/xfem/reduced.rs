@@ -79,6 +79,7 @@ use crate::fem::Locking;
 use crate::fem::assembly::{self, DofMap, MaterialMap, SymmetricPattern};
 use crate::fem::linear_static::StaticProblem;
 use crate::mesh::Mesh;
+use crate::rom::pod::dot;
 
 /// Which Ritz basis carries the continuous part (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -1096,9 +1097,4 @@ impl Bordered {
             }
         }
     }
-}
-
-/// `Σ a_k b_k` over the common length.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(p, q)| p * q).sum()
 }

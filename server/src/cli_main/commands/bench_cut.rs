@@ -18,6 +18,7 @@ use vademecum_engine::meshless::cut::Cut;
 use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::{OrganModel, Scene};
+use vademecum_engine::vec3;
 use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
 use vademecum_engine::xfem::system::{self, XfemSolution};
 use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
@@ -398,7 +399,8 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
             // the contact: the two loadable nodes nearest the first enriched node
             let first = model.mesh.nodes[r.enrichment().nodes[0]];
             let mut near = v.load_nodes().to_vec();
-            near.sort_by(|&p, &q| dist2(model.mesh.nodes[p], first).total_cmp(&dist2(model.mesh.nodes[q], first)));
+            let dist = |p: usize| vec3::norm(vec3::sub(model.mesh.nodes[p], first));
+            near.sort_by(|&p, &q| dist(p).total_cmp(&dist(q)));
             let (a0, a1) = (near[0], *near.get(1).unwrap_or(&near[0]));
             let null = time_n(a.ticks, || black_box(0.0));
             // what a session's tick adds to the vademecum's compliance (the Ritz part, which
@@ -555,9 +557,4 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
         }
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Squared distance between two points.
-fn dist2(p: [f64; 3], q: [f64; 3]) -> f64 {
-    (0..3).map(|k| (p[k] - q[k]).powi(2)).sum()
 }

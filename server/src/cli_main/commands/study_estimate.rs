@@ -119,7 +119,7 @@ pub(super) fn check(
         }
         // the same beside the scene's cut, on the organ cut by it
         bar.set_message("error estimate: a co-rotational press beside the cut, each tick against the deformation's own compliance");
-        let (_, params) = vademecum_engine::pipeline::session_cut_model(scene, &model, bundle).map_err(anyhow::Error::msg)?;
+        let params = vademecum_engine::pipeline::cut_params(scene, bundle.cut_sliver().map_err(anyhow::Error::msg)?);
         let cells = vademecum_engine::xfem::accuracy::cut_cells(scene, &model, &params).map_err(anyhow::Error::msg)?;
         let cut = std::sync::Arc::new(vademecum_engine::xfem::Enrichment::from_cut_cells(&model.mesh, &cells, &params)?);
         if let Some(contact) = press(&model, bundle, |t| t.iter().any(|&a| cut.index(a).is_some())) {
