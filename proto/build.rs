@@ -10,6 +10,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "vademecum/v1/session.proto",
         "vademecum/v1/interaction.proto",
         "vademecum/v1/viewing.proto",
+        "vademecum/v1/fleet.proto",
     ];
     for p in protos {
         println!("cargo:rerun-if-changed={p}");

@@ -125,10 +125,32 @@ pub enum SceneSpec {
 }
 
 /// A connection to a vademecum server.
+///
+/// In a fleet (several servers routing sessions between them, `proto/vademecum/v1/fleet.proto`)
+/// a server may answer that a session lives on another server (`SessionInfo.redirect`): the
+/// [`Session`] handles returned here then talk to that server, with the same token and TLS
+/// settings — the caller does nothing.
 #[derive(Debug, Clone)]
 pub struct Client {
     channel: Channel,
     token: Token,
+    /// What connecting again elsewhere takes (a redirect).
+    how: Reconnect,
+}
+
+/// The settings a [`Client`] was connected with, for following a redirect.
+#[derive(Debug, Clone, Default)]
+struct Reconnect {
+    token: Option<String>,
+    /// CA certificate of a TLS connection (the domain is the redirect's host).
+    ca_pem: Option<Vec<u8>>,
+}
+
+/// The host of a URL like `https://host:port/…` (a TLS domain to check).
+fn host_of(addr: &str) -> &str {
+    let rest = addr.split_once("://").map_or(addr, |(_, r)| r);
+    let end = rest.find([':', '/']).unwrap_or(rest.len());
+    &rest[..end]
 }
 
 impl Client {
@@ -148,7 +170,9 @@ impl Client {
         let tls = tonic::transport::ClientTlsConfig::new()
             .ca_certificate(tonic::transport::Certificate::from_pem(ca_pem))
             .domain_name(domain);
-        Self::connect_with(addr, token, Some(tls)).await
+        let mut c = Self::connect_with(addr, token, Some(tls)).await?;
+        c.how.ca_pem = Some(ca_pem.to_vec());
+        Ok(c)
     }
 
     async fn connect_with(
@@ -157,6 +181,10 @@ impl Client {
         tls: Option<tonic::transport::ClientTlsConfig>,
     ) -> Result<Self, SdkError> {
         let addr = addr.into();
+        let how = Reconnect {
+            token: token.map(String::from),
+            ca_pem: None,
+        };
         let token = match token {
             Some(t) => Token(Some(format!("Bearer {t}").parse().map_err(|_| SdkError::BadToken)?)),
             None => Token(None),
@@ -169,7 +197,20 @@ impl Client {
             })?;
         }
         let channel = endpoint.connect().await.map_err(|source| SdkError::Connect { addr, source })?;
-        Ok(Self { channel, token })
+        Ok(Self { channel, token, how })
+    }
+
+    /// The client to reach a session at: this one, or a connection to the server a fleet's
+    /// redirect names (same token and TLS settings).
+    async fn follow(&self, info: &pb::SessionInfo) -> Result<Client, SdkError> {
+        let Some(to) = info.redirect.as_ref().filter(|r| !r.address.is_empty()) else {
+            return Ok(self.clone());
+        };
+        let token = self.how.token.as_deref();
+        match &self.how.ca_pem {
+            Some(ca) => Self::connect_tls(to.address.clone(), ca, host_of(&to.address), token).await,
+            None => Self::connect_with(to.address.clone(), token, None).await,
+        }
     }
 
     fn svc(&self) -> Svc {
@@ -214,12 +255,12 @@ impl Client {
             .await?
             .into_inner();
         Ok(Session {
-            client: self.clone(),
+            client: self.follow(&info).await?,
             info,
         })
     }
 
-    /// The caller's sessions.
+    /// The caller's sessions (in a fleet: on every server of it, each with its redirect).
     pub async fn list_sessions(&self) -> Result<Vec<pb::SessionInfo>, SdkError> {
         let mut c = pb::sessions_client::SessionsClient::new(self.svc());
         Ok(c.list_sessions(pb::ListSessionsRequest {}).await?.into_inner().sessions)
@@ -230,13 +271,13 @@ impl Client {
         let mut c = pb::sessions_client::SessionsClient::new(self.svc());
         let info = c.get_session(pb::GetSessionRequest { session_id: id.into() }).await?.into_inner();
         Ok(Session {
-            client: self.clone(),
+            client: self.follow(&info).await?,
             info,
         })
     }
 }
 
-/// One session on a server.
+/// One session on a server (the one that holds it, a fleet's redirect followed).
 #[derive(Debug, Clone)]
 pub struct Session {
     client: Client,
@@ -252,6 +293,12 @@ impl Session {
     /// What the server said about it at creation.
     pub fn info(&self) -> &pb::SessionInfo {
         &self.info
+    }
+
+    /// The server the session lives on, when a fleet's front door redirected to it (`None`:
+    /// the server the [`Client`] connected to).
+    pub fn location(&self) -> Option<&pb::SessionLocation> {
+        self.info.redirect.as_ref()
     }
 
     /// Live statistics.
@@ -480,4 +527,17 @@ pub fn f32s(bytes: &[u8]) -> Vec<f32> {
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_host_of_a_redirect_is_its_tls_domain() {
+        assert_eq!(
+            super::host_of("https://vademecum-2.vademecum.lab.svc:50051"),
+            "vademecum-2.vademecum.lab.svc"
+        );
+        assert_eq!(super::host_of("http://10.0.0.7:50051/"), "10.0.0.7");
+        assert_eq!(super::host_of("https://host"), "host");
+    }
 }

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use crate::fleet::FleetConfig;
 use crate::session::{FrameWorkersConfig, SchedulerConfig, SessionConfig};
 
 /// Settings of a server.
@@ -53,6 +54,11 @@ pub struct ServerConfig {
     /// The frame workers that make the sessions' frames (`workers = 0`: a thread per session),
     /// unless `session.framing` names workers already.
     pub frame_workers: FrameWorkersConfig,
+    /// This server's name: in a fleet, its session ids start with it and its load reports
+    /// carry it (the host name by default).
+    pub name: String,
+    /// The fleet this server is a front door of (`None`: it serves its own sessions alone).
+    pub fleet: Option<FleetConfig>,
     /// How a session driven by a device bridge waits for its states (`None`: the hybrid
     /// wait), unless `session.haptic` gives the whole haptic configuration.
     pub haptic_wait: Option<vademecum_bridge::timing::WaitStrategy>,
@@ -81,6 +87,8 @@ impl Default for ServerConfig {
             frame_workers: FrameWorkersConfig::default(),
             device_workers: 0,
             haptic_wait: None,
+            name: "vademecum".into(),
+            fleet: None,
         }
     }
 }

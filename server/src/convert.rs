@@ -192,6 +192,8 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
             .collect(),
         workspace_min_m: Some(pb_vec3(s.workspace().min)),
         workspace_max_m: Some(pb_vec3(s.workspace().max)),
+        // it lives here; a front door that placed it elsewhere sets it
+        redirect: None,
     }
 }
 

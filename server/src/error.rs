@@ -23,6 +23,9 @@ pub enum ServerError {
     /// The caller may not do this.
     #[error("{0}")]
     Denied(String),
+    /// The server takes no new session now (it is draining).
+    #[error("{0}")]
+    Unavailable(String),
     /// Something failed on the server's side.
     #[error("{0}")]
     Internal(String),
@@ -66,6 +69,7 @@ impl From<ServerError> for Status {
             ServerError::Precondition(_) => Code::FailedPrecondition,
             ServerError::Exhausted(_) => Code::ResourceExhausted,
             ServerError::Denied(_) => Code::PermissionDenied,
+            ServerError::Unavailable(_) => Code::Unavailable,
             ServerError::Internal(_) => Code::Internal,
         };
         Status::new(code, bounded(e.to_string()))

@@ -11,6 +11,8 @@
 //! - [`service`]: the gRPC services (`Info`, `Sessions`, `Interaction`, `Viewing`), one thin
 //!   file each; [`convert`] holds every wire ↔ engine conversion, [`error`] the one mapping
 //!   of errors to status codes, [`auth`] the bearer-token interceptor.
+//! - [`fleet`]: a fleet of servers routing sessions between them (placement by load reports,
+//!   redirects, draining).
 //! - [`metrics`]: the Prometheus endpoint. [`config`]: the settings.
 //!
 //! # Shutdown
@@ -27,6 +29,7 @@ pub mod cli_main;
 pub mod config;
 pub mod convert;
 pub mod error;
+pub mod fleet;
 pub mod metrics;
 pub mod registry;
 pub mod service;
@@ -42,7 +45,9 @@ use vademecum_proto::v1 as pb;
 use crate::auth::Auth;
 use crate::config::ServerConfig;
 use crate::registry::Registry;
-use crate::service::{info::InfoService, interaction::InteractionService, sessions::SessionsService, viewing::ViewingService};
+use crate::service::{
+    fleet::FleetService, info::InfoService, interaction::InteractionService, sessions::SessionsService, viewing::ViewingService,
+};
 
 /// Serves the gRPC API on `listener` (and Prometheus metrics on `metrics`, if given) until
 /// `shutdown` resolves.
@@ -87,13 +92,16 @@ pub async fn run(
         .await;
     health.set_serving::<pb::viewing_server::ViewingServer<ViewingService>>().await;
     health.set_serving::<pb::info_server::InfoServer<InfoService>>().await;
+    health.set_serving::<pb::fleet_server::FleetServer<FleetService>>().await;
     let reflection = tonic_reflection::server::Builder::configure()
         .register_encoded_file_descriptor_set(vademecum_proto::FILE_DESCRIPTOR_SET)
         .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
         .build_v1()?;
     let (req, resp) = (config.max_request_bytes, config.max_response_bytes);
+    let peers = config.fleet.as_ref().map(fleet::Peers::new).transpose()?;
     let sessions = pb::sessions_server::SessionsServer::new(SessionsService {
         registry: registry.clone(),
+        peers,
     })
     .max_decoding_message_size(req)
     .max_encoding_message_size(resp);
@@ -108,6 +116,9 @@ pub async fn run(
     .max_decoding_message_size(req)
     .max_encoding_message_size(resp);
     let info = pb::info_server::InfoServer::new(InfoService);
+    let fleet = pb::fleet_server::FleetServer::new(FleetService {
+        registry: registry.clone(),
+    });
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
     let metrics_task = metrics.map(|l| {
         let mut rx = stop_rx.clone();
@@ -132,6 +143,7 @@ pub async fn run(
         .add_service(health_service)
         .add_service(reflection)
         .add_service(InterceptedService::new(info, auth.clone()))
+        .add_service(InterceptedService::new(fleet, auth.clone()))
         .add_service(InterceptedService::new(sessions, auth.clone()))
         .add_service(InterceptedService::new(interaction, auth.clone()))
         .add_service(InterceptedService::new(viewing, auth))

@@ -7,7 +7,7 @@
 
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
-use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 
 use vademecum_engine::pgd::offline::{self, LoadedBundle};
@@ -119,6 +119,8 @@ struct Shared {
     streams: Mutex<StreamCounts>,
     bundles: Mutex<HashMap<PathBuf, Weak<LoadedBundle>>>,
     next: AtomicU64,
+    /// Draining: no new session is created here (`Fleet.Drain`).
+    draining: AtomicBool,
 }
 
 /// A cheap-clone handle on the registry.
@@ -184,6 +186,7 @@ impl Registry {
                 streams: Mutex::new(StreamCounts::default()),
                 bundles: Mutex::new(HashMap::new()),
                 next: AtomicU64::new(1),
+                draining: AtomicBool::new(false),
             }),
         }
     }
@@ -223,9 +226,42 @@ impl Registry {
         })
     }
 
-    /// Why `owner` may not add a session to `sessions`, if it may not: the server holds its
-    /// maximum, or (with authentication) the client its quota.
-    fn session_quota(cfg: &ServerConfig, sessions: &HashMap<String, Arc<Entry>>, owner: &Caller) -> Result<(), ServerError> {
+    /// Starts (`true`) or ends draining: a draining server creates no new session; the
+    /// sessions it holds run on.
+    pub fn set_draining(&self, draining: bool) {
+        self.shared.draining.store(draining, Ordering::Relaxed);
+    }
+
+    /// This server's load report (`Fleet.GetLoad`).
+    pub fn load(&self) -> vademecum_proto::v1::ServerLoad {
+        let cfg = &self.shared.config;
+        let streams = self.shared.streams.lock().unwrap_or_else(|p| p.into_inner()).total;
+        let tick_utilisation = cfg
+            .session
+            .ticking
+            .as_ref()
+            .map_or(0.0, |t| t.utilisation().into_iter().fold(f64::INFINITY, f64::min))
+            .min(1.0);
+        vademecum_proto::v1::ServerLoad {
+            name: cfg.name.clone(),
+            address: cfg.fleet.as_ref().map(|f| f.advertise.clone()).unwrap_or_default(),
+            sessions: u32::try_from(self.sessions().len()).unwrap_or(u32::MAX),
+            max_sessions: u32::try_from(cfg.max_sessions).unwrap_or(u32::MAX),
+            tick_utilisation: if tick_utilisation.is_finite() { tick_utilisation } else { 0.0 },
+            draining: self.shared.draining.load(Ordering::Relaxed),
+            streams: streams[0] + streams[1],
+        }
+    }
+
+    /// Why `owner` may not add a session to `sessions`, if it may not: the server is draining,
+    /// holds its maximum, or (with authentication) the client its quota.
+    fn session_quota(&self, sessions: &HashMap<String, Arc<Entry>>, owner: &Caller) -> Result<(), ServerError> {
+        let cfg = &self.shared.config;
+        if self.shared.draining.load(Ordering::Relaxed) {
+            return Err(ServerError::Unavailable(
+                "this server is draining: it takes no new session (ask another server, or one of its fleet)".into(),
+            ));
+        }
         if sessions.len() >= cfg.max_sessions {
             return Err(ServerError::Exhausted(format!(
                 "the server runs its maximum of {} sessions",
@@ -340,7 +376,7 @@ impl Registry {
         if label.chars().count() > 64 {
             return Err(ServerError::Invalid("label is longer than 64 characters".into()));
         }
-        Self::session_quota(cfg, &self.sessions(), &owner)?;
+        self.session_quota(&self.sessions(), &owner)?;
         let scene = Arc::new(self.load_scene(&source)?);
         let dir = under(&cfg.bundle_root, bundle_dir, "bundle folder")?;
         if !inside(&cfg.bundle_root, &dir) {
@@ -361,7 +397,11 @@ impl Registry {
         let nanos = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos());
-        let id = format!("s{n}-{nanos:08x}");
+        // in a fleet, ids start with the server's name: unique across the fleet
+        let id = match &cfg.fleet {
+            Some(_) => format!("{}-s{n}-{nanos:08x}", cfg.name),
+            None => format!("s{n}-{nanos:08x}"),
+        };
         let mut session_cfg = cfg.session.clone();
         if let Some(name) = haptic {
             let name = if name.is_empty() { id.as_str() } else { name };
@@ -397,7 +437,7 @@ impl Registry {
             closed: tokio::sync::watch::channel(false).0,
         });
         let mut sessions = self.sessions();
-        Self::session_quota(cfg, &sessions, &entry.owner)?;
+        self.session_quota(&sessions, &entry.owner)?;
         sessions.insert(id, entry.clone());
         Ok(entry)
     }

@@ -87,6 +87,18 @@ with a deadline.\n\n\
 Exit status: 0 serving; 1 the server answered but does not serve (NOT_SERVING, or the service \
 is unknown); 2 no answer (nothing listening, a timeout, a TLS failure).")]
     Health(HealthArgs),
+    /// Drain a running server before it stops: it takes no new session, and this waits for
+    /// the sessions it holds to close (a pod's preStop hook; an operator before maintenance).
+    #[command(long_about = "Drain a running server before it stops (Fleet.Drain, asked over loopback: \
+run it on the server's host, as a Kubernetes preStop hook does): the server places no new session on \
+itself from now on — in a fleet its CreateSession goes on placing sessions on its peers — while \
+the sessions it holds run on until their clients close them. This command then waits, printing \
+what is left, until the server holds no session or --wait seconds have passed.\n\n\
+Exit status: 0 the server holds no session; 1 --wait ran out with sessions left (the server \
+closes them when it stops); 2 the server could not be asked. --resume ends draining instead.\n\n\
+With authentication, give a token with --token or VADEMECUM_TOKEN (or VADEMECUM_TOKENS, whose \
+first token is used: a server's own environment).")]
+    Drain(DrainArgs),
     /// Show what is inside a bundle.
     Inspect(InspectArgs),
     /// Inspect meshes.
@@ -153,6 +165,26 @@ pub struct HealthArgs {
     pub timeout: f64,
     /// CA certificate (PEM) to trust for an https:// server (its own certificate when
     /// self-signed). Default: the platform's roots.
+    #[arg(long, value_name = "PEM")]
+    pub ca: Option<std::path::PathBuf>,
+}
+
+/// Arguments of `vademecum drain`.
+#[derive(Debug, Args)]
+pub struct DrainArgs {
+    /// The server, on this host: `http://127.0.0.1:PORT` (or `https://` with --ca).
+    #[arg(long, default_value = "http://127.0.0.1:50051", value_name = "URL")]
+    pub addr: String,
+    /// Wait at most this many seconds for the sessions to close (0: do not wait).
+    #[arg(long, default_value_t = 3600.0, value_name = "S")]
+    pub wait: f64,
+    /// End draining: the server takes new sessions again.
+    #[arg(long)]
+    pub resume: bool,
+    /// Bearer token (default: VADEMECUM_TOKEN, else the first of VADEMECUM_TOKENS).
+    #[arg(long, value_name = "TOKEN")]
+    pub token: Option<String>,
+    /// CA certificate (PEM) to trust for an https:// server.
     #[arg(long, value_name = "PEM")]
     pub ca: Option<std::path::PathBuf>,
 }
@@ -457,6 +489,24 @@ pub struct ServeArgs {
     /// `sleep` (see `vademecum run --haptic-wait`).
     #[arg(long, value_name = "WAIT")]
     pub haptic_wait: Option<vademecum_bridge::timing::WaitStrategy>,
+    /// This server's name (1 to 40 of A-Z a-z 0-9 . _ -): in a fleet its session ids start with
+    /// it. Default: the host name (a pod's name).
+    #[arg(long, value_name = "NAME")]
+    pub name: Option<String>,
+    /// Another server of this server's fleet, as this server reaches it (repeat for each; also
+    /// VADEMECUM_PEERS, comma-separated). With peers, every CreateSession here places the
+    /// session on the least-loaded server of the fleet and answers with a redirect to it
+    /// (proto/vademecum/v1/fleet.proto, deploy/k8s/). Every server of a fleet must accept the
+    /// same tokens.
+    #[arg(long = "peer", value_name = "URL", requires = "advertise")]
+    pub peers: Vec<String>,
+    /// This server's address as clients reach it (put in redirects to it), e.g.
+    /// `http://vademecum-0.vademecum.NAMESPACE.svc.cluster.local:50051`.
+    #[arg(long, value_name = "URL")]
+    pub advertise: Option<String>,
+    /// CA certificate (PEM) that https:// peers' certificates are checked against.
+    #[arg(long, value_name = "PEM")]
+    pub peer_ca: Option<PathBuf>,
 }
 
 /// Arguments of `vademecum inspect`.

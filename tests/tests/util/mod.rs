@@ -65,9 +65,15 @@ impl Server {
     /// Starts `vademecum serve --listen 127.0.0.1:0 extra…` in the shared [`bundles`] folder
     /// with `env` (and `--no-auth` when neither gives tokens), and waits (at most 120 s) for its "listening on" line.
     pub fn start(extra: &[&str], env: &[(&str, &str)]) -> Self {
+        Self::start_at("127.0.0.1:0", extra, env)
+    }
+
+    /// [`Server::start`] listening on `listen` (a fleet's servers are given each other's
+    /// addresses before they start).
+    pub fn start_at(listen: &str, extra: &[&str], env: &[(&str, &str)]) -> Self {
         let dir = bundles();
         let mut cmd = Command::new(vademecum_bin());
-        cmd.args(["serve", "--listen", "127.0.0.1:0"])
+        cmd.args(["serve", "--listen", listen])
             .args(extra)
             .current_dir(dir)
             .env_remove("VADEMECUM_TOKENS")

@@ -43,17 +43,7 @@ pub fn run(a: HealthArgs) -> anyhow::Result<ExitCode> {
 /// One `Check`: the status the server gave, `Ok(Some(ServiceUnknown))` for a service it does
 /// not know (`NOT_FOUND`), an error when it could not be asked.
 async fn check(a: &HealthArgs) -> anyhow::Result<Option<ServingStatus>> {
-    let mut endpoint = tonic::transport::Channel::from_shared(a.addr.clone())
-        .with_context(|| format!("--addr {} is not a URL like http://127.0.0.1:50051", a.addr))?;
-    if a.addr.starts_with("https://") {
-        let mut tls = tonic::transport::ClientTlsConfig::new();
-        if let Some(ca) = &a.ca {
-            let pem = std::fs::read(ca).with_context(|| format!("cannot read CA certificate {}", ca.display()))?;
-            tls = tls.ca_certificate(tonic::transport::Certificate::from_pem(pem));
-        }
-        endpoint = endpoint.tls_config(tls).context("cannot set up TLS")?;
-    }
-    let channel = endpoint.connect().await.with_context(|| format!("cannot connect to {}", a.addr))?;
+    let channel = connect(&a.addr, a.ca.as_deref()).await?;
     let answer = HealthClient::new(channel)
         .check(HealthCheckRequest {
             service: a.service.clone(),
@@ -64,4 +54,19 @@ async fn check(a: &HealthArgs) -> anyhow::Result<Option<ServingStatus>> {
         Err(s) if s.code() == tonic::Code::NotFound => Ok(Some(ServingStatus::ServiceUnknown)),
         Err(s) => Err(anyhow::Error::new(s).context(format!("{} did not answer the health check", a.addr))),
     }
+}
+
+/// A channel to `addr` (`http://` or `https://`, trusting `ca` when given).
+pub(super) async fn connect(addr: &str, ca: Option<&std::path::Path>) -> anyhow::Result<tonic::transport::Channel> {
+    let mut endpoint = tonic::transport::Channel::from_shared(addr.to_string())
+        .with_context(|| format!("--addr {addr} is not a URL like http://127.0.0.1:50051"))?;
+    if addr.starts_with("https://") {
+        let mut tls = tonic::transport::ClientTlsConfig::new();
+        if let Some(ca) = ca {
+            let pem = std::fs::read(ca).with_context(|| format!("cannot read CA certificate {}", ca.display()))?;
+            tls = tls.ca_certificate(tonic::transport::Certificate::from_pem(pem));
+        }
+        endpoint = endpoint.tls_config(tls).context("cannot set up TLS")?;
+    }
+    endpoint.connect().await.with_context(|| format!("cannot connect to {addr}"))
 }

@@ -16,6 +16,7 @@ mod bench_session;
 mod bench_tear;
 mod build;
 mod check;
+mod drain;
 mod health;
 mod inspect;
 mod mesh_info;
@@ -45,6 +46,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Run(a) => run::run(a),
         Command::Serve(a) => serve::run(a),
         Command::Health(a) => health::run(a),
+        Command::Drain(a) => drain::run(a),
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
         Command::Check(CheckCommand::HardCases(a)) => check::hard_cases(a),

@@ -41,6 +41,61 @@ fn tokens(a: &ServeArgs) -> anyhow::Result<Option<Vec<String>>> {
     }
 }
 
+/// The server's name: `--name`, else the host name (a pod's name), else "vademecum".
+fn name(a: &ServeArgs) -> anyhow::Result<String> {
+    if let Some(n) = &a.name {
+        if !crate::fleet::valid_name(n) {
+            bail!("--name '{n}' must be 1 to 40 of A-Z a-z 0-9 . _ -");
+        }
+        return Ok(n.clone());
+    }
+    let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+    let host = host.trim();
+    Ok(if crate::fleet::valid_name(host) { host } else { "vademecum" }.to_string())
+}
+
+/// The fleet settings: `--peer` and VADEMECUM_PEERS, with `--advertise`.
+fn fleet(a: &ServeArgs) -> anyhow::Result<Option<crate::fleet::FleetConfig>> {
+    let mut peers = a.peers.clone();
+    if let Ok(env) = std::env::var("VADEMECUM_PEERS") {
+        peers.extend(env.split(',').map(str::trim).filter(|p| !p.is_empty()).map(String::from));
+    }
+    let Some(advertise) = a.advertise.clone() else {
+        if !peers.is_empty() {
+            bail!("peers given (--peer or VADEMECUM_PEERS) without --advertise: say the address clients reach this server at");
+        }
+        return Ok(None);
+    };
+    for p in peers.iter().chain([&advertise]) {
+        if !(p.starts_with("http://") || p.starts_with("https://")) {
+            bail!("fleet address '{p}' must be a URL like http://host:50051");
+        }
+    }
+    // a server listed among its own peers would place sessions on itself through a hop
+    peers.retain(|p| p != &advertise);
+    let peer_ca = match &a.peer_ca {
+        Some(f) => Some(std::fs::read(f).with_context(|| format!("cannot read --peer-ca {}", f.display()))?),
+        None => None,
+    };
+    Ok(Some(crate::fleet::FleetConfig { advertise, peers, peer_ca }))
+}
+
+/// Resolves on SIGINT (Ctrl-C) or SIGTERM (systemd, Kubernetes, `docker stop`).
+async fn stop_signal() {
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    tokio::select! {
+        _ = tokio::signal::ctrl_c() => {}
+        _ = term => {}
+    }
+}
+
 pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     if a.max_sessions == 0 || a.client_sessions == 0 || a.max_streams == 0 || a.client_streams == 0 {
         bail!("--max-sessions, --client-sessions, --max-streams and --client-streams must be at least 1");
@@ -103,6 +158,8 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             fallback: !a.no_fidelity_fallback,
             ..ServerConfig::default().session
         },
+        name: name(&a)?,
+        fleet: fleet(&a)?,
         ..ServerConfig::default()
     };
     // held while the server runs (released when dropped)
@@ -149,12 +206,18 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
                     "none (every client is 'anonymous')"
                 }
             )?;
+            if let Some(f) = &config.fleet {
+                writeln!(
+                    out,
+                    "fleet: {} at {}, with {} peers (sessions are placed on the least-loaded server)",
+                    config.name,
+                    f.advertise,
+                    f.peers.len()
+                )?;
+            }
             out.flush()?;
         }
-        crate::run(listener, metrics, config, async {
-            let _ = tokio::signal::ctrl_c().await;
-        })
-        .await
+        crate::run(listener, metrics, config, stop_signal()).await
     })?;
     Ok(ExitCode::SUCCESS)
 }
