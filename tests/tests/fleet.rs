@@ -167,5 +167,16 @@ fn a_session_asked_of_any_server_is_placed_redirected_and_survives_a_drain_of_an
         let sixth = a.create_session(scene(), "organ", "sixth").await.unwrap();
         assert_ne!(sixth.location().map(|l| l.server.as_str()), Some("c"));
         assert_eq!(a.list_sessions().await.unwrap().len(), 3, "fifth, third and sixth");
+        // a haptic session stays on the server asked (its channel is on that host), even when
+        // another is less loaded (b holds the third, a nothing now)
+        let b = Client::connect_with_token(urls[1].clone(), Some("t1")).await.unwrap();
+        fifth.close().await.unwrap();
+        sixth.close().await.unwrap();
+        let device = b
+            .create_haptic_session(scene(), "organ", "device", &util::channel("fleet"))
+            .await
+            .unwrap();
+        assert!(device.location().is_none() && device.id().starts_with("b-"), "{}", device.id());
+        device.close().await.unwrap();
     });
 }

@@ -96,8 +96,8 @@ the sessions it holds run on until their clients close them. This command then w
 what is left, until the server holds no session or --wait seconds have passed.\n\n\
 Exit status: 0 the server holds no session; 1 --wait ran out with sessions left (the server \
 closes them when it stops); 2 the server could not be asked. --resume ends draining instead.\n\n\
-With authentication, give a token with --token or VADEMECUM_TOKEN (or VADEMECUM_TOKENS, whose \
-first token is used: a server's own environment).")]
+With authentication, give a token with --token, --tokens-file (the server's own file: its first \
+token is used), VADEMECUM_TOKEN or VADEMECUM_TOKENS (its first token).")]
     Drain(DrainArgs),
     /// Show what is inside a bundle.
     Inspect(InspectArgs),
@@ -181,9 +181,13 @@ pub struct DrainArgs {
     /// End draining: the server takes new sessions again.
     #[arg(long)]
     pub resume: bool,
-    /// Bearer token (default: VADEMECUM_TOKEN, else the first of VADEMECUM_TOKENS).
-    #[arg(long, value_name = "TOKEN")]
+    /// Bearer token (default: the first of --tokens-file, else VADEMECUM_TOKEN, else the first
+    /// of VADEMECUM_TOKENS).
+    #[arg(long, value_name = "TOKEN", conflicts_with = "tokens_file")]
     pub token: Option<String>,
+    /// The server's token file (one token per line, '#' comments): its first token is used.
+    #[arg(long, value_name = "FILE")]
+    pub tokens_file: Option<std::path::PathBuf>,
     /// CA certificate (PEM) to trust for an https:// server.
     #[arg(long, value_name = "PEM")]
     pub ca: Option<std::path::PathBuf>,

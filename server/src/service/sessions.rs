@@ -120,7 +120,9 @@ impl pb::sessions_server::Sessions for SessionsService {
     async fn create_session(&self, req: Request<pb::CreateSessionRequest>) -> Result<Response<pb::SessionInfo>, Status> {
         let owner = caller(&req)?;
         let (metadata, _, r) = req.into_parts();
-        let info = match self.fleet(&metadata) {
+        // a haptic session stays where it is asked for: its channel is shared memory on this
+        // host, where the device bridge runs
+        let info = match self.fleet(&metadata).filter(|_| !r.haptic) {
             Some(peers) => self.place(peers, owner, &metadata, r).await?,
             None => pb::SessionInfo {
                 redirect: self.here(&metadata),

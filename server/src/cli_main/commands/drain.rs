@@ -13,13 +13,25 @@ use crate::cli_main::cli::DrainArgs;
 /// How often the load is asked while waiting.
 const POLL: Duration = Duration::from_millis(500);
 
-/// The token to present: `--token`, else VADEMECUM_TOKEN, else the first of VADEMECUM_TOKENS.
-fn token(a: &DrainArgs) -> Option<String> {
+/// The token to present: `--token`, else the first of `--tokens-file`, else VADEMECUM_TOKEN,
+/// else the first of VADEMECUM_TOKENS.
+fn token(a: &DrainArgs) -> anyhow::Result<Option<String>> {
+    if let Some(t) = &a.token {
+        return Ok(Some(t.clone()));
+    }
+    if let Some(f) = &a.tokens_file {
+        let text = std::fs::read_to_string(f).with_context(|| format!("cannot read token file {}", f.display()))?;
+        let first = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#'));
+        return match first {
+            Some(t) => Ok(Some(t.to_string())),
+            None => bail!("token file {} holds no token", f.display()),
+        };
+    }
     let first = |v: String| v.split(',').map(str::trim).find(|t| !t.is_empty()).map(String::from);
-    a.token
-        .clone()
-        .or_else(|| std::env::var("VADEMECUM_TOKEN").ok().and_then(first))
-        .or_else(|| std::env::var("VADEMECUM_TOKENS").ok().and_then(first))
+    Ok(std::env::var("VADEMECUM_TOKEN")
+        .ok()
+        .and_then(first)
+        .or_else(|| std::env::var("VADEMECUM_TOKENS").ok().and_then(first)))
 }
 
 /// Exit 0 when the server holds no session, 1 when `--wait` ran out first, 2 (an error) when
@@ -28,7 +40,7 @@ pub fn run(a: DrainArgs) -> anyhow::Result<ExitCode> {
     if !(a.wait >= 0.0 && a.wait.is_finite()) {
         bail!("--wait must be a number of seconds ≥ 0, got {}", a.wait);
     }
-    let bearer = match token(&a) {
+    let bearer = match token(&a)? {
         Some(t) => Some(MetadataValue::try_from(format!("Bearer {t}")).context("the token cannot be sent as metadata")?),
         None => None,
     };
