@@ -59,6 +59,8 @@ pub struct ServerConfig {
     pub name: String,
     /// The fleet this server is a front door of (`None`: it serves its own sessions alone).
     pub fleet: Option<FleetConfig>,
+    /// Run as an Agones GameServer (`--agones`; builds with the `agones` feature).
+    pub agones: bool,
     /// How a session driven by a device bridge waits for its states (`None`: the hybrid
     /// wait), unless `session.haptic` gives the whole haptic configuration.
     pub haptic_wait: Option<vademecum_bridge::timing::WaitStrategy>,
@@ -89,6 +91,7 @@ impl Default for ServerConfig {
             haptic_wait: None,
             name: "vademecum".into(),
             fleet: None,
+            agones: false,
         }
     }
 }

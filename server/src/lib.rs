@@ -13,6 +13,7 @@
 //!   of errors to status codes, [`auth`] the bearer-token interceptor.
 //! - [`fleet`]: a fleet of servers routing sessions between them (placement by load reports,
 //!   redirects, draining).
+//! - `agones` (feature `agones`): the server as an Agones GameServer (`--agones`).
 //! - [`metrics`]: the Prometheus endpoint. [`config`]: the settings.
 //!
 //! # Shutdown
@@ -24,6 +25,8 @@
 //! - [`cli_main`]: the `vademecum` command line (`cli` = clap definitions, `commands/` = one
 //!   file per subcommand); `main.rs` only calls [`cli_main::main_entry`].
 
+#[cfg(feature = "agones")]
+pub mod agones;
 pub mod auth;
 pub mod cli_main;
 pub mod config;
@@ -84,6 +87,16 @@ pub async fn run(
         config.session.framing = Some(std::sync::Arc::new(workers));
     }
     let registry = Registry::new(config.clone());
+    #[cfg(feature = "agones")]
+    if config.agones {
+        let sdk = agones::connect().await?;
+        let capacity = u32::try_from(config.max_sessions).unwrap_or(u32::MAX);
+        tokio::spawn(agones::follow(sdk, registry.occupancy(), capacity));
+    }
+    #[cfg(not(feature = "agones"))]
+    if config.agones {
+        anyhow::bail!("--agones: this build has no Agones support; build with `--features agones` (the container image does)");
+    }
     let auth = Auth::new(config.tokens.clone());
     let (health, health_service) = tonic_health::server::health_reporter();
     health.set_serving::<pb::sessions_server::SessionsServer<SessionsService>>().await;

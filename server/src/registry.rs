@@ -121,6 +121,17 @@ struct Shared {
     next: AtomicU64,
     /// Draining: no new session is created here (`Fleet.Drain`).
     draining: AtomicBool,
+    /// The session count and draining, for whoever follows them (Agones).
+    occupancy: tokio::sync::watch::Sender<Occupancy>,
+}
+
+/// How many sessions a server holds and whether it drains ([`Registry::occupancy`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Occupancy {
+    /// Sessions held.
+    pub sessions: u32,
+    /// Draining: no new session here.
+    pub draining: bool,
 }
 
 /// A cheap-clone handle on the registry.
@@ -187,6 +198,7 @@ impl Registry {
                 bundles: Mutex::new(HashMap::new()),
                 next: AtomicU64::new(1),
                 draining: AtomicBool::new(false),
+                occupancy: tokio::sync::watch::channel(Occupancy::default()).0,
             }),
         }
     }
@@ -230,6 +242,20 @@ impl Registry {
     /// sessions it holds run on.
     pub fn set_draining(&self, draining: bool) {
         self.shared.draining.store(draining, Ordering::Relaxed);
+        self.publish(self.sessions().len());
+    }
+
+    /// Follows the session count and draining: the receiver sees every change.
+    pub fn occupancy(&self) -> tokio::sync::watch::Receiver<Occupancy> {
+        self.shared.occupancy.subscribe()
+    }
+
+    /// Tells followers the server holds `sessions` now.
+    fn publish(&self, sessions: usize) {
+        self.shared.occupancy.send_replace(Occupancy {
+            sessions: u32::try_from(sessions).unwrap_or(u32::MAX),
+            draining: self.shared.draining.load(Ordering::Relaxed),
+        });
     }
 
     /// This server's load report (`Fleet.GetLoad`).
@@ -439,6 +465,7 @@ impl Registry {
         let mut sessions = self.sessions();
         self.session_quota(&sessions, &entry.owner)?;
         sessions.insert(id, entry.clone());
+        self.publish(sessions.len());
         Ok(entry)
     }
 
@@ -468,7 +495,10 @@ impl Registry {
     /// session's memory goes when its last stream lets go of it.
     pub fn close(&self, owner: &Caller, id: &str) -> Result<Arc<Entry>, ServerError> {
         let entry = self.get(owner, id)?;
-        self.sessions().remove(id);
+        let mut sessions = self.sessions();
+        sessions.remove(id);
+        self.publish(sessions.len());
+        drop(sessions);
         entry.session.stop();
         entry.closed.send_replace(true);
         Ok(entry)
@@ -477,6 +507,7 @@ impl Registry {
     /// Closes every session (shutdown).
     pub fn close_all(&self) {
         let all: Vec<_> = self.sessions().drain().map(|(_, e)| e).collect();
+        self.publish(0);
         for e in all {
             e.session.stop();
             e.closed.send_replace(true);

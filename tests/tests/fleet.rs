@@ -122,8 +122,11 @@ fn a_session_asked_of_any_server_is_placed_redirected_and_survives_a_drain_of_an
         assert!(stranger.list_sessions().await.unwrap().is_empty());
         assert_eq!(stranger.session(second.id()).await.unwrap_err().kind(), ErrorKind::NotFound);
 
-        // c drains (it holds nothing: done at once); b's session streams on
-        let (code, out) = drain(&urls[2], &["--wait", "5"]);
+        // c drains (it holds nothing: done at once; the token from the server's own file, as
+        // the chart's preStop hook gives it); b's session streams on
+        let tokens = tempfile::NamedTempFile::new().unwrap();
+        std::fs::write(tokens.path(), "# the fleet's tokens\nt2\nt1\n").unwrap();
+        let (code, out) = drain(&urls[2], &["--wait", "5", "--tokens-file", tokens.path().to_str().unwrap()]);
         assert_eq!(code, Some(0), "{out}");
         assert!(out.contains("holds no session"), "{out}");
         assert!(stream(&mut tools, &mut engine, 200, 200).await > 50);
@@ -179,4 +182,17 @@ fn a_session_asked_of_any_server_is_placed_redirected_and_survives_a_drain_of_an
         assert!(device.location().is_none() && device.id().starts_with("b-"), "{}", device.id());
         device.close().await.unwrap();
     });
+}
+
+/// A build without the `agones` feature refuses `--agones` and says how to get it.
+#[cfg(not(feature = "agones"))]
+#[test]
+fn a_build_without_agones_refuses_the_flag_and_says_why() {
+    let o = Command::new(util::vademecum_bin())
+        .args(["serve", "--listen", "127.0.0.1:0", "--no-auth", "--agones"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--features agones"), "{err}");
 }

@@ -7,7 +7,7 @@ use super::build::{LoadVector, SeparatedSolution};
 use crate::solve::Cholesky;
 
 /// Columns solved together (a block of right-hand sides amortises the factor traversal).
-const BLOCK: usize = 64;
+pub const BLOCK: usize = 64;
 
 /// The exact responses, `n × p` column-major, and the time taken (s).
 pub fn solve_all(chol: &Cholesky, loads: &[LoadVector], on_progress: &mut dyn FnMut(usize)) -> (Vec<f64>, f64) {
@@ -25,10 +25,16 @@ pub fn solve_all(chol: &Cholesky, loads: &[LoadVector], on_progress: &mut dyn Fn
 /// (`n × columns`, column-major, first column = load state `start`) to `visit`, so callers
 /// can extract what they need without holding the whole solution.
 pub fn solve_blocks(chol: &Cholesky, loads: &[LoadVector], visit: &mut dyn FnMut(usize, &[f64])) {
+    solve_blocks_in(chol, loads, 0..loads.len(), visit);
+}
+
+/// [`solve_blocks`] over the load states `range` alone, in blocks starting at `range.start`
+/// (a multiple of [`BLOCK`] gives the blocks, and so the bits, of the whole pass).
+pub fn solve_blocks_in(chol: &Cholesky, loads: &[LoadVector], range: std::ops::Range<usize>, visit: &mut dyn FnMut(usize, &[f64])) {
     let n = chol.n();
-    let p = loads.len();
-    let mut block = vec![0.0; n * BLOCK.min(p.max(1))];
-    for start in (0..p).step_by(BLOCK) {
+    let p = range.end.min(loads.len());
+    let mut block = vec![0.0; n * BLOCK.min(p.saturating_sub(range.start).max(1))];
+    for start in (range.start..p).step_by(BLOCK) {
         let end = (start + BLOCK).min(p);
         let b = &mut block[..(end - start) * n];
         b.fill(0.0);

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::build::{self, PgdInfo, PgdParams};
+use super::build::{self, PgdInfo, PgdParams, SeparatedSolution};
 use super::vademecum::{LocalCompliance, NodeMajorField, Vademecum};
 use super::{brute, compress};
 use crate::bundle::{self, ArrayData, BundleError, Manifest};
@@ -161,6 +161,9 @@ pub enum BuildError {
     /// The cutting session's Ritz basis could not be built.
     #[error("cutting: {0}")]
     Cutting(String),
+    /// The snapshots given to a build do not fit the organ.
+    #[error("snapshots: {0}")]
+    Snapshots(String),
     /// Tearing's offline stage failed.
     #[error("tearing: {0}")]
     Tearing(String),
@@ -183,7 +186,10 @@ pub struct BuildReport {
     pub mean_patch_nodes: f64,
     /// Load states (3 per loadable node).
     pub load_states: usize,
-    /// The greedy builder's report.
+    /// Where the modes came from: "pgd" (the greedy PGD), "snapshots" (the truncated SVD of
+    /// the exact responses, solved in this build), "snapshots (merged)" (solved by shards).
+    pub modes_from: &'static str,
+    /// The greedy builder's report (for snapshots: one "mode" per load state, no iterations).
     pub greedy: PgdInfo,
     /// Modes kept in the bundle.
     pub modes: usize,
@@ -451,8 +457,73 @@ pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(
     Ok((dofs, k, chol, assembly_s, clock.elapsed().as_secs_f64()))
 }
 
-/// Builds organ `index` of `scene`.
+/// Where a build's separated solution `u(x, s) ≈ Σ F_k(x) G_k(s)` comes from.
+#[derive(Debug, Clone, Copy)]
+pub enum ModesFrom<'a> {
+    /// The greedy PGD (seed 001): one mode at a time, each a fixed point alternating between
+    /// space and load position — sequential, since every mode corrects the ones before.
+    Pgd,
+    /// The exact responses `U = K⁻¹ F_L` of every load state (the snapshots), solved here and
+    /// recompressed (QR + SVD: the truncated SVD of `U`, the best basis of each size). Its
+    /// columns are independent, so it shards ([`solve_shard`]).
+    Snapshots,
+    /// The truncated SVD of exact responses given (`n_free × load states`, column-major): the
+    /// shards of a sharded build, merged — the same bundle as [`ModesFrom::Snapshots`].
+    Given(&'a [f64]),
+}
+
+/// Builds organ `index` of `scene` with the greedy PGD.
 pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dyn FnMut(BuildStage)) -> Result<Built, BuildError> {
+    build_organ_from(scene, index, opts, ModesFrom::Pgd, on)
+}
+
+/// Shard `of` of the exact responses `U = K⁻¹ F_L` of organ `index` of `scene`: the columns of
+/// its load states ([`shard_range`]; `n_free × range.len()`, column-major), solved in the same
+/// blocks of columns as a single-process build, so a sharded build merged is the same bundle
+/// to the bit. Returns the columns, the range, and the number of load states in all.
+pub fn solve_shard(
+    scene: &Scene,
+    index: usize,
+    opts: &BuildOptions,
+    of: super::shard::ShardOf,
+    on: &mut dyn FnMut(BuildStage),
+) -> Result<(Vec<f64>, std::ops::Range<usize>, usize), BuildError> {
+    let model = scene.organ_model_within(index, opts.max_memory)?;
+    let loads = load_nodes(&model);
+    if loads.is_empty() {
+        return Err(BuildError::NoLoadStates);
+    }
+    let (dofs, _, chol, _, _) = stiffness(&model, on)?;
+    let patches = load_patches(&model, &loads, opts.load_radius);
+    let load_eqs = load_vectors(&patches, &dofs);
+    let total = load_eqs.len();
+    let range = shard_range(total, of.index, of.count);
+    let n = dofs.n_free();
+    let mut u = vec![0.0; n * range.len()];
+    brute::solve_blocks_in(&chol, &load_eqs, range.clone(), &mut |start, block| {
+        let at = (start - range.start) * n;
+        u[at..at + block.len()].copy_from_slice(block);
+        on(BuildStage::Exact(start + block.len() / n, total));
+    });
+    Ok((u, range, total))
+}
+
+/// Which load states shard `i` of `n` (0-based) solves: contiguous ranges of whole blocks of
+/// [`brute::BLOCK`] columns, as even as whole blocks allow.
+pub fn shard_range(load_states: usize, i: usize, n: usize) -> std::ops::Range<usize> {
+    let blocks = load_states.div_ceil(brute::BLOCK);
+    let at = |k: usize| (blocks * k / n * brute::BLOCK).min(load_states);
+    at(i)..at(i + 1)
+}
+
+/// Builds organ `index` of `scene`, its modes from `from`.
+pub fn build_organ_from(
+    scene: &Scene,
+    index: usize,
+    opts: &BuildOptions,
+    from: ModesFrom<'_>,
+    on: &mut dyn FnMut(BuildStage),
+) -> Result<Built, BuildError> {
     let model = scene.organ_model_within(index, opts.max_memory)?;
     let mesh = &model.mesh;
     let free = solve::free_rigid_motions(&mesh.nodes, &model.problem.supported());
@@ -466,10 +537,60 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     let (dofs, k, chol, assembly_s, factorization_s) = stiffness(&model, on)?;
     let patches = load_patches(&model, &loads, opts.load_radius);
     let load_eqs = load_vectors(&patches, &dofs);
-    let (sep, greedy) = build::build(&k, &chol, &load_eqs, &opts.params, &mut |m, e| on(BuildStage::Mode(m, e)));
+    let n_free = dofs.n_free();
+    let total = load_eqs.len();
+    // the snapshots, when the modes come from them: solved here or given by the shards
+    let solved;
+    let mut snapshots_s = 0.0;
+    let snapshots: Option<&[f64]> = match from {
+        ModesFrom::Pgd => None,
+        ModesFrom::Snapshots => {
+            let (u, time_s) = brute::solve_all(&chol, &load_eqs, &mut |done| on(BuildStage::Exact(done, total)));
+            (solved, snapshots_s) = (u, time_s);
+            Some(&solved)
+        }
+        ModesFrom::Given(u) => {
+            if u.len() != n_free * total {
+                return Err(BuildError::Snapshots(format!(
+                    "{} values given for {total} load states of {n_free} equations ({} expected)",
+                    u.len(),
+                    n_free * total
+                )));
+            }
+            Some(u)
+        }
+    };
+    let (sep, greedy) = match snapshots {
+        None => build::build(&k, &chol, &load_eqs, &opts.params, &mut |m, e| on(BuildStage::Mode(m, e))),
+        Some(u) => {
+            // F = U, G = I: recompression below is then the truncated SVD of U itself
+            let mut g = vec![0.0; total * total];
+            for q in 0..total {
+                g[q * total + q] = 1.0;
+            }
+            let sep = SeparatedSolution {
+                n: n_free,
+                p: total,
+                modes: total,
+                f: u.to_vec(),
+                g,
+            };
+            let info = PgdInfo {
+                modes: total,
+                iterations: Vec::new(),
+                mode_energy: Vec::new(),
+                converged: true,
+                // the snapshots' solves (0 when the shards solved them)
+                time_s: snapshots_s,
+                solves: total,
+            };
+            (sep, info)
+        }
+    };
     let pgd_s = greedy.time_s;
     let clock = Instant::now();
-    let recompressed = opts.recompress && sep.modes > 0;
+    // snapshots are always recompressed: kept raw they would be one mode per load state
+    let recompressed = (opts.recompress || snapshots.is_some()) && sep.modes > 0;
     let mut candidate = if recompressed {
         on(BuildStage::Recompression);
         compress::recompress(&sep, 0.0)
@@ -484,7 +605,6 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
     }
     // One blocked pass over all load states: the exact local compliances (they make the
     // haptic force exact) and the error of every prefix of the modes.
-    let total = load_eqs.len();
     let nbrs = load_neighbours(&model, &loads);
     let mut local = LocalCompliance {
         ptr: vec![0],
@@ -496,14 +616,14 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         local.c.extend(std::iter::repeat_n([[0.0; 3]; 3], l.len()));
         local.ptr.push(local.nbr.len());
     }
-    let n_free = dofs.n_free();
     // the greedy modes as built, measured too when the bundle keeps their recompression
-    let mut errs_greedy = recompressed.then(|| brute::PrefixErrors::new(&sep));
+    // (the snapshots are exact)
+    let mut errs_greedy = (recompressed && snapshots.is_none()).then(|| brute::PrefixErrors::new(&sep));
     let mut errs = brute::PrefixErrors::new(&candidate);
     let clock = Instant::now();
     let mut solve_s = 0.0;
     let mut lap = Instant::now();
-    brute::solve_blocks(&chol, &load_eqs, &mut |start, block| {
+    let mut visit = |start: usize, block: &[f64]| {
         solve_s += lap.elapsed().as_secs_f64();
         for (col, u) in block.chunks_exact(n_free).enumerate() {
             let q = start + col;
@@ -521,7 +641,16 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         }
         on(BuildStage::Exact(start + block.len() / n_free, total));
         lap = Instant::now();
-    });
+    };
+    match snapshots {
+        None => brute::solve_blocks(&chol, &load_eqs, &mut visit),
+        Some(u) => {
+            for start in (0..total).step_by(brute::BLOCK) {
+                let end = (start + brute::BLOCK).min(total);
+                visit(start, &u[start * n_free..end * n_free]);
+            }
+        }
+    }
     let exact_pass_s = clock.elapsed().as_secs_f64();
     let curve = errs.curve();
     let error_greedy = errs_greedy
@@ -551,6 +680,11 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
         load_nodes: loads.len(),
         load_states: load_eqs.len(),
         load_radius: opts.load_radius,
+        modes_from: match from {
+            ModesFrom::Pgd => "pgd",
+            ModesFrom::Snapshots => "snapshots",
+            ModesFrom::Given(_) => "snapshots (merged)",
+        },
         mean_patch_nodes: patches.iter().map(|p| p.0.len()).sum::<usize>() as f64 / patches.len() as f64,
         modes: final_sep.modes,
         recompressed,

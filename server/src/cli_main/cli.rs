@@ -51,6 +51,15 @@ meet fidelity.pgd.tolerance (relative L2 over all load states, default 1e-3). Wr
 bundle folder per organ (manifest.json, scene.toml, .npy arrays, modes in f32)."
     )]
     Build(BuildArgs),
+    /// Merge the shards of a sharded build (`build --shard I/N`) into the bundles.
+    #[command(long_about = "Merge the shards of a sharded build into the bundles. Each shard \
+(`vademecum build --shard I/N`, on any machine, e.g. a Kubernetes Indexed Job) holds the exact \
+responses of its load states; merge checks that every shard is there, solved from the same scene \
+text and mesh, covering every load state once, then builds the bundle from them exactly as \
+`vademecum build --method snapshots` does in one process (truncated SVD, exact contact \
+compliances, the error of every prefix of the modes) — the same bundle to the bit — and removes \
+the shards (--keep-shards keeps them).")]
+    Merge(MergeArgs),
     /// Run a headless session: a scripted tool trajectory at 1 kHz, forces and frames recorded.
     #[command(long_about = "Run a session with no network client: the tick thread plays a scripted tool \
 trajectory at 1 kHz, as a simulator frontend would send it, and the session records every \
@@ -338,6 +347,58 @@ pub struct BuildArgs {
     /// Print the build report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Where the modes come from: `pgd`, the greedy PGD (seed 001; sequential: each mode
+    /// corrects the ones before it), or `snapshots`, the truncated SVD of the exact response
+    /// of every load state (one solve each with the factorization, then QR + SVD: the best
+    /// basis of each size; its solves shard over machines with --shard).
+    #[arg(long, value_enum, default_value_t = ModesMethod::Pgd)]
+    pub method: ModesMethod,
+    /// Solve only shard I of N (0-based, I = 0..N-1, as Kubernetes' JOB_COMPLETION_INDEX) of
+    /// the exact responses of every organ's load states, into `<OUT>/<organ>.shard-I-of-N`;
+    /// `vademecum merge` then writes the bundles — the same, to the bit, as `--method
+    /// snapshots` in one process. Implies --method snapshots. Linear palpation scenes only
+    /// (a scene with large deformations, cutting or tearing builds in one process).
+    #[arg(long, value_name = "I/N", conflicts_with_all = ["target_error", "target_tick_us"])]
+    pub shard: Option<vademecum_engine::pgd::shard::ShardOf>,
+}
+
+/// [`BuildArgs::method`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ModesMethod {
+    /// The greedy PGD.
+    Pgd,
+    /// The truncated SVD of the exact responses.
+    Snapshots,
+}
+
+/// Arguments of `vademecum merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// The scene the shards were solved for.
+    #[command(flatten)]
+    pub source: SceneSource,
+    /// The folder the shards were written to (`build --shard … --out`); the bundles go there
+    /// too. Default: `out/<scene name>`.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Wait up to S seconds for every shard to be complete (a merge started beside the shards,
+    /// as a Kubernetes Job beside an Indexed Job).
+    #[arg(long, default_value_t = 0.0, value_name = "S")]
+    pub wait: f64,
+    /// Keep the shard folders once the bundles are written (default: removed).
+    #[arg(long)]
+    pub keep_shards: bool,
+    /// Keep the fewest modes whose measured error meets E instead of fidelity.pgd.tolerance;
+    /// refuse (exit 1, no bundle written) when none does.
+    #[arg(long, value_name = "E")]
+    pub target_error: Option<f64>,
+    /// Refuse, before assembling, an organ whose direct solve is estimated to need more than
+    /// this many GB. Default: the memory the system has available.
+    #[arg(long, value_name = "GB")]
+    pub max_memory: Option<f64>,
+    /// Print the build report as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum run`.
@@ -511,6 +572,13 @@ pub struct ServeArgs {
     /// CA certificate (PEM) that https:// peers' certificates are checked against.
     #[arg(long, value_name = "PEM")]
     pub peer_ca: Option<PathBuf>,
+    /// Run as an Agones GameServer (deploy/k8s/, agones.enabled): Ready once serving, health
+    /// pings, the Counter "sessions" kept at the sessions held, Allocated while it holds any
+    /// (a fleet scale-down or rolling update never removes it), Shutdown once drained. Needs
+    /// the Agones SDK sidecar (AGONES_SDK_GRPC_PORT) and a build with `--features agones`
+    /// (the container image is one).
+    #[arg(long)]
+    pub agones: bool,
 }
 
 /// Arguments of `vademecum inspect`.

@@ -7,17 +7,23 @@ use std::sync::Arc;
 
 use anyhow::Context;
 use vademecum_engine::damage::build::{TearBuildReport, TearTarget};
-use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle};
+use vademecum_engine::pgd::offline::{self, BuildOptions, BuildStage, Built, LoadedBundle, ModesFrom};
+use vademecum_engine::pgd::shard::{self, ShardInfo, ShardOf};
 use vademecum_engine::rom::palpation::LatticeTarget;
 use vademecum_engine::scene::Scene;
 use vademecum_engine::xfem::accuracy::SliverTarget;
 
-use crate::cli_main::cli::BuildArgs;
+use crate::cli_main::cli::{BuildArgs, MergeArgs, ModesMethod};
 use crate::cli_main::commands::solve::load_scene;
 use crate::cli_main::progress::Stages;
 
-/// Builds organ `i` of `scene` with a progress display.
+/// Builds organ `i` of `scene` with the greedy PGD, with a progress display.
 pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) -> anyhow::Result<(Built, Stages)> {
+    build_from_with_progress(scene, i, opts, ModesFrom::Pgd)
+}
+
+/// Builds organ `i` of `scene`, its modes from `from`, with a progress display.
+fn build_from_with_progress(scene: &Scene, i: usize, opts: &BuildOptions, from: ModesFrom<'_>) -> anyhow::Result<(Built, Stages)> {
     let name = scene.spec.organs[i].name.clone();
     let eps = opts.params.global_tolerance;
     let bar = Stages::start(&format!("building '{name}'"));
@@ -33,7 +39,7 @@ pub(crate) fn build_with_progress(scene: &Scene, i: usize, opts: &BuildOptions) 
     for w in &model.warnings {
         bar.warn(w);
     }
-    let built = offline::build_organ(scene, i, opts, &mut |s| match s {
+    let built = offline::build_organ_from(scene, i, opts, from, &mut |s| match s {
         BuildStage::Assembly => bar.stage("assembling K"),
         BuildStage::Factorization => bar.stage("factoring K"),
         BuildStage::Mode(k, e) => bar.stage(&format!("mode {k}, energy {e:.2e} (stop below {eps:.1e})")),
@@ -244,8 +250,141 @@ fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> R
     Ok((out, null))
 }
 
+/// Where `run_from` takes each organ's modes from.
+enum Source {
+    /// Built here, by the method asked.
+    Here(ModesMethod),
+    /// Merged from the shards in the output folder (waiting up to `wait` s for them), removed
+    /// afterwards unless `keep`.
+    Shards { wait: f64, keep: bool },
+}
+
 pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
+    if let Some(of) = a.shard {
+        return run_shard(a, of);
+    }
+    let method = a.method;
+    run_from(a, Source::Here(method))
+}
+
+/// `vademecum merge`: the bundles from the shards of a sharded build.
+pub fn merge(m: MergeArgs) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        m.wait >= 0.0 && m.wait.is_finite(),
+        "--wait must be a number of seconds ≥ 0, got {}",
+        m.wait
+    );
+    let a = BuildArgs {
+        source: m.source,
+        out: m.out,
+        no_recompress: false,
+        max_memory: m.max_memory,
+        target_error: m.target_error,
+        target_tick_us: None,
+        json: m.json,
+        method: ModesMethod::Snapshots,
+        shard: None,
+    };
+    run_from(
+        a,
+        Source::Shards {
+            wait: m.wait,
+            keep: m.keep_shards,
+        },
+    )
+}
+
+/// Refuses a scene whose build does more than the linear vademecum: those parts do not shard.
+fn shardable(scene: &Scene) -> anyhow::Result<()> {
+    let e = &scene.spec.effects;
+    let more: Vec<&str> = [
+        (
+            e.deformation == vademecum_engine::scene::schema::DeformationModel::Large,
+            "large deformations",
+        ),
+        (e.cutting, "cutting"),
+        (e.tearing, "tearing"),
+    ]
+    .into_iter()
+    .filter_map(|(on, what)| on.then_some(what))
+    .collect();
+    anyhow::ensure!(
+        more.is_empty(),
+        "scene '{}' also builds {} offline, which does not shard: build it in one process (`vademecum build` without --shard)",
+        scene.spec.scene.name,
+        more.join(", ")
+    );
+    Ok(())
+}
+
+/// `vademecum build --shard I/N`: the exact responses of shard I's load states of every organ.
+fn run_shard(a: BuildArgs, of: ShardOf) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
+    shardable(&scene)?;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
+    let opts = BuildOptions {
+        max_memory: memory_limit(a.max_memory)?,
+        ..BuildOptions::for_scene(&scene, true)
+    };
+    for i in 0..scene.spec.organs.len() {
+        let name = scene.spec.organs[i].name.clone();
+        let bar = Stages::start(&format!("shard {}/{} of '{name}'", of.index, of.count));
+        let clock = std::time::Instant::now();
+        let (u, range, total) = offline::solve_shard(&scene, i, &opts, of, &mut |s| match s {
+            BuildStage::Assembly => bar.stage("assembling K"),
+            BuildStage::Factorization => bar.stage("factoring K"),
+            BuildStage::Exact(done, total) => bar.stage(&format!("exact responses, load state {done}/{total}")),
+            _ => {}
+        })
+        .with_context(|| format!("cannot build organ '{name}'"))?;
+        let n_free = if range.is_empty() { 0 } else { u.len() / range.len() };
+        let info = ShardInfo {
+            shard: of,
+            start: range.start,
+            end: range.end,
+            load_states: total,
+            n_free,
+            load_radius: opts.load_radius,
+        };
+        bar.stage("writing the shard");
+        let dir = shard::write_shard(&out, &scene, i, &info, &u).with_context(|| format!("cannot write the shard of '{name}'"))?;
+        bar.finish();
+        println!(
+            "organ '{name}': shard {}/{}: load states {}..{} of {total} ({n_free} equations), {:.2} s -> {}",
+            of.index,
+            of.count,
+            range.start,
+            range.end,
+            clock.elapsed().as_secs_f64(),
+            dir.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The exact responses of organ `i` from the shards in `out`, waiting up to `wait` s for them.
+fn merged_snapshots(scene: &Scene, i: usize, out: &Path, wait: f64) -> anyhow::Result<(Vec<f64>, Vec<PathBuf>)> {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs_f64(wait);
+    let mut said = false;
+    while !shard::all_present(out, scene, i) && std::time::Instant::now() < deadline {
+        if !said {
+            eprintln!(
+                "waiting up to {wait} s for every shard of '{}' in {}",
+                scene.spec.organs[i].name,
+                out.display()
+            );
+            said = true;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(500));
+    }
+    Ok(shard::read_shards(out, scene, i)?)
+}
+
+fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<ExitCode> {
+    let scene = load_scene(&a.source)?;
+    if matches!(source, Source::Shards { .. }) {
+        shardable(&scene)?;
+    }
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
     let mut opts = BuildOptions {
         max_memory: memory_limit(a.max_memory)?,
@@ -268,7 +407,20 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
     let mut stdout = std::io::stdout().lock();
     for i in 0..scene.spec.organs.len() {
         let name = scene.spec.organs[i].name.clone();
-        let (built, bar) = build_with_progress(&scene, i, &opts)?;
+        let (merged, shards) = match &source {
+            Source::Shards { wait, .. } => {
+                let (u, dirs) = merged_snapshots(&scene, i, &out, *wait)?;
+                (Some(u), dirs)
+            }
+            Source::Here(_) => (None, Vec::new()),
+        };
+        let from = match (&source, &merged) {
+            (_, Some(u)) => ModesFrom::Given(u),
+            (Source::Here(ModesMethod::Snapshots), None) => ModesFrom::Snapshots,
+            _ => ModesFrom::Pgd,
+        };
+        let (built, bar) = build_from_with_progress(&scene, i, &opts, from)?;
+        drop(merged);
         let r = &built.report;
         if let Some(e) = a.target_error
             && !r.target_met
@@ -321,6 +473,11 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         let dir = out.join(format!("{name}.bundle"));
         offline::write_bundle(&dir, &scene, &built).with_context(|| format!("cannot write bundle {}", dir.display()))?;
         bar.finish();
+        if let Source::Shards { keep: false, .. } = source {
+            for d in &shards {
+                std::fs::remove_dir_all(d).with_context(|| format!("cannot remove the merged shard {}", d.display()))?;
+            }
+        }
         if let Some(e) = a.target_error {
             eprintln!(
                 "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
@@ -373,18 +530,32 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
                 "  load footprint   radius {} m, {:.1} surface nodes per load on average",
                 r.load_radius, r.mean_patch_nodes
             )?;
-            writeln!(
-                stdout,
-                "  PGD              {} modes, {} solves with the one factorization, {:.2} s{}",
-                r.greedy.modes,
-                r.greedy.solves,
-                r.pgd_s,
-                if r.greedy.converged {
-                    ""
-                } else {
-                    " (stopped by max_modes before reaching the tolerance)"
-                }
-            )?;
+            if r.modes_from == "pgd" {
+                writeln!(
+                    stdout,
+                    "  PGD              {} modes, {} solves with the one factorization, {:.2} s{}",
+                    r.greedy.modes,
+                    r.greedy.solves,
+                    r.pgd_s,
+                    if r.greedy.converged {
+                        ""
+                    } else {
+                        " (stopped by max_modes before reaching the tolerance)"
+                    }
+                )?;
+            } else {
+                writeln!(
+                    stdout,
+                    "  {:<16} the exact response of each of the {} load states{}",
+                    r.modes_from,
+                    r.load_states,
+                    if r.modes_from == "snapshots" {
+                        format!(", one solve each with the one factorization, {:.2} s", r.pgd_s)
+                    } else {
+                        ", solved by the shards".into()
+                    }
+                )?;
+            }
             if r.recompressed {
                 writeln!(stdout, "  recompressed     QR + SVD of the modes ({:.3} s)", r.recompress_s)?;
             }
@@ -395,8 +566,13 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
             )?;
             writeln!(
                 stdout,
-                "  error            {:.3e} relative L2 over all load states with {} modes (target {:.1e}; all {} greedy modes: {:.3e})",
-                r.error, r.modes, r.tolerance, r.greedy.modes, r.error_greedy
+                "  error            {:.3e} relative L2 over all load states with {} modes (target {:.1e}; all {} {} modes: {:.3e})",
+                r.error,
+                r.modes,
+                r.tolerance,
+                r.greedy.modes,
+                if r.modes_from == "pgd" { "greedy" } else { "snapshot" },
+                r.error_greedy
             )?;
             if !r.target_met {
                 writeln!(

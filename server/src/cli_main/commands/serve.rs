@@ -160,6 +160,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         },
         name: name(&a)?,
         fleet: fleet(&a)?,
+        agones: a.agones,
         ..ServerConfig::default()
     };
     // held while the server runs (released when dropped)
@@ -206,6 +207,9 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
                     "none (every client is 'anonymous')"
                 }
             )?;
+            if config.agones {
+                writeln!(out, "agones: a GameServer (Ready once serving; Allocated while it holds sessions)")?;
+            }
             if let Some(f) = &config.fleet {
                 writeln!(
                     out,
