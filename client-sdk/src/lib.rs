@@ -236,7 +236,27 @@ impl Client {
         self.create(scene, bundle_dir, label, Some(channel)).await
     }
 
+    /// Starts a session whose bundles are pinned by content: `digests` gives each organ's
+    /// bundle digest (`sha256:…`, printed by `vademecum publish`); the server serves exactly
+    /// those bundles from its bundle store (fetching them from its bundle source when
+    /// missing) or refuses with FAILED_PRECONDITION.
+    pub async fn create_pinned_session(&self, scene: SceneSpec, digests: &[(&str, &str)], label: &str) -> Result<Session, SdkError> {
+        let digests = digests.iter().map(|(o, d)| (o.to_string(), d.to_string())).collect();
+        self.create_with(scene, "", digests, label, None).await
+    }
+
     async fn create(&self, scene: SceneSpec, bundle_dir: &str, label: &str, haptic: Option<&str>) -> Result<Session, SdkError> {
+        self.create_with(scene, bundle_dir, Default::default(), label, haptic).await
+    }
+
+    async fn create_with(
+        &self,
+        scene: SceneSpec,
+        bundle_dir: &str,
+        bundle_digests: std::collections::HashMap<String, String>,
+        label: &str,
+        haptic: Option<&str>,
+    ) -> Result<Session, SdkError> {
         use pb::create_session_request::Scene;
         let scene = match scene {
             SceneSpec::Builtin(b) => Scene::Builtin(b),
@@ -251,6 +271,7 @@ impl Client {
                 label: label.into(),
                 haptic: haptic.is_some(),
                 haptic_channel: haptic.unwrap_or_default().into(),
+                bundle_digests,
             })
             .await?
             .into_inner();

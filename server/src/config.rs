@@ -17,6 +17,12 @@ pub struct ServerConfig {
     pub mesh_root: PathBuf,
     /// Bundle folders named by `bundle_dir` resolve under this folder.
     pub bundle_root: PathBuf,
+    /// The content-addressed bundle store (`<store>/sha256/<hex>/`) that sessions asking for
+    /// bundles by digest are served from (`None`: such sessions are refused).
+    pub bundle_store: Option<PathBuf>,
+    /// Where bundles missing from the store are fetched from (an HTTP(S) base URL holding
+    /// `sha256/<hex>/`; `None`: only what the store holds).
+    pub bundle_source: Option<String>,
     /// Whether clients may name server-side scene paths at all.
     pub allow_paths: bool,
     /// Most sessions at once (all clients together).
@@ -73,6 +79,8 @@ impl Default for ServerConfig {
             mesh_root: PathBuf::from("."),
             bundle_root: PathBuf::from("."),
             allow_paths: true,
+            bundle_store: None,
+            bundle_source: None,
             max_sessions: 16,
             // a tenant cannot take every slot: a quarter of the sessions, a sixteenth of the
             // streams (a frontend and a few viewers per session)

@@ -8,6 +8,7 @@
 //!   frames for viewers at display rate, through a latest-value slot). Scripted trajectories
 //!   for headless runs, and tick statistics.
 //! - [`registry`]: live sessions by id with their owners; the cache of loaded bundles.
+//!   [`bundle_fetch`]: bundles pinned by digest fetched from a bundle source into the store.
 //! - [`service`]: the gRPC services (`Info`, `Sessions`, `Interaction`, `Viewing`), one thin
 //!   file each; [`convert`] holds every wire ↔ engine conversion, [`error`] the one mapping
 //!   of errors to status codes, [`auth`] the bearer-token interceptor.
@@ -28,6 +29,7 @@
 #[cfg(feature = "agones")]
 pub mod agones;
 pub mod auth;
+pub mod bundle_fetch;
 pub mod cli_main;
 pub mod config;
 pub mod convert;

@@ -10,6 +10,7 @@ use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 
+use vademecum_engine::bundle::store;
 use vademecum_engine::pgd::offline::{self, LoadedBundle};
 use vademecum_engine::scene::Scene;
 
@@ -28,6 +29,15 @@ pub enum SceneSource {
     Path(String),
     /// A built-in scene.
     Builtin(String),
+}
+
+/// Where a session's bundles come from.
+#[derive(Debug, Clone, Copy)]
+pub enum BundleSource<'a> {
+    /// `<organ>.bundle` in this folder under the bundle root.
+    Dir(&'a str),
+    /// Organ name → digest, from the content-addressed store (fetched into it when missing).
+    Pinned(&'a HashMap<String, String>),
 }
 
 /// A live session and who owns it.
@@ -365,6 +375,25 @@ impl Registry {
         }
     }
 
+    /// The folder of the bundle of `digest` in the store, fetched from the bundle source
+    /// first if the store does not hold it; refused unless its manifest hashes to `digest`.
+    fn pinned(&self, organ: &str, digest: &str) -> Result<PathBuf, ServerError> {
+        let cfg = &self.shared.config;
+        let hex = store::parse_digest(digest).map_err(|e| ServerError::Invalid(format!("bundle_digests[{}]: {e}", clip(organ))))?;
+        let Some(dir) = &cfg.bundle_store else {
+            return Err(ServerError::Precondition(
+                "this server has no bundle store (serve --bundle-store): ask for bundles by bundle_dir".into(),
+            ));
+        };
+        if !store::path(dir, hex).join(vademecum_engine::bundle::MANIFEST).is_file()
+            && let Some(source) = &cfg.bundle_source
+        {
+            crate::bundle_fetch::fetch(source, hex, dir)
+                .map_err(|e| ServerError::Precondition(format!("organ '{}': bundle {digest}: {e}", clip(organ))))?;
+        }
+        store::open(dir, digest).map_err(|e| ServerError::Precondition(format!("organ '{}': {e}", clip(organ))))
+    }
+
     /// The loaded bundle at `path`, from the cache or from disk.
     fn bundle(&self, path: &Path) -> Result<Arc<LoadedBundle>, ServerError> {
         let key = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
@@ -394,7 +423,7 @@ impl Registry {
         &self,
         owner: Caller,
         source: SceneSource,
-        bundle_dir: &str,
+        bundles_from: BundleSource<'_>,
         label: String,
         haptic: Option<&str>,
     ) -> Result<Arc<Entry>, ServerError> {
@@ -404,16 +433,41 @@ impl Registry {
         }
         self.session_quota(&self.sessions(), &owner)?;
         let scene = Arc::new(self.load_scene(&source)?);
-        let dir = under(&cfg.bundle_root, bundle_dir, "bundle folder")?;
-        if !inside(&cfg.bundle_root, &dir) {
-            return Err(ServerError::Denied(
-                "the bundle folder leaves the server's bundle root (through a symbolic link)".into(),
-            ));
-        }
+        let dir = match bundles_from {
+            BundleSource::Dir(bundle_dir) => {
+                let dir = under(&cfg.bundle_root, bundle_dir, "bundle folder")?;
+                if !inside(&cfg.bundle_root, &dir) {
+                    return Err(ServerError::Denied(
+                        "the bundle folder leaves the server's bundle root (through a symbolic link)".into(),
+                    ));
+                }
+                Some(dir)
+            }
+            BundleSource::Pinned(digests) => {
+                let organs: Vec<&str> = scene.spec.organs.iter().map(|o| o.name.as_str()).collect();
+                if let Some(other) = digests.keys().find(|k| !organs.contains(&k.as_str())) {
+                    return Err(ServerError::Invalid(format!(
+                        "bundle_digests names '{}', which is not an organ of the scene ({})",
+                        clip(other),
+                        organs.join(", ")
+                    )));
+                }
+                None
+            }
+        };
         let mut bundles = Vec::new();
         for i in 0..scene.spec.organs.len() {
             let name = &scene.spec.organs[i].name;
-            let path = dir.join(format!("{name}.bundle"));
+            let path = match (&dir, bundles_from) {
+                (Some(dir), _) => dir.join(format!("{name}.bundle")),
+                (None, BundleSource::Pinned(digests)) => {
+                    let digest = digests
+                        .get(name)
+                        .ok_or_else(|| ServerError::Invalid(format!("bundle_digests names no bundle for organ '{name}'")))?;
+                    self.pinned(name, digest)?
+                }
+                (None, BundleSource::Dir(_)) => unreachable!("a folder is resolved above"),
+            };
             let b = self.bundle(&path)?;
             let mesh = scene.organ_mesh(i).map_err(|e| ServerError::Invalid(e.to_string()))?;
             offline::check_matches(&path, &b.manifest, &scene, &mesh).map_err(|e| ServerError::Precondition(e.to_string()))?;

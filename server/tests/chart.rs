@@ -82,8 +82,9 @@ fn find<'a>(docs: &'a [Value], kind: &str, suffix: &str) -> &'a Value {
 }
 
 /// The value sets the chart is checked with: each part on.
-const PARTS: [(&str, &[&str]); 4] = [
+const PARTS: [(&str, &[&str]); 5] = [
     ("fleet", &[]),
+    ("source", &["bundles.source=https://bucket.example.invalid/store"]),
     ("device", &["device.enabled=true"]),
     ("agones", &["agones.enabled=true"]),
     ("build", &["build.enabled=true"]),
@@ -324,4 +325,9 @@ fn the_build_jobs_commands_solve_their_shards_and_merge_them_into_the_bundle() {
     assert!(o.status.success(), "merge: {}", said(&o));
     let bundle = root.path().join("data/bundles/builds/organ/lobe.bundle");
     assert!(bundle.join("manifest.json").is_file(), "{}", said(&o));
+    // and published in the store the servers read, under its digest
+    let digest = vademecum_engine::bundle::store::digest(&bundle).unwrap();
+    assert!(said(&o).contains(&format!("published lobe: {digest}")), "{}", said(&o));
+    let store = root.path().join("data/bundles/store");
+    assert!(vademecum_engine::bundle::store::open(&store, &digest).is_ok());
 }

@@ -11,6 +11,8 @@
 //! their manifest entry (no symbolic links, devices or oversized files), so a damaged,
 //! truncated, foreign or hostile bundle is refused with a message naming the file, never
 //! loaded half-way.
+//!
+//! [`store`]: bundles published under the SHA-256 of their manifest (content-addressed).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -37,6 +39,7 @@ pub const MANIFEST: &str = "manifest.json";
 const MAX_MANIFEST_BYTES: u64 = 1 << 20;
 
 pub mod npy;
+pub mod store;
 
 /// Why a bundle could not be written or read.
 #[derive(Debug, thiserror::Error)]

@@ -108,6 +108,16 @@ closes them when it stops); 2 the server could not be asked. --resume ends drain
 With authentication, give a token with --token, --tokens-file (the server's own file: its first \
 token is used), VADEMECUM_TOKEN or VADEMECUM_TOKENS (its first token).")]
     Drain(DrainArgs),
+    /// Publish bundles into a content-addressed store, under the digest of their manifest.
+    #[command(long_about = "Publish bundles into a content-addressed bundle store: each bundle is \
+checked whole (every checksum, as a session loads it), then copied to <STORE>/sha256/<hex>/, where \
+<hex> is the SHA-256 of its manifest.json — its digest, printed as sha256:<hex>. The manifest lists \
+the SHA-256 of every array and of the scene text, so the digest pins every byte a session reads. \
+A session asks for bundles by digest (CreateSession bundle_digests); a server serves them from its \
+store (serve --bundle-store), fetching a missing one from its source (serve --bundle-source: the \
+store's folder served over HTTP(S), e.g. object storage), and never serves a bundle that hashes \
+otherwise. Publishing is atomic (copy, check, rename) and idempotent.")]
+    Publish(PublishArgs),
     /// Show what is inside a bundle.
     Inspect(InspectArgs),
     /// Inspect meshes.
@@ -176,6 +186,20 @@ pub struct HealthArgs {
     /// self-signed). Default: the platform's roots.
     #[arg(long, value_name = "PEM")]
     pub ca: Option<std::path::PathBuf>,
+}
+
+/// Arguments of `vademecum publish`.
+#[derive(Debug, Args)]
+pub struct PublishArgs {
+    /// Bundle folders (`<organ>.bundle`), or folders holding them (every `*.bundle` inside).
+    #[arg(required = true)]
+    pub bundles: Vec<PathBuf>,
+    /// The store.
+    #[arg(long, value_name = "DIR")]
+    pub store: PathBuf,
+    /// Print `{"organ": "sha256:…"}` as JSON (what CreateSession's bundle_digests takes).
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// Arguments of `vademecum drain`.
@@ -388,6 +412,10 @@ pub struct MergeArgs {
     /// Keep the shard folders once the bundles are written (default: removed).
     #[arg(long)]
     pub keep_shards: bool,
+    /// Also publish the bundles into this content-addressed store (see `vademecum publish`)
+    /// and print their digests.
+    #[arg(long, value_name = "STORE")]
+    pub publish: Option<PathBuf>,
     /// Keep the fewest modes whose measured error meets E instead of fidelity.pgd.tolerance;
     /// refuse (exit 1, no bundle written) when none does.
     #[arg(long, value_name = "E")]
@@ -572,6 +600,16 @@ pub struct ServeArgs {
     /// CA certificate (PEM) that https:// peers' certificates are checked against.
     #[arg(long, value_name = "PEM")]
     pub peer_ca: Option<PathBuf>,
+    /// Content-addressed bundle store (`vademecum publish --store`): sessions asking for bundles
+    /// by digest (CreateSession bundle_digests) are served from it, and only with bundles that
+    /// hash to what they asked.
+    #[arg(long, value_name = "DIR")]
+    pub bundle_store: Option<PathBuf>,
+    /// Fetch a bundle missing from --bundle-store from here: an http(s):// base URL serving a
+    /// published store's folders (`<URL>/sha256/<hex>/manifest.json`, …), e.g. an object
+    /// storage bucket. Every fetched file is checked against the digest before use.
+    #[arg(long, value_name = "URL", requires = "bundle_store")]
+    pub bundle_source: Option<String>,
     /// Run as an Agones GameServer (deploy/k8s/, agones.enabled): Ready once serving, health
     /// pings, the Counter "sessions" kept at the sessions held, Allocated while it holds any
     /// (a fleet scale-down or rolling update never removes it), Shutdown once drained. Needs

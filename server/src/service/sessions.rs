@@ -9,7 +9,7 @@ use crate::auth::{Caller, caller};
 use crate::convert;
 use crate::error::ServerError;
 use crate::fleet::{self, Candidate, Peers};
-use crate::registry::Registry;
+use crate::registry::{BundleSource, Registry};
 
 /// The Sessions service.
 #[derive(Debug, Clone)]
@@ -52,7 +52,11 @@ impl SessionsService {
         // reading scenes, meshes and bundles is blocking work: keep it off the runtime
         let entry = tokio::task::spawn_blocking(move || {
             let haptic = r.haptic.then_some(r.haptic_channel.as_str());
-            registry.create(owner, source, &r.bundle_dir, r.label, haptic)
+            let bundles = match r.bundle_digests.is_empty() {
+                true => BundleSource::Dir(&r.bundle_dir),
+                false => BundleSource::Pinned(&r.bundle_digests),
+            };
+            registry.create(owner, source, bundles, r.label, haptic)
         })
         .await
         .map_err(|_| ServerError::Internal("session creation was interrupted".into()))??;

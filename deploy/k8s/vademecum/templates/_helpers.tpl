@@ -115,6 +115,10 @@ lifecycle:
 - name: tokens
   mountPath: /var/run/secrets/vademecum
   readOnly: true
+{{- if .Values.bundles.source }}
+- name: bundle-cache
+  mountPath: /var/cache/vademecum
+{{- end }}
 {{- end -}}
 
 {{- define "vademecum.dataVolumes" -}}
@@ -133,6 +137,11 @@ lifecycle:
     items:
       - key: {{ .Values.tokens.key }}
         path: tokens
+{{- if .Values.bundles.source }}
+- name: bundle-cache
+  emptyDir:
+    sizeLimit: {{ .Values.bundles.cacheSize }}
+{{- end }}
 {{- end -}}
 
 {{/* `vademecum serve` flags shared by every server pod. */}}
@@ -151,6 +160,15 @@ lifecycle:
 - /var/lib/vademecum/meshes
 - --tokens-file
 - /var/run/secrets/vademecum/tokens
+{{- if .Values.bundles.source }}
+- --bundle-store
+- /var/cache/vademecum/store
+- --bundle-source
+- {{ .Values.bundles.source | quote }}
+{{- else }}
+- --bundle-store
+- /var/lib/vademecum/bundles/{{ .Values.bundles.storeSubPath }}
+{{- end }}
 - --name
 - $(POD_NAME)
 - --max-sessions

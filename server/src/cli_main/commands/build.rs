@@ -264,7 +264,7 @@ pub fn run(a: BuildArgs) -> anyhow::Result<ExitCode> {
         return run_shard(a, of);
     }
     let method = a.method;
-    run_from(a, Source::Here(method))
+    Ok(run_from(a, Source::Here(method))?.0)
 }
 
 /// `vademecum merge`: the bundles from the shards of a sharded build.
@@ -274,6 +274,7 @@ pub fn merge(m: MergeArgs) -> anyhow::Result<ExitCode> {
         "--wait must be a number of seconds ≥ 0, got {}",
         m.wait
     );
+    let publish_to = m.publish.clone();
     let a = BuildArgs {
         source: m.source,
         out: m.out,
@@ -285,13 +286,19 @@ pub fn merge(m: MergeArgs) -> anyhow::Result<ExitCode> {
         method: ModesMethod::Snapshots,
         shard: None,
     };
-    run_from(
+    let (code, written) = run_from(
         a,
         Source::Shards {
             wait: m.wait,
             keep: m.keep_shards,
         },
-    )
+    )?;
+    if let Some(store) = publish_to.filter(|_| code == ExitCode::SUCCESS) {
+        for (organ, digest) in super::publish::publish(&written, &store)? {
+            println!("published {organ}: {digest} in {}", store.display());
+        }
+    }
+    Ok(code)
 }
 
 /// Refuses a scene whose build does more than the linear vademecum: those parts do not shard.
@@ -380,7 +387,8 @@ fn merged_snapshots(scene: &Scene, i: usize, out: &Path, wait: f64) -> anyhow::R
     Ok(shard::read_shards(out, scene, i)?)
 }
 
-fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<ExitCode> {
+/// Builds (or merges) every organ's bundle: the exit code and the bundle folders written.
+fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<(ExitCode, Vec<PathBuf>)> {
     let scene = load_scene(&a.source)?;
     if matches!(source, Source::Shards { .. }) {
         shardable(&scene)?;
@@ -404,6 +412,7 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<ExitCode> {
         );
     }
     let mut reports = Vec::new();
+    let mut written = Vec::new();
     let mut stdout = std::io::stdout().lock();
     for i in 0..scene.spec.organs.len() {
         let name = scene.spec.organs[i].name.clone();
@@ -430,17 +439,17 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<ExitCode> {
                 "vademecum: organ '{name}': no prefix of the {} modes built meets --target-error {e:.1e}: the closest is {:.3e} with all of them; raise fidelity.pgd.max_modes or lower fidelity.pgd.global_tolerance (no bundle written)",
                 r.greedy.modes, r.error_greedy
             );
-            return Ok(ExitCode::FAILURE);
+            return Ok((ExitCode::FAILURE, written));
         }
         if let Some(why) = r.anm_target.as_ref().filter(|t| !t.met).map(lattice_target_missed) {
             bar.finish();
             eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
-            return Ok(ExitCode::FAILURE);
+            return Ok((ExitCode::FAILURE, written));
         }
         if let Some(why) = tear_target_missed(r) {
             bar.finish();
             eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
-            return Ok(ExitCode::FAILURE);
+            return Ok((ExitCode::FAILURE, written));
         }
         let (mut frame_p50, mut tear_p50, mut cut_p50) = (None, None, None);
         if let Some(t) = a.target_tick_us {
@@ -466,12 +475,13 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<ExitCode> {
             if let Err(why) = timed {
                 bar.finish();
                 eprintln!("vademecum: organ '{name}': {why} (no bundle written)");
-                return Ok(ExitCode::FAILURE);
+                return Ok((ExitCode::FAILURE, written));
             }
         }
         bar.stage("writing bundle");
         let dir = out.join(format!("{name}.bundle"));
         offline::write_bundle(&dir, &scene, &built).with_context(|| format!("cannot write bundle {}", dir.display()))?;
+        written.push(dir.clone());
         bar.finish();
         if let Source::Shards { keep: false, .. } = source {
             for d in &shards {
@@ -634,7 +644,7 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<ExitCode> {
     if a.json {
         writeln!(stdout, "{}", serde_json::to_string_pretty(&reports)?)?;
     }
-    Ok(ExitCode::SUCCESS)
+    Ok((ExitCode::SUCCESS, written))
 }
 
 /// The memory a solve may use (bytes): `--max-memory` (GB = 10⁹ bytes, refused unless

@@ -20,6 +20,7 @@ mod drain;
 mod health;
 mod inspect;
 mod mesh_info;
+mod publish;
 mod run;
 mod run_haptic;
 mod scene;
@@ -48,6 +49,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Serve(a) => serve::run(a),
         Command::Health(a) => health::run(a),
         Command::Drain(a) => drain::run(a),
+        Command::Publish(a) => publish::run(a),
         Command::Mesh(MeshCommand::Info(a)) => mesh_info::run(a),
         Command::Scene(c) => scene::run(c),
         Command::Check(CheckCommand::HardCases(a)) => check::hard_cases(a),

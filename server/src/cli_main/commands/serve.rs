@@ -161,6 +161,13 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         name: name(&a)?,
         fleet: fleet(&a)?,
         agones: a.agones,
+        bundle_store: a.bundle_store.clone(),
+        bundle_source: match &a.bundle_source {
+            Some(u) if !(u.starts_with("http://") || u.starts_with("https://")) => {
+                bail!("--bundle-source '{u}' must be an http:// or https:// URL")
+            }
+            other => other.clone(),
+        },
         ..ServerConfig::default()
     };
     // held while the server runs (released when dropped)

@@ -1,0 +1,162 @@
+//! Bundles pinned by content: `vademecum publish` puts the built-in organ's bundle in a store
+//! under the digest of its manifest; a server with `--bundle-store` serves a session asking
+//! for that digest (CreateSession bundle_digests), fetches it from `--bundle-source` (a static
+//! HTTP server here, as object storage would be) into its store when missing, and never serves
+//! a bundle that hashes otherwise: tampered arrays or manifests, in the store or at the
+//! source, are refused with FAILED_PRECONDITION and leave nothing behind.
+
+mod util;
+
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use vademecum_client::{Client, ErrorKind, SceneSpec, tool_at};
+
+/// `vademecum publish --json` of the shared organ bundle into `store`: its digest.
+fn publish(store: &Path) -> String {
+    let o = util::vademecum(
+        util::bundles(),
+        &["publish", "organ/lobe.bundle", "--store", store.to_str().unwrap(), "--json"],
+    );
+    let digests: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    digests["lobe"].as_str().expect("the lobe's digest").to_string()
+}
+
+/// A static HTTP server on `dir` (python3's http.server), killed when dropped.
+struct StaticHttp(Child, String);
+
+impl StaticHttp {
+    fn start(dir: &Path) -> Self {
+        let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+        let child = Command::new("python3")
+            .args(["-m", "http.server", &port.to_string(), "--bind", "127.0.0.1", "--directory"])
+            .arg(dir)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("python3 runs");
+        let until = Instant::now() + Duration::from_secs(20);
+        while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+            assert!(Instant::now() < until, "the static server did not start");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        Self(child, format!("http://127.0.0.1:{port}"))
+    }
+}
+
+impl Drop for StaticHttp {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        let target = to.join(e.file_name());
+        if e.file_type().unwrap().is_dir() {
+            copy_dir(&e.path(), &target);
+        } else {
+            std::fs::copy(e.path(), target).unwrap();
+        }
+    }
+}
+
+/// Creates a session on `url` pinned to `digest` and presses once: the error kind if refused.
+async fn pinned(url: &str, organ: &str, digest: &str) -> Result<(), (ErrorKind, String)> {
+    let client = Client::connect(url.to_string()).await.unwrap();
+    let s = client
+        .create_pinned_session(SceneSpec::Builtin("organ".into()), &[(organ, digest)], "pinned")
+        .await
+        .map_err(|e| (e.kind(), e.to_string()))?;
+    let mut tools = s.interact().await.unwrap();
+    tools.send(tool_at(0, [0.0, 0.0, 0.027])).await.unwrap();
+    let r = tools.next().await.unwrap().expect("an answer");
+    assert!(r.force_n.unwrap().z > 0.0, "pressing the lobe pushes back");
+    s.close().await.unwrap();
+    Ok(())
+}
+
+#[test]
+fn a_session_gets_exactly_the_bundle_its_digest_names_from_the_store_or_the_source() {
+    let tmp = tempfile::tempdir().unwrap();
+    let store = tmp.path().join("store");
+    let digest = publish(&store);
+    assert_eq!(publish(&store), digest, "publishing again changes nothing");
+    let hex = digest.strip_prefix("sha256:").unwrap();
+    let rt = util::runtime();
+
+    // from the store
+    let s = util::Server::start(&["--bundle-store", store.to_str().unwrap()], &[]);
+    rt.block_on(async {
+        pinned(&s.url, "lobe", &digest).await.unwrap();
+        let absent = format!("sha256:{}", "0".repeat(64));
+        let (kind, msg) = pinned(&s.url, "lobe", &absent).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::FailedPrecondition, "{msg}");
+        assert!(msg.contains("holds no bundle"), "{msg}");
+        let (kind, msg) = pinned(&s.url, "lobe", "sha256:nope").await.unwrap_err();
+        assert_eq!(kind, ErrorKind::InvalidArgument, "{msg}");
+        let (kind, msg) = pinned(&s.url, "liver", &digest).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::InvalidArgument, "{msg}");
+        assert!(msg.contains("not an organ of the scene"), "{msg}");
+    });
+
+    // a store whose copy was altered: refused (an array; then the manifest itself)
+    let altered = tmp.path().join("altered");
+    copy_dir(&store, &altered);
+    let f = altered.join(format!("sha256/{hex}/F.npy"));
+    let mut bytes = std::fs::read(&f).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&f, &bytes).unwrap();
+    let a = util::Server::start(&["--bundle-store", altered.to_str().unwrap()], &[]);
+    rt.block_on(async {
+        let (kind, msg) = pinned(&a.url, "lobe", &digest).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::FailedPrecondition, "{msg}");
+        assert!(
+            msg.contains("checksum") || msg.contains("SHA-256") || msg.contains("sha256"),
+            "{msg}"
+        );
+    });
+    let m = altered.join(format!("sha256/{hex}/manifest.json"));
+    let text = std::fs::read_to_string(&m).unwrap().replacen("\"scene\"", "\"scene\" ", 1);
+    std::fs::write(&m, text).unwrap();
+    rt.block_on(async {
+        let (kind, msg) = pinned(&a.url, "lobe", &digest).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::FailedPrecondition, "{msg}");
+    });
+
+    // fetched from a source into an empty store, then served from it
+    let source = StaticHttp::start(&store);
+    let cache = tmp.path().join("cache");
+    let c = util::Server::start(&["--bundle-store", cache.to_str().unwrap(), "--bundle-source", &source.1], &[]);
+    rt.block_on(async { pinned(&c.url, "lobe", &digest).await.unwrap() });
+    assert!(cache.join(format!("sha256/{hex}/manifest.json")).is_file());
+    drop(source);
+    rt.block_on(async { pinned(&c.url, "lobe", &digest).await.unwrap() });
+
+    // a source serving an altered copy: refused, nothing left in the store
+    let bad_source = StaticHttp::start(&altered);
+    let empty = tmp.path().join("empty");
+    let d = util::Server::start(&["--bundle-store", empty.to_str().unwrap(), "--bundle-source", &bad_source.1], &[]);
+    rt.block_on(async {
+        let (kind, msg) = pinned(&d.url, "lobe", &digest).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::FailedPrecondition, "{msg}");
+        assert!(msg.contains("not served") || msg.contains("hash"), "{msg}");
+    });
+    let left: Vec<_> = std::fs::read_dir(empty.join("sha256"))
+        .map(|d| d.flatten().count())
+        .into_iter()
+        .collect();
+    assert!(left.iter().all(|&n| n == 0), "a refused fetch leaves nothing: {left:?}");
+
+    // a server without a store says so
+    let plain = util::Server::start(&[], &[]);
+    rt.block_on(async {
+        let (kind, msg) = pinned(&plain.url, "lobe", &digest).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::FailedPrecondition, "{msg}");
+        assert!(msg.contains("no bundle store"), "{msg}");
+    });
+}
