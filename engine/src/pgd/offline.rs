@@ -460,7 +460,7 @@ pub fn stiffness(model: &OrganModel, on: &mut dyn FnMut(BuildStage)) -> Result<(
 /// Where a build's separated solution `u(x, s) ≈ Σ F_k(x) G_k(s)` comes from.
 #[derive(Debug, Clone, Copy)]
 pub enum ModesFrom<'a> {
-    /// The greedy PGD (seed 001): one mode at a time, each a fixed point alternating between
+    /// The greedy PGD (seed 000, Alg. 2.1): one mode at a time, each a fixed point alternating between
     /// space and load position — sequential, since every mode corrects the ones before.
     Pgd,
     /// The exact responses `U = K⁻¹ F_L` of every load state (the snapshots), solved here and

@@ -48,7 +48,10 @@ One blocked pass over the exact parametric solution (one solve per load state, s
 never held whole) computes the exact contact compliances between neighbouring load nodes \
 and measures the error of every prefix of the modes; the bundle keeps the fewest modes that \
 meet fidelity.pgd.tolerance (relative L2 over all load states, default 1e-3). Writes one \
-bundle folder per organ (manifest.json, scene.toml, .npy arrays, modes in f32)."
+bundle folder per organ (manifest.json, scene.toml, .npy arrays, modes in f32).\n\n\
+--method snapshots makes the modes from the exact responses instead (the truncated SVD of the \
+parametric solution, one solve per load state); those solves shard over machines: `build --shard \
+I/N` on each, then `vademecum merge` (the same bundle, to the bit)."
     )]
     Build(BuildArgs),
     /// Merge the shards of a sharded build (`build --shard I/N`) into the bundles.
@@ -371,7 +374,7 @@ pub struct BuildArgs {
     /// Print the build report as JSON on stdout.
     #[arg(long)]
     pub json: bool,
-    /// Where the modes come from: `pgd`, the greedy PGD (seed 001; sequential: each mode
+    /// Where the modes come from: `pgd`, the greedy PGD (seed 000, Alg. 2.1; sequential: each mode
     /// corrects the ones before it), or `snapshots`, the truncated SVD of the exact response
     /// of every load state (one solve each with the factorization, then QR + SVD: the best
     /// basis of each size; its solves shard over machines with --shard).
