@@ -114,6 +114,11 @@ impl Peers {
             asks.spawn(async move {
                 let load = match tokio::time::timeout(PEER_TIMEOUT, client.get_load(req)).await {
                     Ok(Ok(r)) => Some(r.into_inner()),
+                    // not running (a fleet sized below its peer list): quietly left out
+                    Ok(Err(s)) if s.code() == Code::Unavailable => {
+                        tracing::debug!(peer = %address, status = %s, "a peer is not reachable");
+                        None
+                    }
                     Ok(Err(s)) => {
                         tracing::warn!(peer = %address, status = %s, "a peer refused its load report");
                         None

@@ -216,7 +216,7 @@ fn a_fleet_pod_knows_its_peers_serves_its_command_and_drains_in_its_pre_stop_hoo
     if !tools() {
         return;
     }
-    let docs = documents(&render(&["fleet.replicas=3", "fleet.drainSeconds=600"]));
+    let docs = documents(&render(&["fleet.replicas=2", "fleet.maxReplicas=3", "fleet.drainSeconds=600"]));
     let set = find(&docs, "StatefulSet", "vademecum");
     let pod = &set["spec"]["template"]["spec"];
     let server = &pod["containers"][0];
