@@ -39,18 +39,23 @@ pub fn tool_input(t: &pb::ToolState) -> ToolInput {
     }
 }
 
+/// A contact on the wire.
+fn pb_contact(c: &vademecum_engine::pipeline::Contact) -> pb::Contact {
+    pb::Contact {
+        organ: c.organ as u32,
+        point_m: Some(pb_vec3(c.point_m)),
+        depth_m: c.depth_m,
+        proxy_m: Some(pb_vec3(c.proxy_m)),
+    }
+}
+
 /// The response to one tool state.
 pub fn tool_response(a: &Answer) -> pb::ToolResponse {
     pb::ToolResponse {
         seq: a.seq,
         client_time_us: a.client_time_us,
         force_n: Some(pb_vec3(a.state.force_n)),
-        contact: a.state.contact.map(|c| pb::Contact {
-            organ: c.organ as u32,
-            point_m: Some(pb_vec3(c.point_m)),
-            depth_m: c.depth_m,
-            proxy_m: Some(pb_vec3(c.proxy_m)),
-        }),
+        contact: a.state.contact.as_ref().map(pb_contact),
         events: a.state.events.0,
         server_received_us: a.received_us,
         server_answered_us: a.answered_us,
@@ -146,6 +151,7 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
             })
             .collect(),
         force_n: Some(pb_vec3(f.force_n)),
+        contact: f.contact.as_ref().map(pb_contact),
         message: 0,
     }
 }

@@ -15,6 +15,7 @@
 //! - [`fleet`]: a fleet of servers routing sessions between them (placement by load reports,
 //!   redirects, draining).
 //! - `agones` (feature `agones`): the server as an Agones GameServer (`--agones`).
+//! - [`web`]: the browser viewer and gRPC-web (`--web`).
 //! - [`metrics`]: the Prometheus endpoint. [`config`]: the settings.
 //!
 //! # Shutdown
@@ -39,6 +40,7 @@ pub mod metrics;
 pub mod registry;
 pub mod service;
 pub mod session;
+pub mod web;
 
 use std::future::Future;
 
@@ -54,11 +56,12 @@ use crate::service::{
     fleet::FleetService, info::InfoService, interaction::InteractionService, sessions::SessionsService, viewing::ViewingService,
 };
 
-/// Serves the gRPC API on `listener` (and Prometheus metrics on `metrics`, if given) until
-/// `shutdown` resolves.
+/// Serves the gRPC API on `listener` (and Prometheus metrics on `metrics`, the browser viewer
+/// and gRPC-web on `web`, if given) until `shutdown` resolves.
 pub async fn run(
     listener: tokio::net::TcpListener,
     metrics: Option<tokio::net::TcpListener>,
+    web: Option<tokio::net::TcpListener>,
     config: ServerConfig,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> anyhow::Result<()> {
@@ -135,6 +138,17 @@ pub async fn run(
         registry: registry.clone(),
     });
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    let web_task = web.map(|l| {
+        let mut rx = stop_rx.clone();
+        let services = web::WebServices {
+            sessions: sessions.clone(),
+            viewing: viewing.clone(),
+            info: info.clone(),
+        };
+        tokio::spawn(web::serve(l, services, auth.clone(), config.tls.clone(), async move {
+            let _ = rx.wait_for(|&s| s).await;
+        }))
+    });
     let metrics_task = metrics.map(|l| {
         let mut rx = stop_rx.clone();
         tokio::spawn(metrics::serve(l, registry.clone(), async move {
@@ -166,6 +180,13 @@ pub async fn run(
         .await?;
     if let Some(t) = metrics_task {
         let _ = t.await;
+    }
+    if let Some(t) = web_task {
+        match t.await {
+            Ok(Err(e)) => tracing::error!(error = %e, "the web viewer's server failed"),
+            Err(e) => tracing::error!(error = %e, "the web viewer's server panicked"),
+            Ok(Ok(())) => {}
+        }
     }
     Ok(())
 }

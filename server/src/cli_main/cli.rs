@@ -488,6 +488,11 @@ pub struct ServeArgs {
     /// Address to listen on (port 0: any free port, printed at start).
     #[arg(long, default_value = "127.0.0.1:50051", value_name = "ADDR")]
     pub listen: String,
+    /// Also serve the browser viewer on this address (http://ADDR/: the sessions, the organ
+    /// deforming, the tool and its force) and gRPC-web for it and for other web frontends
+    /// (Sessions, Viewing, Info; HTTP/1.1, CORS from any origin; the same tokens).
+    #[arg(long, value_name = "ADDR")]
+    pub web: Option<String>,
     /// Also serve Prometheus metrics (GET /metrics, unauthenticated) on this address; loopback
     /// only unless --metrics-public.
     #[arg(long, value_name = "ADDR")]

@@ -59,6 +59,8 @@ pub struct Server {
     pub url: String,
     /// `ADDR` of its metrics endpoint, if asked.
     pub metrics: Option<String>,
+    /// `http://ADDR/` of its web viewer, if asked (`--web`).
+    pub web: Option<String>,
 }
 
 impl Server {
@@ -96,9 +98,9 @@ impl Server {
                 let _ = tx.send(line);
             }
         });
-        let (mut url, mut metrics) = (None, None);
+        let (mut url, mut metrics, mut web) = (None, None, None);
         let deadline = std::time::Instant::now() + Duration::from_secs(120);
-        while url.is_none() || (extra.contains(&"--metrics") && metrics.is_none()) {
+        while url.is_none() || (extra.contains(&"--metrics") && metrics.is_none()) || (extra.contains(&"--web") && web.is_none()) {
             let left = deadline.saturating_duration_since(std::time::Instant::now());
             let line = rx.recv_timeout(left).expect("the server printed its address within 120 s");
             if let Some(a) = line.strip_prefix("listening on ") {
@@ -107,11 +109,15 @@ impl Server {
             if let Some(a) = line.strip_prefix("metrics on http://") {
                 metrics = Some(a.trim_end_matches("/metrics").to_string());
             }
+            if let Some(a) = line.strip_prefix("web viewer on ") {
+                web = Some(a.to_string());
+            }
         }
         Self {
             child,
             url: url.expect("address"),
             metrics,
+            web,
         }
     }
 

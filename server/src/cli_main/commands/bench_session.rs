@@ -313,7 +313,7 @@ fn grpc_round_trip(bundle_dir: &std::path::Path, secs: f64) -> anyhow::Result<(P
             ..Default::default()
         };
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-        let server = tokio::spawn(crate::run(listener, None, config, async {
+        let server = tokio::spawn(crate::run(listener, None, None, config, async {
             let _ = stop_rx.await;
         }));
         let client = vademecum_client::Client::connect(format!("http://{addr}")).await?;

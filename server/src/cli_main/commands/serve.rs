@@ -189,6 +189,14 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             }
             None => None,
         };
+        let web = match &a.web {
+            Some(addr) => Some(
+                tokio::net::TcpListener::bind(addr)
+                    .await
+                    .with_context(|| format!("cannot listen on {addr} for the web viewer"))?,
+            ),
+            None => None,
+        };
         {
             let mut out = std::io::stdout().lock();
             match &wake_latency {
@@ -199,6 +207,9 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             writeln!(out, "listening on {}", listener.local_addr()?)?;
             if let Some(m) = &metrics {
                 writeln!(out, "metrics on http://{}/metrics", m.local_addr()?)?;
+            }
+            if let Some(w) = &web {
+                writeln!(out, "web viewer on http://{}/", w.local_addr()?)?;
             }
             writeln!(
                 out,
@@ -228,7 +239,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             }
             out.flush()?;
         }
-        crate::run(listener, metrics, config, stop_signal()).await
+        crate::run(listener, metrics, web, config, stop_signal()).await
     })?;
     Ok(ExitCode::SUCCESS)
 }
