@@ -10,7 +10,7 @@
 
 mod util;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -103,45 +103,46 @@ fn expected_picture(positions: &[f32], triangles: &[u32], w: usize, h: usize) ->
     (n, bbox)
 }
 
-#[test]
-fn an_instructor_opens_the_page_and_watches_a_pressed_session_in_chromium() {
-    if !browser() {
-        return;
-    }
-    let server = util::Server::start(&["--web", "127.0.0.1:0"], &[("VADEMECUM_TOKENS", "instructor-token")]);
+/// A session on `server` (scene `scene`, bundles in `bundle_dir`, label `label`) pressed at
+/// `press(i)` by a client while headless Chromium opens the page: what the page showed, and
+/// the session's reference surface.
+fn watched_in_chromium(
+    server: &util::Server,
+    scene: SceneSpec,
+    bundle_dir: &str,
+    label: &str,
+    press: impl Fn(&vademecum_client::pb::SurfaceMesh, u64) -> [f64; 3] + Send + 'static,
+    shot: &str,
+) -> (serde_json::Value, vademecum_client::pb::SurfaceMesh) {
     let web = server.web.clone().expect("the web viewer's address");
     let rt = util::runtime();
-    let client = rt
-        .block_on(Client::connect_with_token(server.url.clone(), Some("instructor-token")))
-        .unwrap();
-    let session = rt
-        .block_on(client.create_session(SceneSpec::Builtin("organ".into()), "organ", "trainee-1"))
-        .unwrap();
+    let client = rt.block_on(Client::connect_with_token(server.url.clone(), Some(TOKEN))).unwrap();
+    let session = rt.block_on(client.create_session(scene, bundle_dir, label)).unwrap();
     // the reference surface, as the page receives it
     let geometry = rt.block_on(async {
         let mut frames = session.watch(30.0).await.unwrap();
         frames.message().await.unwrap().unwrap().geometry.unwrap().organs.remove(0)
     });
-    // a trainee pressing the lobe, until the browser is done
+    // a trainee pressing, until the browser is done
     let done = Arc::new(AtomicBool::new(false));
     let presser = rt.spawn({
-        let (session, done) = (session.clone(), done.clone());
+        let (session, done, surface) = (session.clone(), done.clone(), geometry.clone());
         async move {
             let mut tools = session.interact().await.unwrap();
             let mut i = 0;
             while !done.load(Ordering::Relaxed) {
-                tools.send(tool_at(i, press(i))).await.unwrap();
+                tools.send(tool_at(i, press(&surface, i))).await.unwrap();
                 tools.next().await.unwrap().expect("an answer");
                 i += 1;
                 tokio::time::sleep(std::time::Duration::from_millis(1)).await;
             }
         }
     });
-    let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("web-viewer.png");
+    let shot = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(shot);
     let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/web_viewer.py");
     let o = Command::new("python3")
         .arg(&script)
-        .args([web.as_str(), "instructor-token", "trainee-1"])
+        .args([web.as_str(), TOKEN, label])
         .arg(&shot)
         .output()
         .expect("python3 runs");
@@ -153,14 +154,35 @@ fn an_instructor_opens_the_page_and_watches_a_pressed_session_in_chromium() {
         String::from_utf8_lossy(&o.stderr)
     );
     let seen: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    eprintln!("the page showed: {seen}");
+    eprintln!("the page showed ({label}): {seen}");
     assert_eq!(seen["errors"], serde_json::json!([]), "script errors in the page");
-    assert!(seen["listed"].as_str().unwrap().contains("trainee-1"), "{seen}");
+    assert!(seen["listed"].as_str().unwrap().contains(label), "{seen}");
     // frames at the requested 30 Hz (a functional check with a wide band: a stalled or
     // runaway stream falls outside it; not a performance figure)
     let rate = seen["frame_rate_hz"].as_f64().unwrap();
     assert!((10.0..=60.0).contains(&rate), "frames at {rate} Hz");
     assert!(seen["force_n"].as_f64().unwrap() > 0.0, "{seen}");
+    assert!(shot.is_file());
+    rt.block_on(session.close()).unwrap();
+    (seen, geometry)
+}
+
+const TOKEN: &str = "instructor-token";
+
+#[test]
+fn an_instructor_opens_the_page_and_watches_a_pressed_session_in_chromium() {
+    if !browser() {
+        return;
+    }
+    let server = util::Server::start(&["--web", "127.0.0.1:0"], &[("VADEMECUM_TOKENS", TOKEN)]);
+    let (seen, geometry) = watched_in_chromium(
+        &server,
+        SceneSpec::Builtin("organ".into()),
+        "organ",
+        "trainee-1",
+        |_, i| press(i),
+        "web-viewer.png",
+    );
     // the organ where the camera puts it
     let canvas = &seen["canvas"];
     let (w, h) = (
@@ -179,6 +201,60 @@ fn an_instructor_opens_the_page_and_watches_a_pressed_session_in_chromium() {
         let tolerance = 0.03 * if k % 2 == 0 { w } else { h } as f64;
         assert!((got[k] - bbox[k]).abs() <= tolerance, "bounding box {got:?}, projection {bbox:?}");
     }
-    assert!(shot.is_file());
-    rt.block_on(session.close()).unwrap();
+}
+
+/// The OpenHELP liver at h = 20 mm (2,151 surface nodes), from ../shared/data.
+#[test]
+fn the_page_keeps_the_30_hz_pace_on_the_liver_surface() {
+    if !browser() {
+        return;
+    }
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let scenes = repo.join("scenes");
+    let Some(data) = repo.ancestors().map(|a| a.join("shared/data")).find(|d| d.join("meshes").is_dir()) else {
+        assert!(std::env::var_os("CI").is_none(), "../shared/data is missing");
+        eprintln!("skipped: ../shared/data is not beside the checkout");
+        return;
+    };
+    util::vademecum(
+        &repo,
+        &[
+            "build",
+            "scenes/liver_h20.toml",
+            "--method",
+            "snapshots",
+            "--out",
+            util::bundles().join("liver").to_str().unwrap(),
+        ],
+    );
+    let server = util::Server::start(
+        &[
+            "--web",
+            "127.0.0.1:0",
+            "--scene-root",
+            scenes.to_str().unwrap(),
+            "--mesh-root",
+            data.to_str().unwrap(),
+        ],
+        &[("VADEMECUM_TOKENS", TOKEN)],
+    );
+    // press down on the highest node of the accessible surface (probe radius 4 mm)
+    let press = |surface: &vademecum_client::pb::SurfaceMesh, i: u64| {
+        let p = f32s(&surface.positions);
+        let top = (0..surface.node_count as usize)
+            .filter(|&n| surface.accessible[n] == 1)
+            .max_by(|&a, &b| p[3 * a + 2].total_cmp(&p[3 * b + 2]))
+            .expect("an accessible node");
+        let depth = 0.006 * (std::f64::consts::PI * (i % 1000) as f64 / 1000.0).sin();
+        [p[3 * top] as f64, p[3 * top + 1] as f64, p[3 * top + 2] as f64 + 0.004 - depth]
+    };
+    let (_, geometry) = watched_in_chromium(
+        &server,
+        SceneSpec::Path("liver_h20.toml".into()),
+        "liver",
+        "liver-1",
+        press,
+        "web-viewer-liver.png",
+    );
+    assert_eq!(geometry.node_count, 2151);
 }
