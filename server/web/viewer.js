@@ -252,14 +252,16 @@ function viewer() {
   };
 }
 
-/** A colour for t in [0, 1]: dark blue → teal → yellow (perceptually ordered). */
-function colour(t, shade) {
+/** A colour for t in [0, 1]: dark blue → teal → yellow (perceptually ordered), blended
+ *  towards damage red by `hurt` in [0, 1], darkened by `shade`. */
+function colour(t, shade, hurt = 0) {
   t = Math.max(0, Math.min(1, t));
   const stops = [[0.18, 0.2, 0.45], [0.1, 0.55, 0.55], [0.45, 0.78, 0.35], [0.98, 0.85, 0.2]];
   const x = t * (stops.length - 1);
   const i = Math.min(stops.length - 2, Math.floor(x));
   const f = x - i;
-  const c = stops[i].map((a, k) => a + (stops[i + 1][k] - a) * f);
+  const red = [0.85, 0.1, 0.1];
+  const c = stops[i].map((a, k) => a + (stops[i + 1][k] - a) * f).map((v, k) => v + (red[k] - v) * hurt);
   return `rgb(${c.map((v) => Math.round(255 * v * shade)).join(',')})`;
 }
 
@@ -282,9 +284,14 @@ function draw() {
   const project = (v) => [w / 2 + scale * v[0], h / 2 - scale * v[1]];
   const tris = [];
   let umax = 0;
+  let damageMax = null; // [largest damage, torn threshold] of a tearing organ
   state.geometry.forEach((g, o) => {
     const u = frame && frame.organs[o] ? frame.organs[o].u : null;
-    const dmg = frame && frame.organs[o] && frame.organs[o].damage ? f32s(one(frame.organs[o].damage, 2)) : null;
+    // a tearing organ's damage per surface triangle: blended in red, hidden once torn
+    const damage = frame && frame.organs[o] ? frame.organs[o].damage : null;
+    const dmg = damage ? f32s(one(damage, 2)) : null;
+    const torn = damage && one(damage, 3) ? one(damage, 3).f32 : 1;
+    if (dmg && dmg.length) damageMax = [Math.max(...dmg), torn];
     const pos = new Float32Array(g.ref.length);
     const mag = new Float32Array(g.n);
     for (let i = 0; i < g.n; i++) {
@@ -297,7 +304,9 @@ function draw() {
     for (let i = 0; i < g.n; i++) v.push(view(pos[3 * i], pos[3 * i + 1], pos[3 * i + 2]));
     for (let t = 0; t < g.tri.length; t += 3) {
       const [a, b, c] = [g.tri[t], g.tri[t + 1], g.tri[t + 2]];
-      tris.push({ v: [v[a], v[b], v[c]], m: (mag[a] + mag[b] + mag[c]) / 3, damage: dmg ? dmg[t / 3] : 0 });
+      const d = dmg && dmg.length === g.tri.length / 3 ? dmg[t / 3] : 0;
+      if (d >= torn) continue;
+      tris.push({ v: [v[a], v[b], v[c]], m: (mag[a] + mag[b] + mag[c]) / 3, hurt: Math.min(1, d / torn) });
     }
     const cut = frame && frame.organs[o] ? frame.organs[o].cut : null;
     if (cut) {
@@ -311,6 +320,7 @@ function draw() {
     }
   });
   state.umaxShown = umax;
+  state.damageShown = damageMax;
   state.umaxScale = Math.max(umax, 0.97 * state.umaxScale, 1e-4);
   tris.sort((p, q) => (p.v[0][2] + p.v[1][2] + p.v[2][2]) - (q.v[0][2] + q.v[1][2] + q.v[2][2]));
   for (const t of tris) {
@@ -323,8 +333,7 @@ function draw() {
     const shade = 0.35 + 0.65 * Math.abs(n[2] / len);
     const [pa, pb, pc] = [project(a), project(b), project(c)];
     ctx.beginPath(); ctx.moveTo(...pa); ctx.lineTo(...pb); ctx.lineTo(...pc); ctx.closePath();
-    ctx.fillStyle = t.wall ? `rgb(${Math.round(200 * shade)},40,40)` : t.damage > 0
-      ? `rgb(${Math.round(120 + 135 * t.damage * shade)},30,30)` : colour(t.m / state.umaxScale, shade);
+    ctx.fillStyle = t.wall ? `rgb(${Math.round(200 * shade)},40,40)` : colour(t.m / state.umaxScale, shade, t.hurt);
     ctx.fill();
   }
   if (frame && frame.contact) drawTool(ctx, view, project, scale, frame);
@@ -382,6 +391,8 @@ function updateReadouts() {
     $('time').textContent = `${f.time.toFixed(2)} s`;
     $('force').textContent = `${f.magnitude.toFixed(3)} N`;
     $('umax').textContent = `${(1e3 * (state.umaxShown || 0)).toFixed(3)} mm`;
+    $('damage').textContent = state.damageShown
+      ? `${state.damageShown[0].toFixed(2)} (torn at ${state.damageShown[1].toFixed(2)}; red)` : '–';
   }
 }
 

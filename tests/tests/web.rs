@@ -15,7 +15,7 @@ use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use vademecum_client::{Client, SceneSpec, f32s, tool_at, u32s};
+use vademecum_client::{Client, SceneSpec, f32s, grasper_at, tool_at, u32s};
 
 /// Whether python3 has Playwright and Debian's Chromium is installed.
 fn browser() -> bool {
@@ -103,15 +103,15 @@ fn expected_picture(positions: &[f32], triangles: &[u32], w: usize, h: usize) ->
     (n, bbox)
 }
 
-/// A session on `server` (scene `scene`, bundles in `bundle_dir`, label `label`) pressed at
-/// `press(i)` by a client while headless Chromium opens the page: what the page showed, and
-/// the session's reference surface.
+/// A session on `server` (scene `scene`, bundles in `bundle_dir`, label `label`) driven with
+/// the tool states `tool(surface, i)` by a client while headless Chromium opens the page: what
+/// the page showed, and the session's reference surface.
 fn watched_in_chromium(
     server: &util::Server,
     scene: SceneSpec,
     bundle_dir: &str,
     label: &str,
-    press: impl Fn(&vademecum_client::pb::SurfaceMesh, u64) -> [f64; 3] + Send + 'static,
+    tool: impl Fn(&vademecum_client::pb::SurfaceMesh, u64) -> vademecum_client::pb::ToolState + Send + 'static,
     shot: &str,
 ) -> (serde_json::Value, vademecum_client::pb::SurfaceMesh) {
     let web = server.web.clone().expect("the web viewer's address");
@@ -131,7 +131,7 @@ fn watched_in_chromium(
             let mut tools = session.interact().await.unwrap();
             let mut i = 0;
             while !done.load(Ordering::Relaxed) {
-                tools.send(tool_at(i, press(&surface, i))).await.unwrap();
+                tools.send(tool(&surface, i)).await.unwrap();
                 tools.next().await.unwrap().expect("an answer");
                 i += 1;
                 tokio::time::sleep(std::time::Duration::from_millis(1)).await;
@@ -162,6 +162,9 @@ fn watched_in_chromium(
     let rate = seen["frame_rate_hz"].as_f64().unwrap();
     assert!((10.0..=60.0).contains(&rate), "frames at {rate} Hz");
     assert!(seen["force_n"].as_f64().unwrap() > 0.0, "{seen}");
+    // damaged tissue is drawn red where a session tears, nowhere else
+    let tears = session.info().effects.iter().any(|e| e == "tearing");
+    assert_eq!(seen["canvas"]["red"].as_f64().unwrap() > 50.0, tears, "{seen}");
     assert!(shot.is_file());
     rt.block_on(session.close()).unwrap();
     (seen, geometry)
@@ -180,7 +183,7 @@ fn an_instructor_opens_the_page_and_watches_a_pressed_session_in_chromium() {
         SceneSpec::Builtin("organ".into()),
         "organ",
         "trainee-1",
-        |_, i| press(i),
+        |_, i| tool_at(i, press(i)),
         "web-viewer.png",
     );
     // the organ where the camera puts it
@@ -246,7 +249,7 @@ fn the_page_keeps_the_30_hz_pace_on_the_liver_surface() {
             .max_by(|&a, &b| p[3 * a + 2].total_cmp(&p[3 * b + 2]))
             .expect("an accessible node");
         let depth = 0.006 * (std::f64::consts::PI * (i % 1000) as f64 / 1000.0).sin();
-        [p[3 * top] as f64, p[3 * top + 1] as f64, p[3 * top + 2] as f64 + 0.004 - depth]
+        tool_at(i, [p[3 * top] as f64, p[3 * top + 1] as f64, p[3 * top + 2] as f64 + 0.004 - depth])
     };
     let (_, geometry) = watched_in_chromium(
         &server,
@@ -257,4 +260,28 @@ fn the_page_keeps_the_30_hz_pace_on_the_liver_surface() {
         "web-viewer-liver.png",
     );
     assert_eq!(geometry.node_count, 2151);
+}
+
+/// A tearing session: the damage the grasper's pull spreads is drawn (red) on the cube.
+#[test]
+fn the_page_draws_the_damage_a_pull_spreads() {
+    if !browser() {
+        return;
+    }
+    let server = util::Server::start(&["--web", "127.0.0.1:0"], &[("VADEMECUM_TOKENS", TOKEN)]);
+    // the scene's grasp site: the corner (1, 1, 1) of the 1 m cube, pulled up; closed there,
+    // then pulled 0.5 m (about the scene's 0.5 N, which damages it towards the law's 0.6)
+    let pull = |_: &vademecum_client::pb::SurfaceMesh, i: u64| match i {
+        0 => grasper_at(i, [1.0, 1.0, 1.0], 0.0),
+        _ => grasper_at(i, [1.0, 1.0, 1.0 + 0.5 * (i.min(1000) as f64 / 1000.0)], 1.0),
+    };
+    // the red tissue is checked by watched_in_chromium
+    watched_in_chromium(
+        &server,
+        SceneSpec::Builtin("cube_tear".into()),
+        "cube_tear",
+        "tear-1",
+        pull,
+        "web-viewer-tear.png",
+    );
 }

@@ -13,21 +13,22 @@ ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 # pixels of the canvas that are not background, left of the scale bar and its labels (130 px)
-# and not of the tool's colour
+# and not of the tool's colour; "red": those drawn as damaged tissue or cut walls
 MEASURE = """() => {
   const c = document.getElementById('canvas');
   const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
   const right = c.width - 130 * (window.devicePixelRatio || 1);
-  let n = 0, x0 = 1e9, y0 = 1e9, x1 = -1, y1 = -1;
+  let n = 0, red = 0, x0 = 1e9, y0 = 1e9, x1 = -1, y1 = -1;
   for (let y = 0; y < c.height; y++) for (let x = 0; x < right; x++) {
     const i = 4 * (y * c.width + x);
     const [r, g, b] = [d[i], d[i + 1], d[i + 2]];
     const bg = Math.abs(r - 0x12) + Math.abs(g - 0x16) + Math.abs(b - 0x1c) < 12;
     const tool = Math.abs(r - 0xe0) + Math.abs(g - 0xa0) + Math.abs(b - 0x40) < 60;
     if (bg || tool) continue;
+    if (r > 60 && r > 1.4 * g && r > 1.4 * b) red++;
     n++; x0 = Math.min(x0, x); y0 = Math.min(y0, y); x1 = Math.max(x1, x); y1 = Math.max(y1, y);
   }
-  return {area: n, bbox: [x0, y0, x1, y1], width: c.width, height: c.height};
+  return {area: n, red, bbox: [x0, y0, x1, y1], width: c.width, height: c.height};
 }"""
 
 out = {}
