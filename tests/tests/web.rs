@@ -162,9 +162,9 @@ fn watched_in_chromium(
     let rate = seen["frame_rate_hz"].as_f64().unwrap();
     assert!((10.0..=60.0).contains(&rate), "frames at {rate} Hz");
     assert!(seen["force_n"].as_f64().unwrap() > 0.0, "{seen}");
-    // damaged tissue is drawn red where a session tears, nowhere else
-    let tears = session.info().effects.iter().any(|e| e == "tearing");
-    assert_eq!(seen["canvas"]["red"].as_f64().unwrap() > 50.0, tears, "{seen}");
+    // damaged tissue and cut walls are drawn red where a session tears or cuts, nowhere else
+    let opens = session.info().effects.iter().any(|e| e == "tearing" || e == "cutting");
+    assert_eq!(seen["canvas"]["red"].as_f64().unwrap() > 50.0, opens, "{seen}");
     assert!(shot.is_file());
     rt.block_on(session.close()).unwrap();
     (seen, geometry)
@@ -283,5 +283,29 @@ fn the_page_draws_the_damage_a_pull_spreads() {
         "tear-1",
         pull,
         "web-viewer-tear.png",
+    );
+}
+
+/// A cutting session: the walls of the incision are drawn (red) where the blade opened the
+/// patch of seed 000 §3.5.1.
+#[test]
+fn the_page_draws_the_walls_of_a_cut() {
+    if !browser() {
+        return;
+    }
+    let server = util::Server::start(&["--web", "127.0.0.1:0"], &[("VADEMECUM_TOKENS", TOKEN)]);
+    const H: f64 = std::f64::consts::FRAC_1_SQRT_2;
+    // the blade upright in the plane x = 4, pressed down through the patch, then held in it
+    let cut = |_: &vademecum_client::pb::SurfaceMesh, i: u64| {
+        let z = 5.1 - 1.2 * (i.min(600) as f64 / 600.0);
+        vademecum_client::scalpel_at(i, [4.0, -0.1, z], [4.0, 1.1, z], [H, 0.0, 0.0, -H])
+    };
+    watched_in_chromium(
+        &server,
+        SceneSpec::Builtin("patch_cut".into()),
+        "patch_cut",
+        "cut-1",
+        cut,
+        "web-viewer-cut.png",
     );
 }
