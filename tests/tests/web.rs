@@ -172,6 +172,41 @@ fn watched_in_chromium(
 
 const TOKEN: &str = "instructor-token";
 
+/// A web frontend served from another origin may call the services: the CORS preflight of a
+/// gRPC-web call is answered with the origin, method and headers it needs.
+#[test]
+fn grpc_web_calls_from_another_origin_pass_the_cors_preflight() {
+    use std::io::{Read, Write};
+    let server = util::Server::start(&["--web", "127.0.0.1:0"], &[("VADEMECUM_TOKENS", TOKEN)]);
+    let addr = server
+        .web
+        .as_ref()
+        .unwrap()
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string();
+    let mut http = std::net::TcpStream::connect(&addr).unwrap();
+    write!(
+        http,
+        "OPTIONS /vademecum.v1.Sessions/ListSessions HTTP/1.1\r\nHost: {addr}\r\nOrigin: https://simulator.example\r\n\
+         Access-Control-Request-Method: POST\r\nAccess-Control-Request-Headers: content-type,x-grpc-web,authorization\r\n\
+         Connection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut answer = String::new();
+    http.read_to_string(&mut answer).unwrap();
+    let answer = answer.to_ascii_lowercase();
+    assert!(answer.starts_with("http/1.1 200"), "{answer}");
+    assert!(answer.contains("access-control-allow-origin: *"), "{answer}");
+    let allowed = answer
+        .lines()
+        .find(|l| l.starts_with("access-control-allow-headers:"))
+        .unwrap_or_default();
+    for h in ["content-type", "x-grpc-web", "authorization"] {
+        assert!(allowed.contains(h), "{allowed}");
+    }
+}
+
 #[test]
 fn an_instructor_opens_the_page_and_watches_a_pressed_session_in_chromium() {
     if !browser() {
