@@ -152,6 +152,7 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
             .collect(),
         force_n: Some(pb_vec3(f.force_n)),
         contact: f.contact.as_ref().map(pb_contact),
+        tool_m: f.tool_m.map(pb_vec3),
         message: 0,
     }
 }

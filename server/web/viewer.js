@@ -24,6 +24,7 @@ const state = {
   latency: 0,
   force: [], // [local time s, |F| N]
   umaxScale: 1e-3,
+  toolRadius: {}, // session id → its first tool's radius (m), for drawing it
   yaw: 0.6,
   pitch: 0.5,
 };
@@ -156,6 +157,8 @@ async function listSessions() {
   ul.textContent = '';
   for (const s of subs(list, 1)) {
     const id = str(s, 1);
+    const tool = subs(s, 9)[0];
+    if (tool) state.toolRadius[id] = dbl(tool, 3);
     const li = document.createElement('li');
     li.dataset.id = id;
     const label = str(s, 3);
@@ -211,6 +214,7 @@ function onFrame(bytes) {
   state.bestOffset = Math.min(state.bestOffset, offset);
   state.latency = offset - state.bestOffset;
   const contact = sub(m, 19);
+  const tool = sub(m, 20);
   // the newest frame replaces one not drawn yet: late frames are skipped, never queued
   state.latest = {
     time, force, magnitude,
@@ -220,6 +224,7 @@ function onFrame(bytes) {
       damage: sub(o, 3),
     })),
     contact: contact ? { organ: uint(contact, 1), at: vec3(sub(contact, 4)) } : null,
+    tool: tool ? vec3(tool) : null,
   };
 }
 
@@ -336,20 +341,25 @@ function draw() {
     ctx.fillStyle = t.wall ? `rgb(${Math.round(200 * shade)},40,40)` : colour(t.m / state.umaxScale, shade, t.hurt);
     ctx.fill();
   }
-  if (frame && frame.contact) drawTool(ctx, view, project, scale, frame);
+  if (frame && (frame.tool || frame.contact)) drawTool(ctx, view, project, scale, frame);
   drawScaleBar(ctx, w, h, dpr);
 }
 
-/** The tool where it touches, and its force (1 N = a tenth of the organ's size). */
+/** The tool where it is (a probe's tip drawn at its radius; where it touches when the frame
+ *  does not say), and the force on it from there (the tissue's reaction: what the haptic
+ *  device renders; a tenth of the organ's size per newton). */
 function drawTool(ctx, view, project, scale, frame) {
-  const at = frame.contact.at;
+  const at = frame.tool || frame.contact.at;
   const p = project(view(...at));
+  const radius = state.watching ? state.toolRadius[state.watching.id] || 0 : 0;
   const arrow = camera.radius * 0.2;
-  const tip = project(view(at[0] - frame.force[0] * arrow, at[1] - frame.force[1] * arrow, at[2] - frame.force[2] * arrow));
-  ctx.strokeStyle = '#e0a040'; ctx.fillStyle = '#e0a040'; ctx.lineWidth = 3;
-  ctx.beginPath(); ctx.arc(p[0], p[1], Math.max(4, 0.004 * scale), 0, 2 * Math.PI); ctx.stroke();
-  ctx.beginPath(); ctx.moveTo(...p); ctx.lineTo(...tip); ctx.stroke();
-  ctx.beginPath(); ctx.arc(tip[0], tip[1], 4, 0, 2 * Math.PI); ctx.fill();
+  const tip = project(view(at[0] + frame.force[0] * arrow, at[1] + frame.force[1] * arrow, at[2] + frame.force[2] * arrow));
+  ctx.strokeStyle = '#f4f4f4'; ctx.fillStyle = '#f4f4f4'; ctx.lineWidth = 3;
+  ctx.beginPath(); ctx.arc(p[0], p[1], Math.max(4, radius * scale), 0, 2 * Math.PI); ctx.stroke();
+  if (frame.magnitude > 0) {
+    ctx.beginPath(); ctx.moveTo(...p); ctx.lineTo(...tip); ctx.stroke();
+    ctx.beginPath(); ctx.arc(tip[0], tip[1], 4, 0, 2 * Math.PI); ctx.fill();
+  }
 }
 
 function drawScaleBar(ctx, w, h, dpr) {

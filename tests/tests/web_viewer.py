@@ -13,7 +13,7 @@ ARGS = ["--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 # pixels of the canvas that are not background, left of the scale bar and its labels (130 px)
-# and not of the tool's colour; "red": those drawn as damaged tissue or cut walls
+# and not of the tool's colour (or of its edges over the background); "red": those drawn as damaged tissue or cut walls
 MEASURE = """() => {
   const c = document.getElementById('canvas');
   const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
@@ -23,7 +23,10 @@ MEASURE = """() => {
     const i = 4 * (y * c.width + x);
     const [r, g, b] = [d[i], d[i + 1], d[i + 2]];
     const bg = Math.abs(r - 0x12) + Math.abs(g - 0x16) + Math.abs(b - 0x1c) < 12;
-    const tool = Math.abs(r - 0xe0) + Math.abs(g - 0xa0) + Math.abs(b - 0x40) < 60;
+    // the tool's white, and its edges blended with the background
+    const o = [0xf4 - 0x12, 0xf4 - 0x16, 0xf4 - 0x1c], q = [r - 0x12, g - 0x16, b - 0x1c];
+    const t = (q[0] * o[0] + q[1] * o[1] + q[2] * o[2]) / (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+    const tool = t > 0.05 && Math.hypot(q[0] - t * o[0], q[1] - t * o[1], q[2] - t * o[2]) < 24;
     if (bg || tool) continue;
     if (r > 60 && r > 1.4 * g && r > 1.4 * b) red++;
     n++; x0 = Math.min(x0, x); y0 = Math.min(y0, y); x1 = Math.max(x1, x); y1 = Math.max(y1, y);

@@ -222,6 +222,9 @@ pub struct TickState {
     /// calibration); `None` when an effect that cannot shaped the force, or the input was
     /// rejected.
     pub force_error_n: Option<f64>,
+    /// Where the tool was (the probe tip's centre, the scalpel's tip, the grasper's jaws; m):
+    /// the input the tick answered. `None` when the input was rejected.
+    pub tool_m: Option<[f64; 3]>,
 }
 
 /// The fidelity an effect runs at: its scene's settings, or the cheaper setting a session falls
@@ -583,6 +586,7 @@ impl Pipeline {
             state.events.0 |= Events::REJECTED_INPUT;
             return state;
         }
+        state.tool_m = Some(tool.position_m);
         for e in &mut self.effects {
             e.tick(tool, &mut state);
         }

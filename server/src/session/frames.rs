@@ -97,6 +97,8 @@ pub struct Frame {
     pub force_n: [f64; 3],
     /// Contact, if any.
     pub contact: Option<Contact>,
+    /// Where the tool was at that tick (`None`: no tool state yet, or it was rejected).
+    pub tool_m: Option<[f64; 3]>,
     /// Per organ, the displacement (m) of its surface nodes, 3 per node, in
     /// [`OrganSurface::nodes`] order.
     pub displacements_m: Vec<Vec<f32>>,
@@ -183,6 +185,7 @@ impl Frame {
             time_s: 0.0,
             force_n: [0.0; 3],
             contact: None,
+            tool_m: None,
             displacements_m: g.organs.iter().map(|o| vec![0.0; 3 * o.nodes.len()]).collect(),
             cuts: vec![None; g.organs.len()],
             damage: vec![None; g.organs.len()],
@@ -471,6 +474,7 @@ impl FrameProducer {
         frame.time_s = l.time_us as f64 * 1e-6;
         frame.force_n = l.state.force_n;
         frame.contact = l.state.contact;
+        frame.tool_m = l.state.tool_m;
         let mut loaded = None;
         if let Some(c) = l.state.contact {
             let v = &self.bundles[c.organ].vademecum;
@@ -510,6 +514,7 @@ impl FrameProducer {
         frame.time_s = l.time_us as f64 * 1e-6;
         frame.force_n = l.state.force_n;
         frame.contact = l.state.contact;
+        frame.tool_m = l.state.tool_m;
         let Some(c) = &mut self.corotational else { return frame };
         let def = &c.deformation;
         let o = def.organ();
