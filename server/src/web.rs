@@ -5,8 +5,8 @@
 //! same limits. CORS lets pages served elsewhere call them too: a bearer token is a header,
 //! not an ambient cookie, so another origin gains nothing it was not given.
 
-use axum::http::{HeaderName, Method, header};
-use axum::response::{Html, IntoResponse};
+use axum::http::{HeaderMap, HeaderName, Method, StatusCode, header};
+use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use tonic::service::Routes;
 use tonic::service::interceptor::InterceptedService;
@@ -49,6 +49,21 @@ fn cors() -> CorsLayer {
         .expose_headers([h("grpc-status"), h("grpc-message"), h("grpc-status-details-bin")])
 }
 
+/// What answers a path that is neither the page nor a service's method: a gRPC (or gRPC-web)
+/// call gets `UNIMPLEMENTED`, as from the gRPC port; anything else — a mistyped address in a
+/// browser — a plain 404 that says where the viewer is.
+async fn not_found(headers: HeaderMap) -> Response {
+    let grpc = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/grpc"));
+    if grpc {
+        tonic::Status::unimplemented("no such service or method").into_http()
+    } else {
+        (StatusCode::NOT_FOUND, "not found: the viewer is at /\n").into_response()
+    }
+}
+
 /// Serves the page and gRPC-web on `listener` (with TLS when `tls` gives a certificate chain
 /// and key, as the gRPC port) until `shutdown` resolves.
 pub async fn serve(
@@ -69,7 +84,8 @@ pub async fn serve(
         .route(
             "/viewer.js",
             get(|| async { ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], VIEWER_JS).into_response() }),
-        );
+        )
+        .fallback(not_found);
     let mut builder = tonic::transport::Server::builder();
     if let Some((cert, key)) = &tls {
         builder = builder.tls_config(tonic::transport::ServerTlsConfig::new().identity(tonic::transport::Identity::from_pem(cert, key)))?;

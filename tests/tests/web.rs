@@ -172,30 +172,35 @@ fn watched_in_chromium(
 
 const TOKEN: &str = "instructor-token";
 
+/// The web port's `host:port`.
+fn web_addr(server: &util::Server) -> String {
+    let url = server.web.as_ref().expect("the server was started with --web");
+    url.trim_start_matches("http://").trim_end_matches('/').to_string()
+}
+
+/// One HTTP/1.1 exchange with the web port (`head`: the request line and headers, without
+/// the blank line that ends them; then `body`), the answer lower-cased.
+fn http(addr: &str, head: &str, body: &[u8]) -> String {
+    use std::io::{Read, Write};
+    let mut stream = std::net::TcpStream::connect(addr).unwrap();
+    write!(stream, "{head}\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
+    stream.write_all(body).unwrap();
+    let mut answer = String::new();
+    stream.read_to_string(&mut answer).unwrap();
+    answer.to_ascii_lowercase()
+}
+
 /// A web frontend served from another origin may call the services: the CORS preflight of a
 /// gRPC-web call is answered with the origin, method and headers it needs.
 #[test]
 fn grpc_web_calls_from_another_origin_pass_the_cors_preflight() {
-    use std::io::{Read, Write};
     let server = util::Server::start(&["--web", "127.0.0.1:0"], &[("VADEMECUM_TOKENS", TOKEN)]);
-    let addr = server
-        .web
-        .as_ref()
-        .unwrap()
-        .trim_start_matches("http://")
-        .trim_end_matches('/')
-        .to_string();
-    let mut http = std::net::TcpStream::connect(&addr).unwrap();
-    write!(
-        http,
-        "OPTIONS /vademecum.v1.Sessions/ListSessions HTTP/1.1\r\nHost: {addr}\r\nOrigin: https://simulator.example\r\n\
-         Access-Control-Request-Method: POST\r\nAccess-Control-Request-Headers: content-type,x-grpc-web,authorization\r\n\
-         Connection: close\r\n\r\n"
-    )
-    .unwrap();
-    let mut answer = String::new();
-    http.read_to_string(&mut answer).unwrap();
-    let answer = answer.to_ascii_lowercase();
+    let answer = http(
+        &web_addr(&server),
+        "OPTIONS /vademecum.v1.Sessions/ListSessions HTTP/1.1\r\nOrigin: https://simulator.example\r\n\
+         Access-Control-Request-Method: POST\r\nAccess-Control-Request-Headers: content-type,x-grpc-web,authorization",
+        b"",
+    );
     assert!(answer.starts_with("http/1.1 200"), "{answer}");
     assert!(answer.contains("access-control-allow-origin: *"), "{answer}");
     let allowed = answer
@@ -205,6 +210,35 @@ fn grpc_web_calls_from_another_origin_pass_the_cors_preflight() {
     for h in ["content-type", "x-grpc-web", "authorization"] {
         assert!(allowed.contains(h), "{allowed}");
     }
+}
+
+/// The web port serves the page and its script, answers a mistyped address with a 404 (not an
+/// empty page), and a gRPC-web call to a method that does not exist with `UNIMPLEMENTED`.
+#[test]
+fn the_web_port_serves_the_page_and_refuses_what_it_does_not_have() {
+    let server = util::Server::start(&["--web", "127.0.0.1:0"], &[]);
+    let addr = web_addr(&server);
+    let page = http(&addr, "GET / HTTP/1.1", b"");
+    assert!(
+        page.starts_with("http/1.1 200") && page.contains("content-type: text/html"),
+        "{page}"
+    );
+    assert!(page.contains("viewer.js"), "{page}");
+    let script = http(&addr, "GET /viewer.js HTTP/1.1", b"");
+    assert!(
+        script.starts_with("http/1.1 200") && script.contains("content-type: text/javascript"),
+        "{script}"
+    );
+    let missing = http(&addr, "GET /sessions.html HTTP/1.1", b"");
+    assert!(missing.starts_with("http/1.1 404"), "{missing}");
+    assert!(missing.contains("the viewer is at /"), "{missing}");
+    let unknown = http(
+        &addr,
+        "POST /vademecum.v1.Sessions/NoSuchMethod HTTP/1.1\r\nContent-Type: application/grpc-web+proto\r\n\
+         X-Grpc-Web: 1\r\nContent-Length: 5",
+        &[0; 5],
+    );
+    assert!(unknown.contains("grpc-status: 12"), "{unknown}");
 }
 
 #[test]

@@ -23,10 +23,12 @@ MEASURE = """() => {
     const i = 4 * (y * c.width + x);
     const [r, g, b] = [d[i], d[i + 1], d[i + 2]];
     const bg = Math.abs(r - 0x12) + Math.abs(g - 0x16) + Math.abs(b - 0x1c) < 12;
-    // the tool's white, and its edges blended with the background
+    // the tool's white, and its edges blended with the background in any proportion (the
+    // faintest pixels of the force's thin line are 3.6 % white: a threshold on the blend
+    // counted them as organ, far above it)
     const o = [0xf4 - 0x12, 0xf4 - 0x16, 0xf4 - 0x1c], q = [r - 0x12, g - 0x16, b - 0x1c];
     const t = (q[0] * o[0] + q[1] * o[1] + q[2] * o[2]) / (o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
-    const tool = t > 0.05 && Math.hypot(q[0] - t * o[0], q[1] - t * o[1], q[2] - t * o[2]) < 24;
+    const tool = t > 0 && Math.hypot(q[0] - t * o[0], q[1] - t * o[1], q[2] - t * o[2]) < 24;
     if (bg || tool) continue;
     if (r > 60 && r > 1.4 * g && r > 1.4 * b) red++;
     n++; x0 = Math.min(x0, x); y0 = Math.min(y0, y); x1 = Math.max(x1, x); y1 = Math.max(y1, y);
