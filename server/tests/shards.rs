@@ -110,6 +110,11 @@ fn a_sharded_build_merged_is_the_single_process_build_to_the_bit() {
 fn merge_refuses_missing_foreign_and_stale_shards_and_writes_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
+    // a folder no shard was written to yet (a merge Job that starts first, with no --wait)
+    let o = vademecum(&["merge", "--out", "m"], root);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no shard in m") && err.contains("vademecum build --shard"), "{err}");
     ok(&["build", "--shard", "0/3", "--out", "m"], root);
     ok(&["build", "--shard", "2/3", "--out", "m"], root);
     let o = vademecum(&["merge", "--out", "m"], root);

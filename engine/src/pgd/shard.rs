@@ -141,10 +141,18 @@ pub fn write_shard(out: &Path, scene: &Scene, index: usize, info: &ShardInfo, u:
 fn find(out: &Path, organ: &str) -> Result<Option<(usize, Vec<Option<PathBuf>>)>, ShardError> {
     let prefix = format!("{organ}.shard-");
     let mut found: Vec<(ShardOf, PathBuf)> = Vec::new();
-    let entries = std::fs::read_dir(out).map_err(|source| BundleError::Io {
-        path: out.to_path_buf(),
-        source,
-    })?;
+    let entries = match std::fs::read_dir(out) {
+        Ok(entries) => entries,
+        // no folder yet: no shard in it (the merge says which command writes them)
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(source) => {
+            return Err(BundleError::Io {
+                path: out.to_path_buf(),
+                source,
+            }
+            .into());
+        }
+    };
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
         let Some(rest) = name.strip_prefix(&prefix) else { continue };
