@@ -142,6 +142,26 @@ pub struct Manifest {
     pub arrays: BTreeMap<String, ArrayEntry>,
 }
 
+impl Manifest {
+    /// The manifest of a bundle of `kind` for organ `organ` of `scene` on `mesh`, written by
+    /// this version, with no array yet (`bundle::write` adds them): the scene text and the mesh
+    /// pinned by their SHA-256.
+    pub fn new(kind: &str, scene: &crate::scene::Scene, organ: &str, mesh: &crate::mesh::Mesh, info: serde_json::Value) -> Self {
+        Self {
+            format: FORMAT.into(),
+            version: VERSION,
+            kind: kind.into(),
+            created_by: format!("vademecum {}", env!("CARGO_PKG_VERSION")),
+            scene: scene.spec.scene.name.clone(),
+            organ: organ.into(),
+            scene_sha256: sha256_hex(scene.source.as_bytes()),
+            mesh_sha256: mesh_hash(mesh),
+            info,
+            arrays: Default::default(),
+        }
+    }
+}
+
 /// An array to write: f64, f32 or i64 data with a shape.
 #[derive(Debug, Clone, Copy)]
 pub enum ArrayData<'a> {

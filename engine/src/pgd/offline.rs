@@ -489,13 +489,7 @@ pub fn solve_shard(
     on: &mut dyn FnMut(BuildStage),
 ) -> Result<(Vec<f64>, std::ops::Range<usize>, usize), BuildError> {
     let model = scene.organ_model_within(index, opts.max_memory)?;
-    let loads = load_nodes(&model);
-    if loads.is_empty() {
-        return Err(BuildError::NoLoadStates);
-    }
-    let (dofs, _, chol, _, _) = stiffness(&model, on)?;
-    let patches = load_patches(&model, &loads, opts.load_radius);
-    let load_eqs = load_vectors(&patches, &dofs);
+    let LoadStates { dofs, chol, load_eqs, .. } = load_states(&model, opts, on)?;
     let total = load_eqs.len();
     let range = shard_range(total, of.index, of.count);
     let n = dofs.n_free();
@@ -506,6 +500,48 @@ pub fn solve_shard(
         on(BuildStage::Exact(start + block.len() / n, total));
     });
     Ok((u, range, total))
+}
+
+/// What every build of an organ starts from, a whole one or a shard: its load states and its
+/// stiffness, assembled and factored.
+struct LoadStates {
+    /// The nodes a tool may press (three load states each).
+    loads: Vec<usize>,
+    dofs: DofMap,
+    k: SymmetricMatrix,
+    chol: Cholesky,
+    assembly_s: f64,
+    factorization_s: f64,
+    /// Each load node's patch (nodes, weights) at the build's load radius.
+    patches: Vec<(Vec<usize>, Vec<f64>)>,
+    /// The load vector of every load state.
+    load_eqs: Vec<build::LoadVector>,
+}
+
+/// The load states and the factored stiffness of `model`, refusing an organ with a free rigid
+/// motion (K singular) or no node a tool may press.
+fn load_states(model: &OrganModel, opts: &BuildOptions, on: &mut dyn FnMut(BuildStage)) -> Result<LoadStates, BuildError> {
+    let free = solve::free_rigid_motions(&model.mesh.nodes, &model.problem.supported());
+    if !free.is_empty() {
+        return Err(BuildError::RigidMotion(free));
+    }
+    let loads = load_nodes(model);
+    if loads.is_empty() {
+        return Err(BuildError::NoLoadStates);
+    }
+    let (dofs, k, chol, assembly_s, factorization_s) = stiffness(model, on)?;
+    let patches = load_patches(model, &loads, opts.load_radius);
+    let load_eqs = load_vectors(&patches, &dofs);
+    Ok(LoadStates {
+        loads,
+        dofs,
+        k,
+        chol,
+        assembly_s,
+        factorization_s,
+        patches,
+        load_eqs,
+    })
 }
 
 /// Which load states shard `i` of `n` (0-based) solves: contiguous ranges of whole blocks of
@@ -526,17 +562,16 @@ pub fn build_organ_from(
 ) -> Result<Built, BuildError> {
     let model = scene.organ_model_within(index, opts.max_memory)?;
     let mesh = &model.mesh;
-    let free = solve::free_rigid_motions(&mesh.nodes, &model.problem.supported());
-    if !free.is_empty() {
-        return Err(BuildError::RigidMotion(free));
-    }
-    let loads = load_nodes(&model);
-    if loads.is_empty() {
-        return Err(BuildError::NoLoadStates);
-    }
-    let (dofs, k, chol, assembly_s, factorization_s) = stiffness(&model, on)?;
-    let patches = load_patches(&model, &loads, opts.load_radius);
-    let load_eqs = load_vectors(&patches, &dofs);
+    let LoadStates {
+        loads,
+        dofs,
+        k,
+        chol,
+        assembly_s,
+        factorization_s,
+        patches,
+        load_eqs,
+    } = load_states(&model, opts, on)?;
     let n_free = dofs.n_free();
     let total = load_eqs.len();
     // the snapshots, when the modes come from them: solved here or given by the shards
@@ -851,18 +886,8 @@ pub fn build_organ_from(
 pub fn write_bundle(dir: &Path, scene: &Scene, built: &Built) -> Result<Manifest, BundleError> {
     let v = &built.vademecum;
     let mesh = &built.model.mesh;
-    let manifest = Manifest {
-        format: bundle::FORMAT.into(),
-        version: bundle::VERSION,
-        kind: KIND.into(),
-        created_by: format!("vademecum {}", env!("CARGO_PKG_VERSION")),
-        scene: scene.spec.scene.name.clone(),
-        organ: built.model.name.clone(),
-        scene_sha256: bundle::sha256_hex(scene.source.as_bytes()),
-        mesh_sha256: bundle::mesh_hash(mesh),
-        info: serde_json::to_value(&built.report).unwrap_or(serde_json::Value::Null),
-        arrays: Default::default(),
-    };
+    let report = serde_json::to_value(&built.report).unwrap_or(serde_json::Value::Null);
+    let manifest = Manifest::new(KIND, scene, &built.model.name, mesh, report);
     let nodes: Vec<f64> = mesh.nodes.iter().flatten().copied().collect();
     let loads: Vec<i64> = v.load_nodes().iter().map(|&n| n as i64).collect();
     let surface: Vec<i64> = built.model.boundary.triangles().iter().flatten().map(|&n| n as i64).collect();

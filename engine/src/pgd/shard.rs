@@ -120,18 +120,8 @@ pub fn write_shard(out: &Path, scene: &Scene, index: usize, info: &ShardInfo, u:
         message: e.to_string(),
     })?;
     let dir = shard_dir(out, organ, info.shard);
-    let manifest = Manifest {
-        format: bundle::FORMAT.into(),
-        version: bundle::VERSION,
-        kind: SHARD_KIND.into(),
-        created_by: format!("vademecum {}", env!("CARGO_PKG_VERSION")),
-        scene: scene.spec.scene.name.clone(),
-        organ: organ.clone(),
-        scene_sha256: bundle::sha256_hex(scene.source.as_bytes()),
-        mesh_sha256: bundle::mesh_hash(&mesh),
-        info: serde_json::to_value(info).unwrap_or(serde_json::Value::Null),
-        arrays: Default::default(),
-    };
+    let info_json = serde_json::to_value(info).unwrap_or(serde_json::Value::Null);
+    let manifest = Manifest::new(SHARD_KIND, scene, organ, &mesh, info_json);
     let shape = vec![(info.end - info.start) as u64, info.n_free as u64];
     bundle::write(&dir, manifest, &scene.source, &[("U", shape, ArrayData::F64(u))])?;
     Ok(dir)
