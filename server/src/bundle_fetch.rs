@@ -60,6 +60,9 @@ pub fn fetch(source: &str, hex: &str, store_dir: &Path) -> Result<PathBuf, Strin
             std::fs::write(incoming.join(file), bytes).map_err(|e| format!("cannot write {file}: {e}"))?;
         }
         let scene = get(&format!("{base}/scene.toml"), MAX_SCENE)?;
+        if bundle::sha256_hex(&scene) != manifest.scene_sha256 {
+            return Err(format!("{base}/scene.toml does not hash to what its manifest says"));
+        }
         std::fs::write(incoming.join("scene.toml"), scene).map_err(|e| format!("cannot write scene.toml: {e}"))?;
         // the manifest last: a fetch interrupted before it leaves no bundle
         std::fs::write(incoming.join(bundle::MANIFEST), &manifest_bytes).map_err(|e| format!("cannot write the manifest: {e}"))?;

@@ -151,6 +151,25 @@ fn a_session_gets_exactly_the_bundle_its_digest_names_from_the_store_or_the_sour
         .into_iter()
         .collect();
     assert!(left.iter().all(|&n| n == 0), "a refused fetch leaves nothing: {left:?}");
+    // a source whose arrays and manifest are right but whose scene text is not: refused at
+    // the fetch, nothing left
+    let rescened = tmp.path().join("rescened");
+    copy_dir(&store, &rescened);
+    let scene = rescened.join(format!("sha256/{hex}/scene.toml"));
+    let text = std::fs::read_to_string(&scene).unwrap();
+    std::fs::write(&scene, format!("{text}\n# edited\n")).unwrap();
+    let rescened_source = StaticHttp::start(&rescened);
+    let empty2 = tmp.path().join("empty2");
+    let e = util::Server::start(
+        &["--bundle-store", empty2.to_str().unwrap(), "--bundle-source", &rescened_source.1],
+        &[],
+    );
+    rt.block_on(async {
+        let (kind, msg) = pinned(&e.url, "lobe", &digest).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::FailedPrecondition, "{msg}");
+        assert!(msg.contains("scene.toml does not hash"), "{msg}");
+    });
+    assert_eq!(std::fs::read_dir(empty2.join("sha256")).map_or(0, |d| d.flatten().count()), 0);
 
     // a server without a store says so
     let plain = util::Server::start(&[], &[]);

@@ -20,14 +20,9 @@ fn token(a: &DrainArgs) -> anyhow::Result<Option<String>> {
         return Ok(Some(t.clone()));
     }
     if let Some(f) = &a.tokens_file {
-        let text = std::fs::read_to_string(f).with_context(|| format!("cannot read token file {}", f.display()))?;
-        let first = text.lines().map(str::trim).find(|l| !l.is_empty() && !l.starts_with('#'));
-        return match first {
-            Some(t) => Ok(Some(t.to_string())),
-            None => bail!("token file {} holds no token", f.display()),
-        };
+        return Ok(super::tokens_in_file(f)?.into_iter().next());
     }
-    let first = |v: String| v.split(',').map(str::trim).find(|t| !t.is_empty()).map(String::from);
+    let first = |v: String| super::comma_list(&v).into_iter().next();
     Ok(std::env::var("VADEMECUM_TOKEN")
         .ok()
         .and_then(first)

@@ -34,9 +34,33 @@ mod study_mesh;
 mod study_meshless;
 mod study_tear;
 
+use std::path::Path;
 use std::process::ExitCode;
 
+use anyhow::{Context, bail};
+
 use crate::cli_main::cli::{BenchCommand, CheckCommand, Cli, Command, MeshCommand};
+
+/// The bearer tokens of a tokens file (`serve --tokens-file`, `drain --tokens-file`): one per
+/// line, blank lines and `#` comments skipped; an error when it holds none.
+fn tokens_in_file(path: &Path) -> anyhow::Result<Vec<String>> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read token file {}", path.display()))?;
+    let tokens: Vec<String> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'))
+        .map(String::from)
+        .collect();
+    if tokens.is_empty() {
+        bail!("token file {} holds no token", path.display());
+    }
+    Ok(tokens)
+}
+
+/// The items of a comma-separated list (VADEMECUM_TOKENS, VADEMECUM_PEERS), blanks skipped.
+fn comma_list(list: &str) -> Vec<String> {
+    list.split(',').map(str::trim).filter(|t| !t.is_empty()).map(String::from).collect()
+}
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {

@@ -10,26 +10,16 @@ use vademecum_bridge::timing::WaitStrategy;
 use crate::cli_main::cli::ServeArgs;
 
 fn tokens(a: &ServeArgs) -> anyhow::Result<Option<Vec<String>>> {
-    let mut tokens: Vec<String> = Vec::new();
-    if let Some(f) = &a.tokens_file {
-        let text = std::fs::read_to_string(f).with_context(|| format!("cannot read token file {}", f.display()))?;
-        tokens.extend(
-            text.lines()
-                .map(str::trim)
-                .filter(|l| !l.is_empty() && !l.starts_with('#'))
-                .map(String::from),
-        );
-        if tokens.is_empty() {
-            bail!("token file {} holds no token", f.display());
-        }
-    }
+    let mut tokens: Vec<String> = match &a.tokens_file {
+        Some(f) => super::tokens_in_file(f)?,
+        None => Vec::new(),
+    };
     if let Some(env) = std::env::var_os("VADEMECUM_TOKENS") {
-        let env = env.to_string_lossy();
-        let before = tokens.len();
-        tokens.extend(env.split(',').map(str::trim).filter(|t| !t.is_empty()).map(String::from));
-        if tokens.len() == before {
+        let listed = super::comma_list(&env.to_string_lossy());
+        if listed.is_empty() {
             bail!("VADEMECUM_TOKENS is set but holds no token; unset it and pass --no-auth to serve without authentication");
         }
+        tokens.extend(listed);
     }
     match (tokens.is_empty(), a.no_auth) {
         (false, true) => bail!("--no-auth with tokens given (VADEMECUM_TOKENS or --tokens-file): choose one"),
@@ -58,7 +48,7 @@ fn name(a: &ServeArgs) -> anyhow::Result<String> {
 fn fleet(a: &ServeArgs) -> anyhow::Result<Option<crate::fleet::FleetConfig>> {
     let mut peers = a.peers.clone();
     if let Ok(env) = std::env::var("VADEMECUM_PEERS") {
-        peers.extend(env.split(',').map(str::trim).filter(|p| !p.is_empty()).map(String::from));
+        peers.extend(super::comma_list(&env));
     }
     let Some(advertise) = a.advertise.clone() else {
         if !peers.is_empty() {
