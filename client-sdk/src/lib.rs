@@ -52,6 +52,16 @@ pub enum SdkError {
     /// The stream to the server is closed.
     #[error("the stream to the server is closed")]
     Closed,
+    /// An interaction stream ended with tool states it sent unanswered (the session was
+    /// closed, or the server stopped): `unanswered` is this client's own count, exact, where
+    /// the server can count only the states that reached it.
+    #[error("the session was closed: the last {unanswered} tool state(s) this stream sent were not answered ({})", .status.as_ref().map_or("the server ended the stream".to_string(), |s| format!("server: {}", s.message())))]
+    Unanswered {
+        /// Tool states sent on the stream and never answered.
+        unanswered: u64,
+        /// The server's ABORTED status, if it ended the stream with one.
+        status: Option<tonic::Status>,
+    },
 }
 
 /// What kind of failure an [`SdkError`] is.
@@ -94,6 +104,7 @@ impl SdkError {
             },
             SdkError::BadToken => ErrorKind::Unauthenticated,
             SdkError::Closed => ErrorKind::Other,
+            SdkError::Unanswered { .. } => ErrorKind::Aborted,
         }
     }
 }
@@ -345,6 +356,8 @@ impl Session {
             session_id: first_id,
             tx: Some(tx),
             first_sent: false,
+            sent: 0,
+            answered: 0,
             pending: None,
         };
         Ok(interaction.with_responses(responses_fut))
@@ -403,6 +416,10 @@ pub struct Interaction {
     /// `None` once the client's side is finished.
     tx: Option<mpsc::Sender<pb::ToolState>>,
     first_sent: bool,
+    /// Tool states handed to the stream.
+    sent: u64,
+    /// Responses received.
+    answered: u64,
     pending: Option<PendingResponses>,
 }
 
@@ -433,7 +450,14 @@ impl Interaction {
             self.first_sent = true;
         }
         let tx = self.tx.as_ref().ok_or(SdkError::Closed)?;
-        tx.send(state).await.map_err(|_| SdkError::Closed)
+        tx.send(state).await.map_err(|_| SdkError::Closed)?;
+        self.sent += 1;
+        Ok(())
+    }
+
+    /// Tool states sent on this stream that have not been answered yet.
+    pub fn unanswered(&self) -> u64 {
+        self.sent - self.answered
     }
 
     /// Ends the client's side of the stream: the server answers what was sent, then ends.
@@ -455,9 +479,25 @@ impl Interaction {
         }
     }
 
-    /// The next response (`None` when the server ended the stream).
+    /// The next response (`None` when the server ended the stream having answered every
+    /// state sent). A stream that ends with states unanswered (the session was closed under
+    /// it) fails with [`SdkError::Unanswered`], which counts them.
     pub async fn next(&mut self) -> Result<Option<pb::ToolResponse>, SdkError> {
-        Ok(self.stream().await?.message().await?)
+        let m = self.stream().await?.message().await;
+        let unanswered = self.unanswered();
+        match m {
+            Ok(Some(r)) => {
+                self.answered += 1;
+                Ok(Some(r))
+            }
+            Ok(None) if unanswered > 0 => Err(SdkError::Unanswered { unanswered, status: None }),
+            Err(s) if s.code() == tonic::Code::Aborted && unanswered > 0 => Err(SdkError::Unanswered {
+                unanswered,
+                status: Some(s),
+            }),
+            Ok(None) => Ok(None),
+            Err(s) => Err(s.into()),
+        }
     }
 }
 

@@ -25,8 +25,10 @@ use crate::session::{StreamId, SubmitError, ToolCommand};
 const DRAIN: Duration = Duration::from_secs(2);
 
 /// When a session closes under a stream, the states still arriving are counted as unanswered
-/// until the client pauses this long.
-const INBOUND_PAUSE: Duration = Duration::from_millis(100);
+/// until the client pauses this long (or for [`DRAIN`] at most). Long enough that a client
+/// descheduled for a few time slices on a loaded machine is not taken for one that stopped:
+/// its states then still count.
+const INBOUND_PAUSE: Duration = Duration::from_millis(300);
 
 /// Answers a stream holds before its consumer reads them (beyond: dropped, counted).
 const ANSWER_CAPACITY: usize = 4096;
@@ -190,6 +192,7 @@ async fn pump(
                 // the states the client sent before the close that this stream had not read
                 // yet are unanswered too: count those that arrive without a pause
                 if drain_until.is_none() {
+                    let until = tokio::time::Instant::now() + DRAIN;
                     while let Ok(Ok(Some(_))) = tokio::time::timeout(INBOUND_PAUSE, inbound.message()).await {
                         sent += 1;
                         if tokio::time::Instant::now() >= until {
