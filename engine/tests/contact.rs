@@ -2,7 +2,9 @@
 //! OpenHELP liver: a probe pressed far deeper than its radius never lets go and its force
 //! grows with depth, a pressed probe sliding across triangle edges and vertices (and off the
 //! accessible surface onto the support) feels no jump, and the probe can come at the organ
-//! from any side, the fixed face included.
+//! from any side, the fixed face included — and a tip that leaves the organ, by a straight
+//! lift or a jump from deep inside to anywhere outside, feels no force once its sphere is
+//! clear of the organ and no more than the surface it reaches while it is not.
 
 mod common;
 
@@ -225,4 +227,211 @@ fn liver_pressed_to_three_radii_never_lets_go_and_the_force_grows() {
     let path = |u: f64| [0, 1, 2].map(|k| p0[k] + u * (p1[k] - p0[k]) - 0.006 * ((1.0 - u) * n0[k] + u * n1[k]));
     let (coarse, fine) = (sweep_jump(&mut pipe, 3000, path), sweep_jump(&mut pipe, 6000, path));
     assert!(fine < 0.7 * coarse, "a jump on the liver: {coarse} N at n, {fine} N at 2n");
+}
+
+/// The truth about a point, from the organ's triangles alone (no grid, no proxy): its distance
+/// to the surface (brute force over every triangle) and whether it is inside (the parity of a
+/// ray's crossings, Möller–Trumbore, along a direction no mesh plane holds).
+struct Truth<'a> {
+    nodes: &'a [[f64; 3]],
+    tris: &'a [[usize; 3]],
+    surface: Surface,
+}
+
+impl<'a> Truth<'a> {
+    fn new(b: &'a LoadedBundle) -> Self {
+        Self {
+            nodes: &b.nodes,
+            tris: &b.surface,
+            surface: Surface::new(&b.nodes, b.surface.clone()),
+        }
+    }
+
+    fn distance(&self, p: [f64; 3]) -> f64 {
+        (0..self.tris.len())
+            .map(|t| norm(sub(p, self.surface.closest_on(t, p).point)))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    fn inside(&self, p: [f64; 3]) -> bool {
+        let dir = [0.301_511_344_577_763_6, 0.452_267_016_866_645_4, 0.839_924_459_895_198_6];
+        let mut crossings = 0;
+        for t in self.tris {
+            let (a, b, c) = (self.nodes[t[0]], self.nodes[t[1]], self.nodes[t[2]]);
+            let (e1, e2) = (sub(b, a), sub(c, a));
+            let h = cross(dir, e2);
+            let det = dot(e1, h);
+            if det.abs() < 1e-18 {
+                continue;
+            }
+            let s = sub(p, a);
+            let u = dot(s, h) / det;
+            let q = cross(s, e1);
+            let v = dot(dir, q) / det;
+            if (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && dot(e2, q) / det > 0.0 {
+                crossings += 1;
+            }
+        }
+        crossings % 2 == 1
+    }
+}
+
+fn probe_radius(scene: &Scene) -> f64 {
+    scene
+        .spec
+        .tools
+        .iter()
+        .find_map(|t| match t {
+            vademecum_engine::scene::schema::ToolSpec::Probe { radius, .. } => Some(*radius),
+            _ => None,
+        })
+        .expect("a probe")
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+/// Presses deep (4 to 14 radii, straight along the inward normal of a random loadable node),
+/// then jumps out in 1 to 128 ticks to a random point — near the surface (within three radii
+/// above a random surface point) or anywhere around the organ — and holds it for a few ticks.
+/// Wherever the tip's sphere does not reach the organ (the centre outside, farther than r
+/// from every triangle) the force is exactly zero; where it does with the centre outside, the
+/// depth is at most what the nearest surface gives (r − distance): the proxy never stays on
+/// a part of the surface the tool left through the tissue.
+fn jumps_out_feel_nothing(scene: &Scene, b: &Arc<LoadedBundle>, trials: usize, seed: u64) {
+    let r = probe_radius(scene);
+    let truth = Truth::new(b);
+    let loads = b.vademecum.load_nodes();
+    let pts = press_points(b, loads.len().min(64));
+    let all: Vec<([f64; 3], [f64; 3])> = {
+        let s = &truth.surface;
+        (0..b.surface.len())
+            .map(|t| {
+                let at = SurfacePoint {
+                    triangle: t,
+                    weights: [1.0 / 3.0; 3],
+                    point: [0, 1, 2].map(|k| b.surface[t].iter().map(|&n| b.nodes[n][k]).sum::<f64>() / 3.0),
+                };
+                (at.point, s.normal_at(&at))
+            })
+            .collect()
+    };
+    let (lo, hi) = {
+        let bb = vademecum_engine::contact::Bounds::of(&b.nodes, &b.surface);
+        (bb.min.map(|x| x - 3.0 * r), bb.max.map(|x| x + 3.0 * r))
+    };
+    let mut rng = vademecum_engine::rng::Rng(seed);
+    let mut pipe = Pipeline::for_scene(scene, std::slice::from_ref(b)).unwrap();
+    let (mut outside_free, mut outside_touching) = (0, 0);
+    for trial in 0..trials {
+        pipe.reset();
+        let (p, n) = pts[(rng.unit() * pts.len() as f64) as usize];
+        let depth = (4.0 + 10.0 * rng.unit()) * r;
+        let steps = 40;
+        let mut tip = p;
+        for i in 0..=steps {
+            let h = 2.0 * r - (2.0 * r + depth) * i as f64 / steps as f64;
+            tip = [0, 1, 2].map(|k| p[k] + h * n[k]);
+            tick(&mut pipe, tip);
+        }
+        let target = if rng.unit() < 0.5 {
+            let (q, m) = all[(rng.unit() * all.len() as f64) as usize];
+            let h = 3.0 * r * rng.unit();
+            [0, 1, 2].map(|k| q[k] + h * m[k])
+        } else {
+            [0, 1, 2].map(|k| lo[k] + rng.unit() * (hi[k] - lo[k]))
+        };
+        let ticks = 1 + (rng.unit() * 128.0) as usize;
+        let from = tip;
+        let mut last = None;
+        for i in 1..=ticks + 3 {
+            let u = (i as f64 / ticks as f64).min(1.0);
+            last = Some(tick(&mut pipe, [0, 1, 2].map(|k| from[k] + u * (target[k] - from[k]))));
+        }
+        let s = last.unwrap();
+        if truth.inside(target) {
+            continue;
+        }
+        let d = truth.distance(target);
+        if d >= r {
+            outside_free += 1;
+            assert!(
+                s.force_n == [0.0; 3] && s.contact.is_none(),
+                "trial {trial}: the tip is outside, {d} m from the organ (radius {r}), after a press {depth} m deep at {p:?} and a jump to {target:?} in {ticks} ticks, yet the force is {:?} N (contact {:?})",
+                s.force_n,
+                s.contact
+            );
+        } else {
+            outside_touching += 1;
+            // (touching along the smooth normal field is `d < r` measured along it, which can
+            // be longer than the gap where the surface curves sharply: no contact is allowed)
+            if let Some(c) = s.contact {
+                assert!(
+                    c.depth_m <= r - d + 1e-9,
+                    "trial {trial}: the tip's centre is outside, {d} m from the organ, yet the depth is {} m (proxy {:?}) after a press {depth} m deep at {p:?} and a jump in {ticks} ticks",
+                    c.depth_m,
+                    c.proxy_m
+                );
+            }
+        }
+    }
+    assert!(
+        outside_free > trials / 5 && outside_touching > trials / 10,
+        "{outside_free} {outside_touching}"
+    );
+}
+
+#[test]
+fn organ_jumps_out_of_deep_presses_feel_no_force_in_free_air() {
+    let scene = Scene::builtin("organ").unwrap();
+    let b = bundle(&scene);
+    // the reproducer: 11.5 radii deep at (0, +18.6 mm), then 2 mm above the top at (0, −18.6 mm)
+    let r = probe_radius(&scene);
+    let truth = Truth::new(&b);
+    let top = |y: f64| {
+        let mut z = 0.05;
+        while !truth.inside([0.0, y, z - 1e-5]) && z > -0.05 {
+            z -= 1e-5;
+        }
+        z
+    };
+    let (z0, z1) = (top(0.0186), top(-0.0186));
+    for ticks in [1, 2, 5, 17, 64, 128] {
+        let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+        for i in 0..=400 {
+            tick(&mut pipe, [0.0, 0.0186, z0 + r - 12.5 * r * i as f64 / 400.0]);
+        }
+        let from = [0.0, 0.0186, z0 - 11.5 * r];
+        let to = [0.0, -0.0186, z1 + 0.002];
+        let mut s = tick(&mut pipe, from);
+        for i in 1..=ticks {
+            let u = i as f64 / ticks as f64;
+            s = tick(&mut pipe, [0, 1, 2].map(|k| from[k] + u * (to[k] - from[k])));
+        }
+        let c = s.contact.expect("2 mm above the top, a 4 mm tip touches it");
+        assert!(
+            c.depth_m <= r - truth.distance(to) + 1e-9,
+            "jumped out in {ticks} ticks: depth {} m, force {:?} N",
+            c.depth_m,
+            s.force_n
+        );
+        let lifted = tick(&mut pipe, [to[0], to[1], to[2] + r]);
+        assert_eq!(lifted.force_n, [0.0; 3]);
+    }
+    jumps_out_feel_nothing(&scene, &b, 2000, 0x5eed_0044);
+}
+
+#[test]
+fn liver_jumps_out_of_deep_presses_feel_no_force_in_free_air() {
+    let Some(shared) = common::shared_data() else { return };
+    let scene = common::shared_scene("liver_h20.toml", &shared);
+    let b = bundle(&scene);
+    jumps_out_feel_nothing(&scene, &b, 1000, 0x5eed_1044);
 }

@@ -1257,3 +1257,55 @@ fn build_target_error_keeps_the_fewest_lattice_positions_or_refuses() {
     );
     assert!(!dir.path().join("c/cornea.bundle").exists());
 }
+
+#[test]
+fn every_command_taking_a_builtin_lists_every_builtin_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    for command in ["run", "build", "study", "solve"] {
+        let o = vademecum(&[command, "--help"], dir.path());
+        assert!(o.status.success(), "{command} --help: {}", stderr(&o));
+        let text = stdout(&o);
+        for name in vademecum_engine::scene::BUILTIN_NAMES {
+            assert!(
+                text.contains(name),
+                "{command} --help does not list the built-in scene {name}: {text}"
+            );
+        }
+    }
+    // and a name that is none of them is refused with the list
+    let o = vademecum(&["solve", "--builtin", "no_such_scene"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("gallbladder_fat"), "{}", stderr(&o));
+}
+
+/// A built-in scene that reads the shared meshes runs from any folder: it looks where
+/// `VADEMECUM_SHARED` points first (shown here by a folder whose mesh is not a mesh: the
+/// error names that folder's file), then beside the checkout it was built from.
+#[test]
+fn builtin_scenes_reading_the_shared_meshes_run_from_any_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["solve", "--builtin", "liver_cut", "--json"], dir.path());
+    assert!(o.status.success(), "liver_cut from {}: {}", dir.path().display(), stderr(&o));
+    let fake = dir.path().join("fake_shared");
+    std::fs::create_dir_all(fake.join("data/meshes/sofa")).unwrap();
+    std::fs::write(fake.join("data/meshes/sofa/liver.msh"), "not a mesh\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_vademecum"))
+        .args(["solve", "--builtin", "liver_cut"])
+        .env("VADEMECUM_SHARED", &fake)
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    let e = refused(&o);
+    assert!(
+        e.contains("fake_shared/data/meshes/sofa/liver.msh"),
+        "VADEMECUM_SHARED was not read first: {e}"
+    );
+}
+
+#[test]
+fn solving_a_tearing_scene_says_it_solves_the_tissue_undamaged() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["solve", "--builtin", "cube_tear"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("does not tear"), "{}", stderr(&o));
+}

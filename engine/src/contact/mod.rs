@@ -23,8 +23,14 @@
 //!   client that jumps there, a session started with the tool in the tissue) gets the force of
 //!   the nearest surface at once.
 //! - *In contact*, it stays in contact until the tip's sphere leaves the surface (`d ≥ r`),
-//!   however deep it goes; only a tip beyond the organ's bounding box (grown by r) is released
-//!   from depth, since it cannot be inside.
+//!   however deep it goes, as long as the tip's centre is inside the organ.
+//! - *Outside*, a tip whose centre has left the organ — through any part of its surface, by a
+//!   press through a thin part or a jump from deep inside — is touched only by the surface its
+//!   sphere reaches: when the proxy's branch still says inside (`d < 0`) while the closed
+//!   surface says outside ([`Surface::contains`]), the proxy starts again from the nearest
+//!   surface point within r, as from free; `d` is never less than the gap to the nearest
+//!   triangle; and with no triangle within r the contact is released. So a tool outside the
+//!   organ never feels more than `r − gap` of depth, and nothing once clear of it.
 //!
 //! The surface is the organ's whole boundary, accessible or not: what force each part gives is
 //! the effect's business (the palpation effect renders the parts the vademecum cannot load as
@@ -34,6 +40,8 @@ mod grid;
 mod surface;
 
 pub use grid::CellClass;
+
+use crate::vec3::{norm, sub};
 pub use surface::{Surface, SurfacePoint};
 
 /// Most walk steps per tick. A step moves to a neighbouring triangle; at the tick rate a tool
@@ -110,6 +118,23 @@ impl Proxy {
         self.last = None;
     }
 
+    /// The touch of a tip whose centre is outside the organ: the surface point nearest to it
+    /// within `radius`, carried along the normal field to where its normal passes through the
+    /// tip (kept at the nearest point where that projection says inside: from outside, only
+    /// the surface the sphere reaches may hold the proxy). `None` when no triangle is within
+    /// `radius`.
+    fn touch_near(surface: &Surface, tip: [f64; 3], radius: f64) -> Option<(SurfacePoint, f64)> {
+        let near = surface.nearest_within(tip, radius)?;
+        let gap = norm(sub(tip, near.point));
+        let d = surface.signed_distance(&near, tip);
+        match surface.project((near, d), tip, MAX_WALK_STEPS) {
+            // never deeper than the gap to the nearest triangle allows
+            Some((at, dp)) if dp >= 0.0 => Some((at, dp.max(gap))),
+            Some(found) if d < 0.0 => Some(found),
+            _ => Some((near, if d >= 0.0 { gap } else { d })),
+        }
+    }
+
     /// Moves the proxy for a tip of radius `radius` at `tip` (see the module docs) and
     /// returns the contact, if any. Allocates nothing.
     pub fn update(&mut self, surface: &Surface, bounds: &Bounds, tip: [f64; 3], radius: f64) -> Option<Touch> {
@@ -121,18 +146,49 @@ impl Proxy {
         let (at, d) = match self.last {
             // follow the branch; where it ends, the proxy stays where it was and the depth is
             // measured along its normal there (continuous, until the tip comes back)
-            Some(last) => surface.project(last, tip, MAX_WALK_STEPS).unwrap_or_else(|| {
-                let d = surface.signed_distance(&last.0, tip);
-                (last.0, d)
-            }),
+            Some(last) => {
+                let (at, d) = surface.project(last, tip, MAX_WALK_STEPS).unwrap_or_else(|| {
+                    let d = surface.signed_distance(&last.0, tip);
+                    (last.0, d)
+                });
+                if d < 0.0 && !surface.contains(tip) {
+                    // the branch says inside but the tip is out: it left the organ through
+                    // another part of the surface than the proxy's (a press through a thin
+                    // part, a jump). Outside, only the surface the sphere reaches may touch it
+                    match Self::touch_near(surface, tip, radius) {
+                        Some(near) => near,
+                        None => {
+                            self.last = None;
+                            return None;
+                        }
+                    }
+                } else if d >= 0.0 {
+                    // the branch says outside: the tip touches no more than the surface it
+                    // reaches, r minus its distance to the nearest triangle (the measure along
+                    // the proxy's normal can say more where the proxy rests on an edge or where
+                    // Newton's method ended: it measures off the normal); nothing when no
+                    // triangle is within r. Both bounds are continuous in the tip.
+                    match surface.nearest_within(tip, radius) {
+                        Some(near) => (at, d.max(norm(sub(tip, near.point)))),
+                        None if !surface.contains(tip) => {
+                            self.last = None;
+                            return None;
+                        }
+                        None => (at, d),
+                    }
+                } else {
+                    (at, d)
+                }
+            }
             None => {
                 let found = match surface.grid_class(tip) {
-                    CellClass::Outside => surface.nearest_within(tip, radius),
-                    CellClass::Boundary | CellClass::Inside => surface.nearest(tip),
+                    CellClass::Outside => Self::touch_near(surface, tip, radius),
+                    CellClass::Boundary | CellClass::Inside => surface.nearest(tip).map(|near| {
+                        let d = surface.signed_distance(&near, tip);
+                        surface.project((near, d), tip, MAX_WALK_STEPS).unwrap_or((near, d))
+                    }),
                 };
-                let near = found?;
-                let d = surface.signed_distance(&near, tip);
-                surface.project((near, d), tip, MAX_WALK_STEPS).unwrap_or((near, d))
+                found?
             }
         };
         if d.is_nan() || d >= radius {

@@ -107,7 +107,9 @@ fn top_point(b: &Bounds, fx: f64, fy: f64) -> [f64; 3] {
 }
 
 /// Pressing straight down far beyond the tip's radius keeps the contact, with a depth that
-/// grows with every step and equals how far the tip went in.
+/// grows with every step and equals how far the tip went in — while the tip is inside. Pressed
+/// on through the lobe and out of its underside, the tip is touched by the underside alone
+/// (never deeper than r), and released once its sphere is clear of it.
 #[test]
 fn a_deep_press_never_lets_go() {
     let (_, s, b) = lobe();
@@ -115,22 +117,35 @@ fn a_deep_press_never_lets_go() {
     for (fx, fy) in [(0.5, 0.5), (0.3, 0.6), (0.7, 0.4), (0.45, 0.55)] {
         let start = top_point(&b, fx, fy);
         let mut proxy = Proxy::default();
-        let (mut last, mut touched_at) = (0.0, None);
-        for i in 0..=6000 {
+        let (mut last, mut deepest, mut touched_at, mut out_below) = (0.0, 0.0_f64, None, None);
+        for i in 0..=8000 {
             let tip = [start[0], start[1], start[2] - 1e-5 * i as f64];
+            let inside = s.contains(tip);
+            if touched_at.is_some() && !inside && tip[2] < start[2] - 0.02 {
+                out_below.get_or_insert(i);
+            }
             match proxy.update(&s, &b, tip, r) {
-                Some(t) => {
+                Some(t) if out_below.is_none() => {
                     touched_at.get_or_insert(i);
                     assert!(t.depth > last, "depth must grow: {} after {last} at step {i}", t.depth);
                     last = t.depth;
+                    deepest = deepest.max(t.depth);
                 }
-                None => assert!(touched_at.is_none(), "lost the contact at step {i} (depth {last})"),
+                Some(t) => {
+                    assert!(t.depth <= r, "out of the underside, the tip still feels {} m at step {i}", t.depth);
+                    assert!(t.normal[2] < 0.0, "out of the underside, touched by {:?}", t.normal);
+                }
+                None => assert!(
+                    touched_at.is_none() || out_below.is_some(),
+                    "lost the contact at step {i} (depth {last})"
+                ),
             }
         }
-        // 60 mm down from above the organ: the tip ends more than 5 radii deep (past the
-        // middle of the lobe, where the far side is nearer than the side it entered through)
-        assert!(touched_at.is_some());
-        assert!(last > 5.0 * r, "{last}");
+        // 80 mm down from above the organ: more than 5 radii deep (past the middle of the lobe,
+        // where the far side is nearer than the side it entered through), then out below
+        assert!(touched_at.is_some() && out_below.is_some());
+        assert!(deepest > 5.0 * r, "{deepest}");
+        assert_eq!(proxy.update(&s, &b, [start[0], start[1], start[2] - 0.08], r), None);
     }
 }
 

@@ -709,19 +709,55 @@ impl Scene {
     }
 
     /// Resolves a mesh path relative to the scene file's folder. A built-in scene's relative
-    /// path is looked up from the working folder, then from each folder above it (so that
-    /// `../shared/data/…` is found from the repository or any folder inside it).
+    /// path is looked up, in order: for a path into `../shared/`, in the folder
+    /// `VADEMECUM_SHARED` names; from the working folder and each folder above it (so that
+    /// `../shared/data/…` is found from the repository or any folder inside it); beside the
+    /// checkout this library was built from. Where none holds it, the path as written (and
+    /// the error reading it says what to set: [`Scene::builtin_data_hint`]).
     pub fn resolve_path(&self, p: &str) -> PathBuf {
         let p = Path::new(p);
         if p.is_absolute() {
             return p.to_path_buf();
         }
         match self.origin.parent() {
-            Some(dir) if !self.origin.to_string_lossy().starts_with("<builtin") => dir.join(p),
-            _ => std::env::current_dir()
-                .ok()
-                .and_then(|cwd| cwd.ancestors().map(|d| d.join(p)).find(|c| c.exists()))
-                .unwrap_or_else(|| p.to_path_buf()),
+            Some(dir) if !self.is_builtin() => dir.join(p),
+            _ => {
+                let in_shared = p.strip_prefix(SHARED_PREFIX).ok();
+                let from_env = in_shared
+                    .zip(std::env::var_os(SHARED_ENV))
+                    .map(|(rest, dir)| Path::new(&dir).join(rest));
+                let from_cwd = || {
+                    std::env::current_dir()
+                        .ok()
+                        .and_then(|cwd| cwd.ancestors().map(|d| d.join(p)).find(|c| c.exists()))
+                };
+                let beside_checkout = || {
+                    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+                    Some(repo.join(p)).filter(|c| c.exists())
+                };
+                from_env
+                    .filter(|c| c.exists())
+                    .or_else(from_cwd)
+                    .or_else(beside_checkout)
+                    .unwrap_or_else(|| p.to_path_buf())
+            }
+        }
+    }
+
+    /// Whether the scene is one of the built-ins (compiled into the binary).
+    pub fn is_builtin(&self) -> bool {
+        self.origin.to_string_lossy().starts_with("<builtin")
+    }
+
+    /// For a built-in scene reading `path` from the shared data, what to set when it is not
+    /// found; empty otherwise.
+    fn builtin_data_hint(&self, path: &str) -> String {
+        if self.is_builtin() && Path::new(path).starts_with(SHARED_PREFIX) && !self.resolve_path(path).exists() {
+            format!(
+                " (this built-in scene reads the shared data: set {SHARED_ENV} to the folder that holds data/meshes, or run from the repository's folder)"
+            )
+        } else {
+            String::new()
         }
     }
 
@@ -743,7 +779,7 @@ impl Scene {
                 let mut mesh = mesh::read(&path).map_err(|e| {
                     self.error_at(
                         &[Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh"), Seg::Key("file")],
-                        e.to_string(),
+                        format!("{e}{}", self.builtin_data_hint(f)),
                     )
                 })?;
                 mesh.scale(m.scale.unwrap_or(1.0));
@@ -829,8 +865,8 @@ impl Scene {
         let Some(v) = &o.visual else { return Ok(None) };
         let at = [Seg::Key("organs"), Seg::Index(index), Seg::Key("visual")];
         let scale = v.scale.or(o.mesh.scale).unwrap_or(1.0);
-        let mut visual =
-            crate::xfem::visual::VisualMesh::load_obj(&self.resolve_path(&v.file), scale).map_err(|e| self.error_at(&at, e.to_string()))?;
+        let mut visual = crate::xfem::visual::VisualMesh::load_obj(&self.resolve_path(&v.file), scale)
+            .map_err(|e| self.error_at(&at, format!("{e}{}", self.builtin_data_hint(&v.file))))?;
         if let Some(t) = o.mesh.translate {
             for p in &mut visual.vertices {
                 for k in 0..3 {
@@ -1114,6 +1150,14 @@ impl Scene {
         })
     }
 }
+
+/// Where the built-in scenes that read real meshes expect the shared data: a path relative
+/// to the repository's folder.
+pub const SHARED_PREFIX: &str = "../shared";
+
+/// The environment variable naming the shared data folder (the one holding `data/meshes`),
+/// for built-in scenes run from outside the repository.
+pub const SHARED_ENV: &str = "VADEMECUM_SHARED";
 
 /// Most cells a built-in mesh may produce (its memory alone would be gigabytes).
 pub const MAX_BUILTIN_CELLS: usize = 20_000_000;

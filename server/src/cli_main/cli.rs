@@ -302,13 +302,19 @@ pub struct HardCasesArgs {
     pub markdown: bool,
 }
 
+/// The built-in scenes' names, from the scenes compiled into the binary (`--help` lists them
+/// and a name not among them is refused with the list).
+fn builtin_names() -> clap::builder::PossibleValuesParser {
+    clap::builder::PossibleValuesParser::new(vademecum_engine::scene::BUILTIN_NAMES)
+}
+
 /// Which scene a command works on: a file, or a built-in scene.
 #[derive(Debug, Args)]
 pub struct SceneSource {
     /// Scene file (TOML). Default: the built-in scene named by --builtin.
     pub scene: Option<PathBuf>,
-    /// Built-in scene to use when no SCENE is given (organ, patch, cantilever, cornea, stretch, patch_cut, keratotomy).
-    #[arg(long, default_value = "organ", conflicts_with = "scene")]
+    /// Built-in scene to use when no SCENE is given (`vademecum scene show NAME` prints one).
+    #[arg(long, default_value = "organ", conflicts_with = "scene", value_parser = builtin_names())]
     pub builtin: String,
 }
 
@@ -662,8 +668,8 @@ pub struct MeshInfoArgs {
 pub enum SceneCommand {
     /// Print a built-in scene's TOML (a starting point for your own).
     Show {
-        /// Built-in scene name (organ, patch, cantilever, cornea, stretch, patch_cut, keratotomy).
-        #[arg(default_value = "organ")]
+        /// Built-in scene name.
+        #[arg(default_value = "organ", value_parser = builtin_names())]
         name: String,
     },
     /// Validate a scene file and the meshes it names, without solving.
@@ -833,7 +839,7 @@ pub struct BenchTearArgs {
     /// Scene file (TOML) with a tearable material. Default: the built-in scene named by --builtin.
     pub scene: Option<PathBuf>,
     /// Built-in scene to use when no SCENE is given.
-    #[arg(long, default_value = "cube_tear", conflicts_with = "scene")]
+    #[arg(long, default_value = "cube_tear", conflicts_with = "scene", value_parser = builtin_names())]
     pub builtin: String,
     /// Passes over the schedule when timing the online step.
     #[arg(long, default_value_t = 200)]
@@ -889,7 +895,7 @@ pub struct BenchCutArgs {
     /// Scene file (TOML) with pre-planned cuts. Default: the built-in scene named by --builtin.
     pub scene: Option<PathBuf>,
     /// Built-in scene to use when no SCENE is given.
-    #[arg(long, default_value = "keratotomy", conflicts_with = "scene")]
+    #[arg(long, default_value = "keratotomy", conflicts_with = "scene", value_parser = builtin_names())]
     pub builtin: String,
     /// PGD tolerance of the vademecum (seed 000 uses 1e-4).
     #[arg(long, default_value_t = 1e-4)]
@@ -963,7 +969,7 @@ pub struct BenchAnmArgs {
     /// Scene file (TOML). Default: the built-in scene named by --builtin.
     pub scene: Option<PathBuf>,
     /// Built-in scene to use when no SCENE is given.
-    #[arg(long, default_value = "cornea", conflicts_with = "scene")]
+    #[arg(long, default_value = "cornea", conflicts_with = "scene", value_parser = builtin_names())]
     pub builtin: String,
     /// Full Newton-Raphson load steps (snapshots and comparison points).
     #[arg(long, default_value_t = 12)]

@@ -134,6 +134,11 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
         for w in &model.warnings {
             progress.warn(w);
         }
+        if scene.spec.effects.tearing && scene.spec.fidelity.solver == SolverKind::Fem {
+            progress.warn(&format!(
+                "a static solve does not tear: organ '{name}' is solved undamaged and linear, under the scene's loads; the tearing runs in `vademecum run --builtin NAME` (sessions) or `vademecum bench tear` (its references)"
+            ));
+        }
         if scene.spec.fidelity.solver == SolverKind::Meshless {
             organs.push(solve_meshless(&scene, i, &model, &out, &progress)?);
             progress.finish();
