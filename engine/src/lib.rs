@@ -33,6 +33,7 @@ pub mod contact;
 pub mod damage;
 pub mod dense;
 pub mod fem;
+pub mod files;
 pub mod material;
 pub mod memory;
 pub mod mesh;

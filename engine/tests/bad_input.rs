@@ -203,6 +203,14 @@ fn inconsistent_scene_settings_name_the_key_and_line() {
     let bad = GOOD_SCENE.replace("builtin = \"block\"", "builtin = \"block\"\nfile = \"x.msh\"");
     let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
     assert!(e.to_string().contains("not both"), "{e}");
+    // numeric settings are bounded to their documented range (a build asked for 2³¹
+    // iterations per mode would never end)
+    for (key, value) in [("max_iterations", "2147483648"), ("max_modes", "2000000"), ("block", "100000")] {
+        let bad = GOOD_SCENE.to_string() + &format!("\n[fidelity.pgd]\n{key} = {value}\n");
+        let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
+        assert_eq!(e.key.as_deref(), Some(format!("fidelity.pgd.{key}").as_str()), "{e}");
+        assert!(e.to_string().contains("more than"), "{e}");
+    }
 }
 
 /// Size limits count the cells a built-in mesh produces (six tetrahedra per cube), and a mesh
@@ -386,4 +394,47 @@ fn fuzzer_reproducers_for_gmsh_are_errors() {
         text.contains("x.msh") && text.contains("Gmsh 4.1") && !text.contains("Complete"),
         "{text}"
     );
+}
+
+/// Every file a user names — a mesh (Gmsh, VTK), a scene, a visual surface — is read only if it
+/// is a regular file: a FIFO (which would block the reader for ever), a device (which would
+/// feed it without end), and links to either are refused at once, saying what they are. Each
+/// call runs on a thread with a deadline, so a reader that blocks fails the test instead of
+/// hanging it.
+#[test]
+fn special_files_named_as_meshes_scenes_or_surfaces_are_refused_at_once() {
+    use vademecum_engine::xfem::visual::VisualMesh;
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status().expect("mkfifo runs");
+    assert!(made.success());
+    let mut specials = vec![(fifo.clone(), "FIFO")];
+    for (device, what) in [("/dev/zero", "device"), ("/dev/null", "device")] {
+        let link = dir.path().join(format!("link_to_{}", &device[5..]));
+        std::os::unix::fs::symlink(device, &link).unwrap();
+        specials.push((link, what));
+    }
+    for (special, what) in specials {
+        for ext in ["msh", "vtu", "vtk", "toml", "obj"] {
+            let named = dir
+                .path()
+                .join(format!("{}_{ext}.{ext}", special.file_name().unwrap().to_string_lossy()));
+            std::os::unix::fs::symlink(&special, &named).unwrap();
+            let (tx, rx) = std::sync::mpsc::channel();
+            let path = named.clone();
+            std::thread::spawn(move || {
+                let e = match ext {
+                    "toml" => Scene::load(&path).err().map(|e| e.to_string()),
+                    "obj" => VisualMesh::load_obj(&path, 1.0).err().map(|e| e.to_string()),
+                    _ => mesh::read(&path).err().map(|e| e.to_string()),
+                };
+                let _ = tx.send(e);
+            });
+            let e = rx
+                .recv_timeout(std::time::Duration::from_secs(10))
+                .unwrap_or_else(|_| panic!("reading the {what} {} as .{ext} blocked", named.display()))
+                .unwrap_or_else(|| panic!("the {what} {} was read as a .{ext}", named.display()));
+            assert!(e.contains(what) && e.contains("not a regular file"), ".{ext} of a {what}: {e}");
+        }
+    }
 }

@@ -88,7 +88,7 @@ fn recompression_keeps_accuracy_with_no_more_modes() {
     let (sep, _) = build::build(&s.k, &s.chol, &s.load_eqs, &params, &mut |_, _| {});
     let (exact, _) = brute::solve_all(&s.chol, &s.load_eqs, &mut |_| {});
     let e_pgd = brute::relative_error(&sep, &exact, sep.modes);
-    let c = compress::recompress(&sep, 1e-6);
+    let c = compress::recompress(&sep, 1e-6).unwrap();
     let e_c = brute::relative_error(&c, &exact, c.modes);
     assert!(c.modes <= sep.modes);
     assert!(e_c <= e_pgd + 2e-6, "recompressed error {e_c} vs {e_pgd}");
@@ -148,7 +148,7 @@ fn streamed_prefix_errors_match_the_direct_error_curve() {
     };
     let (sep, _) = build::build(&s.k, &s.chol, &s.load_eqs, &params, &mut |_, _| {});
     let (exact, _) = brute::solve_all(&s.chol, &s.load_eqs, &mut |_| {});
-    for sol in [sep.clone(), compress::recompress(&sep, 0.0)] {
+    for sol in [sep.clone(), compress::recompress(&sep, 0.0).unwrap()] {
         let direct = brute::error_curve(&sol, &exact);
         let mut streamed = brute::PrefixErrors::new(&sol);
         brute::solve_blocks(&s.chol, &s.load_eqs, &mut |start, block| streamed.add_block(&sol, start, block));

@@ -133,6 +133,32 @@ fn merge_refuses_missing_foreign_and_stale_shards_and_writes_nothing() {
     ok(&["build", "other.toml", "--shard", "1/3", "--out", "m"], root);
     let err = String::from_utf8_lossy(&vademecum(&["merge", "--out", "m"], root).stderr).into_owned();
     assert!(err.contains("another scene text"), "{err}");
+    std::fs::remove_dir_all(root.join("m/lobe.shard-1-of-3")).unwrap();
+    // a shard whose U holds a NaN or an infinity, its checksum forged to match: refused with
+    // where, never a panic in the merge's SVD
+    ok(&["build", "--shard", "1/3", "--out", "m"], root);
+    for poison in [f64::NAN, f64::INFINITY] {
+        let shard = root.join("m/lobe.shard-1-of-3");
+        let file = shard.join("U.npy");
+        let mut bytes = std::fs::read(&file).unwrap();
+        let at = bytes.len() - 8 * 17;
+        bytes[at..at + 8].copy_from_slice(&poison.to_le_bytes());
+        std::fs::write(&file, &bytes).unwrap();
+        let mpath = shard.join(bundle::MANIFEST);
+        let mut m: serde_json::Value = serde_json::from_slice(&std::fs::read(&mpath).unwrap()).unwrap();
+        m["arrays"]["U"]["sha256"] = bundle::sha256_hex(&bytes).into();
+        std::fs::write(&mpath, serde_json::to_vec_pretty(&m).unwrap()).unwrap();
+        let o = vademecum(&["merge", "--out", "m"], root);
+        assert!(
+            matches!(o.status.code(), Some(1 | 2)),
+            "refused, not panicked: {:?} {}",
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("non-finite") && err.contains("lobe.shard-1-of-3"), "{err}");
+        assert!(!root.join("m/lobe.bundle").exists());
+    }
     // scenes whose build does more than the linear vademecum refuse to shard
     let o = vademecum(&["build", "--builtin", "patch_cut", "--shard", "0/2", "--out", "c"], root);
     assert!(!o.status.success());

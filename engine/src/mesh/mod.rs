@@ -439,7 +439,7 @@ pub fn read_unchecked(path: impl AsRef<Path>) -> Result<Mesh, MeshError> {
 
 /// Reads a file fully, mapping the error to [`MeshError::Io`].
 pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>, MeshError> {
-    std::fs::read(path).map_err(|source| MeshError::Io {
+    crate::files::read_regular(path, crate::files::MAX_MESH_BYTES).map_err(|source| MeshError::Io {
         path: path.to_path_buf(),
         source,
     })

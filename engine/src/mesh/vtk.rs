@@ -186,6 +186,10 @@ fn explain_vtkio(text: &str) -> String {
 }
 
 fn import(path: &Path) -> Result<vtkio::Vtk, MeshError> {
+    crate::files::check_regular(path, crate::files::MAX_MESH_BYTES).map_err(|source| MeshError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
     // vtkio panics on a few malformed inputs; a malformed file must be an error, never a crash.
     let p = path.to_path_buf();
     let result = std::panic::catch_unwind(move || vtkio::Vtk::import(&p));

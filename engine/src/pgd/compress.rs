@@ -8,11 +8,15 @@ use faer::Mat;
 use super::build::SeparatedSolution;
 
 /// Recompresses `sep`, keeping the smallest rank whose discarded singular values have a
-/// relative Frobenius norm `√(Σ_{discarded} σ²/Σ σ²)` at most `tolerance`.
-pub fn recompress(sep: &SeparatedSolution, tolerance: f64) -> SeparatedSolution {
+/// relative Frobenius norm `√(Σ_{discarded} σ²/Σ σ²)` at most `tolerance`. `None` when `sep`
+/// holds a non-finite value (the SVD would not converge on it).
+pub fn recompress(sep: &SeparatedSolution, tolerance: f64) -> Option<SeparatedSolution> {
     let m = sep.modes;
     if m == 0 {
-        return sep.clone();
+        return Some(sep.clone());
+    }
+    if !sep.f.iter().chain(&sep.g).all(|x| x.is_finite()) {
+        return None;
     }
     let f = Mat::from_fn(sep.n, m, |i, k| sep.f[k * sep.n + i]);
     let g = Mat::from_fn(sep.p, m, |i, k| sep.g[k * sep.p + i]);
@@ -21,7 +25,7 @@ pub fn recompress(sep: &SeparatedSolution, tolerance: f64) -> SeparatedSolution 
     let (q_f, r_f) = (qf.compute_thin_Q(), qf.thin_R().to_owned());
     let (q_g, r_g) = (qg.compute_thin_Q(), qg.thin_R().to_owned());
     let core = &r_f * r_g.transpose();
-    let svd = core.thin_svd().expect("SVD of a small dense matrix converges");
+    let svd = core.thin_svd().ok()?;
     let sigma: Vec<f64> = (0..svd.S().dim()).map(|i| svd.S()[i]).collect();
     let total: f64 = sigma.iter().map(|s| s * s).sum();
     let mut keep = sigma.len();
@@ -48,5 +52,5 @@ pub fn recompress(sep: &SeparatedSolution, tolerance: f64) -> SeparatedSolution 
         }
         out.push(&r, &s);
     }
-    out
+    Some(out)
 }

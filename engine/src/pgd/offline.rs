@@ -628,7 +628,9 @@ pub fn build_organ_from(
     let recompressed = (opts.recompress || snapshots.is_some()) && sep.modes > 0;
     let mut candidate = if recompressed {
         on(BuildStage::Recompression);
-        compress::recompress(&sep, 0.0)
+        compress::recompress(&sep, 0.0).ok_or_else(|| {
+            BuildError::Snapshots("the modes hold a non-finite value: their SVD cannot be taken (solve the snapshots again)".into())
+        })?
     } else {
         sep.clone()
     };

@@ -237,6 +237,16 @@ pub fn read_shards(out: &Path, scene: &Scene, index: usize) -> Result<(Vec<f64>,
         if shape != [(info.end - info.start) as u64, info.n_free as u64] {
             return Err(mismatch(format!("U has shape {shape:?}")));
         }
+        // a solve never gives a non-finite displacement: such a value is damage (the checksum
+        // only says the file is as its manifest says), and it would poison the merge's SVD
+        if let Some(k) = data.iter().position(|x| !x.is_finite()) {
+            return Err(mismatch(format!(
+                "U holds a non-finite value ({}) at load state {}, equation {}: solve this shard again",
+                data[k],
+                info.start + k / info.n_free.max(1),
+                k % info.n_free.max(1)
+            )));
+        }
         u.extend_from_slice(&data);
         first.get_or_insert(info);
     }

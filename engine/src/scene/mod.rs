@@ -74,7 +74,7 @@ impl Scene {
     /// Reads and validates a scene file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, SceneError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+        let text = crate::files::read_regular_text(path, crate::files::MAX_SCENE_BYTES).map_err(|e| SceneError {
             file: path.to_path_buf(),
             line: None,
             key: None,
@@ -294,6 +294,18 @@ impl Scene {
         }
         if p.max_modes == 0 || p.max_iterations == 0 || p.block == 0 {
             return Err(self.error_at(&pgd, "max_modes, max_iterations and block must be at least 1"));
+        }
+        for (key, value, most) in [
+            ("max_modes", p.max_modes, MAX_PGD_MODES),
+            ("max_iterations", p.max_iterations, MAX_PGD_ITERATIONS),
+            ("block", p.block, MAX_PGD_BLOCK),
+        ] {
+            if value > most {
+                return Err(self.error_at(
+                    &[Seg::Key("fidelity"), Seg::Key("pgd"), Seg::Key(key)],
+                    format!("{key} = {value} is more than the {most} a build may take (docs/scene.md)"),
+                ));
+            }
         }
         let l = &s.fidelity.large;
         let large = |k: &'static str| [Seg::Key("fidelity"), Seg::Key("large"), Seg::Key(k)];
@@ -1150,6 +1162,17 @@ impl Scene {
         })
     }
 }
+
+/// Most PGD modes a scene may ask for (`fidelity.pgd.max_modes`): a vademecum never needs
+/// more modes than load states, and a million is far beyond any organ's accessible surface.
+pub const MAX_PGD_MODES: usize = 1_000_000;
+
+/// Most alternating fixed-point iterations per enrichment (`fidelity.pgd.max_iterations`): the
+/// fixed point converges in a handful; past a thousand a build would never end.
+pub const MAX_PGD_ITERATIONS: usize = 1000;
+
+/// Most modes enriched together (`fidelity.pgd.block`).
+pub const MAX_PGD_BLOCK: usize = 4096;
 
 /// Where the built-in scenes that read real meshes expect the shared data: a path relative
 /// to the repository's folder.

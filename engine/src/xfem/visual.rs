@@ -98,7 +98,11 @@ impl VisualMesh {
             triangulate: true,
             ..Default::default()
         };
-        let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| file(e.to_string()))?;
+        // read here, bounded and from a regular file only; material libraries are not opened
+        // (a `mtllib` line may name any file: the visual surface needs none)
+        let bytes = crate::files::read_regular(path, crate::files::MAX_VISUAL_BYTES).map_err(|e| file(e.to_string()))?;
+        let (models, _materials) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &options, |_| Err(tobj::LoadError::OpenFileFailed))
+            .map_err(|e| file(e.to_string()))?;
         let mut out = VisualMesh {
             vertices: Vec::new(),
             triangles: Vec::new(),
