@@ -56,6 +56,22 @@ fn garbled_gmsh_is_an_error() {
     assert!(parse_no_panic(&junk).is_err());
     let e = parse_no_panic(b"$MeshFormat\n3.0 0 8\n$EndMeshFormat\n").unwrap_err();
     assert!(e.to_string().contains("not supported"), "{e}");
+    // an element of a type Gmsh does not have is refused with its line (it was dropped: 95 of
+    // 96 cells kept, and the scene checked)
+    let text = v2_text();
+    let line = text.lines().position(|l| l.starts_with("7 4 2 1 1 ")).unwrap() + 1;
+    let e = parse_no_panic(text.replacen("\n7 4 2 1 1 ", "\n7 77 2 1 1 ", 1).as_bytes()).unwrap_err();
+    assert!(
+        e.to_string().contains(&format!("line {line}")) && e.to_string().contains("type 77"),
+        "{e}"
+    );
+    // a second $Elements section (it doubled the cells) or $Nodes section is refused as such
+    let elements = &text[text.find("$Elements").unwrap()..];
+    let e = parse_no_panic(format!("{text}{elements}").as_bytes()).unwrap_err();
+    assert!(e.to_string().contains("second $Elements"), "{e}");
+    let nodes = &text[text.find("$Nodes").unwrap()..text.find("$Elements").unwrap()];
+    let e = parse_no_panic(format!("{text}{nodes}").as_bytes()).unwrap_err();
+    assert!(e.to_string().contains("second $Nodes"), "{e}");
 }
 
 #[test]

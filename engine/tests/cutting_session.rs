@@ -402,4 +402,26 @@ fn co_rotational_cutting_and_visual_meshes_are_checked_when_the_scene_is_read() 
     let scene = Scene::from_toml(&text, "case.toml").unwrap();
     let e = scene.organ_visual(0).unwrap_err().to_string();
     assert!(e.contains("missing.obj"), "{e}");
+    // a visual surface scaled out of all proportion (scale = 1e300 ran, and every frame held
+    // inf) is refused, saying to check the scale
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("box.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
+    let at = dir.path().join("case.toml");
+    for (scale, ok) in [("1.0", true), ("1e300", false), ("5000.0", false)] {
+        let text = cases[2]
+            .0
+            .replace("file = \"liver.stl\"", &format!("file = \"box.obj\"\nscale = {scale}"));
+        let scene = Scene::from_toml(&text, &at).unwrap();
+        match scene.organ_visual(0) {
+            Ok(v) => assert!(ok, "scale {scale} accepted: {:?}", v.map(|v| v.vertices.len())),
+            Err(e) => {
+                assert!(!ok, "scale {scale}: {e}");
+                assert!(e.to_string().contains("check `scale`"), "{e}");
+            }
+        }
+    }
 }

@@ -553,6 +553,16 @@ fn an_acknowledged_viewer_never_has_more_than_its_window_in_flight() {
         let e = frames.unwrap_err();
         assert_eq!(e.code(), tonic::Code::InvalidArgument);
         assert!(e.message().contains("16"), "{}", e.message());
+        // a rate too low to send anything (1e-300 Hz held a viewer slot and sent nothing) is
+        // refused with the range, on both viewer calls
+        for rate in [1e-300, 0.05, -1.0] {
+            let (_tx, frames) = watch_acked(&server.url, start(session.id(), rate, 0)).await;
+            let e = frames.unwrap_err();
+            assert_eq!(e.code(), tonic::Code::InvalidArgument, "{rate} Hz: {e}");
+            assert!(e.message().contains("0.1"), "{}", e.message());
+            let e = session.watch(rate).await.unwrap_err();
+            assert!(e.to_string().contains("0.1"), "{rate} Hz: {e}");
+        }
         let (_tx, frames) = watch_acked(&server.url, start("no-such-session", 30.0, 0)).await;
         assert_eq!(frames.unwrap_err().code(), tonic::Code::NotFound);
         let (tx, frames) = watch_acked(&server.url, start(session.id(), 30.0, 0)).await;

@@ -79,6 +79,9 @@ impl Collected {
     /// Keeps an element of Gmsh type `ty`; an element listing fewer nodes than its type
     /// has is an error (the message names the type and both counts).
     fn push_element(&mut self, ty: i32, phys: i32, nodes: &[u64]) -> Result<(), String> {
+        if nodes_of_type(ty).is_none() {
+            return Err(format!("an element has type {ty}, which is no Gmsh element type"));
+        }
         let needs = match ty {
             2 => 3,
             3 | 4 => 4,
@@ -282,6 +285,11 @@ impl<'a> Cursor<'a> {
     fn new(b: &'a [u8]) -> Self {
         Self { b, pos: 0 }
     }
+    /// The 1-based number of the line last read (for messages; counts, so not per line).
+    fn line_number(&self) -> usize {
+        self.b[..self.pos.min(self.b.len())].iter().filter(|&&c| c == b'\n').count().max(1)
+    }
+
     /// Next line as text, without its line ending; `None` at the end.
     fn line(&mut self) -> Option<&'a str> {
         if self.pos >= self.b.len() {
@@ -367,6 +375,9 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
         match l {
             "$PhysicalNames" => parse_physical_names(&mut cur, &mut out.names, path)?,
             "$Nodes" => {
+                if have_nodes {
+                    return Err(err(format!("line {}: a second $Nodes section (a file has one)", cur.line_number())));
+                }
                 let n: usize = parse_num(cur.line(), "the number of nodes", "$Nodes", path)?;
                 out.node_tags.reserve(n.min(1 << 24));
                 out.nodes.reserve(n.min(1 << 24));
@@ -404,6 +415,12 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                 have_nodes = true;
             }
             "$Elements" => {
+                if have_elements {
+                    return Err(err(format!(
+                        "line {}: a second $Elements section (a file has one)",
+                        cur.line_number()
+                    )));
+                }
                 let n: usize = parse_num(cur.line(), "the number of elements", "$Elements", path)?;
                 let mut tags = Vec::new();
                 if binary {
@@ -447,8 +464,14 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                             .line()
                             .ok_or_else(|| err(format!("truncated $Elements section: {i} of {n} elements read")))?;
                         let mut it = line.split_whitespace();
-                        let _id: u64 = parse_num(it.next(), "an element id", "$Elements", path)?;
+                        let id: u64 = parse_num(it.next(), "an element id", "$Elements", path)?;
                         let ty: i32 = parse_num(it.next(), "an element type", "$Elements", path)?;
+                        if nodes_of_type(ty).is_none() {
+                            return Err(err(format!(
+                                "line {}: element {id} has type {ty}, which is no Gmsh element type",
+                                cur.line_number()
+                            )));
+                        }
                         let ntags: usize = parse_num(it.next(), "a tag count", "$Elements", path)?;
                         tags.clear();
                         for _ in 0..ntags {
@@ -500,6 +523,9 @@ fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
     while let Some(l) = cur.line() {
         match l {
             "$NOD" => {
+                if have_nodes {
+                    return Err(err(format!("line {}: a second $NOD section (a file has one)", cur.line_number())));
+                }
                 let n: usize = parse_num(cur.line(), "the number of nodes", "$NOD", path)?;
                 for i in 0..n {
                     let line = cur
@@ -519,6 +545,9 @@ fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
                 have_nodes = true;
             }
             "$ELM" => {
+                if have_elements {
+                    return Err(err(format!("line {}: a second $ELM section (a file has one)", cur.line_number())));
+                }
                 let n: usize = parse_num(cur.line(), "the number of elements", "$ELM", path)?;
                 let mut nodes = Vec::new();
                 for i in 0..n {
@@ -526,8 +555,14 @@ fn parse_v1(bytes: &[u8], path: &Path) -> Result<Collected, MeshError> {
                         .line()
                         .ok_or_else(|| err(format!("truncated $ELM section: {i} of {n} elements read")))?;
                     let mut it = line.split_whitespace();
-                    let _id: u64 = parse_num(it.next(), "an element number", "$ELM", path)?;
+                    let id: u64 = parse_num(it.next(), "an element number", "$ELM", path)?;
                     let ty: i32 = parse_num(it.next(), "an element type", "$ELM", path)?;
+                    if nodes_of_type(ty).is_none() {
+                        return Err(err(format!(
+                            "line {}: element {id} has type {ty}, which is no Gmsh element type",
+                            cur.line_number()
+                        )));
+                    }
                     let phys: i32 = parse_num(it.next(), "a physical region", "$ELM", path)?;
                     let _elem: i32 = parse_num(it.next(), "an elementary region", "$ELM", path)?;
                     let nn: usize = parse_num(it.next(), "a node count", "$ELM", path)?;

@@ -886,6 +886,15 @@ impl Scene {
                 }
             }
         }
+        if let Some(p) = visual.vertices.iter().find(|p| p.iter().any(|x| x.abs() > MAX_VISUAL_COORDINATE_M)) {
+            return Err(self.error_at(
+                &at,
+                format!(
+                    "'{}' scaled by {scale} has a vertex at {p:?} m, farther than {MAX_VISUAL_COORDINATE_M} m from the origin: no organ is that large (check `scale`)",
+                    v.file
+                ),
+            ));
+        }
         let edges = visual.edges();
         if !edges.is_closed_manifold() {
             return Err(self.error_at(
@@ -1162,6 +1171,10 @@ impl Scene {
         })
     }
 }
+
+/// Largest coordinate of a placed visual surface (m): a unit mistake (a `scale` of 1000 for
+/// 0.001, or 1e300), never an organ; frames carry f32, which overflows long before 1e300.
+pub const MAX_VISUAL_COORDINATE_M: f64 = 1e3;
 
 /// Most PGD modes a scene may ask for (`fidelity.pgd.max_modes`): a vademecum never needs
 /// more modes than load states, and a million is far beyond any organ's accessible surface.

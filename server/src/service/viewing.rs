@@ -29,6 +29,10 @@ use crate::session::Frame;
 /// Frame rate when the request leaves it at 0 (Hz).
 pub const DEFAULT_RATE_HZ: f64 = 30.0;
 
+/// The slowest rate a viewer may ask for (Hz): a frame or heartbeat at least every ten
+/// seconds, so that a viewer stream never holds its slot while sending nothing.
+pub const MIN_RATE_HZ: f64 = 0.1;
+
 /// `WatchAcked`'s window when the request leaves it at 0: one message being read, one on
 /// its way — full rate on a network whose round trip is under a frame period, and a frame
 /// at most one period plus one message's processing old.
@@ -108,9 +112,9 @@ impl ViewingService {
     /// Checks a watch request and opens a viewer stream on its session: the session, the
     /// rate (Hz) and the stream's permit.
     fn open(&self, owner: &Caller, r: &pb::WatchRequest) -> Result<(Arc<Entry>, f64, StreamPermit), Status> {
-        if !r.rate_hz.is_finite() || r.rate_hz < 0.0 {
+        if !r.rate_hz.is_finite() || (r.rate_hz != 0.0 && r.rate_hz < MIN_RATE_HZ) {
             return Err(Status::invalid_argument(format!(
-                "rate_hz must be a non-negative number, got {}",
+                "rate_hz must be 0 (the default, {DEFAULT_RATE_HZ} Hz) or at least {MIN_RATE_HZ} Hz, got {}",
                 r.rate_hz
             )));
         }
