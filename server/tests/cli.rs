@@ -354,15 +354,15 @@ fn a_large_deformation_scene_builds_its_lattice_and_runs() {
     let peak = s["peak_force_n"].as_f64().unwrap();
     assert!(peak.is_finite() && peak > 0.0, "{s}");
     assert_eq!(s["dropped_answers"], 0);
-    // 0.3 mm is past the lattice's paths: answers flagged BEYOND_RANGE (16)
+    // 0.3 mm is past the lattice's paths: answers flagged beyond_range
     let beyond = |rec: &str| {
         let rows = forces_csv(&dir.path().join(rec).join("forces.csv"));
-        let contact: Vec<u32> = rows
-            .iter()
-            .filter(|r| r["contact"] == "1")
-            .map(|r| r["events"].parse().unwrap())
-            .collect();
-        (contact.len(), contact.iter().filter(|&&e| e & 16 != 0).count())
+        let contact: Vec<&str> = rows.iter().filter(|r| r["contact"] == "1").map(|r| r["events"].as_str()).collect();
+        assert!(contact.iter().all(|e| e.split('|').any(|n| n == "contact")), "events by name");
+        (
+            contact.len(),
+            contact.iter().filter(|e| e.split('|').any(|n| n == "beyond_range")).count(),
+        )
     };
     let (contact, past) = beyond("out/cornea/run");
     assert!(
@@ -803,6 +803,18 @@ fn check_hard_cases_prints_verdicts_writes_json_and_refuses_an_empty_selection()
     );
     // the cut through nodes is measured against the duplicated mesh
     assert!(cases[0]["relative_error"].as_f64().unwrap() < 1e-9);
+    // as text, each verdict stands beside what it checked (an "ok" beside a locked
+    // cantilever's 97 % error must not read as "97 % is fine")
+    let o = vademecum(&["check", "hard-cases", "--reduced", "--only", "xfem full order"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let verdicts: Vec<String> = stdout(&o).lines().filter(|l| l.starts_with("ok ")).map(String::from).collect();
+    assert_eq!(verdicts.len(), 3, "{}", stdout(&o));
+    for (line, case) in verdicts.iter().zip(cases) {
+        assert!(
+            line.contains(&format!("(checked: {})", case["expected"].as_str().unwrap())),
+            "{line}"
+        );
+    }
 
     let o = vademecum(&["check", "hard-cases", "--only", "no such case"], dir.path());
     assert!(!o.status.success());
@@ -1295,7 +1307,8 @@ fn builtin_scenes_reading_the_shared_meshes_run_from_any_folder() {
         .current_dir(dir.path())
         .output()
         .unwrap();
-    let e = refused(&o);
+    assert!(!o.status.success());
+    let e = stderr(&o);
     assert!(
         e.contains("fake_shared/data/meshes/sofa/liver.msh"),
         "VADEMECUM_SHARED was not read first: {e}"
@@ -1308,4 +1321,30 @@ fn solving_a_tearing_scene_says_it_solves_the_tissue_undamaged() {
     let o = vademecum(&["solve", "--builtin", "cube_tear"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("does not tear"), "{}", stderr(&o));
+}
+
+/// A cut solved under a prescribed displacement has the strain energy its support's work
+/// gives, ½ R·δ (it printed 0 J: the energy counted the external forces only).
+#[test]
+fn a_cut_solved_under_a_prescribed_displacement_reports_its_strain_energy() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["scene", "show", "patch_cut"], dir.path());
+    let text = String::from_utf8(o.stdout).unwrap();
+    let pressed = text.replace(
+        "kind = \"point\"\nat = [5.0, 0.0, 5.0]\nforce = [0.0, 0.0, -1.0]",
+        "kind = \"displacement\"\nname = \"press\"\nregion = { sphere = { center = [5.0, 0.0, 5.0], radius = 0.01 } }\nz = -0.01",
+    );
+    assert_ne!(pressed, text, "the point load was replaced");
+    std::fs::write(dir.path().join("pressed.toml"), &pressed).unwrap();
+    let o = vademecum(&["solve", "pressed.toml", "--json", "--out", "res"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let organ = &v["organs"][0];
+    let energy = organ["strain_energy_j"].as_f64().unwrap();
+    let rz = organ["reaction_force_n"]["press"][2].as_f64().unwrap();
+    let work = 0.5 * rz * -0.01;
+    assert!(
+        energy > 0.0 && (energy - work).abs() <= 1e-9 * work,
+        "energy {energy} J, ½ R·δ = {work} J"
+    );
 }

@@ -169,9 +169,40 @@ impl Events {
     /// with and are never carried over.
     pub const ONE_SHOT: u32 = Self::CUT_ADVANCED | Self::TISSUE_TORN | Self::CUT_STARTED | Self::GRASPED | Self::TEARING | Self::RELEASED;
 
+    /// Every flag with its name, in bit order (the names recordings write: [`Events::names`]).
+    pub const NAMES: [(u32, &'static str); 12] = [
+        (Self::CONTACT, "contact"),
+        (Self::REJECTED_INPUT, "rejected_input"),
+        (Self::CUT_ADVANCED, "cut_advanced"),
+        (Self::TISSUE_TORN, "tissue_torn"),
+        (Self::BEYOND_RANGE, "beyond_range"),
+        (Self::FORCE_SATURATED, "force_saturated"),
+        (Self::CUT_STARTED, "cut_started"),
+        (Self::BLADE_IN_CUT, "blade_in_cut"),
+        (Self::GRASPED, "grasped"),
+        (Self::TEARING, "tearing"),
+        (Self::RELEASED, "released"),
+        (Self::REDUCED_FIDELITY, "reduced_fidelity"),
+    ];
+
     /// Whether flag `f` is set.
     pub fn has(self, f: u32) -> bool {
         self.0 & f != 0
+    }
+
+    /// The names of the flags set, joined by `|` (`contact|grasped|tearing`; empty for none;
+    /// an unnamed bit as its number), as recordings write them.
+    pub fn names(self) -> String {
+        let mut out: Vec<String> = Self::NAMES
+            .iter()
+            .filter(|(f, _)| self.has(*f))
+            .map(|(_, n)| (*n).to_string())
+            .collect();
+        let known = Self::NAMES.iter().fold(0, |a, (f, _)| a | f);
+        if self.0 & !known != 0 {
+            out.push((self.0 & !known).to_string());
+        }
+        out.join("|")
     }
 }
 

@@ -1255,7 +1255,7 @@ pub fn resolve_locking(
         }
         match (kind, locking) {
             (CellKind::Tet4, l) if l != Locking::Nodal => warnings.push(format!(
-                "linear tetrahedra at ν = {nu} lock (too stiff: at ν = 0.4999 a Lamé cylinder of them misses a quarter of its displacement) with locking = \"{}\": use \"nodal\" (the default for tetrahedra above ν = {LOCKING_POISSON})",
+                "linear tetrahedra at ν = {nu} lock (too stiff: at ν = 0.4999 they miss from a quarter of the displacement of a Lamé cylinder to 97 % of a bending cantilever's) with locking = \"{}\": use \"nodal\" (the default for tetrahedra above ν = {LOCKING_POISSON})",
                 locking_name(l)
             )),
             (CellKind::Hex8, Locking::None) => warnings.push(format!(

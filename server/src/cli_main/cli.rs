@@ -74,7 +74,7 @@ when it is missing or was built from another scene or mesh. Without --script, th
 palpates the middle of the first organ's accessible surface: down 3 mm above it, --depth \
 into it over 1 s, hold, slide 15 mm over 2 s, lift (5 s in all).\n\n\
 Writes <RECORD>/forces.csv (tick, t_s, contact point, force on the tool in N, contact, \
-depth, events, latency_us, force_error_n: the estimated error of the force against the full-order model, empty where the force has no estimate), trajectory.csv, <organ>.pvd + frames/*.vtu and summary.json. \
+depth, events (the tick's events by name, joined by '|': contact, force_saturated, grasped, tearing, tissue_torn, reduced_fidelity, …), latency_us, force_error_n: the estimated error of the force against the full-order model, empty where the force has no estimate), trajectory.csv, <organ>.pvd + frames/*.vtu and summary.json. \
 Exit status 1 when force rows were dropped.")]
     Run(RunArgs),
     /// Serve sessions over gRPC (sessions, interaction stream, viewer frames, health, reflection).

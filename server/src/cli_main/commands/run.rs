@@ -401,7 +401,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
                     format!("{:e}", f[2]),
                     u8::from(row.a.state.events.has(Events::CONTACT)).to_string(),
                     format!("{:e}", c.map_or(0.0, |c| c.depth_m)),
-                    row.a.state.events.0.to_string(),
+                    row.a.state.events.names(),
                     (row.a.answered_us - row.a.received_us).to_string(),
                     row.a.state.force_error_n.map_or(String::new(), |e| format!("{e:e}")),
                 ];
