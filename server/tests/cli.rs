@@ -1348,3 +1348,22 @@ fn a_cut_solved_under_a_prescribed_displacement_reports_its_strain_energy() {
         "energy {energy} J, ½ R·δ = {work} J"
     );
 }
+
+/// The seed's shear cube (a cyclic schedule: loaded, unloaded, loaded further) builds a
+/// calibrated bundle and runs: its force-error table is over increasing load levels (it
+/// followed the schedule's steps down again, and the session refused the bundle, which no
+/// rebuild mended).
+#[test]
+fn the_cyclic_shear_cube_builds_calibrated_and_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(&["build", "--builtin", "cube_shear", "--out", "b", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("JSON report");
+    let e = v[0]["tear"]["force_error"].as_f64();
+    assert!(e.is_some_and(|e| e.is_finite() && e >= 0.0), "calibrated: {}", v[0]["tear"]);
+    let o = vademecum(&["run", "--builtin", "cube_shear", "--bundles", "b", "--record", "run"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let rows = forces_csv(&dir.path().join("run/forces.csv"));
+    assert!(rows.iter().any(|r| r["events"].split('|').any(|n| n == "grasped")), "the grasper took hold");
+    assert!(rows.iter().any(|r| num(r, "force_error_n").is_finite()), "held forces carry an estimate");
+}

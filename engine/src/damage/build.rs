@@ -544,6 +544,37 @@ pub fn force_error_table(off: &std::sync::Arc<TearOffline>, along: &TearRun) -> 
     Calibration::run(off, along)?.table(off)
 }
 
+/// The envelope of calibrated pulls ([`Calibration::table`]): `pulls` rows `[level, level of
+/// the full model, relative error]`, the first `firsts` of them first grasps. The table's
+/// levels are those every first grasp reached (up to the smallest of their highest levels);
+/// rows `[level, largest error of any state at or below it]`, levels increasing.
+fn envelope(pulls: &[Vec<[f64; 3]>], firsts: usize) -> Vec<[f64; 2]> {
+    let reached = |p: &Vec<[f64; 3]>| p.iter().map(|r| r[0]).fold(0.0, f64::max);
+    let cap = pulls[..firsts].iter().map(reached).fold(f64::INFINITY, f64::min);
+    let mut states: Vec<[f64; 2]> = pulls
+        .iter()
+        .flatten()
+        .filter(|r| r[0] > 0.0 && r[0] <= cap && r[2].is_finite())
+        .map(|r| [r[0], r[2]])
+        .collect();
+    states.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    let levels: Vec<f64> = pulls[0].iter().map(|r| r[0]).filter(|&l| l > 0.0 && l <= cap).collect();
+    let mut levels = levels;
+    levels.sort_by(f64::total_cmp);
+    levels.dedup();
+    let (mut worst, mut next) = (0.0f64, 0);
+    levels
+        .into_iter()
+        .map(|level| {
+            while next < states.len() && states[next][0] <= level {
+                worst = worst.max(states[next][1]);
+                next += 1;
+            }
+            [level, worst]
+        })
+        .collect()
+}
+
 /// The steps of the first pull along the load before a second grasp, in the calibration and
 /// the study's samples ([`force_errors_after`]): half the model's schedule.
 pub fn second_grasp_steps(model: &TearModel) -> usize {
@@ -601,21 +632,49 @@ impl<'a> Calibration<'a> {
     /// The envelope of `off`'s force errors over the calibrated pulls: rows `[level, error]`,
     /// at each level the largest error of any pull up to it. Its levels are those every first
     /// grasp reached; a second grasp whose run ended earlier counts up to where it went.
+    ///
+    /// The envelope is taken over load levels, not steps: every calibrated state `(level,
+    /// error)` of every pull, sorted by level, the error at each level the largest of any state
+    /// at or below it. On a monotone schedule this is the running maximum step by step; on a
+    /// cyclic one (the seed's shear cube, loaded and unloaded) the states on the way back down
+    /// count at their own, lower levels — so the table's levels still increase, and the
+    /// unloading branch's errors bound the loading branch's too. States at level 0 (a
+    /// schedule back at rest: a relative error has no meaning there) are left out.
     pub fn table(&self, off: &std::sync::Arc<TearOffline>) -> Result<Vec<[f64; 2]>, RunError> {
         let mut pulls = vec![force_errors(off, [1.0, 0.0, 0.0], Some(self.along))?];
         for (mix, run) in &self.across {
             pulls.push(force_errors(off, *mix, Some(run))?);
         }
-        let steps = pulls.iter().map(Vec::len).min().unwrap_or(0);
+        let firsts = pulls.len();
         for (mix, run) in &self.second {
             pulls.push(force_errors_after(off, &[Prior::along(off, self.pre)], *mix, Some(run))?);
         }
-        let mut worst: f64 = 0.0;
-        Ok((0..steps)
-            .map(|k| {
-                worst = pulls.iter().filter_map(|p| p.get(k)).map(|r| r[2]).fold(worst, f64::max);
-                [pulls[0][k][0], worst]
-            })
-            .collect())
+        Ok(envelope(&pulls, firsts))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::envelope;
+
+    /// A monotone schedule: the running maximum, step by step, up to the level every first
+    /// grasp reached; a cyclic one (loaded, unloaded to rest, loaded further): levels still
+    /// increase, the unloading branch's larger errors bound the levels at and above theirs,
+    /// and the state at rest (level 0, no relative error) is left out.
+    #[test]
+    fn the_calibration_envelope_is_over_increasing_levels_for_any_schedule() {
+        let pull = |rows: &[(f64, f64)]| rows.iter().map(|&(l, e)| [l, l, e]).collect::<Vec<_>>();
+        let along = pull(&[(1.0, 0.01), (2.0, 0.03), (3.0, 0.02)]);
+        let across = pull(&[(1.0, 0.02), (2.0, 0.01)]);
+        let second = pull(&[(1.0, 0.0), (2.0, 0.05), (3.0, 0.5)]);
+        assert_eq!(
+            envelope(&[along, across, second], 2),
+            vec![[1.0, 0.02], [2.0, 0.05]],
+            "the levels every first grasp reached"
+        );
+        let cyclic = pull(&[(1.0, 0.01), (2.0, 0.02), (1.0, 0.04), (0.0, f64::NAN), (2.0, 0.03), (4.0, 0.05)]);
+        let t = envelope(&[cyclic], 1);
+        assert_eq!(t, vec![[1.0, 0.04], [2.0, 0.04], [4.0, 0.05]]);
+        assert!(t.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]));
     }
 }
