@@ -454,3 +454,26 @@ fn special_files_named_as_meshes_scenes_or_surfaces_are_refused_at_once() {
         }
     }
 }
+
+/// A load so large that what is made of the displacement overflows (gravity of 1e308 solved
+/// with exit 0 and every figure infinite) is an error, as a non-finite displacement is; the
+/// same scene at an ordinary load solves.
+#[test]
+fn a_solve_whose_figures_overflow_is_an_error() {
+    for (g, finite) in [("-9.81", true), ("-1e308", false)] {
+        let text = format!("{GOOD_SCENE}\n[[organs.loads]]\nkind = \"gravity\"\nacceleration = [0.0, 0.0, {g}]\n");
+        let scene = Scene::from_toml(&text, "s.toml").unwrap();
+        let m = scene.organ_model(0).unwrap();
+        let r = linear_static::solve(&m.mesh, &m.materials, m.locking, &m.problem, &mut |_| {});
+        match r {
+            Ok(sol) => {
+                assert!(finite, "gravity {g}: solved, energy {}", sol.strain_energy);
+                assert!(sol.strain_energy.is_finite() && sol.strain_energy > 0.0);
+            }
+            Err(e) => {
+                assert!(!finite, "gravity {g}: {e}");
+                assert!(matches!(e, StaticError::NonFinite), "{e}");
+            }
+        }
+    }
+}

@@ -193,6 +193,16 @@ fn every_site_is_stored_and_as_accurate_as_the_scenes_grasp() {
         // and the site damages the tissue: its pull is not a rigid motion
         assert!(c.dissipated > 0.0, "site {k}");
     }
+    // a manifest that lost a site's entry (its arrays still listed for the others) is
+    // refused: it loaded one site fewer without a word
+    let dir = tempfile::tempdir().unwrap();
+    offline::write_bundle(dir.path(), &scene, &built).unwrap();
+    let mpath = dir.path().join("manifest.json");
+    let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&mpath).unwrap()).unwrap();
+    m["arrays"].as_object_mut().unwrap().remove("tear2_meta");
+    std::fs::write(&mpath, serde_json::to_string_pretty(&m).unwrap()).unwrap();
+    let e = offline::load_bundle(dir.path()).unwrap_err().to_string();
+    assert!(e.contains("3 grasp site(s)") && e.contains("of 2") && e.contains("rebuild"), "{e}");
     // a site's stored load that does not fit the mesh is refused with a clear error
     let mut bad = (*b.tear[1]).clone();
     bad.load_nodes[0] = 1_000_000;

@@ -1364,6 +1364,12 @@ fn the_cyclic_shear_cube_builds_calibrated_and_runs() {
     let o = vademecum(&["run", "--builtin", "cube_shear", "--bundles", "b", "--record", "run"], dir.path());
     assert!(o.status.success(), "stderr: {}", stderr(&o));
     let rows = forces_csv(&dir.path().join("run/forces.csv"));
-    assert!(rows.iter().any(|r| r["events"].split('|').any(|n| n == "grasped")), "the grasper took hold");
-    assert!(rows.iter().any(|r| num(r, "force_error_n").is_finite()), "held forces carry an estimate");
+    assert!(
+        rows.iter().any(|r| r["events"].split('|').any(|n| n == "grasped")),
+        "the grasper took hold"
+    );
+    assert!(
+        rows.iter().any(|r| num(r, "force_error_n").is_finite()),
+        "held forces carry an estimate"
+    );
 }

@@ -201,7 +201,9 @@ pub enum StaticError {
     #[error(transparent)]
     Solve(#[from] SolveError),
     /// The solution is not finite (should not happen once the checks above pass).
-    #[error("the solution contains non-finite values; the system is ill-conditioned (check the material parameters)")]
+    #[error(
+        "the solution contains non-finite values (the system is ill-conditioned, or the loads so large that the displacements, stresses or energy overflow): check the material parameters and the loads' magnitudes"
+    )]
     NonFinite,
 }
 
@@ -284,7 +286,12 @@ pub fn solve(
     }
     let strain_energy = 0.5 * u.iter().zip(&f_int).map(|(a, b)| a * b).sum::<f64>();
     let stresses = assembly::cell_stresses(mesh, materials, locking, &u)?;
-    let von_mises = stresses.iter().map(|s| element::von_mises(*s)).collect();
+    let von_mises: Vec<f64> = stresses.iter().map(|s| element::von_mises(*s)).collect();
+    // a finite displacement can still overflow what is made of it (a load of 1e308 gave
+    // every figure as infinity, printed as null): a result is finite throughout or an error
+    if !(strain_energy.is_finite() && reactions.iter().chain(&von_mises).all(|x| x.is_finite())) {
+        return Err(StaticError::NonFinite);
+    }
     let (mut max_displacement, mut max_displacement_node) = (0.0, 0);
     for n in 0..mesh.n_nodes() {
         let m = (u[3 * n].powi(2) + u[3 * n + 1].powi(2) + u[3 * n + 2].powi(2)).sqrt();

@@ -1314,6 +1314,17 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
     while manifest.arrays.contains_key(&format!("{}meta", tear_prefix(tear.len()))) {
         tear.push(Arc::new(read_tear(dir, &manifest, &tear_prefix(tear.len())).map_err(bad)?));
     }
+    // the build's report says how many grasp sites it made: the scene's, and one per entry of
+    // `tear_sites`; a bundle missing a site's arrays would load fewer without a word
+    if manifest.info.get("tear").is_some_and(|t| !t.is_null()) {
+        let built = 1 + manifest.info.get("tear_sites").and_then(|s| s.as_array()).map_or(0, Vec::len);
+        if tear.len() != built {
+            return Err(bad(format!(
+                "its build made {built} grasp site(s) but it holds the tearing arrays of {} (a `tear{{k}}_meta` entry is missing): rebuild it with `vademecum build`",
+                tear.len()
+            )));
+        }
+    }
     Ok(LoadedBundle {
         anm,
         cut_basis,
