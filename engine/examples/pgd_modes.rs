@@ -53,7 +53,7 @@ fn main() {
             e[q] = 1.0;
             full.push(&exact[q * dofs.n_free()..(q + 1) * dofs.n_free()], &e);
         }
-        let svd = compress::recompress(&full, 0.0);
+        let svd = compress::recompress(&full, 0.0).expect("finite modes");
         let optimal = brute::error_curve(&svd, &exact);
         let needed = |curve: &[f64], tol: f64| curve.iter().position(|&x| x <= tol).map(|i| i + 1);
         // The quantity the haptic loop uses: the 3×3 compliance at each load node (patch-averaged
@@ -124,7 +124,7 @@ fn main() {
                 needed(&curve, 3e-3),
                 needed(&curve, 1e-3)
             );
-            let c = compress::recompress(&sep, 3e-4);
+            let c = compress::recompress(&sep, 3e-4).expect("finite modes");
             let ce = brute::error_curve(&c, &exact);
             println!(
                 "| … recompressed (QR+SVD, tail 3e-4) | {:?} | {:?} | {:?} | — |",

@@ -725,7 +725,7 @@ impl Scene {
     /// `VADEMECUM_SHARED` names; from the working folder and each folder above it (so that
     /// `../shared/data/…` is found from the repository or any folder inside it); beside the
     /// checkout this library was built from. Where none holds it, the path as written (and
-    /// the error reading it says what to set: [`Scene::builtin_data_hint`]).
+    /// the error reading it says what to set).
     pub fn resolve_path(&self, p: &str) -> PathBuf {
         let p = Path::new(p);
         if p.is_absolute() {
