@@ -277,15 +277,9 @@ impl<'a> Truth<'a> {
 }
 
 fn probe_radius(scene: &Scene) -> f64 {
-    scene
-        .spec
-        .tools
-        .iter()
-        .find_map(|t| match t {
-            vademecum_engine::scene::schema::ToolSpec::Probe { radius, .. } => Some(*radius),
-            _ => None,
-        })
-        .expect("a probe")
+    let r = offline::probe_radius(scene);
+    assert!(r > 0.0, "a probe");
+    r
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
