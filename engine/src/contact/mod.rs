@@ -32,10 +32,6 @@
 //!   triangle; and with no triangle within r the contact is released. So a tool outside the
 //!   organ never feels more than `r − gap` of depth, and nothing once clear of it.
 //!
-//! - *Speed*: the proxy slides along the surface no farther in a tick than the tip moved
-//!   along it ([`Proxy::update`]; the normal projection alone moves faster under a curved
-//!   surface, without bound near a rounded rim).
-//!
 //! The surface is the organ's whole boundary, accessible or not: what force each part gives is
 //! the effect's business (the palpation effect renders the parts the vademecum cannot load as
 //! the rigid support they are attached to).
@@ -45,11 +41,7 @@ mod surface;
 
 pub use grid::CellClass;
 
-use crate::vec3::{dot, lerp, norm, scale, sub};
-
-/// Relative slack of the proxy's speed limit ([`Proxy::update`]): round-off, not a reason to
-/// hold the proxy back.
-const SLIDE_SLACK: f64 = 1e-9;
+use crate::vec3::{norm, sub};
 pub use surface::{Surface, SurfacePoint};
 
 /// Most walk steps per tick. A step moves to a neighbouring triangle; at the tick rate a tool
@@ -82,8 +74,6 @@ impl Touch {
 pub struct Proxy {
     /// The proxy's point and its signed distance from the tip last tick.
     last: Option<(SurfacePoint, f64)>,
-    /// Where the tip was last tick.
-    tip: [f64; 3],
 }
 
 /// The box of a surface's nodes.
@@ -128,39 +118,6 @@ impl Proxy {
         self.last = None;
     }
 
-    /// The god-object's speed limit: the proxy slides along the surface no farther in a tick
-    /// than the tip moved along it (the part of the tip's step tangent to the surface at the
-    /// proxy, `|Δc − (Δc·n)n|`). On a flat face this is the projection itself; under a curved
-    /// one the normal projection slides faster than the tip by `R/(R − depth)` (R the radius of
-    /// curvature) — without bound as the depth nears R, where the normals of a rounded rim
-    /// meet and the projection wraps the proxy round onto the side, the depth measured from
-    /// there shrinking while the tip goes deeper (the force fell by 1.6 N in one 10 µm step).
-    /// Capped, a straight press keeps its proxy near where it entered, as the god-object does,
-    /// and the force grows with depth; the proxy still moves continuously, so the force does.
-    /// Where the projection goes farther, the proxy stops on the surface the allowed fraction
-    /// of the way (the nearest surface point to that point of the chord) and the depth is
-    /// measured along its normal there.
-    fn slide_no_faster_than_the_tip(
-        surface: &Surface,
-        from: SurfacePoint,
-        last_tip: [f64; 3],
-        tip: [f64; 3],
-        (at, d): (SurfacePoint, f64),
-    ) -> (SurfacePoint, f64) {
-        let slid = norm(sub(at.point, from.point));
-        let n = surface.normal_at(&from);
-        let step = sub(tip, last_tip);
-        let along = norm(sub(step, scale(n, dot(step, n))));
-        if slid <= along * (1.0 + SLIDE_SLACK) || !(slid.is_finite() && along.is_finite()) {
-            return (at, d);
-        }
-        let target = lerp(from.point, at.point, along / slid);
-        match surface.nearest_within(target, slid) {
-            Some(s) => (s, surface.signed_distance(&s, tip)),
-            None => (at, d),
-        }
-    }
-
     /// The touch of a tip whose centre is outside the organ: the surface point nearest to it
     /// within `radius`, carried along the normal field to where its normal passes through the
     /// tip (kept at the nearest point where that projection says inside: from outside, only
@@ -194,7 +151,6 @@ impl Proxy {
                     let d = surface.signed_distance(&last.0, tip);
                     (last.0, d)
                 });
-                let (at, d) = Self::slide_no_faster_than_the_tip(surface, last.0, self.tip, tip, (at, d));
                 if d < 0.0 && !surface.contains(tip) {
                     // the branch says inside but the tip is out: it left the organ through
                     // another part of the surface than the proxy's (a press through a thin
@@ -240,7 +196,6 @@ impl Proxy {
             return None;
         }
         self.last = Some((at, d));
-        self.tip = tip;
         Some(Touch {
             at,
             nodes: surface.triangles()[at.triangle],

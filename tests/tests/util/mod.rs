@@ -296,6 +296,8 @@ pub fn norm(v: [f64; 3]) -> f64 {
 /// Every fresh force in `rows[range]` equals the engine's force at the position it answers
 /// (a position sent at most a few ticks earlier).
 pub fn assert_forces_match_engine(rows: &[TraceRow], range: std::ops::Range<usize>, engine: &mut Pipeline) -> usize {
+    // each replay is of a session of its own: no contact carried over from the last one
+    engine.reset();
     let first = rows[0].tick;
     let mut touching = 0;
     for r in rows[range].iter().filter(|r| r.fresh) {
