@@ -218,6 +218,18 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
     assert!(matches!(e, BundleError::Mismatch { what: "scene", .. }), "{e}");
     let e = offline::check_matches(&dir, &l.manifest, &scene, &other_mesh).unwrap_err();
     assert!(matches!(e, BundleError::Mismatch { what: "mesh", .. }), "{e}");
+    // runtime settings, comments and layout build the same: the bundle serves them unrebuilt
+    let runtime = format!(
+        "# the fidelity fallback is a runtime setting\n{}\n[fidelity]\nfallback = \"off\"\n",
+        SCENE.replace("name = \"slab\"\n\n", "name = \"slab\"\ndescription = \"a slab\"\n\n")
+    );
+    let runtime = Scene::from_toml(&runtime, "runtime.toml").unwrap();
+    assert_ne!(runtime.source, scene.source);
+    offline::check_matches(&dir, &l.manifest, &runtime, &b.model.mesh).unwrap();
+    // a fidelity setting that is built is no runtime setting
+    let built = Scene::from_toml(&format!("{SCENE}\n[fidelity.pgd]\nmax_modes = 7\n"), "built.toml").unwrap();
+    let e = offline::check_matches(&dir, &l.manifest, &built, &b.model.mesh).unwrap_err();
+    assert!(matches!(e, BundleError::Mismatch { what: "scene", .. }), "{e}");
     let _ = b;
 }
 

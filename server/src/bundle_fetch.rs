@@ -2,9 +2,21 @@
 //! storage or any static HTTP(S) server holding a published store's `sha256/<hex>/` folders)
 //! into the server's bundle store, checked before it is used: the manifest must hash to the
 //! digest asked for, and every file to what the manifest says.
+//!
+//! A fetch is bounded: it ends by its deadline ([`FetchLimits::deadline`], the whole fetch,
+//! every request included: a source that hangs holds a `CreateSession` no longer), reads at
+//! most [`FetchLimits::max_bytes`] in all (what the manifest declares is checked against it
+//! before a byte of an array is read), and streams every file to disk while hashing it (the
+//! server's memory does not grow with a bundle's size). It writes into a folder of its own
+//! that is renamed into the store once whole and checked; the registry lets one fetch run
+//! per digest at a time (`Registry`: the other sessions asking for it wait for it).
 
+use std::io::{Read, Write};
 use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
+use sha2::{Digest, Sha256};
 use vademecum_engine::bundle::{self, Manifest, store};
 
 /// Largest manifest fetched (bytes), as a bundle's reader reads.
@@ -12,14 +24,82 @@ const MAX_MANIFEST: u64 = 1 << 20;
 /// Largest scene text fetched (bytes).
 const MAX_SCENE: u64 = 16 << 20;
 
-/// GETs `url` into memory, at most `limit` bytes.
-fn get(url: &str, limit: u64) -> Result<Vec<u8>, String> {
-    let mut r = ureq::get(url).call().map_err(|e| format!("GET {url}: {e}"))?;
-    r.body_mut()
-        .with_config()
-        .limit(limit)
-        .read_to_vec()
-        .map_err(|e| format!("GET {url}: {e}"))
+/// How long and how much one fetch may take.
+#[derive(Debug, Clone, Copy)]
+pub struct FetchLimits {
+    /// The whole fetch's deadline, from its first request.
+    pub deadline: Duration,
+    /// Bytes of one bundle, its files together.
+    pub max_bytes: u64,
+}
+
+impl Default for FetchLimits {
+    /// 120 s and 2 GiB (the largest mesh a reader takes: `engine::files::MAX_MESH_BYTES`).
+    fn default() -> Self {
+        Self {
+            deadline: Duration::from_secs(120),
+            max_bytes: 2 << 30,
+        }
+    }
+}
+
+/// One fetch's client: its deadline and what it has left to read.
+struct Fetch {
+    agent: ureq::Agent,
+    until: Instant,
+    deadline: Duration,
+    left: u64,
+}
+
+impl Fetch {
+    fn new(limits: FetchLimits) -> Self {
+        let agent: ureq::Agent = ureq::Agent::config_builder().timeout_global(Some(limits.deadline)).build().into();
+        Self {
+            agent,
+            until: Instant::now() + limits.deadline,
+            deadline: limits.deadline,
+            left: limits.max_bytes,
+        }
+    }
+
+    /// GETs `url`, at most `limit` bytes, into `out`; returns its SHA-256 (hex).
+    fn get(&mut self, url: &str, limit: u64, out: &mut impl Write) -> Result<String, String> {
+        let late = || format!("GET {url}: the fetch took longer than its {} s deadline", self.deadline.as_secs());
+        let remaining = self.until.checked_duration_since(Instant::now()).ok_or_else(late)?;
+        let limit = limit.min(self.left);
+        let mut r = self
+            .agent
+            .get(url)
+            .config()
+            .timeout_global(Some(remaining))
+            .build()
+            .call()
+            .map_err(|e| match e {
+                ureq::Error::Timeout(_) => late(),
+                e => format!("GET {url}: {e}"),
+            })?;
+        let mut body = r.body_mut().with_config().limit(limit).reader();
+        let mut hash = Sha256::new();
+        let mut buf = vec![0u8; 1 << 16];
+        let mut read = 0u64;
+        loop {
+            let n = body.read(&mut buf).map_err(|e| {
+                if Instant::now() >= self.until {
+                    late()
+                } else {
+                    format!("GET {url}: {e}")
+                }
+            })?;
+            if n == 0 {
+                break;
+            }
+            read += n as u64;
+            hash.update(&buf[..n]);
+            out.write_all(&buf[..n]).map_err(|e| format!("cannot write what {url} sent: {e}"))?;
+        }
+        self.left -= read.min(self.left);
+        Ok(format!("{:x}", hash.finalize()))
+    }
 }
 
 /// A file name listed by a fetched manifest, refused unless it is a plain name (written into
@@ -32,40 +112,71 @@ fn plain(name: &str) -> Result<&str, String> {
     }
 }
 
-/// Fetches bundle `sha256:<hex>` from `source` into `store` and returns its folder there.
-pub fn fetch(source: &str, hex: &str, store_dir: &Path) -> Result<PathBuf, String> {
+/// Creates `path` for writing, refusing anything already there (a link included).
+fn create_new(path: &Path) -> Result<std::fs::File, String> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+        .map_err(|e| format!("cannot write {}: {e}", path.file_name().unwrap_or_default().to_string_lossy()))
+}
+
+/// Fetches bundle `sha256:<hex>` from `source` into `store` within `limits` and returns its
+/// folder there.
+pub fn fetch(source: &str, hex: &str, store_dir: &Path, limits: FetchLimits) -> Result<PathBuf, String> {
     let base = format!("{}/sha256/{hex}", source.trim_end_matches('/'));
-    let manifest_bytes = get(&format!("{base}/{}", bundle::MANIFEST), MAX_MANIFEST)?;
-    let found = bundle::sha256_hex(&manifest_bytes);
+    let mut f = Fetch::new(limits);
+    let mut manifest_bytes = Vec::new();
+    let found = f.get(&format!("{base}/{}", bundle::MANIFEST), MAX_MANIFEST, &mut manifest_bytes)?;
     if found != hex {
         return Err(format!(
             "{base}/manifest.json hashes to sha256:{found}, not the sha256:{hex} asked for: not served"
         ));
     }
     let manifest: Manifest = serde_json::from_slice(&manifest_bytes).map_err(|e| format!("{base}/manifest.json: {e}"))?;
+    // what the manifest declares, against the limit, before any array is read
+    let mut declared = manifest_bytes.len() as u64;
+    for (name, entry) in &manifest.arrays {
+        let size = bundle::npy::data_len(&entry.dtype, &entry.shape)
+            .ok_or_else(|| format!("array {name}: shape {:?} is too large", entry.shape))?;
+        declared = declared.saturating_add(size);
+    }
+    if declared > limits.max_bytes {
+        return Err(format!(
+            "{base}: the manifest declares {declared} bytes of arrays, more than the {} a fetch may read",
+            limits.max_bytes
+        ));
+    }
     let parent = store_dir.join("sha256");
     std::fs::create_dir_all(&parent).map_err(|e| format!("cannot create {}: {e}", parent.display()))?;
-    let incoming = parent.join(format!(".fetching-{hex}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&incoming);
+    // a folder of this fetch's own: no other fetch, in this process or another, writes there
+    static FETCHES: AtomicU64 = AtomicU64::new(0);
+    let incoming = parent.join(format!(
+        ".fetching-{hex}-{}-{}",
+        std::process::id(),
+        FETCHES.fetch_add(1, Ordering::Relaxed)
+    ));
     std::fs::create_dir(&incoming).map_err(|e| format!("cannot create {}: {e}", incoming.display()))?;
     let fetched = (|| {
         for (name, entry) in &manifest.arrays {
             let file = plain(&entry.file)?;
             let size = bundle::npy::data_len(&entry.dtype, &entry.shape)
                 .ok_or_else(|| format!("array {name}: shape {:?} is too large", entry.shape))?;
-            let bytes = get(&format!("{base}/{file}"), size + bundle::npy::MAX_HEADER as u64 + 12)?;
-            if bundle::sha256_hex(&bytes) != entry.sha256 {
+            let mut out = std::io::BufWriter::new(create_new(&incoming.join(file))?);
+            let sha = f.get(&format!("{base}/{file}"), size + bundle::npy::MAX_HEADER as u64 + 12, &mut out)?;
+            out.flush().map_err(|e| format!("cannot write {file}: {e}"))?;
+            if sha != entry.sha256 {
                 return Err(format!("{base}/{file} does not hash to what its manifest says"));
             }
-            std::fs::write(incoming.join(file), bytes).map_err(|e| format!("cannot write {file}: {e}"))?;
         }
-        let scene = get(&format!("{base}/scene.toml"), MAX_SCENE)?;
-        if bundle::sha256_hex(&scene) != manifest.scene_sha256 {
+        let mut out = create_new(&incoming.join("scene.toml"))?;
+        if f.get(&format!("{base}/scene.toml"), MAX_SCENE, &mut out)? != manifest.scene_sha256 {
             return Err(format!("{base}/scene.toml does not hash to what its manifest says"));
         }
-        std::fs::write(incoming.join("scene.toml"), scene).map_err(|e| format!("cannot write scene.toml: {e}"))?;
         // the manifest last: a fetch interrupted before it leaves no bundle
-        std::fs::write(incoming.join(bundle::MANIFEST), &manifest_bytes).map_err(|e| format!("cannot write the manifest: {e}"))?;
+        create_new(&incoming.join(bundle::MANIFEST))?
+            .write_all(&manifest_bytes)
+            .map_err(|e| format!("cannot write the manifest: {e}"))?;
         store::into_place(&incoming, &store::path(store_dir, hex), hex).map_err(|e| e.to_string())
     })();
     if fetched.is_err() {

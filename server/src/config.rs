@@ -23,6 +23,8 @@ pub struct ServerConfig {
     /// Where bundles missing from the store are fetched from (an HTTP(S) base URL holding
     /// `sha256/<hex>/`; `None`: only what the store holds).
     pub bundle_source: Option<String>,
+    /// How long and how much a fetch from [`Self::bundle_source`] may take.
+    pub bundle_fetch: crate::bundle_fetch::FetchLimits,
     /// Whether clients may name server-side scene paths at all.
     pub allow_paths: bool,
     /// Most sessions at once (all clients together).
@@ -81,6 +83,7 @@ impl Default for ServerConfig {
             allow_paths: true,
             bundle_store: None,
             bundle_source: None,
+            bundle_fetch: crate::bundle_fetch::FetchLimits::default(),
             max_sessions: 16,
             // a tenant cannot take every slot: a quarter of the sessions, a sixteenth of the
             // streams (a frontend and a few viewers per session)

@@ -133,6 +133,9 @@ struct Shared {
     draining: AtomicBool,
     /// The session count and draining, for whoever follows them (Agones).
     occupancy: tokio::sync::watch::Sender<Occupancy>,
+    /// One lock per bundle digest being fetched: one fetch per digest at a time, the other
+    /// sessions asking for it wait for it and take it from the store (single flight).
+    fetching: Mutex<HashMap<String, Arc<Mutex<()>>>>,
 }
 
 /// How many sessions a server holds and whether it drains ([`Registry::occupancy`]).
@@ -209,6 +212,7 @@ impl Registry {
                 next: AtomicU64::new(1),
                 draining: AtomicBool::new(false),
                 occupancy: tokio::sync::watch::channel(Occupancy::default()).0,
+                fetching: Mutex::new(HashMap::new()),
             }),
         }
     }
@@ -385,11 +389,34 @@ impl Registry {
                 "this server has no bundle store (serve --bundle-store): ask for bundles by bundle_dir".into(),
             ));
         };
-        if !store::path(dir, hex).join(vademecum_engine::bundle::MANIFEST).is_file()
+        let held = |d: &Path| store::path(d, hex).join(vademecum_engine::bundle::MANIFEST).is_file();
+        if !held(dir)
             && let Some(source) = &cfg.bundle_source
         {
-            crate::bundle_fetch::fetch(source, hex, dir)
-                .map_err(|e| ServerError::Precondition(format!("organ '{}': bundle {digest}: {e}", clip(organ))))?;
+            // single flight: the first asker fetches, the others wait for it, then find it held
+            let flight = self
+                .shared
+                .fetching
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .entry(hex.to_string())
+                .or_default()
+                .clone();
+            let fetched = {
+                let _one = flight.lock().unwrap_or_else(|p| p.into_inner());
+                if held(dir) {
+                    Ok(())
+                } else {
+                    crate::bundle_fetch::fetch(source, hex, dir, cfg.bundle_fetch).map(drop)
+                }
+            };
+            let mut fetching = self.shared.fetching.lock().unwrap_or_else(|p| p.into_inner());
+            // the last one out forgets the digest (the map holds one, every waiter one)
+            if Arc::strong_count(&flight) <= 2 {
+                fetching.remove(hex);
+            }
+            drop(fetching);
+            fetched.map_err(|e| ServerError::Precondition(format!("organ '{}': bundle {digest}: {e}", clip(organ))))?;
         }
         store::open(dir, digest).map_err(|e| ServerError::Precondition(format!("organ '{}': {e}", clip(organ))))
     }

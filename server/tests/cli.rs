@@ -42,6 +42,60 @@ fn forces_csv(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
         .collect()
 }
 
+/// Runs `f` while a thread per core spins beside it.
+fn beside_cpu_hogs<T>(f: impl FnOnce() -> T) -> T {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let stop = std::sync::Arc::new(AtomicBool::new(false));
+    let hogs: Vec<_> = (0..std::thread::available_parallelism().map_or(2, |n| n.get()))
+        .map(|_| {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                let mut x = 0u64;
+                while !stop.load(Ordering::Relaxed) {
+                    x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+                }
+            })
+        })
+        .collect();
+    let out = f();
+    stop.store(true, Ordering::Relaxed);
+    hogs.into_iter().for_each(|h| h.join().unwrap());
+    out
+}
+
+/// Asserts that two recordings of the same scene and script are the same: `forces.csv` row
+/// for row with the latency column aside, every frame file and every `.pvd` byte for byte.
+fn assert_same_recording(a: &Path, b: &Path) {
+    let (fa, fb) = (forces_csv(&a.join("forces.csv")), forces_csv(&b.join("forces.csv")));
+    assert_eq!(fa.len(), fb.len(), "rows");
+    for (ra, rb) in fa.iter().zip(&fb) {
+        let strip = |r: &std::collections::HashMap<String, String>| {
+            let mut r = r.clone();
+            r.remove("latency_us");
+            r
+        };
+        assert_eq!(strip(ra), strip(rb), "forces.csv differs at tick {}", ra["tick"]);
+    }
+    let files = |dir: &Path| {
+        let mut v: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.is_file() && p.extension().is_some_and(|x| x == "vtu" || x == "pvd"))
+            .collect();
+        v.sort();
+        v
+    };
+    for sub in [Path::new("."), Path::new("frames")] {
+        let (la, lb) = (files(&a.join(sub)), files(&b.join(sub)));
+        let names = |l: &[std::path::PathBuf]| l.iter().map(|p| p.file_name().unwrap().to_owned()).collect::<Vec<_>>();
+        assert_eq!(names(&la), names(&lb), "the files of {}", sub.display());
+        assert!(!la.is_empty(), "{} holds files", a.join(sub).display());
+        for (pa, pb) in la.iter().zip(&lb) {
+            assert!(std::fs::read(pa).unwrap() == std::fs::read(pb).unwrap(), "{} differs", pa.display());
+        }
+    }
+}
+
 /// A numeric column of a `forces.csv` row (NaN when empty: no estimate).
 fn num(row: &std::collections::HashMap<String, String>, column: &str) -> f64 {
     let v = row.get(column).unwrap_or_else(|| panic!("no column {column}"));
@@ -237,23 +291,28 @@ fn run_cuts_the_patch_with_a_scalpel_and_records_the_opening() {
     assert!(rec.join("patch_cut_surface.vtu").is_file());
     let svg = std::fs::read_to_string(rec.join("blade_force.svg")).unwrap();
     assert!(svg.contains("cut_force") && svg.contains("<polyline"), "the blade force plot");
-    // the written trajectory plays again as a script: the same cut
-    let o = vademecum(
-        &[
-            "run",
-            "--builtin",
-            "patch_cut",
-            "--script",
-            "out/patch_cut/run/trajectory.csv",
-            "--record",
-            "again",
-            "--json",
-        ],
-        dir.path(),
-    );
+    // the written trajectory plays again as a script, beside a CPU hog on every core: the
+    // same recording, bit for bit, the latency column aside (a headless run is
+    // deterministic: the cut lands at the tick after the blade made it, whatever the load)
+    let o = beside_cpu_hogs(|| {
+        vademecum(
+            &[
+                "run",
+                "--builtin",
+                "patch_cut",
+                "--script",
+                "out/patch_cut/run/trajectory.csv",
+                "--record",
+                "again",
+                "--json",
+            ],
+            dir.path(),
+        )
+    });
     assert!(o.status.success(), "stderr: {}", stderr(&o));
     let s: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
     assert_eq!(s["cut"]["cut_cells"], 2, "{s}");
+    assert_same_recording(&rec, &dir.path().join("again"));
     // a trajectory without a blade cannot cut a scene without a probe
     std::fs::write(dir.path().join("t.csv"), "t_s,x_m,y_m,z_m\n0,4,0.5,5.2\n1,4,0.5,4.5\n").unwrap();
     let o = vademecum(&["run", "--builtin", "patch_cut", "--script", "t.csv"], dir.path());
@@ -509,6 +568,11 @@ fn run_grasps_and_pulls_a_tearable_cube_until_it_tears_and_records_the_damage() 
         "{first}"
     );
     assert!(last.contains("NumberOfCells=\"0\""), "the torn cube is not drawn: {last}");
+    // the same run beside a CPU hog on every core: the same recording, bit for bit (a
+    // headless run never falls back to its reduced fidelity, whatever the load)
+    let o = beside_cpu_hogs(|| vademecum(&["run", "cube.toml", "--record", "again"], dir.path()));
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert_same_recording(&rec, &dir.path().join("again"));
 }
 
 #[test]

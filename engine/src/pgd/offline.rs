@@ -1337,10 +1337,18 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
     })
 }
 
-/// Checks that a bundle was built from this scene text and this mesh.
+/// Checks that a bundle was built from this scene and this mesh: the same scene text, or a
+/// text that builds the same ([`Scene::builds_like`]: it differs in runtime settings,
+/// comments or layout only).
 pub fn check_matches(dir: &Path, manifest: &Manifest, scene: &Scene, mesh: &Mesh) -> Result<(), BundleError> {
     let scene_hash = bundle::sha256_hex(scene.source.as_bytes());
-    if manifest.scene_sha256 != scene_hash {
+    let builds_like = || {
+        bundle::read_scene(dir, manifest)
+            .ok()
+            .and_then(|text| toml::from_str::<crate::scene::schema::SceneFile>(&text).ok())
+            .is_some_and(|built| scene.builds_like(&built))
+    };
+    if manifest.scene_sha256 != scene_hash && !builds_like() {
         return Err(BundleError::Mismatch {
             path: dir.to_path_buf(),
             what: "scene",

@@ -381,6 +381,8 @@ pub struct CorotationalDeformation {
     held_pieces: usize,
     /// At the reduced fidelity: no new factor asked ([`Self::set_reduced`]).
     reduced: bool,
+    /// Each frame installs the factor the frame before asked for ([`Self::set_deterministic`]).
+    deterministic: bool,
     /// Factors the factor thread made and the frames installed.
     pub factors_installed: u64,
 }
@@ -454,6 +456,7 @@ impl CorotationalDeformation {
             failure: None,
             held_pieces: 0,
             reduced: false,
+            deterministic: false,
             factors_installed: 0,
             mesh,
         };
@@ -476,6 +479,14 @@ impl CorotationalDeformation {
     /// tick (`BENCHMARKS.md`), stop taking CPU. A factor already asked for still lands.
     pub fn set_reduced(&mut self, reduced: bool) {
         self.reduced = reduced;
+    }
+
+    /// Makes each frame wait for the factor the frame before asked of the factor thread and
+    /// install it (`true`: a headless run, whose deformation and corrections are then the same
+    /// on any load), instead of installing a factor whenever one has landed (`false`, the
+    /// default: a live session's frames never wait).
+    pub fn set_deterministic(&mut self, deterministic: bool) {
+        self.deterministic = deterministic;
     }
 
     /// The cut revision of the model (0: uncut).
@@ -629,6 +640,9 @@ impl CorotationalDeformation {
     /// publishes `ΔC_rot` at the contact for the tick.
     pub fn step(&mut self, cut: Option<(u64, &Arc<Enrichment>)>, contact: Option<&Contact>) -> Result<FrameOutcome, CorotationalError> {
         let mut outcome = FrameOutcome::default();
+        // deterministic: the factor the frame before asked for, waited for (before a rebuild,
+        // so that none of an old model is left in flight)
+        let mut waited = (self.deterministic && self.busy).then(|| self.factors.recv().ok()).flatten();
         if let Some((revision, enr)) = cut.filter(|c| c.0 > self.revision())
             && self.failure.is_none()
         {
@@ -642,7 +656,7 @@ impl CorotationalDeformation {
             }
         }
         // a factor that landed (of the current model only)
-        while let Ok((model, factor)) = self.factors.try_recv() {
+        while let Some((model, factor)) = waited.take().or_else(|| self.factors.try_recv().ok()) {
             self.busy = false;
             if let (Some(s), Ok(f)) = (&mut self.state, factor)
                 && Arc::ptr_eq(&model, s.frames.model())

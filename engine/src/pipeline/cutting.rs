@@ -37,6 +37,11 @@
 //! enrich its nodes), which a surgeon cannot feel; the forces of those ticks are the uncut
 //! model's, which is what the tissue was before the cut.
 //!
+//! A headless run is deterministic instead ([`Effect::set_deterministic`]): the scalpel's
+//! tick waits for the cut thread to finish its blade state, so the cut lands at the next
+//! tick and the recording is the same on any load — the run slows down where a live session
+//! would let the cut land late.
+//!
 //! # The error estimate of each force
 //! With the seed's local fields the cut's compliance is the full XFEM's at the cut the tick
 //! holds (the Schur complement of the cracked nodes), so the force keeps the linear law's
@@ -118,6 +123,9 @@ pub struct CutStatus {
     pub nodes: AtomicU64,
     /// Blade states processed.
     pub steps: AtomicU64,
+    /// Blade states the cut thread has finished with: stepped, their view offered to the tick
+    /// and their pictures drawn (what a deterministic tick waits for).
+    pub finished: AtomicU64,
     /// Steps that could not cut (a piece cut loose made the reduced system singular; the
     /// model stayed at its previous cut).
     pub refused: AtomicU64,
@@ -301,6 +309,11 @@ pub struct Cutting {
     blend: Blend,
     /// The bare enrichment's calibrated relative force error ([`Self::with_bare_error`]).
     bare_error: Option<f64>,
+    /// Whether each tick waits for the cut thread to finish the blade state of the tick
+    /// before ([`Effect::set_deterministic`]), shared with the cut thread.
+    deterministic: Arc<AtomicBool>,
+    /// Blade states handed to the cut thread so far.
+    handed: u64,
 }
 
 impl std::fmt::Debug for Cutting {
@@ -324,7 +337,9 @@ impl Cutting {
         let spent = Arc::new(ArrayQueue::new(2));
         let status = Arc::new(CutStatus::default());
         let stop = Arc::new(AtomicBool::new(false));
+        let deterministic = Arc::new(AtomicBool::new(false));
         let worker = CutThread {
+            deterministic: deterministic.clone(),
             organ,
             online,
             shown: PartialSurface::new(&mesh),
@@ -356,6 +371,8 @@ impl Cutting {
             corrections: None,
             blend: Blend::default(),
             bare_error: None,
+            deterministic,
+            handed: 0,
         }
     }
 
@@ -381,6 +398,24 @@ impl Cutting {
     /// Enriched unknowns of the model the tick uses now.
     pub fn enriched_unknowns(&self) -> usize {
         self.view.enriched_unknowns()
+    }
+
+    /// Deterministic ticks only: waits until the cut thread has finished every blade state
+    /// handed to it (spinning, then yielding; a cut thread that has ended is not waited for).
+    /// The tick path of a live session never calls it.
+    fn wait_for_cut_thread(&self) {
+        let mut spins = 0u32;
+        while self.status.finished.load(Ordering::Acquire) < self.handed {
+            if self.worker.as_ref().is_none_or(|w| w.is_finished()) {
+                return;
+            }
+            if spins < 1 << 10 {
+                std::hint::spin_loop();
+                spins += 1;
+            } else {
+                std::thread::yield_now();
+            }
+        }
     }
 
     /// Swaps in a model the cut thread finished; returns whether it did.
@@ -531,10 +566,27 @@ impl Effect for Cutting {
         if self.samples.force_push(sample).is_some() {
             self.status.overwritten.fetch_add(1, Ordering::Relaxed);
         }
+        self.handed += 1;
+        if self.deterministic.load(Ordering::Relaxed)
+            && let Some(w) = &self.worker
+        {
+            // the cut of this blade state is made before the tick ends, however long it
+            // takes: it lands at the next tick, and the frames of this one draw it
+            w.thread().unpark();
+            self.wait_for_cut_thread();
+        }
     }
 
     fn reset(&mut self) {
         self.stroke = false;
+    }
+
+    /// Deterministic: a scalpel's tick waits for the cut thread to finish its blade state
+    /// (the cut stepped, its view offered, its pictures drawn), so each cut lands at the tick
+    /// after the blade made it, whatever the machine's load (live sessions let it land when
+    /// it is done, a few ticks later).
+    fn set_deterministic(&mut self, deterministic: bool) {
+        self.deterministic.store(deterministic, Ordering::Relaxed);
     }
 }
 
@@ -572,9 +624,28 @@ struct CutThread {
     spent: Arc<ArrayQueue<Box<CutView>>>,
     status: Arc<CutStatus>,
     stop: Arc<AtomicBool>,
+    /// [`Cutting::set_deterministic`]: every blade state is finished before the next is
+    /// taken, its view offered and its partial cut drawn at once.
+    deterministic: Arc<AtomicBool>,
 }
 
 impl CutThread {
+    /// Offers the tick a view of the model if cells were cut since the last one offered
+    /// and the tick has returned that one (`out`: a view offered and not yet returned).
+    fn offer(&self, pending: &mut bool, out: &mut bool) {
+        while self.spent.pop().is_some() {
+            *out = false;
+        }
+        if *pending && !*out {
+            let view = Box::new(self.online.model().view());
+            self.status.memory_bytes.store(memory_bytes(&view) as u64, Ordering::Relaxed);
+            if self.fresh.push(view).is_ok() {
+                *out = true;
+                *pending = false;
+            }
+        }
+    }
+
     fn run(mut self) {
         let mut out = false; // a view offered and not yet returned
         let mut pending = false; // cells cut since the last view offered
@@ -583,64 +654,78 @@ impl CutThread {
         let mut revision = 0;
         let mut drawn = std::time::Instant::now();
         while !self.stop.load(Ordering::Relaxed) {
-            while self.spent.pop().is_some() {
-                out = false;
-            }
-            if pending && !out {
-                let view = Box::new(self.online.model().view());
-                self.status.memory_bytes.store(memory_bytes(&view) as u64, Ordering::Relaxed);
-                if self.fresh.push(view).is_ok() {
-                    out = true;
-                    pending = false;
-                }
-            }
+            self.offer(&mut pending, &mut out);
             let Some(s) = self.samples.pop() else {
                 // the blade stopped: the partial cut as it stands
                 self.draw_partial(&mut drawn, true);
-                std::thread::sleep(POLL);
+                std::thread::park_timeout(POLL);
                 continue;
             };
-            let Ok(blade) = Blade::new(s.a, s.b, s.orientation) else { continue };
-            self.status.steps.fetch_add(1, Ordering::Relaxed);
-            match self.online.step_in_contact(&self.mesh, &blade, s.force, s.pushed) {
-                Ok(step) => {
-                    self.status.in_cut.store(step.in_cut, Ordering::Relaxed);
-                    if step.cutting {
-                        if let Some(p) = prev {
-                            path += (0..3).map(|k| (s.a[k] - p[k]).powi(2)).sum::<f64>().sqrt();
-                            self.status.path_um.store((path * 1e6) as u64, Ordering::Relaxed);
-                        }
-                        prev = Some(s.a);
-                    } else {
-                        prev = None;
-                    }
-                    if step.new_cells > 0 {
-                        let e = self.online.model().enrichment();
-                        self.status.cells.store(e.cut_cells.len() as u64, Ordering::Relaxed);
-                        self.status.nodes.store(e.len() as u64, Ordering::Relaxed);
-                        let shape = CutShape {
-                            cells: e.cut_cells.clone(),
-                            triangles: self
-                                .online
-                                .cut()
-                                .map(|c| c.facets().iter().map(|f| f.vertices).collect())
-                                .unwrap_or_default(),
-                        };
-                        *self.status.shape.lock().unwrap_or_else(|p| p.into_inner()) = shape;
-                        revision += 1;
-                        let picture = Arc::new(CutPicture::new(self.organ, revision, &self.mesh, self.online.model()));
-                        // the old picture is freed here or on the frame thread, never on the tick's
-                        *self.status.picture.lock().unwrap_or_else(|p| p.into_inner()) = Some(picture);
-                        pending = true;
-                    }
-                    self.draw_partial(&mut drawn, step.new_cells > 0);
-                }
-                Err(e) => {
-                    self.status.refused.fetch_add(1, Ordering::Relaxed);
-                    tracing::warn!("the cut could not advance: {e}");
-                }
+            self.take(&s, &mut prev, &mut path, &mut revision, &mut pending, &mut drawn);
+            if self.deterministic.load(Ordering::Relaxed) {
+                // the view of this blade state goes out before the tick is told it is done
+                // (the tick returned the one before when it took it, before handing this
+                // state over)
+                self.offer(&mut pending, &mut out);
             }
+            self.status.finished.fetch_add(1, Ordering::Release);
         }
+    }
+
+    /// Steps the cut with blade state `s`: the path cut so far (`prev`, `path`), the cut's
+    /// shape and picture (`revision`) when cells were cut (`pending`: a view to offer), the
+    /// partial cut (`drawn`).
+    fn take(
+        &mut self,
+        s: &BladeSample,
+        prev: &mut Option<[f64; 3]>,
+        path: &mut f64,
+        revision: &mut u64,
+        pending: &mut bool,
+        drawn: &mut std::time::Instant,
+    ) {
+        let Ok(blade) = Blade::new(s.a, s.b, s.orientation) else { return };
+        self.status.steps.fetch_add(1, Ordering::Relaxed);
+        let step = match self.online.step_in_contact(&self.mesh, &blade, s.force, s.pushed) {
+            Ok(step) => step,
+            Err(e) => {
+                self.status.refused.fetch_add(1, Ordering::Relaxed);
+                tracing::warn!("the cut could not advance: {e}");
+                return;
+            }
+        };
+        self.status.in_cut.store(step.in_cut, Ordering::Relaxed);
+        if step.cutting {
+            if let Some(p) = *prev {
+                *path += (0..3).map(|k| (s.a[k] - p[k]).powi(2)).sum::<f64>().sqrt();
+                self.status.path_um.store((*path * 1e6) as u64, Ordering::Relaxed);
+            }
+            *prev = Some(s.a);
+        } else {
+            *prev = None;
+        }
+        if step.new_cells > 0 {
+            let e = self.online.model().enrichment();
+            self.status.cells.store(e.cut_cells.len() as u64, Ordering::Relaxed);
+            self.status.nodes.store(e.len() as u64, Ordering::Relaxed);
+            let shape = CutShape {
+                cells: e.cut_cells.clone(),
+                triangles: self
+                    .online
+                    .cut()
+                    .map(|c| c.facets().iter().map(|f| f.vertices).collect())
+                    .unwrap_or_default(),
+            };
+            *self.status.shape.lock().unwrap_or_else(|p| p.into_inner()) = shape;
+            *revision += 1;
+            let picture = Arc::new(CutPicture::new(self.organ, *revision, &self.mesh, self.online.model()));
+            // the old picture is freed here or on the frame thread, never on the tick's
+            *self.status.picture.lock().unwrap_or_else(|p| p.into_inner()) = Some(picture);
+            *pending = true;
+        }
+        // deterministic: drawn with every blade state that swept something new
+        let now = step.new_cells > 0 || self.deterministic.load(Ordering::Relaxed);
+        self.draw_partial(drawn, now);
     }
 
     /// Redraws the partial cut ([`PartialCut`]) when the blade swept something new since the

@@ -290,6 +290,11 @@ pub trait Effect: Send {
     /// Runs the next ticks at `fidelity` (an effect with no cheaper setting ignores it). Must
     /// not allocate: the tick thread calls it.
     fn set_fidelity(&mut self, _fidelity: Fidelity) {}
+    /// Makes the effect's work beside the tick land at ticks fixed by the tool's path alone
+    /// (`true`: a headless run, reproducible on any load: the tick waits for that work) or
+    /// as soon as it is done (`false`, the default: a live session, whose tick never waits).
+    /// Called before the first tick.
+    fn set_deterministic(&mut self, _deterministic: bool) {}
 }
 
 /// Why a pipeline could not be assembled.
@@ -513,6 +518,15 @@ impl Pipeline {
             for e in &mut self.effects {
                 e.set_fidelity(fidelity);
             }
+        }
+    }
+
+    /// Makes every effect's work beside the tick land at ticks fixed by the tool's path
+    /// alone, the tick waiting for it ([`Effect::set_deterministic`]): what a headless run
+    /// needs to give the same recording on any load. Call before the first tick.
+    pub fn set_deterministic(&mut self, deterministic: bool) {
+        for e in &mut self.effects {
+            e.set_deterministic(deterministic);
         }
     }
 

@@ -113,6 +113,20 @@ impl Scene {
         Self::from_toml(text, format!("<builtin:{name}>"))
     }
 
+    /// Whether what is built for `other` is what is built for this scene: the same scene but
+    /// for what a session reads at run time only — `fidelity.fallback`, the description — and
+    /// the text's comments and layout. A bundle built from either serves both, so changing
+    /// a runtime setting never forces a rebuild ([`crate::pgd::offline::check_matches`]).
+    pub fn builds_like(&self, other: &SceneFile) -> bool {
+        let built = |s: &SceneFile| {
+            let mut s = s.clone();
+            s.fidelity.fallback = schema::Fallback::default();
+            s.scene.description.clear();
+            s
+        };
+        built(&self.spec) == built(other)
+    }
+
     /// An error located at `path` in this scene's source.
     pub fn error_at(&self, path: &[Seg<'_>], message: impl Into<String>) -> SceneError {
         SceneError {

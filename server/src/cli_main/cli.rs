@@ -69,6 +69,12 @@ trajectory at 1 kHz, as a simulator frontend would send it, and the session reco
 tick's force as CSV and displacement frames as .pvd/.vtu (open the .pvd in ParaView and \
 warp by 'displacement'), then prints a summary: tick work and lateness percentiles, \
 deadline misses, peak force.\n\n\
+A headless run is deterministic: the same scene and script give the same recording, bit for \
+bit (timing columns aside), on an idle machine or a loaded one. It never falls back to the \
+scene's reduced fidelity (fidelity.fallback is for live sessions), the cut thread's and the \
+co-rotational deformation's work lands at ticks fixed by the script (the run waits for it \
+where a live session would let it land late, so a loaded machine makes the run slower, not \
+different), and frame n shows the tick at n / --frame-rate seconds.\n\n\
 The vademecum of each organ is taken from <BUNDLES>/<organ>.bundle and built there first \
 when it is missing or was built from another scene or mesh. Without --script, the probe \
 palpates the middle of the first organ's accessible surface: down 3 mm above it, --depth \
@@ -624,6 +630,15 @@ pub struct ServeArgs {
     /// storage bucket. Every fetched file is checked against the digest before use.
     #[arg(long, value_name = "URL", requires = "bundle_store")]
     pub bundle_source: Option<String>,
+    /// Give up a fetch from --bundle-source after this long, its every request included (a
+    /// source that hangs holds the CreateSession that asked no longer; the session is refused
+    /// with FAILED_PRECONDITION).
+    #[arg(long, value_name = "SECONDS", default_value_t = 120.0, requires = "bundle_source")]
+    pub bundle_fetch_timeout: f64,
+    /// Most bytes one bundle fetched from --bundle-source may hold, its files together
+    /// (checked against what its manifest declares before an array is read).
+    #[arg(long, value_name = "MIB", default_value_t = 2048, requires = "bundle_source")]
+    pub bundle_fetch_max_mib: u64,
     /// Run as an Agones GameServer (deploy/k8s/, agones.enabled): Ready once serving, health
     /// pings, the Counter "sessions" kept at the sessions held, Allocated while it holds any
     /// (a fleet scale-down or rolling update never removes it), Shutdown once drained. Needs

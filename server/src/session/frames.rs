@@ -440,13 +440,31 @@ impl FrameProducer {
         Poll::At(self.next)
     }
 
-    /// Advances the co-rotational deformation one frame and publishes its frame when watched.
-    fn corotational_turn(&mut self) {
-        let Some(c) = &mut self.corotational else { return };
-        // under load the deformation keeps its factor (its cheaper setting)
-        c.deformation.set_reduced(self.stats.reduced.load(Ordering::Relaxed));
+    /// The next frame, made now whether watched or not (a deterministic session's,
+    /// [`Lockstep`]); a co-rotational deformation advances one frame.
+    fn make_frame(&mut self) -> Arc<Frame> {
+        if self.corotational.is_some() {
+            let (l, picture) = self.advance_corotational();
+            self.seq += 1;
+            let seq = self.seq;
+            self.stats.frames.fetch_add(1, Ordering::Relaxed);
+            return Arc::new(self.corotational_frame(&l, seq, picture.as_deref()));
+        }
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let frame = self.frame(&mut scratch);
+        self.scratch = scratch;
+        self.stats.frames.fetch_add(1, Ordering::Relaxed);
+        Arc::new(frame)
+    }
+
+    /// Advances the co-rotational deformation one frame under the latest tick state; returns
+    /// that state and the cut picture it took.
+    fn advance_corotational(&mut self) -> (Latest, Option<Arc<CutPicture>>) {
         let l = *self.latest.read();
         let picture = self.cut.as_ref().and_then(|s| s.picture());
+        let Some(c) = &mut self.corotational else { return (l, picture) };
+        // under load the deformation keeps its factor (its cheaper setting)
+        c.deformation.set_reduced(self.stats.reduced.load(Ordering::Relaxed));
         let t = Instant::now();
         match c.deformation.step_with_picture(picture.as_deref(), l.state.contact.as_ref()) {
             Ok(outcome) => self.stats.record_corotational(&outcome, t.elapsed()),
@@ -455,6 +473,15 @@ impl FrameProducer {
                 tracing::warn!("a co-rotational frame failed: {e}");
             }
         }
+        (l, picture)
+    }
+
+    /// Advances the co-rotational deformation one frame and publishes its frame when watched.
+    fn corotational_turn(&mut self) {
+        if self.corotational.is_none() {
+            return;
+        }
+        let (l, picture) = self.advance_corotational();
         if self.tx.receiver_count() > 0 {
             self.seq += 1;
             let frame = self.corotational_frame(&l, self.seq, picture.as_deref());
@@ -711,4 +738,86 @@ impl FrameWorkers {
     pub(super) fn place(&self, job: FrameJob) -> Result<Thread, PlaceError> {
         self.pool.place(job, None)
     }
+}
+
+/// Frames a deterministic session keeps for its recorder, at most (the producer, and with it
+/// the tick, waits for a recorder that falls this far behind: no frame is lost).
+pub const FRAME_LOG: usize = 256;
+
+/// The tick thread's end of the frames of a deterministic session
+/// ([`super::SessionConfig::deterministic`], headless runs): frame `n` (from 1) shows the
+/// first step at or after `n / rate` of session time, made while the tick waits, so that it
+/// draws that step's state, cut and damage on any load, and the co-rotational correction it
+/// leaves lands at the next tick.
+pub(super) struct Lockstep {
+    /// Steps per frame (the period times the rate, inverted).
+    steps_per_frame: f64,
+    /// Frames asked so far.
+    asked: u64,
+    requests: SyncSender<()>,
+    made: std::sync::mpsc::Receiver<()>,
+}
+
+impl Lockstep {
+    /// Makes the frames due once step `step` (counted from 0) is done, waiting for each; a
+    /// frame thread that has ended is not waited for.
+    pub fn after_step(&mut self, step: u64) {
+        while (self.asked + 1) as f64 * self.steps_per_frame <= (step + 1) as f64 {
+            self.asked += 1;
+            if self.requests.send(()).is_err() || self.made.recv().is_err() {
+                return;
+            }
+        }
+    }
+}
+
+/// Runs the frame producer of a deterministic session on this thread: a frame per request of
+/// the tick thread ([`Lockstep`]), published to viewers and sent, every one, to `log` (the
+/// recorder's), then reported made. Ends when stopped or when the tick's end is dropped.
+fn run_lockstep(mut job: FrameJob, requests: std::sync::mpsc::Receiver<()>, made: SyncSender<()>, log: SyncSender<Arc<Frame>>) {
+    job.start();
+    loop {
+        match requests.recv_timeout(Duration::from_millis(20)) {
+            Ok(()) => {
+                let frame = job.producer.make_frame();
+                job.producer.tx.send_replace(frame.clone());
+                // the recorder may have gone (the run failed): frames are then only published
+                let _ = log.send(frame);
+                if made.send(()).is_err() {
+                    break;
+                }
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+        if job.producer.stop.load(Ordering::Relaxed) {
+            break;
+        }
+    }
+    job.end();
+}
+
+/// Starts the frame thread of a deterministic session: returns the thread, the tick's end of
+/// its frames and the recorder's log of every frame ([`FRAME_LOG`] frames deep).
+pub(super) fn spawn_lockstep(
+    id: &str,
+    job: FrameJob,
+    rate_hz: f64,
+    period: Duration,
+) -> (std::thread::JoinHandle<()>, Lockstep, std::sync::mpsc::Receiver<Arc<Frame>>) {
+    let (requests, requests_rx) = std::sync::mpsc::sync_channel(1);
+    let (made_tx, made) = std::sync::mpsc::sync_channel(1);
+    let (log, log_rx) = std::sync::mpsc::sync_channel(FRAME_LOG);
+    let t = std::thread::Builder::new()
+        .name(format!("frames-{id}"))
+        .spawn(move || run_lockstep(job, requests_rx, made_tx, log))
+        .expect("the OS can start a thread");
+    let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
+    let lockstep = Lockstep {
+        steps_per_frame: 1.0 / (rate * period.as_secs_f64()),
+        asked: 0,
+        requests,
+        made,
+    };
+    (t, lockstep, log_rx)
 }

@@ -191,6 +191,15 @@ pub struct SessionConfig {
     /// when its scene allows it (`fidelity.fallback = "auto"`, the default). `serve
     /// --no-fidelity-fallback` turns it off for every session.
     pub fallback: bool,
+    /// A deterministic session (headless runs, `vademecum run`): the same tool path gives
+    /// bitwise the same answers and frames on any load. It never falls back
+    /// ([`Self::fallback`] is ignored); the work beside the tick lands at ticks fixed by the
+    /// path, the tick waiting for it ([`Pipeline::set_deterministic`]); frame `n` shows the
+    /// first step at or after `n / frame_rate_hz` of session time, made while the tick waits,
+    /// every one kept for the recorder ([`Session::take_frame_log`]); session time is the
+    /// step's (`step × period`), not the clock's. Its ticks run late where a live session's
+    /// side work would land late instead: not for a device.
+    pub deterministic: bool,
 }
 
 impl Default for SessionConfig {
@@ -206,6 +215,7 @@ impl Default for SessionConfig {
             framing: None,
             answering: None,
             fallback: true,
+            deterministic: false,
         }
     }
 }
@@ -260,6 +270,8 @@ pub struct Session {
     cut: Option<Arc<vademecum_engine::pipeline::cutting::CutStatus>>,
     /// Its memory at start (a cut's part grows: [`Self::memory`]).
     memory: SessionMemory,
+    /// Every frame of a deterministic session, for its recorder ([`Self::take_frame_log`]).
+    frame_log: std::sync::Mutex<Option<Receiver<Arc<Frame>>>>,
 }
 
 /// What the tick thread receives.
@@ -303,12 +315,16 @@ impl Session {
         script: Option<Script>,
     ) -> Result<Self, SessionError> {
         let mut pipeline = Pipeline::for_scene(&scene, &bundles)?;
+        pipeline.set_deterministic(config.deterministic);
         let effects = pipeline.effect_names();
         let effects_memory = pipeline.memory_bytes();
         let tear_pictures = pipeline.take_tear_pictures();
         let tear_offline = pipeline.tear_offline().to_vec();
         let cut = pipeline.cut_status();
-        let corotational = pipeline.take_corotational();
+        let corotational = pipeline.take_corotational().map(|mut c| {
+            c.set_deterministic(config.deterministic);
+            c
+        });
         let workspace = pipeline.workspace();
         let grasp_sites = pipeline.grasp_sites().to_vec();
         let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
@@ -365,11 +381,16 @@ impl Session {
             owed: 0,
             steps: 0,
             peer: None,
-            governor: fidelity::Governor::new(config.period, config.fallback && scene.spec.fidelity.fallback == Fallback::Auto),
+            governor: fidelity::Governor::new(
+                config.period,
+                config.fallback && !config.deterministic && scene.spec.fidelity.fallback == Fallback::Auto,
+            ),
+            lockstep: None,
+            deterministic: config.deterministic,
         });
         let (done, tick_done) = mpsc::sync_channel(1);
         let tick_finished = Arc::new(AtomicBool::new(false));
-        let job = scheduler::Job {
+        let mut job = scheduler::Job {
             tick: tick_loop,
             clock: tick::Clock::default(),
             done,
@@ -410,7 +431,16 @@ impl Session {
             done: frames_done_tx,
         };
         let mut threads = Vec::with_capacity(2);
+        let mut frame_log = None;
         let frame_thread = match &config.framing {
+            _ if config.deterministic => {
+                let (t, lockstep, log) = frames::spawn_lockstep(&id, frame_job, config.frame_rate_hz, config.period);
+                job.tick.lockstep = Some(lockstep);
+                frame_log = Some(log);
+                let thread = t.thread().clone();
+                threads.push(t);
+                thread
+            }
             Some(workers) if !own_frame_thread => match workers.place(frame_job) {
                 Ok(thread) => thread,
                 Err(e) => {
@@ -506,7 +536,16 @@ impl Session {
             realtime,
             cut,
             memory,
+            frame_log: std::sync::Mutex::new(frame_log),
         })
+    }
+
+    /// Every frame of a deterministic session ([`SessionConfig::deterministic`]), in order, for
+    /// its recorder: taken once (`None` after, and for a live session). The recorder must
+    /// read it: the frame thread, and the tick with it, wait when [`frames::FRAME_LOG`] frames
+    /// are unread. It ends when the session's frame thread has ended.
+    pub fn take_frame_log(&self) -> Option<Receiver<Arc<Frame>>> {
+        self.frame_log.lock().unwrap_or_else(|p| p.into_inner()).take()
     }
 
     /// A thread of the session's own for its tick loop: a haptic session's (it opens the

@@ -67,6 +67,12 @@ pub(super) struct TickLoop {
     pub peer: Option<HapticPeer>,
     /// Falls back to the reduced fidelity under load ([`super::fidelity`]).
     pub governor: super::fidelity::Governor,
+    /// The frames a deterministic session makes while its tick waits
+    /// ([`super::frames::Lockstep`]).
+    pub lockstep: Option<super::frames::Lockstep>,
+    /// A deterministic session ([`super::SessionConfig::deterministic`]): session time is
+    /// the step's.
+    pub deterministic: bool,
 }
 
 /// A tick loop's clock and recordings: its next deadline, its period count, the current
@@ -328,11 +334,20 @@ impl TickLoop {
             }
         };
         if let Some(state) = state {
+            let step = self.steps.saturating_sub(1);
+            let time_us = if self.deterministic {
+                (u128::from(step) * period.as_micros()) as u64
+            } else {
+                self.micros(start)
+            };
             self.latest.write(Latest {
-                tick: self.steps.saturating_sub(1),
-                time_us: self.micros(start),
+                tick: step,
+                time_us,
                 state,
             });
+        }
+        if let Some(frames) = &mut self.lockstep {
+            frames.after_step(self.steps.saturating_sub(1));
         }
         self.stats.steps.store(self.steps, Ordering::Relaxed);
         self.stats.ticks.fetch_add(1, Ordering::Relaxed);

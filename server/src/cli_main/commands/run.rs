@@ -14,7 +14,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::session::stats::Percentiles;
 use crate::session::{Answer, Script, Session, SessionConfig, Trajectory};
@@ -40,7 +40,8 @@ struct Summary {
     deadline_misses: u64,
     miss_rate: f64,
     /// Times the session fell back to its reduced fidelity under load, and the ticks it ran
-    /// reduced (the forces of those ticks carry `REDUCED_FIDELITY` in their events).
+    /// reduced: always 0, a headless run is deterministic and never falls back (the fields
+    /// stay for readers of the summary; `run --haptic`, a live session, reports its own).
     fidelity_fallbacks: u64,
     reduced_ticks: u64,
     tick_work_us: Percentiles,
@@ -294,8 +295,10 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         return super::run_haptic::run(&a, channel, scene, bundles, &record);
     }
 
+    // a lab operator's headless run gives the same recording on any load
     let config = SessionConfig {
         frame_rate_hz: a.frame_rate,
+        deterministic: true,
         ..SessionConfig::default()
     };
     let period_s = config.period.as_secs_f64();
@@ -428,14 +431,12 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     // frames: take the latest at the frame rate, write one surface .vtu per organ
     let geometry = session.geometry().clone();
     let effects = session.effects().to_vec();
-    let mut frames_rx = session.subscribe_frames();
     let bar = indicatif::ProgressBar::new((trajectory.duration_s() * 1000.0).round() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template("{spinner} running '{msg}' {bar:30} {pos}/{len} ms")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     bar.set_message(scene.spec.scene.name.clone());
-    let clock = Instant::now();
     let interval = Duration::from_secs_f64(1.0 / a.frame_rate);
     let mut steps: Vec<Vec<(f64, String)>> = vec![Vec::new(); geometry.organs.len()];
     let positions: Vec<Vec<[f64; 3]>> = geometry
@@ -460,16 +461,29 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let mut visual_geometry: Option<(u64, Vec<[f64; 3]>, Vec<usize>)> = None;
     let (mut partial_steps, mut partial_frames): (Vec<(f64, String)>, u64) = (Vec::new(), 0);
     let session_stats = session.stats().clone();
-    // the recorder is no real-time work: it yields the cores to the tick thread (frames it
-    // falls behind on are skipped, as a slow viewer's are)
+    // the recorder is no real-time work: it yields the cores to the tick thread; it writes
+    // every frame of the deterministic session (whose tick waits for it when it falls
+    // FRAME_LOG frames behind)
     vademecum_engine::pipeline::lower_thread_priority();
-    while !session.finished() {
-        std::thread::sleep(interval);
-        bar.set_position((clock.elapsed().as_secs_f64() * 1000.0) as u64);
-        if !frames_rx.has_changed().unwrap_or(false) {
-            continue;
-        }
-        let frame = frames_rx.borrow_and_update().clone();
+    let log = session
+        .take_frame_log()
+        .ok_or_else(|| anyhow::anyhow!("the headless session keeps no frame log"))?;
+    let period_ms = period_s * 1e3;
+    loop {
+        let frame = match log.recv_timeout(interval) {
+            Ok(frame) => frame,
+            // every frame is in the log once the tick loop has ended (it waited for each)
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) if session.finished() => match log.try_recv() {
+                Ok(frame) => frame,
+                Err(_) => break,
+            },
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {
+                bar.set_position((session_stats.steps.load(std::sync::atomic::Ordering::Relaxed) as f64 * period_ms) as u64);
+                continue;
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        };
+        bar.set_position((frame.tick as f64 * period_ms) as u64);
         for (k, o) in geometry.organs.iter().enumerate() {
             let file = format!("{}_{:05}.vtu", o.name, frame.seq);
             let u: Vec<f64> = frame.displacements_m[k].iter().map(|&x| x as f64).collect();

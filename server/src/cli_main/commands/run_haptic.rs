@@ -30,6 +30,10 @@ struct Summary {
     haptic_answered: u64,
     haptic_skipped: u64,
     rejected_inputs: u64,
+    /// Times the live session fell back to its reduced fidelity under load, and the ticks it
+    /// ran reduced (their forces carry `reduced_fidelity` in their events).
+    fidelity_fallbacks: u64,
+    reduced_ticks: u64,
     tick_work_us: Percentiles,
     read_to_answer_us: Percentiles,
     bridge: Option<BridgeSnapshot>,
@@ -114,6 +118,8 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
         haptic_answered: stats.haptic_answered,
         haptic_skipped: stats.haptic_skipped,
         rejected_inputs: stats.rejected,
+        fidelity_fallbacks: stats.fallbacks,
+        reduced_ticks: stats.reduced_ticks,
         tick_work_us: stats.work_us,
         read_to_answer_us: stats.haptic_us,
         bridge: stats.bridge,
@@ -144,6 +150,15 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
     )?;
     writeln!(out, "  device read -> force published   {}", p(&s.read_to_answer_us))?;
     writeln!(out, "  tick work                        {}", p(&s.tick_work_us))?;
+    if s.fidelity_fallbacks > 0 {
+        writeln!(
+            out,
+            "  fidelity: fell back {} time(s) under load, {} ticks ({:.1} %) at the reduced setting; set fidelity.fallback = \"off\" for quantitative work",
+            s.fidelity_fallbacks,
+            s.reduced_ticks,
+            100.0 * s.reduced_ticks as f64 / s.ticks.max(1) as f64
+        )?;
+    }
     if let Some(c) = &s.cut {
         writeln!(
             out,

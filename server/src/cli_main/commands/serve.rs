@@ -158,6 +158,16 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             }
             other => other.clone(),
         },
+        bundle_fetch: crate::bundle_fetch::FetchLimits {
+            deadline: match a.bundle_fetch_timeout {
+                s if s.is_finite() && s > 0.0 && s <= 86_400.0 => std::time::Duration::from_secs_f64(s),
+                s => bail!("--bundle-fetch-timeout must lie in (0, 86400] seconds, got {s}"),
+            },
+            max_bytes: match a.bundle_fetch_max_mib {
+                m @ 1..=1_048_576 => m << 20,
+                m => bail!("--bundle-fetch-max-mib must lie in [1, 1048576] MiB, got {m}"),
+            },
+        },
         ..ServerConfig::default()
     };
     // held while the server runs (released when dropped)
