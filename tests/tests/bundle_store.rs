@@ -134,8 +134,61 @@ fn a_session_gets_exactly_the_bundle_its_digest_names_from_the_store_or_the_sour
     let c = util::Server::start(&["--bundle-store", cache.to_str().unwrap(), "--bundle-source", &source.1], &[]);
     rt.block_on(async { pinned(&c.url, "lobe", &digest).await.unwrap() });
     assert!(cache.join(format!("sha256/{hex}/manifest.json")).is_file());
+    // clients asking a fresh server at once for a digest it must fetch: one fetch (single
+    // flight), every one gets its session, nothing left beside the bundle
+    let fresh = tmp.path().join("fresh");
+    let f = util::Server::start(&["--bundle-store", fresh.to_str().unwrap(), "--bundle-source", &source.1], &[]);
+    rt.block_on(async {
+        let asks: Vec<_> = (0..4)
+            .map(|_| {
+                let (url, digest) = (f.url.clone(), digest.clone());
+                tokio::spawn(async move { pinned(&url, "lobe", &digest).await })
+            })
+            .collect();
+        for a in asks {
+            a.await.unwrap().expect("every client of the new digest gets its session");
+        }
+    });
+    let held: Vec<_> = std::fs::read_dir(fresh.join("sha256"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(held, [std::ffi::OsString::from(hex)], "one bundle, no fetch folder left");
     drop(source);
     rt.block_on(async { pinned(&c.url, "lobe", &digest).await.unwrap() });
+
+    // a source that accepts and never answers: the fetch gives up at its deadline
+    let hanging = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let hanging_url = format!("http://{}", hanging.local_addr().unwrap());
+    let held_open = std::thread::spawn(move || {
+        let mut open = Vec::new();
+        while let Ok((s, _)) = hanging.accept() {
+            open.push(s);
+            if open.len() >= 4 {
+                break;
+            }
+        }
+        std::thread::sleep(Duration::from_secs(30));
+    });
+    let empty_h = tmp.path().join("empty_h");
+    let h = util::Server::start(
+        &[
+            "--bundle-store",
+            empty_h.to_str().unwrap(),
+            "--bundle-source",
+            &hanging_url,
+            "--bundle-fetch-timeout",
+            "1",
+        ],
+        &[],
+    );
+    rt.block_on(async {
+        let (kind, msg) = pinned(&h.url, "lobe", &digest).await.unwrap_err();
+        assert_eq!(kind, ErrorKind::FailedPrecondition, "{msg}");
+        assert!(msg.contains("deadline"), "{msg}");
+    });
+    drop(held_open);
 
     // a source serving an altered copy: refused, nothing left in the store
     let bad_source = StaticHttp::start(&altered);
