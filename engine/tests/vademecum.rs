@@ -534,3 +534,35 @@ fn the_build_keeps_the_fewest_modes_meeting_the_target() {
     let r = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap().report;
     assert!(!r.target_met && r.modes == 5 && r.error > 1e-6);
 }
+
+/// A rebuild writes a fresh folder and swaps it in: it never writes through a link planted in
+/// the old bundle (an array file, or the bundle folder itself), nor leaves its working folder.
+#[test]
+fn rewriting_a_bundle_never_writes_through_links() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("slab.bundle");
+    let (scene, b) = write(&dir);
+    let outside = tmp.path().join("precious.txt");
+    std::fs::write(&outside, "not a bundle's").unwrap();
+    std::fs::remove_file(dir.join("F.npy")).unwrap();
+    std::os::unix::fs::symlink(&outside, dir.join("F.npy")).unwrap();
+    offline::write_bundle(&dir, &scene, &b).unwrap();
+    assert_eq!(std::fs::read_to_string(&outside).unwrap(), "not a bundle's");
+    assert!(std::fs::symlink_metadata(dir.join("F.npy")).unwrap().is_file());
+    offline::load_bundle(&dir).unwrap();
+    // the bundle folder a link to another folder: the link is replaced, its target untouched
+    let elsewhere = tmp.path().join("elsewhere");
+    std::fs::create_dir(&elsewhere).unwrap();
+    std::fs::write(elsewhere.join("keep.txt"), "kept").unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    std::os::unix::fs::symlink(&elsewhere, &dir).unwrap();
+    offline::write_bundle(&dir, &scene, &b).unwrap();
+    assert!(std::fs::symlink_metadata(&dir).unwrap().is_dir());
+    let names: Vec<_> = std::fs::read_dir(&elsewhere).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert_eq!(names, [std::ffi::OsString::from("keep.txt")]);
+    offline::load_bundle(&dir).unwrap();
+    // nothing but the bundle and what was there is left beside it
+    let mut beside: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().map(|e| e.file_name()).collect();
+    beside.sort();
+    assert_eq!(beside, ["elsewhere", "precious.txt", "slab.bundle"].map(std::ffi::OsString::from));
+}

@@ -204,20 +204,68 @@ fn io(path: &Path) -> impl FnOnce(std::io::Error) -> BundleError + '_ {
     }
 }
 
-/// Writes a bundle into `dir` (created if needed): every array as `.npy`, the scene text,
-/// and the manifest (written last, so a bundle interrupted while writing has none and is
-/// refused). `manifest.arrays` is filled in here.
+/// Writes a bundle to `dir`: every array as `.npy`, the scene text, and the manifest listing
+/// their SHA-256 (written last: a bundle without its manifest is no bundle).
+///
+/// Written whole into a fresh folder beside `dir` first, every file created new (nothing is
+/// written through a link, nor into a file that was there), then swapped in: the folder (or
+/// link) at `dir` is renamed away, the new one renamed to `dir`, the old one removed (its
+/// links removed, never followed). A rebuild therefore never writes into the old bundle's
+/// files, wherever they point, and a reader sees the old bundle or the new one whole (or,
+/// between the two renames, none).
 pub fn write(
     dir: &Path,
     mut manifest: Manifest,
     scene_text: &str,
     arrays: &[(&str, Vec<u64>, ArrayData<'_>)],
 ) -> Result<Manifest, BundleError> {
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let stale = dir.join(MANIFEST);
-    if stale.exists() {
-        std::fs::remove_file(&stale).map_err(io(&stale))?;
+    static WRITES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    std::fs::create_dir_all(&parent).map_err(io(&parent))?;
+    let name = dir.file_name().map_or_else(|| "bundle".into(), |n| n.to_string_lossy().into_owned());
+    let unique = format!("{}-{}", std::process::id(), WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed));
+    let fresh = parent.join(format!(".{name}.writing-{unique}"));
+    std::fs::create_dir(&fresh).map_err(io(&fresh))?;
+    let written = write_new(&fresh, &mut manifest, scene_text, arrays).and_then(|()| {
+        let old = parent.join(format!(".{name}.old-{unique}"));
+        let had_old = match std::fs::rename(dir, &old) {
+            Ok(()) => true,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+            Err(e) => return Err(io(dir)(e)),
+        };
+        std::fs::rename(&fresh, dir).map_err(io(dir))?;
+        if had_old {
+            // a link is removed, never followed
+            let gone = match std::fs::symlink_metadata(&old) {
+                Ok(m) if m.is_dir() => std::fs::remove_dir_all(&old),
+                _ => std::fs::remove_file(&old),
+            };
+            if let Err(e) = gone {
+                tracing::warn!("cannot remove the replaced bundle {}: {e}", old.display());
+            }
+        }
+        Ok(())
+    });
+    if written.is_err() {
+        let _ = std::fs::remove_dir_all(&fresh);
     }
+    written.map(|()| manifest)
+}
+
+/// Writes the files of a bundle into the new, empty folder `dir` (see [`write`]).
+fn write_new(dir: &Path, manifest: &mut Manifest, scene_text: &str, arrays: &[(&str, Vec<u64>, ArrayData<'_>)]) -> Result<(), BundleError> {
+    let create = |path: &Path, bytes: &[u8]| -> Result<(), BundleError> {
+        use std::io::Write;
+        std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .and_then(|mut f| f.write_all(bytes))
+            .map_err(io(path))
+    };
     manifest.arrays.clear();
     for (name, shape, data) in arrays {
         let file = format!("{name}.npy");
@@ -228,7 +276,7 @@ pub fn write(
             ArrayData::F32(v) => encode_npy(&mut buf, shape, v, &path, "<f4")?,
             ArrayData::I64(v) => encode_npy(&mut buf, shape, v, &path, "<i8")?,
         };
-        std::fs::write(&path, &buf).map_err(io(&path))?;
+        create(&path, &buf)?;
         manifest.arrays.insert(
             name.to_string(),
             ArrayEntry {
@@ -239,14 +287,13 @@ pub fn write(
             },
         );
     }
-    let scene_path = dir.join("scene.toml");
-    std::fs::write(&scene_path, scene_text).map_err(io(&scene_path))?;
-    let json = serde_json::to_string_pretty(&manifest).map_err(|e| BundleError::Malformed {
-        path: stale.clone(),
+    create(&dir.join("scene.toml"), scene_text.as_bytes())?;
+    let path = dir.join(MANIFEST);
+    let json = serde_json::to_string_pretty(&*manifest).map_err(|e| BundleError::Malformed {
+        path: path.clone(),
         message: e.to_string(),
     })?;
-    std::fs::write(&stale, json).map_err(io(&stale))?;
-    Ok(manifest)
+    create(&path, json.as_bytes())
 }
 
 /// Encodes `data` as a `.npy` file of `shape` into `buf`, returning its dtype string.
