@@ -620,6 +620,33 @@ fn bench_tear_json_is_json_and_measures_the_pulls_across_the_load() {
     assert!(stderr(&o).contains("plots:"), "the plots' paths go to stderr");
 }
 
+/// `bench cube --elements` times one element type; a redirected stderr gets a line per solve.
+#[test]
+fn bench_cube_times_the_elements_asked_and_says_each_solve() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = vademecum(
+        &["bench", "cube", "--cells", "2,3", "--elements", "tet4-plain", "--json"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let rows: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2, "two plain tetrahedral cubes, no range study: {rows:?}");
+    assert!(rows.iter().all(|r| r["element"] == "tet4, plain"), "{rows:?}");
+    let e = stderr(&o);
+    assert!(
+        e.contains("bench cube: 2³ cubes, Tet4Plain, 20 % stretch (1/2)") && e.contains("(2/2)"),
+        "{e}"
+    );
+    let o = vademecum(&["bench", "cube", "--elements", "hex27"], dir.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("hex8-mean-dilatation"),
+        "the choices are listed: {}",
+        stderr(&o)
+    );
+}
+
 #[test]
 fn bench_corot_times_an_iteration_with_and_without_cuts() {
     let dir = tempfile::tempdir().unwrap();

@@ -225,8 +225,14 @@ pub fn write(
         _ => PathBuf::from("."),
     };
     std::fs::create_dir_all(&parent).map_err(io(&parent))?;
-    let name = dir.file_name().map_or_else(|| "bundle".into(), |n| n.to_string_lossy().into_owned());
-    let unique = format!("{}-{}", std::process::id(), WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed));
+    let name = dir
+        .file_name()
+        .map_or_else(|| "bundle".into(), |n| n.to_string_lossy().into_owned());
+    let unique = format!(
+        "{}-{}",
+        std::process::id(),
+        WRITES.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    );
     let fresh = parent.join(format!(".{name}.writing-{unique}"));
     std::fs::create_dir(&fresh).map_err(io(&fresh))?;
     let written = write_new(&fresh, &mut manifest, scene_text, arrays).and_then(|()| {

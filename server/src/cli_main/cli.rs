@@ -1031,9 +1031,13 @@ pub struct BenchCubeArgs {
     /// Stretches (fraction of the edge) of the range study.
     #[arg(long, value_delimiter = ',', default_values_t = vec![0.4, 0.6, 0.8, 1.0])]
     pub stretch: Vec<f64>,
-    /// Cells per edge of the range study.
+    /// Cells per edge of the range study (mean-dilatation hexahedra: run when they are among
+    /// --elements).
     #[arg(long, default_value_t = 12)]
     pub range_cells: usize,
+    /// The elements timed and compared (comma-separated; default: all four).
+    #[arg(long, value_delimiter = ',', value_enum)]
+    pub elements: Vec<super::commands::bench_cube::CubeElement>,
     /// Print the rows as JSON.
     #[arg(long)]
     pub json: bool,

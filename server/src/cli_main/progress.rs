@@ -1,4 +1,6 @@
-//! Progress display on stderr: a spinner per long stage, drawn only on a terminal.
+//! Progress display on stderr: on a terminal a spinner per long stage ([`Stages`]) or a bar
+//! over known steps ([`Steps`]); when stderr is redirected (a log, CI), a line per stage or
+//! step instead, so that a long command is never silent.
 
 use std::time::Duration;
 
@@ -7,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 /// A spinner whose message follows the stages of a long computation.
 pub struct Stages {
     bar: ProgressBar,
+    what: String,
 }
 
 impl Stages {
@@ -18,11 +21,17 @@ impl Stages {
         );
         bar.set_prefix(what.to_string());
         bar.enable_steady_tick(Duration::from_millis(120));
-        Self { bar }
+        Self {
+            bar,
+            what: what.to_string(),
+        }
     }
 
-    /// Shows the current stage.
+    /// Shows the current stage (a line of its own when stderr is no terminal).
     pub fn stage(&self, label: &str) {
+        if self.bar.is_hidden() {
+            eprintln!("vademecum: {}: {label}", self.what);
+        }
         self.bar.set_message(label.to_string());
     }
 
@@ -37,6 +46,58 @@ impl Stages {
     }
 
     /// Removes the spinner.
+    pub fn finish(self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+/// A bar over a known number of steps: drawn on a terminal; when stderr is redirected, a
+/// line per step (`vademecum: <what>: <step> (i/n)`).
+pub struct Steps {
+    bar: ProgressBar,
+    what: String,
+    started: u64,
+}
+
+impl Steps {
+    /// Starts a bar of `n` steps prefixed with `what`.
+    pub fn start(what: &str, n: usize) -> Self {
+        let bar = ProgressBar::new(n as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{prefix}: {bar:30} {pos}/{len} {msg} [{elapsed}]")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar.set_prefix(what.to_string());
+        Self {
+            bar,
+            what: what.to_string(),
+            started: 0,
+        }
+    }
+
+    /// Announces the next step, `label`; the one before is counted done.
+    pub fn step(&mut self, label: &str) {
+        if self.started > 0 {
+            self.bar.inc(1);
+        }
+        self.started += 1;
+        if self.bar.is_hidden() {
+            let n = self.bar.length().unwrap_or(0);
+            eprintln!("vademecum: {}: {label} ({}/{n})", self.what, self.started);
+        }
+        self.bar.set_message(label.to_string());
+    }
+
+    /// Prints a line above the bar (on stderr as it is when redirected).
+    pub fn println(&self, line: &str) {
+        if self.bar.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            self.bar.println(line);
+        }
+    }
+
+    /// Removes the bar.
     pub fn finish(self) {
         self.bar.finish_and_clear();
     }

@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::bail;
+use clap::ValueEnum;
 use serde::Serialize;
 use vademecum_engine::fem::hyperelastic::{LawMap, Volumetric};
 use vademecum_engine::fem::linear_static::StaticProblem;
@@ -88,20 +89,25 @@ pub fn run(a: BenchCubeArgs) -> anyhow::Result<ExitCode> {
     if a.cells.iter().any(|&n| !(2..=40).contains(&n)) || !(2..=40).contains(&a.range_cells) {
         bail!("--cells and --range-cells must lie in [2, 40] cells per edge");
     }
+    let elements: Vec<CubeElement> = if a.elements.is_empty() {
+        CubeElement::value_variants().to_vec()
+    } else {
+        a.elements.clone()
+    };
+    let range = elements.contains(&CubeElement::Hex8MeanDilatation);
+    let solves = a.cells.len() * elements.len() + if range { a.stretch.len() } else { 0 };
+    let mut bar = crate::cli_main::progress::Steps::start("bench cube", solves);
     let mut rows = Vec::new();
     for &n in &a.cells {
-        for (kind, v) in [
-            (CellKind::Hex8, Volumetric::MeanDilatation),
-            (CellKind::Hex8, Volumetric::PointWise),
-            (CellKind::Tet4, Volumetric::Nodal),
-            (CellKind::Tet4, Volumetric::PointWise),
-        ] {
-            eprintln!("vademecum: bench cube: {n}³ cubes, {kind:?} {v:?}, 20 % stretch");
+        for &e in &elements {
+            let (kind, v) = e.cell();
+            bar.step(&format!("{n}³ cubes, {e:?}, 20 % stretch"));
             rows.push(solve(n, kind, v, 0.2, 4)?);
         }
     }
-    for &s in &a.stretch {
-        eprintln!("vademecum: bench cube: {}³ cells, {:.0} % stretch", a.range_cells, 100.0 * s);
+    // the range study is the mean-dilatation hexahedron's
+    for &s in a.stretch.iter().filter(|_| range) {
+        bar.step(&format!("{}³ cells, {:.0} % stretch", a.range_cells, 100.0 * s));
         rows.push(solve(
             a.range_cells,
             CellKind::Hex8,
@@ -110,6 +116,7 @@ pub fn run(a: BenchCubeArgs) -> anyhow::Result<ExitCode> {
             (s / 0.05).ceil() as usize,
         )?);
     }
+    bar.finish();
     print_rows(
         a.json,
         &rows,
@@ -141,4 +148,29 @@ pub fn run(a: BenchCubeArgs) -> anyhow::Result<ExitCode> {
         },
     )?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// An element of `bench cube --elements`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CubeElement {
+    /// Hexahedra with the mean-dilatation volumetric term (also the range study's).
+    Hex8MeanDilatation,
+    /// Hexahedra, full integration.
+    Hex8Full,
+    /// Tetrahedra with the averaged nodal pressure.
+    Tet4Nodal,
+    /// Plain tetrahedra.
+    Tet4Plain,
+}
+
+impl CubeElement {
+    /// Its cell and volumetric treatment.
+    fn cell(self) -> (CellKind, Volumetric) {
+        match self {
+            CubeElement::Hex8MeanDilatation => (CellKind::Hex8, Volumetric::MeanDilatation),
+            CubeElement::Hex8Full => (CellKind::Hex8, Volumetric::PointWise),
+            CubeElement::Tet4Nodal => (CellKind::Tet4, Volumetric::Nodal),
+            CubeElement::Tet4Plain => (CellKind::Tet4, Volumetric::PointWise),
+        }
+    }
 }

@@ -5,7 +5,6 @@ use std::io::Write;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
 use vademecum_engine::check::{self, Outcome, Size, Verdict};
 
 use crate::cli_main::cli::HardCasesArgs;
@@ -55,19 +54,17 @@ pub fn hard_cases(a: HardCasesArgs) -> anyhow::Result<ExitCode> {
         })
         .collect();
     anyhow::ensure!(!cases.is_empty(), "no hard case matches --only {:?}", a.only.unwrap_or_default());
-    let bar = ProgressBar::new(cases.len() as u64);
-    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed}]").unwrap_or_else(|_| ProgressStyle::default_bar()));
-    bar.set_message(format!("{} / {}", cases[0].name, cases[0].method));
+    let mut bar = crate::cli_main::progress::Steps::start("check hard-cases", cases.len());
+    bar.step(&format!("{} / {}", cases[0].name, cases[0].method));
     let verdicts = check::run(&cases, size, |i, v| {
-        bar.inc(1);
         if !v.pass {
-            bar.println(format!("FAIL {} / {}: {}", v.name, v.method, said(v)));
+            bar.println(&format!("FAIL {} / {}: {}", v.name, v.method, said(v)));
         }
         if let Some(next) = cases.get(i + 1) {
-            bar.set_message(format!("{} / {}", next.name, next.method));
+            bar.step(&format!("{} / {}", next.name, next.method));
         }
     });
-    bar.finish_and_clear();
+    bar.finish();
 
     let mut out = std::io::stdout().lock();
     if a.markdown {

@@ -16,7 +16,6 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 use vademecum_engine::pgd::Vademecum;
@@ -402,19 +401,15 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     if !done.is_empty() {
         eprintln!("resuming: {} points measured before, {} to measure", done.len(), todo.len());
     }
-    let bar = ProgressBar::new(todo.len() as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} points {msg} [{elapsed}]").unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
+    let mut bar = crate::cli_main::progress::Steps::start("study: points of the front", todo.len());
     let mut log = std::fs::OpenOptions::new().create(true).append(true).open(&points_path)?;
     for (storage, k, e) in todo {
-        bar.set_message(format!("{storage}, {k} modes"));
+        bar.step(&format!("{storage}, {k} modes"));
         let p = measure(&bundle, &rec, &frames, &storage, k, e, a.frames);
         writeln!(log, "{}", serde_json::to_string(&p)?)?;
         done.insert((storage, k), p);
-        bar.inc(1);
     }
-    bar.finish_and_clear();
+    bar.finish();
     let estimate = super::study_estimate::check(&scene, &bundle, &rec.key, a.estimate_points, a.estimate_nodes, &out)?;
     let lattice = super::study_lattice::sweep(&scene, &rec.key, a.estimate_nodes, &out)?;
     let cut = super::study_cut::sweep(&scene, &bundle.vademecum, &rec.key, &out)?;
