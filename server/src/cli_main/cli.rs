@@ -96,7 +96,7 @@ carry 'authorization: Bearer <token>', and a client reaches only the sessions cr
 its token. Without either, --no-auth must be given; an empty token source is an error. With --tls-cert and --tls-key the server speaks TLS (rustls); use it with tokens \
 for remote clients. Limits: requests up to 1 MiB (an inline scene), responses up to 64 MiB (the \
 geometry of a large organ).")]
-    Serve(ServeArgs),
+    Serve(Box<ServeArgs>),
     /// Ask a running server whether it serves (grpc.health.v1): a probe for container
     /// healthchecks and orchestrators, no shell or other tool needed.
     #[command(long_about = "Ask a running server's standard grpc.health.v1 service (unauthenticated) \

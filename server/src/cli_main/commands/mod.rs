@@ -70,7 +70,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Merge(a) => build::merge(a),
         Command::Inspect(a) => inspect::run(a),
         Command::Run(a) => run::run(a),
-        Command::Serve(a) => serve::run(a),
+        Command::Serve(a) => serve::run(*a),
         Command::Health(a) => health::run(a),
         Command::Drain(a) => drain::run(a),
         Command::Publish(a) => publish::run(a),
