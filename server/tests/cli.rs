@@ -618,6 +618,30 @@ fn bench_tear_json_is_json_and_measures_the_pulls_across_the_load() {
         assert!(along < 1e-2 && across.is_finite() && across < 0.5, "{s}");
     }
     assert!(stderr(&o).contains("plots:"), "the plots' paths go to stderr");
+    // pulled by a force: each step's load in N
+    let steps = r["steps"].as_array().unwrap();
+    assert!(
+        steps.iter().all(|s| s["load_n"].as_f64().is_some() && s["prescribed_m"].is_null()),
+        "{r}"
+    );
+    // the shear cube driven by prescribed displacements instead: no force is made up for it
+    let o = vademecum(&["scene", "show", "cube_shear"], dir.path());
+    let text = stdout(&o).replace(
+        "kind = \"force\"\nregion = { box = { min = [0.0, 0.0, 1.0], max = [1.0, 1.0, 1.0] } }\nforce = [0.016, 0.0, 0.0]",
+        "kind = \"displacement\"\nname = \"top\"\nregion = { box = { min = [0.0, 0.0, 1.0], max = [1.0, 1.0, 1.0] } }\nx = 0.004",
+    );
+    assert!(text.contains("x = 0.004"), "the load replaced");
+    std::fs::write(dir.path().join("sheared.toml"), text).unwrap();
+    let o = vademecum(&["bench", "tear", "sheared.toml", "--passes", "1", "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let steps = r["steps"].as_array().unwrap();
+    assert!(
+        steps.iter().all(|s| s["load_n"].is_null() && s["prescribed_m"].as_f64().is_some()),
+        "{r}"
+    );
+    let svg = std::fs::read_to_string(dir.path().join("out/cube_shear/tear_curve.svg")).unwrap();
+    assert!(svg.contains("prescribed displacement") && !svg.contains("(N)"), "the curve's axis");
 }
 
 /// `bench cube --elements` times one element type; a redirected stderr gets a line per solve.

@@ -40,8 +40,11 @@ struct StepRow {
     max_damage_reference: f64,
     max_damage_simplified: f64,
     torn_cells_reference: usize,
-    /// The load's resultant (N) and the load-weighted mean displacement along it (m).
-    load_n: f64,
+    /// The load's resultant (N) on a scene pulled by forces, and the load-weighted mean
+    /// displacement along it (m); on a scene driven by prescribed displacements `load_n` is
+    /// absent and `prescribed_m` is the prescribed displacements' resultant (m) instead.
+    load_n: Option<f64>,
+    prescribed_m: Option<f64>,
     displacement_reference_m: f64,
     displacement_simplified_m: f64,
     displacement_full_m: f64,
@@ -99,6 +102,8 @@ pub const OTHER_PULLS: [[f64; 3]; 3] = [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.7, 
 
 /// `(load · u) / |load|₁`-like measures: the resultant of the unit load and the displacement
 /// along it, weighted by the load (for the shear cube: stress and strain).
+/// The resultant of what drives `model` (N for forces; for prescribed displacements, m),
+/// and the weighted mean displacement along it. [`forced`] says which.
 pub(super) fn measure(model: &TearModel) -> (f64, impl Fn(&[f64]) -> f64 + '_) {
     let total: f64 = model.load.iter().map(|f| f.abs()).sum();
     let prescribed: f64 = model.prescribed.iter().map(|f| f.abs()).sum();
@@ -109,6 +114,11 @@ pub(super) fn measure(model: &TearModel) -> (f64, impl Fn(&[f64]) -> f64 + '_) {
     };
     let resultant = (0..3).map(|i| w.iter().skip(i).step_by(3).sum::<f64>().powi(2)).sum::<f64>().sqrt();
     (resultant, move |u: &[f64]| u.iter().zip(w).map(|(u, f)| u * f).sum::<f64>() / norm)
+}
+
+/// Whether `model` is pulled by forces (else by prescribed displacements: [`measure`]).
+fn forced(model: &TearModel) -> bool {
+    model.load.iter().any(|f| *f != 0.0)
 }
 
 fn run_online(
@@ -176,7 +186,8 @@ pub fn run(a: BenchTearArgs) -> anyhow::Result<ExitCode> {
             max_damage_reference: r0.max_damage,
             max_damage_simplified: dmax_s[k],
             torn_cells_reference: r0.torn_cells,
-            load_n: r0.load_factor * resultant,
+            load_n: forced(&off.model).then_some(r0.load_factor * resultant),
+            prescribed_m: (!forced(&off.model)).then_some(r0.load_factor * resultant),
             displacement_reference_m: along(&r0.u),
             displacement_simplified_m: along(&us_s[k]),
             displacement_full_m: along(&us_f[k]),
@@ -485,10 +496,13 @@ fn plot_curve(r: &Report, file: &Path) -> anyhow::Result<()> {
     ];
     let xs: Vec<f64> = r.steps.iter().flat_map(|s| series.iter().map(move |(_, f)| f(s))).collect();
     let (x0, x1) = xs.iter().fold((0.0f64, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
+    // what drives the scene: a force (N), or a prescribed displacement (m)
+    let driver = |s: &StepRow| s.load_n.or(s.prescribed_m).unwrap_or(0.0);
+    let forced = r.steps.first().is_none_or(|s| s.load_n.is_some());
     let (y0, y1) = r
         .steps
         .iter()
-        .fold((0.0f64, 0.0f64), |(a, b), s| (a.min(s.load_n), b.max(s.load_n)));
+        .fold((0.0f64, 0.0f64), |(a, b), s| (a.min(driver(s)), b.max(driver(s))));
     let pad = |a: f64, b: f64| ((b - a).abs() * 0.05).max(1e-12);
     let mut chart = ChartBuilder::on(&root)
         .caption(format!("{}: load against displacement", r.scene), ("sans-serif", 18))
@@ -499,12 +513,16 @@ fn plot_curve(r: &Report, file: &Path) -> anyhow::Result<()> {
     chart
         .configure_mesh()
         .x_desc("load-weighted displacement along the load (m)")
-        .y_desc("load resultant (N)")
+        .y_desc(if forced {
+            "load resultant (N)"
+        } else {
+            "prescribed displacement resultant (m)"
+        })
         .draw()?;
     for (k, (label, f)) in series.iter().enumerate() {
         let color = super::bench_anm::PALETTE[k];
         let pts: Vec<(f64, f64)> = std::iter::once((0.0, 0.0))
-            .chain(r.steps.iter().map(|s| (f(s), s.load_n)))
+            .chain(r.steps.iter().map(|s| (f(s), driver(s))))
             .collect();
         chart
             .draw_series(LineSeries::new(pts, color.stroke_width(if k < 2 { 3 } else { 1 })))?
