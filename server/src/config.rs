@@ -29,6 +29,13 @@ pub struct ServerConfig {
     pub allow_paths: bool,
     /// Most sessions at once (all clients together).
     pub max_sessions: usize,
+    /// Most cells of an organ's built-in mesh in a client's scene (inline or by path), counted
+    /// from its settings before any memory is spent on it (`RESOURCE_EXHAUSTED` beyond).
+    pub max_scene_cells: usize,
+    /// Most sessions being prepared (scenes, meshes, bundles read) at once; a `CreateSession`
+    /// beyond it is refused with `RESOURCE_EXHAUSTED` (retry): a burst of large scenes never
+    /// holds more than this many meshes in memory at once.
+    pub max_preparing: usize,
     /// Most sessions one client (one bearer token) holds at once.
     pub client_sessions: usize,
     /// Most streams of each kind (interaction, viewer) open at once, all clients together.
@@ -48,6 +55,12 @@ pub struct ServerConfig {
     pub tls: Option<(Vec<u8>, Vec<u8>)>,
     /// Bearer tokens accepted (`None`: no authentication; every client is "anonymous").
     pub tokens: Option<Vec<String>>,
+    /// Origins (`https://host[:port]`) whose pages may call the gRPC-web port
+    /// (`serve --web-origin`). Empty: any origin when the server has tokens (a bearer token is
+    /// a header a page must be given, not an ambient credential), none but the viewer's own
+    /// without them (`--no-auth`: any page on any site could otherwise list, create and close
+    /// sessions on the lab's machine).
+    pub web_origins: Vec<String>,
     /// How sessions tick.
     pub session: SessionConfig,
     /// The tick workers that tick the sessions (`workers = 0`: a thread per session), unless
@@ -85,6 +98,10 @@ impl Default for ServerConfig {
             bundle_source: None,
             bundle_fetch: crate::bundle_fetch::FetchLimits::default(),
             max_sessions: 16,
+            // the OpenHELP liver has 10,000-odd cells: a client's scene of two million is
+            // generous, and costs ~100 MB while prepared
+            max_scene_cells: 2_000_000,
+            max_preparing: 4,
             // a tenant cannot take every slot: a quarter of the sessions, a sixteenth of the
             // streams (a frontend and a few viewers per session)
             client_sessions: 4,
@@ -94,6 +111,7 @@ impl Default for ServerConfig {
             max_request_bytes: 1 << 20,
             max_response_bytes: 64 << 20,
             tokens: None,
+            web_origins: Vec::new(),
             tls: None,
             session: SessionConfig::default(),
             tick_workers: SchedulerConfig::default(),

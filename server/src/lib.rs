@@ -145,7 +145,13 @@ pub async fn run(
             viewing: viewing.clone(),
             info: info.clone(),
         };
-        tokio::spawn(web::serve(l, services, auth.clone(), config.tls.clone(), async move {
+        let origins = web::Origins::of(config.tokens.is_some(), &config.web_origins);
+        if origins == web::Origins::Only(Vec::new()) {
+            tracing::warn!(
+                "the web port answers its own page only: without tokens no other origin may call it (give tokens, or name trusted origins with --web-origin)"
+            );
+        }
+        tokio::spawn(web::serve(l, services, auth.clone(), origins, config.tls.clone(), async move {
             let _ = rx.wait_for(|&s| s).await;
         }))
     });

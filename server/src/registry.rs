@@ -7,7 +7,7 @@
 
 use std::collections::HashMap;
 use std::path::{Component, Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 
 use vademecum_engine::bundle::store;
@@ -136,6 +136,33 @@ struct Shared {
     /// One lock per bundle digest being fetched: one fetch per digest at a time, the other
     /// sessions asking for it wait for it and take it from the store (single flight).
     fetching: Mutex<HashMap<String, Arc<Mutex<()>>>>,
+    /// Haptic channel name → the client that first opened a session on it: a channel stays
+    /// with that client for the server's life (a device bridge attached to it never drives
+    /// another tenant's session).
+    channels: Mutex<HashMap<String, Caller>>,
+    /// Sessions being prepared now ([`ServerConfig::max_preparing`]).
+    preparing: AtomicUsize,
+}
+
+/// A preparation slot ([`ServerConfig::max_preparing`]), given back when dropped.
+struct Preparing<'a>(&'a AtomicUsize);
+
+impl<'a> Preparing<'a> {
+    fn take(n: &'a AtomicUsize, max: usize) -> Result<Self, ServerError> {
+        let taken = n.fetch_update(Ordering::AcqRel, Ordering::Acquire, |k| (k < max).then_some(k + 1));
+        match taken {
+            Ok(_) => Ok(Self(n)),
+            Err(_) => Err(ServerError::Exhausted(format!(
+                "{max} sessions are being prepared on this server now: retry in a moment"
+            ))),
+        }
+    }
+}
+
+impl Drop for Preparing<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::AcqRel);
+    }
 }
 
 /// How many sessions a server holds and whether it drains ([`Registry::occupancy`]).
@@ -213,6 +240,8 @@ impl Registry {
                 draining: AtomicBool::new(false),
                 occupancy: tokio::sync::watch::channel(Occupancy::default()).0,
                 fetching: Mutex::new(HashMap::new()),
+                channels: Mutex::new(HashMap::new()),
+                preparing: AtomicUsize::new(0),
             }),
         }
     }
@@ -459,7 +488,20 @@ impl Registry {
             return Err(ServerError::Invalid("label is longer than 64 characters".into()));
         }
         self.session_quota(&self.sessions(), &owner)?;
+        let _preparing = Preparing::take(&self.shared.preparing, cfg.max_preparing)?;
         let scene = Arc::new(self.load_scene(&source)?);
+        if !matches!(source, SceneSource::Builtin(_)) {
+            // what a client's scene costs, from its settings, before a byte is spent on it
+            for i in 0..scene.spec.organs.len() {
+                if let Some(cells) = scene.builtin_cells(i).filter(|&c| c > cfg.max_scene_cells) {
+                    return Err(ServerError::Exhausted(format!(
+                        "organ '{}': its built-in mesh would have {cells} cells, more than the {} this server prepares for a client's scene",
+                        clip(&scene.spec.organs[i].name),
+                        cfg.max_scene_cells
+                    )));
+                }
+            }
+        }
         let dir = match bundles_from {
             BundleSource::Dir(bundle_dir) => {
                 let dir = under(&cfg.bundle_root, bundle_dir, "bundle folder")?;
@@ -513,6 +555,16 @@ impl Registry {
         if let Some(name) = haptic {
             let name = if name.is_empty() { id.as_str() } else { name };
             let channel = HapticChannel::new(name).map_err(|e| ServerError::Invalid(e.to_string()))?;
+            {
+                let mut owners = self.shared.channels.lock().unwrap_or_else(|p| p.into_inner());
+                let first = owners.entry(channel.name().to_string()).or_insert_with(|| owner.clone());
+                if *first != owner {
+                    return Err(ServerError::Denied(format!(
+                        "haptic channel '{}' belongs to another client of this server (a channel stays with the client that first opened it, so that a device bridge attached to it never drives another client's session): pick another name",
+                        clip(name)
+                    )));
+                }
+            }
             if self
                 .sessions()
                 .values()

@@ -2,8 +2,11 @@
 //! (`server/web/`: no library, nothing fetched at run time) and gRPC-web (tonic-web, HTTP/1.1)
 //! on the same `Sessions`, `Viewing` and `Info` services as the gRPC port — the same
 //! contracts, the same bearer tokens (the page asks for one when the server has them), the
-//! same limits. CORS lets pages served elsewhere call them too: a bearer token is a header,
-//! not an ambient cookie, so another origin gains nothing it was not given.
+//! same limits. CORS lets pages served elsewhere call them too when the server has tokens: a
+//! bearer token is a header, not an ambient cookie, so another origin gains nothing it was not
+//! given. Without tokens (`--no-auth`) only the origins named by `--web-origin` may (none by
+//! default: the viewer's own page needs no CORS), so that a page on any site cannot drive a
+//! lab's open server from a browser on its network.
 
 use axum::http::{HeaderMap, HeaderName, Method, StatusCode, header};
 use axum::response::{Html, IntoResponse, Response};
@@ -11,7 +14,7 @@ use axum::routing::get;
 use tonic::service::Routes;
 use tonic::service::interceptor::InterceptedService;
 use tonic_web::GrpcWebLayer;
-use tower_http::cors::{Any, CorsLayer};
+use tower_http::cors::{AllowOrigin, CorsLayer};
 use tower_layer::Layer;
 use vademecum_proto::v1 as pb;
 
@@ -33,11 +36,34 @@ pub struct WebServices {
     pub info: pb::info_server::InfoServer<InfoService>,
 }
 
-/// CORS for gRPC-web calls from any origin: the headers gRPC-web sends and reads.
-fn cors() -> CorsLayer {
+/// Which origins' pages may call the services (see the [module docs](self)).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Origins {
+    /// Any origin (a server with tokens, no `--web-origin`).
+    Any,
+    /// These origins only (`--web-origin`; empty: none but the viewer's own).
+    Only(Vec<String>),
+}
+
+impl Origins {
+    /// The origins of a server with `tokens` (or none) and the `named` origins.
+    pub fn of(tokens: bool, named: &[String]) -> Self {
+        match (tokens, named.is_empty()) {
+            (true, true) => Origins::Any,
+            _ => Origins::Only(named.to_vec()),
+        }
+    }
+}
+
+/// CORS for gRPC-web calls from `origins`: the headers gRPC-web sends and reads.
+fn cors(origins: &Origins) -> CorsLayer {
     let h = |s: &'static str| HeaderName::from_static(s);
+    let allow = match origins {
+        Origins::Any => AllowOrigin::any(),
+        Origins::Only(list) => AllowOrigin::list(list.iter().filter_map(|o| o.parse().ok())),
+    };
     CorsLayer::new()
-        .allow_origin(Any)
+        .allow_origin(allow)
         .allow_methods([Method::POST, Method::GET, Method::OPTIONS])
         .allow_headers([
             header::CONTENT_TYPE,
@@ -70,6 +96,7 @@ pub async fn serve(
     listener: tokio::net::TcpListener,
     services: WebServices,
     auth: Auth,
+    origins: Origins,
     tls: Option<(Vec<u8>, Vec<u8>)>,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
 ) -> anyhow::Result<()> {
@@ -92,7 +119,7 @@ pub async fn serve(
     }
     builder
         .accept_http1(true)
-        .layer(cors())
+        .layer(cors(&origins))
         .add_routes(Routes::from(routes))
         .serve_with_incoming_shutdown(crate::incoming(listener), shutdown)
         .await?;

@@ -131,6 +131,72 @@ fn one_token_cannot_take_every_slot() {
     });
 }
 
+/// A haptic channel stays with the client that first opened a session on it: once the lab's
+/// session has ended, another client cannot open one there (the lab's bridge, still attached
+/// to the channel, would drive it).
+#[test]
+fn a_haptic_channel_stays_with_the_client_that_opened_it() {
+    let server = util::Server::start(&[], &[("VADEMECUM_TOKENS", "lab,tenant")]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let lab = Client::connect_with_token(server.url.clone(), Some("lab")).await.unwrap();
+        let tenant = Client::connect_with_token(server.url.clone(), Some("tenant")).await.unwrap();
+        let organ = || SceneSpec::Builtin("organ".into());
+        let channel = format!("lab-bench-{}", std::process::id());
+        let s = lab.create_haptic_session(organ(), "organ", "lab", &channel).await.unwrap();
+        s.close().await.unwrap();
+        let e = tenant
+            .create_haptic_session(organ(), "organ", "tenant", &channel)
+            .await
+            .err()
+            .unwrap();
+        assert_eq!(e.kind(), ErrorKind::PermissionDenied, "{e}");
+        assert!(e.to_string().contains("belongs to another client"), "{e}");
+        // the lab opens it again; the tenant has channels of its own
+        lab.create_haptic_session(organ(), "organ", "lab", &channel)
+            .await
+            .unwrap()
+            .close()
+            .await
+            .unwrap();
+        let other = format!("{channel}-tenant");
+        tenant
+            .create_haptic_session(organ(), "organ", "tenant", &other)
+            .await
+            .unwrap()
+            .close()
+            .await
+            .unwrap();
+    });
+}
+
+/// A client's scene whose built-in mesh would be huge is refused from its settings, before
+/// the server spends memory on it (it used to make the mesh, a gigabyte, then refuse).
+#[test]
+fn a_huge_inline_scene_is_refused_before_it_costs_anything() {
+    let server = util::Server::start(&["--max-scene-cells", "100000"], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let text = vademecum_engine::scene::Scene::builtin("cantilever")
+            .unwrap()
+            .source
+            .replace("divisions = [40, 4, 4]", "divisions = [2000, 200, 40]");
+        assert!(text.contains("[2000, 200, 40]"));
+        let e = client.create_session(SceneSpec::Toml(text), "organ", "huge").await.err().unwrap();
+        assert_eq!(e.kind(), ErrorKind::ResourceExhausted, "{e}");
+        assert!(e.to_string().contains("16000000 cells"), "{e}");
+        // a built-in scene is the server's own: not counted against the cap
+        client
+            .create_session(SceneSpec::Builtin("organ".into()), "organ", "ok")
+            .await
+            .unwrap()
+            .close()
+            .await
+            .unwrap();
+    });
+}
+
 #[test]
 fn unbounded_client_input_is_never_echoed_back() {
     let server = util::Server::start(&[], &[]);

@@ -212,6 +212,33 @@ fn grpc_web_calls_from_another_origin_pass_the_cors_preflight() {
     }
 }
 
+/// Without tokens no page from another origin may call the web port (it could list, create
+/// and close sessions on a lab's open server from any site), unless its origin is named.
+#[test]
+fn an_open_server_answers_other_origins_only_when_named() {
+    let preflight = |server: &util::Server, origin: &str| {
+        http(
+            &web_addr(server),
+            &format!(
+                "OPTIONS /vademecum.v1.Sessions/ListSessions HTTP/1.1\r\nOrigin: {origin}\r\n\
+                 Access-Control-Request-Method: POST\r\nAccess-Control-Request-Headers: content-type,x-grpc-web"
+            ),
+            b"",
+        )
+    };
+    let open = util::Server::start(&["--web", "127.0.0.1:0"], &[]);
+    let answer = preflight(&open, "https://attacker.example");
+    assert!(!answer.contains("access-control-allow-origin"), "{answer}");
+    let named = util::Server::start(&["--web", "127.0.0.1:0", "--web-origin", "https://simulator.example"], &[]);
+    let answer = preflight(&named, "https://simulator.example");
+    assert!(
+        answer.contains("access-control-allow-origin: https://simulator.example"),
+        "{answer}"
+    );
+    let answer = preflight(&named, "https://attacker.example");
+    assert!(!answer.contains("access-control-allow-origin"), "{answer}");
+}
+
 /// The web port serves the page and its script, answers a mistyped address with a 404 (not an
 /// empty page), and a gRPC-web call to a method that does not exist with `UNIMPLEMENTED`.
 #[test]

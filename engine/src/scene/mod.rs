@@ -127,6 +127,20 @@ impl Scene {
         built(&self.spec) == built(other)
     }
 
+    /// The cells organ `organ`'s built-in mesh will have, counted from its settings without
+    /// making it (`None`: a mesh file, or no such organ) — what a server checks before it
+    /// spends memory on a client's scene.
+    pub fn builtin_cells(&self, organ: usize) -> Option<usize> {
+        let m = &self.spec.organs.get(organ)?.mesh;
+        let d = match (m.builtin?, m.divisions) {
+            (_, Some(d)) => d,
+            (BuiltinMesh::Block, None) => DEFAULT_BLOCK_DIVISIONS,
+            (BuiltinMesh::Lobe, None) => procedural::LobeParams::default().divisions,
+            (BuiltinMesh::Dome, None) => procedural::DomeParams::default().divisions,
+        };
+        Some(d.iter().product::<usize>().saturating_mul(cells_per_division(m)))
+    }
+
     /// An error located at `path` in this scene's source.
     pub fn error_at(&self, path: &[Seg<'_>], message: impl Into<String>) -> SceneError {
         SceneError {
@@ -565,12 +579,7 @@ impl Scene {
             if d.iter().any(|&n| n == 0 || n > 2000) {
                 return Err(self.error_at(&key("divisions"), "divisions must lie in 1..=2000 along each axis"));
             }
-            // the cells actually produced: six tetrahedra per cube for tetrahedral built-ins
-            let per_cube = match m.builtin {
-                Some(BuiltinMesh::Lobe) => 6,
-                Some(BuiltinMesh::Block) if m.cell == Some(CellKind::Tet4) => 6,
-                _ => 1,
-            };
+            let per_cube = cells_per_division(m);
             let cells = d.iter().product::<usize>().saturating_mul(per_cube);
             if cells > MAX_BUILTIN_CELLS {
                 return Err(self.error_at(
@@ -1208,6 +1217,16 @@ pub const SHARED_PREFIX: &str = "../shared";
 /// The environment variable naming the shared data folder (the one holding `data/meshes`),
 /// for built-in scenes run from outside the repository.
 pub const SHARED_ENV: &str = "VADEMECUM_SHARED";
+
+/// The cells a built-in mesh makes per division cube: six tetrahedra for the tetrahedral
+/// built-ins, one hexahedron otherwise.
+fn cells_per_division(m: &MeshSpec) -> usize {
+    match m.builtin {
+        Some(BuiltinMesh::Lobe) => 6,
+        Some(BuiltinMesh::Block) if m.cell == Some(CellKind::Tet4) => 6,
+        _ => 1,
+    }
+}
 
 /// Most cells a built-in mesh may produce (its memory alone would be gigabytes).
 pub const MAX_BUILTIN_CELLS: usize = 20_000_000;

@@ -502,9 +502,15 @@ pub struct ServeArgs {
     pub listen: String,
     /// Also serve the browser viewer on this address (http://ADDR/: the sessions, the organ
     /// deforming, the tool and its force) and gRPC-web for it and for other web frontends
-    /// (Sessions, Viewing, Info; HTTP/1.1, CORS from any origin; the same tokens).
+    /// (Sessions, Viewing, Info; HTTP/1.1; the same tokens). Pages from other origins may
+    /// call it when the server has tokens; without tokens only those --web-origin names.
     #[arg(long, value_name = "ADDR")]
     pub web: Option<String>,
+    /// An origin (`https://host[:port]`) whose pages may call the web port's gRPC-web
+    /// (repeatable). Default: any origin with tokens, none but the viewer's own with
+    /// --no-auth (never every origin without tokens).
+    #[arg(long, value_name = "ORIGIN", requires = "web")]
+    pub web_origin: Vec<String>,
     /// Also serve Prometheus metrics (GET /metrics, unauthenticated) on this address; loopback
     /// only unless --metrics-public.
     #[arg(long, value_name = "ADDR")]
@@ -525,6 +531,14 @@ pub struct ServeArgs {
     /// Most sessions at once.
     #[arg(long, default_value_t = 16)]
     pub max_sessions: usize,
+    /// Most cells of a built-in mesh in a client's scene (counted before it is made;
+    /// RESOURCE_EXHAUSTED beyond).
+    #[arg(long, default_value_t = 2_000_000, value_name = "CELLS")]
+    pub max_scene_cells: usize,
+    /// Most CreateSessions prepared at once (scene, meshes, bundles); RESOURCE_EXHAUSTED
+    /// beyond (the client retries).
+    #[arg(long, default_value_t = 4, value_name = "N")]
+    pub max_preparing: usize,
     /// Most sessions one client (bearer token) holds at once (with authentication).
     #[arg(long, default_value_t = 4)]
     pub client_sessions: usize,

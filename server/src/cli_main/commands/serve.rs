@@ -87,8 +87,16 @@ async fn stop_signal() {
 }
 
 pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
-    if a.max_sessions == 0 || a.client_sessions == 0 || a.max_streams == 0 || a.client_streams == 0 {
-        bail!("--max-sessions, --client-sessions, --max-streams and --client-streams must be at least 1");
+    if a.max_sessions == 0
+        || a.client_sessions == 0
+        || a.max_streams == 0
+        || a.client_streams == 0
+        || a.max_scene_cells == 0
+        || a.max_preparing == 0
+    {
+        bail!(
+            "--max-sessions, --client-sessions, --max-streams, --client-streams, --max-scene-cells and --max-preparing must be at least 1"
+        );
     }
     if !(a.max_frame_rate > 0.0 && a.max_frame_rate <= 240.0) {
         bail!("--max-frame-rate must lie in (0, 240] Hz, got {}", a.max_frame_rate);
@@ -127,11 +135,29 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
         bundle_root: a.bundle_root.clone(),
         allow_paths: !a.no_paths,
         max_sessions: a.max_sessions,
+        max_scene_cells: a.max_scene_cells,
+        max_preparing: a.max_preparing,
         client_sessions: a.client_sessions,
         max_streams: a.max_streams,
         client_streams: a.client_streams,
         max_frame_rate_hz: a.max_frame_rate,
         tokens: tokens(&a)?,
+        web_origins: a
+            .web_origin
+            .iter()
+            .map(|o| {
+                let ok = (o.starts_with("http://") || o.starts_with("https://"))
+                    && o.parse::<axum::http::HeaderValue>().is_ok()
+                    && !o.trim_end_matches('/').contains(['*', ' ']);
+                if ok {
+                    Ok(o.trim_end_matches('/').to_string())
+                } else {
+                    Err(anyhow::anyhow!(
+                        "--web-origin '{o}' must be an origin: http(s)://host[:port], no wildcard"
+                    ))
+                }
+            })
+            .collect::<anyhow::Result<_>>()?,
         tick_workers: crate::session::SchedulerConfig {
             workers: a.tick_workers.unwrap_or(crate::session::SchedulerConfig::default().workers),
             pin: a.pin_tick_workers,
