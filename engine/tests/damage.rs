@@ -469,3 +469,49 @@ fn a_step_updates_only_the_tearable_region_and_the_whole_field_is_rebuilt_exactl
         }
     }
 }
+
+/// A force above what Simó's law with β = 0 carries (`α√E` in uniaxial stress) finds its
+/// equilibrium only on the residual stiffness floor, at a huge strain: the run says so
+/// (`on_floor`), and what limits the load is named for the warning and the error.
+#[test]
+fn a_force_past_the_saturation_of_the_seeds_law_ends_on_the_floor_and_says_so() {
+    let law = DamageLaw::simo(0.4, 0.0, 1e-4).unwrap();
+    let (mesh, pts) = block([1.0; 3], [1, 1, 1], E, NU, |_, _| Some(law));
+    let mut constrained = vec![false; 3 * mesh.n_nodes()];
+    let mut load = vec![0.0; 3 * mesh.n_nodes()];
+    for (a, x) in mesh.nodes.iter().enumerate() {
+        for i in 0..3 {
+            constrained[3 * a + i] = x[i] == 0.0;
+        }
+        if x[2] == 1.0 {
+            load[3 * a + 2] = 0.25; // 1 N on the unit top face per unit step: σ = 1 Pa
+        }
+    }
+    let prescribed = vec![0.0; 3 * mesh.n_nodes()];
+    let mut m = TearModel::new(mesh, pts, &constrained, load, prescribed);
+    let saturation = 0.4 * E.sqrt(); // 0.894 Pa
+    // below the saturation: an equilibrium of the law, nothing on the floor
+    m.schedule = vec![0.4, 0.4];
+    let below = reference::run(&m, RunSettings::seed(Scheme::Newton), |_, _| {}).unwrap();
+    assert!(0.8 < saturation);
+    assert_eq!(below.steps.last().unwrap().on_floor, 0);
+    // above it: only on the floor
+    m.schedule = vec![0.4, 0.4, 0.4];
+    match reference::run(&m, RunSettings::seed(Scheme::Newton), |_, _| {}) {
+        Ok(run) => {
+            let last = run.steps.last().unwrap();
+            assert!(last.on_floor > 0, "1.2 Pa > {saturation} Pa is carried on the floor only");
+            let uz = last.u.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+            assert!(uz > 100.0, "at a huge strain: {uz}");
+        }
+        Err(e) => assert!(e.to_string().contains("alpha·√E"), "{e}"),
+    }
+    let why = reference::carrying_limit(&m);
+    assert!(why.contains("beta = 0") && why.contains("alpha = 0.4"), "{why}");
+    // a softening law is named for what it needs: a prescribed displacement
+    let soft = DamageLaw::softening(E, 1.0, 0.5, 1.0, 1e-6).unwrap();
+    let (mesh, pts) = block([1.0; 3], [1, 1, 1], E, NU, |_, _| Some(soft));
+    let n = 3 * mesh.n_nodes();
+    let s = TearModel::new(mesh, pts, &vec![true; n], vec![0.0; n], vec![0.0; n]);
+    assert!(reference::carrying_limit(&s).contains("prescribed displacement"));
+}

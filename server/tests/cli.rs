@@ -340,6 +340,57 @@ fn run_cuts_the_patch_with_a_scalpel_and_records_the_opening() {
     assert!(!dir.path().join("nowhere").exists(), "refused before building");
 }
 
+/// Every built-in scene runs: the list `scene show` names is walked, each scene either run here
+/// briefly (its build and the built-in trajectory) or named with the test that runs it, so a
+/// built-in added without a run fails here.
+#[test]
+fn every_builtin_scene_runs() {
+    // run here: small builds, the built-in palpation or grasp
+    let here = ["patch", "cantilever", "bar", "stretch", "cube_tear"];
+    // run by another test of this file (the costly ones), or by a benchmark's command
+    let elsewhere = [
+        ("organ", "run_builds_the_missing_vademecum_plays_the_palpation_and_records_it"),
+        ("patch_cut", "run_cuts_the_patch_with_a_scalpel_and_records_the_opening"),
+        ("cube_shear", "the_cyclic_shear_cube_builds_calibrated_and_runs"),
+        ("gallbladder_fat", "run_tears_the_fat_off_the_gallbladder"),
+        (
+            "liver_cut",
+            "run_liver_cut_opens_the_smooth_liver_along_the_incision_with_the_co_rotational_model",
+        ),
+        (
+            "cornea",
+            "a_large_deformation_scene_builds_its_lattice_and_runs (coarsened; the full build: BENCHMARKS.md)",
+        ),
+        (
+            "keratotomy",
+            "solve_cuts_the_built_in_cutting_scenes_by_xfem (its session build takes minutes: BENCHMARKS.md)",
+        ),
+    ];
+    let mut listed: Vec<&str> = here.iter().copied().chain(elsewhere.iter().map(|e| e.0)).collect();
+    listed.sort_unstable();
+    let mut all = vademecum_engine::scene::BUILTIN_NAMES.to_vec();
+    all.sort_unstable();
+    assert_eq!(listed, all, "every built-in is run here or by a named test");
+    let dir = tempfile::tempdir().unwrap();
+    // all at once: a run ticks at 1 kHz for its 5 s, mostly waiting
+    let runs: Vec<_> = here
+        .iter()
+        .map(|&name| {
+            let d = dir.path().to_path_buf();
+            std::thread::spawn(move || vademecum(&["run", "--builtin", name, "--json", "--bundles", name, "--record", name], &d))
+        })
+        .collect();
+    for (name, run) in here.into_iter().zip(runs) {
+        let o = run.join().unwrap();
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+        assert!(s["ticks"].as_u64().unwrap() > 1000, "{name}: {s}");
+        // the tool touches the tissue and feels it
+        assert!(s["contact_ticks"].as_u64().unwrap() > 100, "{name}: {s}");
+        assert!(s["peak_force_n"].as_f64().unwrap() > 0.0, "{name}: {s}");
+    }
+}
+
 #[test]
 fn run_refuses_a_bad_trajectory_with_its_line() {
     let dir = tempfile::tempdir().unwrap();

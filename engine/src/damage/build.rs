@@ -93,6 +93,12 @@ pub struct TearBuildReport {
     /// per pull pattern and their calibrated force error at the last load level; `None`
     /// when no prefix qualifies.
     pub fallback: Option<(Vec<usize>, f64)>,
+    /// Tearable points the reference run ends with on the law's residual stiffness floor
+    /// (`StepResult::on_floor`), and why the law cannot carry the load there: a schedule that
+    /// pulls harder than the tissue can hold (0 and empty otherwise).
+    pub on_floor: usize,
+    /// What limits the load ([`super::reference::carrying_limit`]) when `on_floor > 0`.
+    pub on_floor_why: String,
 }
 
 /// The modes a build kept for a target force error ([`TearSettings::target_force_error`]).
@@ -240,7 +246,13 @@ pub fn build(
             .fallback
             .as_ref()
             .map(|f| (f.modes.clone(), f.force_error.last().map_or(f64::NAN, |r| r[1]))),
+        on_floor: runs[0].steps.last().map_or(0, |s| s.on_floor),
+        on_floor_why: String::new(),
     };
+    let mut report = report;
+    if report.on_floor > 0 {
+        report.on_floor_why = super::reference::carrying_limit(&off.model);
+    }
     Ok((off, report, runs))
 }
 

@@ -21,7 +21,10 @@
 //!   (g < 1 for every r > 0) and **no stress peak** on a monotone path: in one dimension
 //!   (`Φ = √E ε`) `σ = g E ε` has `dσ/dε = E[β + (1 − β) e^{−Φ/α}] > 0`, and with β = 0 the
 //!   stress saturates at `α√E`. It cannot tear a specimen under displacement control; under
-//!   force control, a load above `α√E` (β = 0) has no equilibrium.
+//!   force control, a load above `α√E` (β = 0) has no equilibrium of the law itself — with
+//!   the residual floor below, Newton finds one on `residual · E` at a strain of order
+//!   `σ / (residual · E)` (thousands), which the reference runs count
+//!   (`StepResult::on_floor`) and the build reports.
 //! - [`DamageLaw::Softening`], what tearing needs (Oliver et al. 1990, the exponential law):
 //!   `g = 1` up to the threshold `r₀ = f_t/√E` (the uniaxial tensile strength `f_t`), then
 //!   `g(r) = (r₀/r) e^{A(1 − r/r₀)}`: in uniaxial stress the stress peaks at `f_t` and decays

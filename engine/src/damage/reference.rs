@@ -115,6 +115,43 @@ pub struct StepResult {
     pub substeps: u32,
     /// Newton iterations (0 for the explicit scheme).
     pub iterations: usize,
+    /// Tearable points whose stiffness sits on the law's residual floor: fully damaged, they
+    /// carry their share on `residual · C⁰` alone, at whatever strain that takes (an
+    /// equilibrium the law itself would not have: [`carrying_limit`]).
+    pub on_floor: usize,
+}
+
+/// What limits the load the damage laws of `model` can carry, in words for an error or a
+/// warning: a Simó law with β = 0 saturates at `α√E` in uniaxial stress (no equilibrium above
+/// it under a prescribed force, but for the residual floor); a softening law has none past its
+/// peak `f_t` under a prescribed force (drive it by a displacement); β > 0 never saturates.
+pub fn carrying_limit(model: &TearModel) -> String {
+    use super::law::DamageLaw;
+    let (mut saturating, mut softening) = (None::<f64>, false);
+    for law in model.points.law.iter().flatten() {
+        match *law {
+            DamageLaw::Simo { alpha, beta: 0.0, .. } => saturating = Some(saturating.map_or(alpha, |a| a.min(alpha))),
+            DamageLaw::Softening { .. } => softening = true,
+            DamageLaw::Simo { .. } => {}
+        }
+    }
+    let mut why = Vec::new();
+    if let Some(alpha) = saturating {
+        why.push(format!(
+            "Simó's law with beta = 0 carries at most alpha·√E in uniaxial stress (alpha = {alpha} √Pa): a larger force has no equilibrium but on the residual stiffness floor"
+        ));
+    }
+    if softening {
+        why.push(
+            "a softening law loaded past its peak stress f_t has no equilibrium under a prescribed force: drive the pull by a prescribed displacement (kind = \"displacement\") to follow it down"
+                .to_string(),
+        );
+    }
+    if why.is_empty() {
+        "the load may exceed what the damaged tissue can carry".to_string()
+    } else {
+        format!("the load exceeds what the damaged tissue can carry: {}", why.join("; "))
+    }
 }
 
 /// A whole run.
@@ -140,9 +177,7 @@ pub enum RunError {
         source: SolveError,
     },
     /// Newton's method did not converge.
-    #[error(
-        "step {step}: no equilibrium found after {iterations} Newton iterations (relative residual {residual:.2e}); the load may exceed what the damaged tissue can carry (the seed's law with beta = 0 saturates at alpha·√E)"
-    )]
+    #[error("step {step}: no equilibrium found after {iterations} Newton iterations (relative residual {residual:.2e}); {why}")]
     NoEquilibrium {
         /// The step.
         step: usize,
@@ -150,6 +185,8 @@ pub enum RunError {
         iterations: usize,
         /// The last relative residual.
         residual: f64,
+        /// What in the model's damage laws limits the load it can carry ([`carrying_limit`]).
+        why: String,
     },
     /// A step produced a non-finite displacement.
     #[error("step {step}: the displacement is not finite")]
@@ -256,6 +293,12 @@ impl Runner<'_> {
             work: self.work,
             substeps,
             iterations,
+            on_floor: self
+                .state
+                .iter()
+                .zip(&self.m.points.law)
+                .filter(|(s, law)| law.as_ref().is_some_and(|l| s.g <= l.residual()))
+                .count(),
         }
     }
 
@@ -432,6 +475,7 @@ impl Runner<'_> {
             step,
             iterations: self.s.max_iterations,
             residual: last,
+            why: carrying_limit(m),
         })
     }
 }

@@ -134,7 +134,12 @@ description = "A vertical 5 x 5 grid of unit hexahedra (one cell deep), E = 5 Pa
 
 "#,
     patch_organ!(),
-    r#"[fidelity]
+    r#"[[tools]]                            # `vademecum run` palpates the top
+kind = "probe"
+name = "probe"
+radius = 0.05
+
+[fidelity]
 locking = "none"
 "#
 );
@@ -169,6 +174,11 @@ half_space = { point = [0.0, 0.0, 1.0], normal = [0.0, 0.0, 1.0] }
 kind = "point"
 at = [4.0, 0.0, 1.0]
 force = [0.0, 0.0, -1.0]
+
+[[tools]]                            # `vademecum run` palpates the top
+kind = "probe"
+name = "probe"
+radius = 0.05
 "#;
 
 const CANTILEVER: &str = r#"# A cantilever ten times longer than high under a tip load (compare with beam theory).
@@ -201,6 +211,11 @@ half_space = { point = [0.0, 0.0, 0.1], normal = [0.0, 0.0, 1.0] }
 kind = "force"
 region = { box = { min = [1.0, 0.0, 0.0], max = [1.0, 0.1, 0.1] } }
 force = [0.0, 0.0, -1.0]
+
+[[tools]]                            # `vademecum run` palpates the top
+kind = "probe"
+name = "probe"
+radius = 0.02
 
 [fidelity]
 locking = "none"
@@ -304,6 +319,11 @@ region = { box = { min = [0.0, 0.1, 0.0], max = [0.1, 0.1, 0.1] } }
 x = 0.0
 y = 0.02
 z = 0.0
+
+[[tools]]                            # `vademecum run` palpates the top
+kind = "probe"
+name = "probe"
+radius = 0.01
 
 [fidelity]
 solver = "meshless"

@@ -10,7 +10,12 @@ use indicatif::{ProgressBar, ProgressStyle};
 pub struct Stages {
     bar: ProgressBar,
     what: String,
+    /// When redirected: the last line printed (its words before any number) and when.
+    said: std::sync::Mutex<(String, Option<std::time::Instant>)>,
 }
+
+/// How often at most a redirected stage that only counts on prints its line.
+const LINE_EVERY: Duration = Duration::from_secs(5);
 
 impl Stages {
     /// Starts a spinner prefixed with `what` (hidden when stderr is not a terminal).
@@ -24,25 +29,28 @@ impl Stages {
         Self {
             bar,
             what: what.to_string(),
+            said: std::sync::Mutex::new((String::new(), None)),
         }
     }
 
-    /// Shows the current stage (a line of its own when stderr is no terminal).
+    /// Shows the current stage. When stderr is no terminal, a line of its own: at once for a
+    /// new stage, every [`LINE_EVERY`] at most while only its numbers change.
     pub fn stage(&self, label: &str) {
         if self.bar.is_hidden() {
-            eprintln!("vademecum: {}: {label}", self.what);
+            let words: String = label.chars().take_while(|c| !c.is_ascii_digit()).collect();
+            let mut said = self.said.lock().unwrap_or_else(|p| p.into_inner());
+            let due = said.0 != words || said.1.is_none_or(|t| t.elapsed() >= LINE_EVERY);
+            if due {
+                eprintln!("vademecum: {}: {label}", self.what);
+                *said = (words, Some(std::time::Instant::now()));
+            }
         }
         self.bar.set_message(label.to_string());
     }
 
     /// Prints a warning line above the spinner (`vademecum: warning: …` on stderr).
     pub fn warn(&self, message: &str) {
-        let line = format!("vademecum: warning: {message}");
-        if self.bar.is_hidden() {
-            eprintln!("{line}");
-        } else {
-            self.bar.println(line);
-        }
+        above(&self.bar, &format!("vademecum: warning: {message}"));
     }
 
     /// Removes the spinner.
@@ -90,15 +98,20 @@ impl Steps {
 
     /// Prints a line above the bar (on stderr as it is when redirected).
     pub fn println(&self, line: &str) {
-        if self.bar.is_hidden() {
-            eprintln!("{line}");
-        } else {
-            self.bar.println(line);
-        }
+        above(&self.bar, line);
     }
 
     /// Removes the bar.
     pub fn finish(self) {
         self.bar.finish_and_clear();
+    }
+}
+
+/// Prints `line` above `bar` on a terminal, or on stderr as it is when the bar is hidden.
+fn above(bar: &ProgressBar, line: &str) {
+    if bar.is_hidden() {
+        eprintln!("{line}");
+    } else {
+        bar.println(line);
     }
 }

@@ -123,7 +123,10 @@ pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m:
 }
 
 /// Where the built-in palpation presses: the "middle" of the accessible surface — the load
-/// node nearest the centroid of the load nodes —, the outward normal there (the area-weighted
+/// node nearest the centroid of the load nodes, among those inside the accessible surface
+/// (every surface triangle around them accessible: a node on its rim, where it meets a face
+/// no tool may touch, would press on that edge; all of them when none is inside) —, the
+/// outward normal there (the area-weighted
 /// mean of the accessible triangles around it) and the tangent the slide follows (the axis
 /// least aligned with the normal, made orthogonal to it): `(point, normal, tangent)`.
 pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]), String> {
@@ -139,18 +142,55 @@ pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]
         }
     }
     let d2 = |n: usize| (0..3).map(|k| (b.nodes[n][k] - c[k]).powi(2)).sum::<f64>();
-    let s = *loads.iter().min_by(|&&a, &&bb| d2(a).total_cmp(&d2(bb))).expect("non-empty");
-    let mut normal = [0.0; 3];
-    for t in b.surface.iter().filter(|t| t.contains(&s) && t.iter().all(|&n| v.is_loadable(n))) {
+    let inside = |n: usize| {
+        b.surface
+            .iter()
+            .filter(|t| t.contains(&n))
+            .all(|t| t.iter().all(|&m| v.is_loadable(m)))
+    };
+    let nearest = |among: &mut dyn Iterator<Item = usize>| among.min_by(|&a, &bb| d2(a).total_cmp(&d2(bb)));
+    let open = |t: &&[usize; 3]| t.iter().all(|&n| v.is_loadable(n));
+    let cross = |t: &[usize; 3]| {
         let (p0, p1, p2) = (b.nodes[t[0]], b.nodes[t[1]], b.nodes[t[2]]);
         let (e1, e2) = (
             [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]],
             [p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]],
         );
-        normal[0] += e1[1] * e2[2] - e1[2] * e2[1];
-        normal[1] += e1[2] * e2[0] - e1[0] * e2[2];
-        normal[2] += e1[0] * e2[1] - e1[1] * e2[0];
-    }
+        [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ]
+    };
+    let first = nearest(&mut loads.iter().copied()).expect("non-empty");
+    let node = if inside(first) {
+        Some(first)
+    } else {
+        nearest(&mut loads.iter().copied().filter(|&n| inside(n)))
+    };
+    let (point, normal) = match node {
+        Some(s) => {
+            let mut normal = [0.0; 3];
+            for t in b.surface.iter().filter(|t| t.contains(&s)).filter(open) {
+                let c = cross(t);
+                (0..3).for_each(|k| normal[k] += c[k]);
+            }
+            (b.nodes[s], normal)
+        }
+        // no node inside the accessible surface (a plate one cell deep): the centroid of the
+        // accessible triangle nearest the middle, and its normal
+        None => {
+            let centroid = |t: &[usize; 3]| [0, 1, 2].map(|k| (b.nodes[t[0]][k] + b.nodes[t[1]][k] + b.nodes[t[2]][k]) / 3.0);
+            let dc = |t: &[usize; 3]| (0..3).map(|k| (centroid(t)[k] - c[k]).powi(2)).sum::<f64>();
+            let t = b
+                .surface
+                .iter()
+                .filter(open)
+                .min_by(|a, bb| dc(a).total_cmp(&dc(bb)))
+                .ok_or("the accessible surface has no triangle to palpate")?;
+            (centroid(t), cross(t))
+        }
+    };
     let len = normal.iter().map(|x| x * x).sum::<f64>().sqrt();
     if len.is_nan() || len <= 0.0 {
         return Err("the middle of the accessible surface has no accessible triangle around it".into());
@@ -162,7 +202,7 @@ pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]
     let t = [axis[0] - dot * n[0], axis[1] - dot * n[1], axis[2] - dot * n[2]];
     let tl = t.iter().map(|x| x * x).sum::<f64>().sqrt();
     let t = t.map(|x| x / tl);
-    Ok((b.nodes[s], n, t))
+    Ok((point, n, t))
 }
 
 /// How deep the built-in palpation may press into a large-deformation bundle while every

@@ -613,6 +613,13 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<(ExitCode, Vec<PathB
                     t.build_seconds
                 )?;
                 writeln!(stdout, "  force error      {}", force_error_line(t))?;
+                if t.on_floor > 0 {
+                    writeln!(
+                        stdout,
+                        "  warning          the full-order reference ends with {} point(s) on the residual stiffness floor (fully damaged, carrying their share on a 1e-4 stiffness at a huge strain): {}",
+                        t.on_floor, t.on_floor_why
+                    )?;
+                }
             }
             for (k, s) in r.tear_sites.iter().enumerate() {
                 let t = &s.build;
