@@ -181,11 +181,8 @@ fn bad_blade_states_are_rejected_with_zero_force() {
 
 #[test]
 fn a_palpation_scene_carries_no_cutting_and_cutting_scenes_need_a_linear_organ_and_a_scalpel() {
-    let text = format!(
-        "{}\n[[tools]]\nkind = \"probe\"\nname = \"probe\"\nradius = 0.1\n",
-        vademecum_engine::scene::builtin("patch").unwrap()
-    );
-    let scene = Scene::from_toml(&text, "patch.toml").unwrap();
+    // the built-in patch, with its probe
+    let scene = Scene::builtin("patch").unwrap();
     let b = bundle(&scene);
     let mut p = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
     assert_eq!(p.effect_names(), vec!["palpation"]);
