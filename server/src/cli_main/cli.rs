@@ -1051,7 +1051,7 @@ pub struct BenchCubeArgs {
     pub range_cells: usize,
     /// The elements timed and compared (comma-separated; default: all four).
     #[arg(long, value_delimiter = ',', value_enum)]
-    pub elements: Vec<super::commands::bench_cube::CubeElement>,
+    pub elements: Vec<CubeElement>,
     /// Print the rows as JSON.
     #[arg(long)]
     pub json: bool,
@@ -1303,4 +1303,17 @@ mod tests {
         };
         assert_eq!(a.dofs, vec![100, 200]);
     }
+}
+
+/// An element of `bench cube --elements`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum CubeElement {
+    /// Hexahedra with the mean-dilatation volumetric term (also the range study's).
+    Hex8MeanDilatation,
+    /// Hexahedra, full integration.
+    Hex8Full,
+    /// Tetrahedra with the averaged nodal pressure.
+    Tet4Nodal,
+    /// Plain tetrahedra.
+    Tet4Plain,
 }

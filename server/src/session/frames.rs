@@ -21,7 +21,7 @@ use vademecum_engine::scene::Scene;
 
 use super::demand::FrameDemand;
 use super::stats::TickStats;
-use super::tick::Latest;
+use super::tick::{Latest, Lockstep};
 use super::workers::{PlaceError, Placed, Poll, Polled, Pool, PoolConfig};
 
 /// The reference surface of one organ.
@@ -744,33 +744,6 @@ impl FrameWorkers {
 /// the tick, waits for a recorder that falls this far behind: no frame is lost).
 pub const FRAME_LOG: usize = 256;
 
-/// The tick thread's end of the frames of a deterministic session
-/// ([`super::SessionConfig::deterministic`], headless runs): frame `n` (from 1) shows the
-/// first step at or after `n / rate` of session time, made while the tick waits, so that it
-/// draws that step's state, cut and damage on any load, and the co-rotational correction it
-/// leaves lands at the next tick.
-pub(super) struct Lockstep {
-    /// Steps per frame (the period times the rate, inverted).
-    steps_per_frame: f64,
-    /// Frames asked so far.
-    asked: u64,
-    requests: SyncSender<()>,
-    made: std::sync::mpsc::Receiver<()>,
-}
-
-impl Lockstep {
-    /// Makes the frames due once step `step` (counted from 0) is done, waiting for each; a
-    /// frame thread that has ended is not waited for.
-    pub fn after_step(&mut self, step: u64) {
-        while (self.asked + 1) as f64 * self.steps_per_frame <= (step + 1) as f64 {
-            self.asked += 1;
-            if self.requests.send(()).is_err() || self.made.recv().is_err() {
-                return;
-            }
-        }
-    }
-}
-
 /// Runs the frame producer of a deterministic session on this thread: a frame per request of
 /// the tick thread ([`Lockstep`]), published to viewers and sent, every one, to `log` (the
 /// recorder's), then reported made. Ends when stopped or when the tick's end is dropped.
@@ -813,11 +786,6 @@ pub(super) fn spawn_lockstep(
         .spawn(move || run_lockstep(job, requests_rx, made_tx, log))
         .expect("the OS can start a thread");
     let rate = if rate_hz.is_finite() && rate_hz > 0.0 { rate_hz } else { 30.0 };
-    let lockstep = Lockstep {
-        steps_per_frame: 1.0 / (rate * period.as_secs_f64()),
-        asked: 0,
-        requests,
-        made,
-    };
+    let lockstep = Lockstep::new(1.0 / (rate * period.as_secs_f64()), requests, made);
     (t, lockstep, log_rx)
 }

@@ -68,8 +68,8 @@ pub(super) struct TickLoop {
     /// Falls back to the reduced fidelity under load ([`super::fidelity`]).
     pub governor: super::fidelity::Governor,
     /// The frames a deterministic session makes while its tick waits
-    /// ([`super::frames::Lockstep`]).
-    pub lockstep: Option<super::frames::Lockstep>,
+    /// ([`Lockstep`]).
+    pub lockstep: Option<Lockstep>,
     /// A deterministic session ([`super::SessionConfig::deterministic`]): session time is
     /// the step's.
     pub deterministic: bool,
@@ -412,6 +412,44 @@ impl TickLoop {
     /// from its worker: merging takes the lock the readers take.
     pub fn hand_over(&self, clock: &Clock) {
         self.stats.finish(&clock.local);
+    }
+}
+
+/// The tick thread's end of the frames of a deterministic session
+/// ([`super::SessionConfig::deterministic`], headless runs): frame `n` (from 1) shows the
+/// first step at or after `n / rate` of session time, made while the tick waits, so that it
+/// draws that step's state, cut and damage on any load, and the co-rotational correction it
+/// leaves lands at the next tick.
+pub(super) struct Lockstep {
+    /// Steps per frame (the period times the rate, inverted).
+    steps_per_frame: f64,
+    /// Frames asked so far.
+    asked: u64,
+    requests: std::sync::mpsc::SyncSender<()>,
+    made: Receiver<()>,
+}
+
+impl Lockstep {
+    /// The tick's end of a frame thread taking `requests` and reporting on `made`, a frame
+    /// every `steps_per_frame` steps ([`super::frames::spawn_lockstep`]).
+    pub fn new(steps_per_frame: f64, requests: std::sync::mpsc::SyncSender<()>, made: Receiver<()>) -> Self {
+        Self {
+            steps_per_frame,
+            asked: 0,
+            requests,
+            made,
+        }
+    }
+
+    /// Makes the frames due once step `step` (counted from 0) is done, waiting for each; a
+    /// frame thread that has ended is not waited for.
+    pub fn after_step(&mut self, step: u64) {
+        while (self.asked + 1) as f64 * self.steps_per_frame <= (step + 1) as f64 {
+            self.asked += 1;
+            if self.requests.send(()).is_err() || self.made.recv().is_err() {
+                return;
+            }
+        }
     }
 }
 

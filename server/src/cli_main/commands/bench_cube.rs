@@ -21,7 +21,7 @@ use vademecum_engine::mesh::CellKind;
 use vademecum_engine::mesh::procedural::{block_hex, block_tet};
 
 use super::bench::{print_rows, signed_percent};
-use crate::cli_main::cli::BenchCubeArgs;
+use crate::cli_main::cli::{BenchCubeArgs, CubeElement};
 
 /// Seed 004 Table 5.2 at 20 % stretch.
 const SEED_ENERGY_J: f64 = 0.06477;
@@ -100,7 +100,7 @@ pub fn run(a: BenchCubeArgs) -> anyhow::Result<ExitCode> {
     let mut rows = Vec::new();
     for &n in &a.cells {
         for &e in &elements {
-            let (kind, v) = e.cell();
+            let (kind, v) = cell(e);
             bar.step(&format!("{n}³ cubes, {e:?}, 20 % stretch"));
             rows.push(solve(n, kind, v, 0.2, 4)?);
         }
@@ -150,27 +150,12 @@ pub fn run(a: BenchCubeArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// An element of `bench cube --elements`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum CubeElement {
-    /// Hexahedra with the mean-dilatation volumetric term (also the range study's).
-    Hex8MeanDilatation,
-    /// Hexahedra, full integration.
-    Hex8Full,
-    /// Tetrahedra with the averaged nodal pressure.
-    Tet4Nodal,
-    /// Plain tetrahedra.
-    Tet4Plain,
-}
-
-impl CubeElement {
-    /// Its cell and volumetric treatment.
-    fn cell(self) -> (CellKind, Volumetric) {
-        match self {
-            CubeElement::Hex8MeanDilatation => (CellKind::Hex8, Volumetric::MeanDilatation),
-            CubeElement::Hex8Full => (CellKind::Hex8, Volumetric::PointWise),
-            CubeElement::Tet4Nodal => (CellKind::Tet4, Volumetric::Nodal),
-            CubeElement::Tet4Plain => (CellKind::Tet4, Volumetric::PointWise),
-        }
+/// The cell and volumetric treatment of element `e`.
+fn cell(e: CubeElement) -> (CellKind, Volumetric) {
+    match e {
+        CubeElement::Hex8MeanDilatation => (CellKind::Hex8, Volumetric::MeanDilatation),
+        CubeElement::Hex8Full => (CellKind::Hex8, Volumetric::PointWise),
+        CubeElement::Tet4Nodal => (CellKind::Tet4, Volumetric::Nodal),
+        CubeElement::Tet4Plain => (CellKind::Tet4, Volumetric::PointWise),
     }
 }

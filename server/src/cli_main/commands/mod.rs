@@ -3,7 +3,7 @@
 mod bench;
 mod bench_anm;
 mod bench_corot;
-pub(crate) mod bench_cube;
+mod bench_cube;
 mod bench_cut;
 mod bench_cut_session;
 mod bench_effects;
