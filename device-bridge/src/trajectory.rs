@@ -120,6 +120,11 @@ pub const MAX_DURATION_S: f64 = 86_400.0;
 /// recorded device session of an hour at 1 kHz is 3.6 M.
 pub const MAX_KEYFRAMES: usize = 10_000_000;
 
+/// Most bytes of a trajectory or recording file: an hour of a 1 kHz recording (3.6 million
+/// rows) or a million rows of a scalpel's thirteen columns at full precision fit well within
+/// it; the file is read whole before it is parsed.
+pub const MAX_SCRIPT_BYTES: u64 = 1 << 30;
+
 impl Trajectory {
     /// From keyframes; times must be finite and strictly increasing, spanning at most
     /// [`MAX_DURATION_S`], positions finite, closures in [0, 1].
@@ -194,10 +199,9 @@ impl Trajectory {
             path: path.display().to_string(),
             message,
         };
-        let mut r = csv::ReaderBuilder::new()
-            .trim(csv::Trim::All)
-            .from_path(path)
-            .map_err(|e| bad(e.to_string()))?;
+        // a regular file only, bounded: a FIFO would block the read, /dev/zero never end it
+        let bytes = vademecum_files::read_regular(path, MAX_SCRIPT_BYTES).map_err(|e| bad(e.to_string()))?;
+        let mut r = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(bytes.as_slice());
         let mut keys = Vec::new();
         let mut blades = Vec::new();
         for row in r.deserialize::<Row>() {
@@ -389,5 +393,30 @@ mod tests {
         std::fs::write(&p, "t_s,x_m,y_m,z_m\n0,0,0,0\n1,0,zero,0\n").unwrap();
         let e = Trajectory::read(&p).unwrap_err().to_string();
         assert!(e.contains("t.csv") && e.contains("line: 3"), "{e}");
+    }
+
+    #[test]
+    fn special_files_are_refused_as_trajectories_and_recordings() {
+        use crate::device::replay::Replay;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+        let zero = dir.path().join("zero.csv");
+        std::os::unix::fs::symlink("/dev/zero", &zero).unwrap();
+        // read on threads: a reader that blocks on the FIFO fails the test instead of hanging it
+        for (p, what) in [(fifo, "FIFO"), (zero, "device")] {
+            let (tx, rx) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                let a = Trajectory::read(&p).unwrap_err().to_string();
+                let b = Replay::read(&p).err().map(|e| e.to_string()).unwrap_or_default();
+                let _ = tx.send((a, b));
+            });
+            let (a, b) = rx
+                .recv_timeout(std::time::Duration::from_secs(10))
+                .expect("the read does not block");
+            for e in [a, b] {
+                assert!(e.contains(what) && e.contains("not a regular file"), "{e}");
+            }
+        }
     }
 }

@@ -4,6 +4,7 @@
 //! Shutdown once drained. Runs with `--features agones` (.ci/run does).
 #![cfg(feature = "agones")]
 
+#[path = "it/util/mod.rs"]
 mod util;
 
 use std::sync::{Arc, Mutex};

@@ -1,6 +1,6 @@
 """Drives the web viewer in headless Chromium (Debian's, through Playwright; no browser
 download): argv = viewer URL, token, session label, screenshot path. Prints one JSON object:
-what the page showed (see tests/tests/web.rs)."""
+what the page showed (see tests/tests/it/web.rs)."""
 import json
 import sys
 import time

@@ -23,10 +23,8 @@ impl Replay {
     /// anything, even `NaN`).
     pub fn read(path: &Path) -> Result<Self, DeviceError> {
         let bad = |m: String| DeviceError::Open(format!("{}: {m}", path.display()));
-        let mut r = csv::ReaderBuilder::new()
-            .trim(csv::Trim::All)
-            .from_path(path)
-            .map_err(|e| bad(e.to_string()))?;
+        let bytes = vademecum_files::read_regular(path, crate::trajectory::MAX_SCRIPT_BYTES).map_err(|e| bad(e.to_string()))?;
+        let mut r = csv::ReaderBuilder::new().trim(csv::Trim::All).from_reader(bytes.as_slice());
         let mut rows: Vec<Row> = Vec::new();
         for row in r.deserialize::<Row>() {
             let row = row.map_err(|e| bad(e.to_string()))?;

@@ -5,7 +5,7 @@
 //! finite, bounded answer with its error against a reference, or a typed diagnostic.
 //!
 //! `vademecum check hard-cases` runs it at full size and prints the table; `cargo test` runs it
-//! at reduced size (`engine/tests/hard_cases.rs`). `docs/stability.md` holds the verdicts.
+//! at reduced size (`engine/tests/it/hard_cases.rs`). `docs/stability.md` holds the verdicts.
 //!
 //! # Layout
 //! - [`Case`], [`Expect`], [`Outcome`], [`Verdict`], [`run`]: the contract and the runner

@@ -480,14 +480,14 @@ pub fn build_organ(scene: &Scene, index: usize, opts: &BuildOptions, on: &mut dy
 /// Shard `of` of the exact responses `U = K⁻¹ F_L` of organ `index` of `scene`: the columns of
 /// its load states ([`shard_range`]; `n_free × range.len()`, column-major), solved in the same
 /// blocks of columns as a single-process build, so a sharded build merged is the same bundle
-/// to the bit. Returns the columns, the range, and the number of load states in all.
+/// to the bit.
 pub fn solve_shard(
     scene: &Scene,
     index: usize,
     opts: &BuildOptions,
     of: super::shard::ShardOf,
     on: &mut dyn FnMut(BuildStage),
-) -> Result<(Vec<f64>, std::ops::Range<usize>, usize), BuildError> {
+) -> Result<ShardColumns, BuildError> {
     let model = scene.organ_model_within(index, opts.max_memory)?;
     let LoadStates { dofs, chol, load_eqs, .. } = load_states(&model, opts, on)?;
     let total = load_eqs.len();
@@ -499,7 +499,26 @@ pub fn solve_shard(
         u[at..at + block.len()].copy_from_slice(block);
         on(BuildStage::Exact(start + block.len() / n, total));
     });
-    Ok((u, range, total))
+    Ok(ShardColumns {
+        u,
+        range,
+        load_states: total,
+        n_free: n,
+    })
+}
+
+/// The columns a shard solved ([`solve_shard`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ShardColumns {
+    /// `U`'s columns of the shard's load states (`n_free × range.len()`, column-major).
+    pub u: Vec<f64>,
+    /// Its load states.
+    pub range: std::ops::Range<usize>,
+    /// Load states of the organ in all.
+    pub load_states: usize,
+    /// The organ's free equations (rows of `U`), also for a shard with no load state: the
+    /// merge checks every shard against the first.
+    pub n_free: usize,
 }
 
 /// What every build of an organ starts from, a whole one or a shard: its load states and its

@@ -123,7 +123,7 @@ pub const RATE_NEIGHBOURHOOD: usize = 4;
 
 /// The relative error of a lattice position's own ANM-POD path against full Newton at the same
 /// position: the floor of [`Stiffening::error`]. The lattice test holds the path's load factor
-/// within 1e-3 of Newton's at every depth Newton reached (`engine/tests/large_palpation.rs`).
+/// within 1e-3 of Newton's at every depth Newton reached (`engine/tests/it/large_palpation.rs`).
 pub const PATH_RELATIVE_ERROR: f64 = 1e-3;
 
 /// The margin on the leave-one-out's largest ratio ([`AnmLattice::interpolation_rates`]): the

@@ -101,8 +101,11 @@ impl VisualMesh {
         // read here, bounded and from a regular file only; material libraries are not opened
         // (a `mtllib` line may name any file: the visual surface needs none)
         let bytes = crate::files::read_regular(path, crate::files::MAX_VISUAL_BYTES).map_err(|e| file(e.to_string()))?;
-        let (models, _materials) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &options, |_| Err(tobj::LoadError::OpenFileFailed))
-            .map_err(|e| file(e.to_string()))?;
+        let positions = positions_only(&bytes).map_err(file)?;
+        let (models, _materials) = tobj::load_obj_buf(&mut std::io::Cursor::new(positions), &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .map_err(|e| file(e.to_string()))?;
         let mut out = VisualMesh {
             vertices: Vec::new(),
             triangles: Vec::new(),
@@ -169,6 +172,52 @@ impl VisualMesh {
     }
 }
 
+/// The positions and faces of an OBJ file, for tobj to triangulate: its `v` lines, and its `f`
+/// lines with each corner cut to its position index, checked to name a vertex given before it
+/// (1-based, or negative: counted back from the last). Everything else — texture coordinates,
+/// normals, groups, materials — is not drawn and is dropped: tobj's index arithmetic on those
+/// overflows on indices such as `-9223372809` (found by the fuzzer), so it never sees them.
+fn positions_only(bytes: &[u8]) -> Result<Vec<u8>, String> {
+    let text = String::from_utf8_lossy(bytes);
+    let mut out = String::with_capacity(text.len());
+    let mut vertices: i64 = 0;
+    for (line, l) in text.lines().enumerate() {
+        let mut words = l.split_whitespace();
+        match words.next() {
+            Some("v") => {
+                vertices += 1;
+                out.push_str(l);
+                out.push('\n');
+            }
+            Some("f") => {
+                out.push('f');
+                for corner in words {
+                    let index = corner.split('/').next().unwrap_or("");
+                    let i: i64 = index
+                        .parse()
+                        .map_err(|_| format!("line {}: face corner '{}' has no vertex index", line + 1, clip(corner)))?;
+                    if i == 0 || i > vertices || i < -vertices {
+                        return Err(format!(
+                            "line {}: face vertex {i} is not one of the {vertices} vertices given before it",
+                            line + 1
+                        ));
+                    }
+                    out.push(' ');
+                    out.push_str(&(if i > 0 { i } else { vertices + 1 + i }).to_string());
+                }
+                out.push('\n');
+            }
+            _ => {}
+        }
+    }
+    Ok(out.into_bytes())
+}
+
+/// At most 32 characters of `s`, for an error message.
+fn clip(s: &str) -> String {
+    s.chars().take(32).collect()
+}
+
 /// The vertices of a visual mesh embedded in a tetrahedral mesh.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Embedding {
@@ -181,6 +230,9 @@ pub struct Embedding {
     pub outside: Vec<f64>,
     /// The side of a cut each vertex follows ([`VertexSide::Own`] unless given).
     pub side: Vec<VertexSide>,
+    /// How many (vertex, cell) pairs the embedding tried: its cost, a small multiple of the
+    /// number of vertices.
+    pub examined: usize,
 }
 
 /// Barycentric coordinates of `p` in the tetrahedron `x`.
@@ -198,7 +250,12 @@ fn barycentric(x: &[[f64; 3]; 4], p: [f64; 3]) -> [f64; 4] {
 
 impl Embedding {
     /// Embeds `vertices` in the tetrahedra of `mesh`: each in the cell that holds it (found
-    /// through a grid of the cells' bounding boxes), or the cell it is least outside of.
+    /// through a grid of the cells' bounding boxes), or the cell it is least outside of among
+    /// those near it: the cells of the grid's slots in Chebyshev shells round the vertex's slot
+    /// (the nearest slot for a vertex outside the grid), up to one shell past the first that
+    /// holds any cell. The cost is linear in the number of vertices (a search of every cell per
+    /// vertex outside the mesh made a surface of 3,000 small closed boxes cost up to 2 s a frame;
+    /// [`Embedding::examined`] counts what was tried).
     pub fn new(mesh: &Mesh, vertices: &[[f64; 3]]) -> Result<Self, VisualError> {
         if mesh.kind != CellKind::Tet4 {
             return Err(VisualError::NotTetrahedra(mesh.kind));
@@ -229,30 +286,63 @@ impl Embedding {
                 }
             }
         }
-        let least_outside = |cands: &mut dyn Iterator<Item = usize>, p: [f64; 3]| -> Option<(usize, [f64; 4], f64)> {
-            let mut best: Option<(usize, [f64; 4], f64)> = None;
-            for c in cands {
-                let l = barycentric(&coords[c], p);
-                let worst = l.iter().copied().fold(f64::INFINITY, f64::min);
-                if best.as_ref().is_none_or(|b| worst > b.2) {
-                    best = Some((c, l, worst));
-                }
-            }
-            best
-        };
+        if nc == 0 {
+            return Err(VisualError::Malformed("the simulation mesh has no cell".into()));
+        }
+        let n = cells_per_axis as isize;
+        // the last vertex each cell was tried for: a cell in several slots is tried once
+        let mut tried = vec![usize::MAX; nc];
+        let mut examined = 0usize;
         let mut e = Embedding {
             cell: Vec::with_capacity(vertices.len()),
             bary: Vec::with_capacity(vertices.len()),
             outside: Vec::with_capacity(vertices.len()),
             side: vec![VertexSide::Own; vertices.len()],
+            examined: 0,
         };
-        for &p in vertices {
-            let bucket = &grid[(slot(p, 0) * cells_per_axis + slot(p, 1)) * cells_per_axis + slot(p, 2)];
-            let found = least_outside(&mut bucket.iter().copied(), p).filter(|b| b.2 >= -1e-12);
-            let (c, l, worst) = match found {
-                Some(b) => b,
-                None => least_outside(&mut (0..nc), p).ok_or_else(|| VisualError::Malformed("the simulation mesh has no cell".into()))?,
+        for (v, &p) in vertices.iter().enumerate() {
+            let home = [0, 1, 2].map(|k| slot(p, k) as isize);
+            let mut best: Option<(usize, [f64; 4], f64)> = None;
+            let mut try_shell = |r: isize, best: &mut Option<(usize, [f64; 4], f64)>| {
+                let mut any = false;
+                for i in (home[0] - r).max(0)..=(home[0] + r).min(n - 1) {
+                    for j in (home[1] - r).max(0)..=(home[1] + r).min(n - 1) {
+                        for k in (home[2] - r).max(0)..=(home[2] + r).min(n - 1) {
+                            let on_shell = (i - home[0]).abs() == r || (j - home[1]).abs() == r || (k - home[2]).abs() == r;
+                            if !on_shell {
+                                continue;
+                            }
+                            for &c in &grid[((i * n + j) * n + k) as usize] {
+                                any = true;
+                                if tried[c] == v {
+                                    continue;
+                                }
+                                tried[c] = v;
+                                examined += 1;
+                                let l = barycentric(&coords[c], p);
+                                let worst = l.iter().copied().fold(f64::INFINITY, f64::min);
+                                if best.as_ref().is_none_or(|b| worst > b.2) {
+                                    *best = Some((c, l, worst));
+                                }
+                            }
+                        }
+                    }
+                }
+                any
             };
+            // the vertex's own slot; then, unless a cell there holds it, the shells round it up
+            // to one past the first that holds a cell
+            let mut first = try_shell(0, &mut best).then_some(0);
+            if best.as_ref().is_none_or(|b| b.2 < -1e-12) {
+                let mut r = 1;
+                while r < n && first.is_none_or(|f| r <= f + 1) {
+                    if try_shell(r, &mut best) && first.is_none() {
+                        first = Some(r);
+                    }
+                    r += 1;
+                }
+            }
+            let (c, l, worst) = best.ok_or_else(|| VisualError::Malformed("the simulation mesh has no cell".into()))?;
             if !worst.is_finite() {
                 return Err(VisualError::Malformed(format!(
                     "vertex {p:?} lies in no cell (degenerate tetrahedra)"
@@ -262,6 +352,7 @@ impl Embedding {
             e.bary.push(l);
             e.outside.push((-worst).max(0.0));
         }
+        e.examined = examined;
         Ok(e)
     }
 

@@ -337,14 +337,18 @@ fn run_shard(a: BuildArgs, of: ShardOf) -> anyhow::Result<ExitCode> {
         let name = scene.spec.organs[i].name.clone();
         let bar = Stages::start(&format!("shard {}/{} of '{name}'", of.index, of.count));
         let clock = std::time::Instant::now();
-        let (u, range, total) = offline::solve_shard(&scene, i, &opts, of, &mut |s| match s {
+        let offline::ShardColumns {
+            u,
+            range,
+            load_states: total,
+            n_free,
+        } = offline::solve_shard(&scene, i, &opts, of, &mut |s| match s {
             BuildStage::Assembly => bar.stage("assembling K"),
             BuildStage::Factorization => bar.stage("factoring K"),
             BuildStage::Exact(done, total) => bar.stage(&format!("exact responses, load state {done}/{total}")),
             _ => {}
         })
         .with_context(|| format!("cannot build organ '{name}'"))?;
-        let n_free = if range.is_empty() { 0 } else { u.len() / range.len() };
         let info = ShardInfo {
             shard: of,
             start: range.start,

@@ -63,7 +63,7 @@ pub(super) async fn connect(addr: &str, ca: Option<&std::path::Path>) -> anyhow:
     if addr.starts_with("https://") {
         let mut tls = tonic::transport::ClientTlsConfig::new();
         if let Some(ca) = ca {
-            let pem = std::fs::read(ca).with_context(|| format!("cannot read CA certificate {}", ca.display()))?;
+            let pem = super::credential(ca).with_context(|| format!("cannot read CA certificate {}", ca.display()))?;
             tls = tls.ca_certificate(tonic::transport::Certificate::from_pem(pem));
         }
         endpoint = endpoint.tls_config(tls).context("cannot set up TLS")?;

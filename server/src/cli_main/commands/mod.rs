@@ -41,10 +41,17 @@ use anyhow::{Context, bail};
 
 use crate::cli_main::cli::{BenchCommand, CheckCommand, Cli, Command, MeshCommand};
 
+/// A credential file a user names (a TLS certificate or key, a CA bundle), read only if it is
+/// a regular file of at most `MAX_CREDENTIAL_BYTES`.
+fn credential(path: &Path) -> std::io::Result<Vec<u8>> {
+    vademecum_engine::files::read_regular(path, vademecum_engine::files::MAX_CREDENTIAL_BYTES)
+}
+
 /// The bearer tokens of a tokens file (`serve --tokens-file`, `drain --tokens-file`): one per
 /// line, blank lines and `#` comments skipped; an error when it holds none.
 fn tokens_in_file(path: &Path) -> anyhow::Result<Vec<String>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read token file {}", path.display()))?;
+    let text = vademecum_engine::files::read_regular_text(path, vademecum_engine::files::MAX_CREDENTIAL_BYTES)
+        .with_context(|| format!("cannot read token file {}", path.display()))?;
     let tokens: Vec<String> = text
         .lines()
         .map(str::trim)

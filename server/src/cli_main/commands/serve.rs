@@ -64,7 +64,7 @@ fn fleet(a: &ServeArgs) -> anyhow::Result<Option<crate::fleet::FleetConfig>> {
     // a server listed among its own peers would place sessions on itself through a hop
     peers.retain(|p| p != &advertise);
     let peer_ca = match &a.peer_ca {
-        Some(f) => Some(std::fs::read(f).with_context(|| format!("cannot read --peer-ca {}", f.display()))?),
+        Some(f) => Some(super::credential(f).with_context(|| format!("cannot read --peer-ca {}", f.display()))?),
         None => None,
     };
     Ok(Some(crate::fleet::FleetConfig { advertise, peers, peer_ca }))
@@ -103,8 +103,8 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     }
     let tls = match (&a.tls_cert, &a.tls_key) {
         (Some(c), Some(k)) => Some((
-            std::fs::read(c).with_context(|| format!("cannot read TLS certificate {}", c.display()))?,
-            std::fs::read(k).with_context(|| format!("cannot read TLS key {}", k.display()))?,
+            super::credential(c).with_context(|| format!("cannot read TLS certificate {}", c.display()))?,
+            super::credential(k).with_context(|| format!("cannot read TLS key {}", k.display()))?,
         )),
         (None, None) => None,
         _ => bail!("--tls-cert and --tls-key go together"),

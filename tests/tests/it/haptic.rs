@@ -1,0 +1,351 @@
+//! The haptic path across processes: `vademecum run --haptic` (the server's session) and
+//! `vademecum-bridge` (sim and replay devices) talking over iceoryx2 shared memory.
+//!
+//! These machines are shared VMs whose scheduler can wake a thread a millisecond late: the
+//! tests assert behaviour (which force answers which position, what the watchdog does after
+//! the last fresh force, counted rejections), never timing.
+
+use crate::util;
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use util::{HapticRun, assert_forces_match_engine, bridge_bin, channel, engine, norm, read_trace, vademecum};
+
+/// A hand script of `reps` built-in palpations back to back (5 s each).
+fn repeated_palpation(record: &Path, reps: usize, out: &Path) {
+    let text = std::fs::read_to_string(record.join("trajectory.csv")).unwrap();
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    let mut csv = String::from("t_s,x_m,y_m,z_m,closure\n");
+    for r in 0..reps {
+        for (i, row) in rows.iter().enumerate() {
+            let mut f = row.split(',');
+            let t: f64 = f.next().unwrap().parse().unwrap();
+            if r > 0 && i == 0 {
+                continue; // the last keyframe of the previous round is this one's first
+            }
+            csv.push_str(&format!("{},{}\n", t + 5.0 * r as f64, f.collect::<Vec<_>>().join(",")));
+        }
+    }
+    std::fs::write(out, csv).unwrap();
+}
+
+/// A bridge whose server never appears (another user, a private /tmp, a wrong channel name)
+/// says what to check, once, and goes on waiting; with its server there it says nothing.
+#[test]
+fn a_bridge_alone_on_its_channel_says_what_to_check() {
+    let ch = channel("alone");
+    let out = Command::new(bridge_bin())
+        .args([
+            "--session",
+            &ch,
+            "--device",
+            "null",
+            "--no-realtime",
+            "--duration",
+            "1.5",
+            "--warn-no-server-after",
+            "0.3",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.matches("no server has opened channel").count(), 1, "{err}");
+    assert!(
+        err.contains("same user") && err.contains("/tmp/iceoryx2") && err.contains("PrivateTmp"),
+        "{err}"
+    );
+    let bad = Command::new(bridge_bin())
+        .args(["--session", &ch, "--device", "null", "--warn-no-server-after", "-1"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("--warn-no-server-after must be a positive number"));
+}
+
+#[test]
+fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnects() {
+    let dir = tempfile::tempdir().unwrap();
+    let ch = channel("reconnect");
+    let server = HapticRun::start(&ch, &dir.path().join("a"), &[]);
+    let hand = dir.path().join("hand.csv");
+    repeated_palpation(&dir.path().join("a"), 4, &hand);
+    let trace = dir.path().join("trace.csv");
+    let bridge = Command::new(bridge_bin())
+        .args([
+            "--session",
+            &ch,
+            "--device",
+            "sim",
+            "--no-realtime",
+            "--duration",
+            "17",
+            "--json",
+            "--script",
+        ])
+        .arg(&hand)
+        .arg("--record")
+        .arg(&trace)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // 12 s at 1 kHz against the first server, then a crash mid-press (the third palpation
+    // holds the probe down from 11 s to 13.5 s)
+    let t0 = Instant::now();
+    std::thread::sleep(Duration::from_secs(12));
+    server.crash();
+    let crashed_at = t0.elapsed();
+    std::thread::sleep(Duration::from_millis(500));
+    let _again = HapticRun::start(&ch, &dir.path().join("b"), &[]);
+    let restarted_at = t0.elapsed();
+    let out = bridge.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "the bridge waits through the crash and exits cleanly: {:?}",
+        out.status
+    );
+    // its server was there: no hint about a missing one
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("no server has opened channel"), "{err}");
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["end"], "duration");
+
+    let rows = read_trace(&trace);
+    assert!(rows.len() >= 16_000, "{} ticks", rows.len());
+    // the gap: the longest run of ticks without a fresh force
+    let fresh: Vec<usize> = rows.iter().enumerate().filter(|(_, r)| r.fresh).map(|(i, _)| i).collect();
+    let (last_before, first_after) = fresh.windows(2).map(|w| (w[0], w[1])).max_by_key(|(a, b)| b - a).unwrap();
+    let gap_ms = (first_after - last_before) as f64;
+    assert!(
+        gap_ms >= 400.0,
+        "the server was down from {crashed_at:?} to {restarted_at:?}, yet the longest gap is {gap_ms} ticks"
+    );
+    // before the crash: ~10 s of forces, each the engine's for the position it answers
+    let mut engine = engine();
+    let touching = assert_forces_match_engine(&rows, 0..last_before + 1, &mut engine);
+    assert!(fresh.iter().filter(|&&i| i <= last_before).count() >= 10_000);
+    assert!(
+        touching >= 3000,
+        "the palpation presses for seconds: {touching} forces above 0.05 N"
+    );
+    // the crash came mid-press: the force was on, and is exactly zero 5 ticks later
+    assert!(norm(rows[last_before].output_n) > 0.05, "{:?}", rows[last_before]);
+    for r in &rows[last_before + 5..first_after] {
+        assert_eq!(
+            r.output_n,
+            [0.0; 3],
+            "tick {} ({} after the last fresh force)",
+            r.tick,
+            r.tick - rows[last_before].tick
+        );
+    }
+    // after the restart: fresh forces again, the engine's, in contact
+    let touching = assert_forces_match_engine(&rows, first_after..rows.len(), &mut engine);
+    assert!(touching > 500, "{touching} forces above 0.05 N after reconnecting");
+}
+
+#[test]
+fn bad_device_samples_are_clamped_counted_and_never_become_a_force_spike() {
+    let dir = tempfile::tempdir().unwrap();
+    let ch = channel("bad-input");
+    let _server = HapticRun::start(&ch, &dir.path().join("a"), &[]);
+    // a recording pressed into the organ (the built-in palpation's hold point), with a
+    // dropout, a 10 cm glitch and an excursion out of the workspace
+    let text = std::fs::read_to_string(dir.path().join("a/trajectory.csv")).unwrap();
+    let hold: Vec<f64> = text
+        .lines()
+        .nth(3)
+        .unwrap()
+        .split(',')
+        .skip(1)
+        .take(3)
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let [x, y, z] = [hold[0], hold[1], hold[2]];
+    let mut rec = String::from("t_s,x_m,y_m,z_m\n");
+    for i in 0..1500 {
+        let t = i as f64 * 1e-3;
+        let p = match i {
+            500..=509 => [f64::NAN, y, z],
+            700 => [x, y, z - 0.1],
+            900..=919 => [x, y + 3.0, z],
+            _ => [x, y, z],
+        };
+        rec.push_str(&format!("{t},{},{},{}\n", p[0], p[1], p[2]));
+    }
+    let recording = dir.path().join("rec.csv");
+    std::fs::write(&recording, rec).unwrap();
+    let trace = dir.path().join("trace.csv");
+    let out = Command::new(bridge_bin())
+        .args(["--session", &ch, "--device", "replay", "--no-realtime", "--json", "--script"])
+        .arg(&recording)
+        .arg("--record")
+        .arg(&trace)
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["end"], "end of script");
+    assert!(s["rejected_non_finite"].as_u64().unwrap() >= 10, "{s}");
+    assert!(s["clamped_jumps"].as_u64().unwrap() >= 1, "{s}");
+    assert!(s["clamped_workspace"].as_u64().unwrap() >= 20, "{s}");
+    let rows = read_trace(&trace);
+    let (max_n, step_n) = (10.0, 1.0); // the sim profile: 10 N, 1000 N/s at 1 kHz
+    let mut prev = [0.0; 3];
+    for r in &rows {
+        assert!(r.position_m.iter().all(|c| c.is_finite()), "tick {}", r.tick);
+        assert!(norm(r.output_n) <= max_n + 1e-9, "tick {}: {:?}", r.tick, r.output_n);
+        // the force never grows faster than the rate limit (it may fall faster: the
+        // watchdog's fade to zero is a safety action, not a spike)
+        let rise = norm(r.output_n) - norm(prev);
+        assert!(rise <= step_n + 1e-9, "tick {}: the force grew by {rise} N", r.tick);
+        prev = r.output_n;
+    }
+    // the glitches moved the sent position by at most 2 mm per tick (2 m/s)
+    for w in rows.windows(2) {
+        let d = norm([0, 1, 2].map(|k| w[1].position_m[k] - w[0].position_m[k]));
+        assert!(d <= 2e-3 + 1e-12, "tick {}: the sent position jumped {d} m", w[1].tick);
+    }
+    assert!(rows.iter().any(|r| r.input_adjusted));
+    // and the forces the server did send are still the engine's for what was sent
+    let mut engine = engine();
+    assert!(assert_forces_match_engine(&rows, 0..rows.len(), &mut engine) > 500);
+}
+
+#[test]
+fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
+    // `vademecum run --haptic` on patch_cut writes its scripted incision (with the blade's
+    // columns) as the hand script; the bridge's simulated stylus plays it: the blade state
+    // crosses shared memory, the session cuts, and every force the device renders stays
+    // within the scalpel's and the device's limits.
+    //
+    // The scene is the built-in patch_cut with a tenth of its cut force (0.1 N). At the seed's
+    // 1 N the blade's midpoint reaches the threshold 0.52 m deep in a strip 1 m thick, past the
+    // 0.5 m where the strip's surface normals (45° at its two edges) meet: there the proxy's
+    // projection has no unique answer, and which way it slides — so whether the force stays
+    // over 1 N — depends on the blade states the session happened to read. Three CI runs on a
+    // loaded machine cut along 73–75 mm and then stopped, without a cell (docs/contact.md,
+    // "The proxy"). At 0.1 N the blade cuts from 5 cm deep, far from that point, and the
+    // force it then meets stays well over the threshold on every branch (six loaded runs: the
+    // whole descent cut each time). This test is about the blade's path over shared memory.
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("patch_cut.toml");
+    let toml = String::from_utf8(vademecum(dir.path(), &["scene", "show", "patch_cut"]).stdout).unwrap();
+    let line = toml
+        .lines()
+        .find(|l| l.starts_with("cut_force"))
+        .expect("patch_cut has a cut_force");
+    std::fs::write(&scene, toml.replace(line, "cut_force = 0.1")).unwrap();
+    let ch = channel("scalpel");
+    let record = dir.path().join("run");
+    let mut server = HapticRun::start_with("patch_cut", &ch, &record, &[scene.to_str().unwrap(), "--duration", "12"]);
+    let script = std::fs::read_to_string(record.join("trajectory.csv")).unwrap();
+    assert!(script.lines().next().unwrap().contains("bx_m"), "the hand script carries the blade");
+    let trace = dir.path().join("trace.csv");
+    // the patch is metres wide: the device's workspace and hand speed widened to it; the
+    // device renders a tenth of the organ's force (the simulated hand, coupled to the stylus
+    // at 300 N/m, then follows its script within a few millimetres)
+    let out = Command::new(bridge_bin())
+        .args(["--session", &ch, "--device", "sim", "--no-realtime", "--json", "--max-speed", "50"])
+        .args(["--force-scale", "0.1"])
+        .args(["--workspace=-20,-20,-20,20,20,20", "--script"])
+        .arg(record.join("trajectory.csv"))
+        .arg("--record")
+        .arg(&trace)
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", out.status);
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["end"], "end of script", "{s}");
+    let status = server.child.wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    let summary: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(record.join("summary.json")).unwrap()).unwrap();
+    let cut = &summary["cut"];
+    assert!(cut["cells"].as_u64().unwrap() >= 1, "the blade cut the patch: {summary}");
+    assert!(cut["cracked_nodes"].as_u64().unwrap() >= 4, "{summary}");
+    // it cut along its whole descent (5.0 → 3.95 m): the force never fell under the threshold
+    assert!(cut["path_mm"].as_f64().unwrap() > 900.0, "the blade cut all the way: {summary}");
+    assert_eq!(summary["rejected_inputs"], 0, "every blade state was a blade: {summary}");
+    let rows = read_trace(&trace);
+    assert!(rows.iter().filter(|r| r.fresh).count() > 1000);
+    // the scalpel's limit (the scene's default, 50 N) at the device's scale, and the sim
+    // device's own (10 N)
+    assert!(
+        rows.iter()
+            .all(|r| norm(r.received_n) <= 50.0 + 1e-9 && norm(r.output_n) <= 5.0 + 1e-9)
+    );
+    assert!(rows.iter().any(|r| norm(r.received_n) > 0.05), "the blade pressed on the tissue");
+}
+
+/// Scrapes `GET /metrics` from `addr`.
+fn scrape(addr: &str) -> String {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).unwrap();
+    s.write_all(b"GET /metrics HTTP/1.0\r\nHost: x\r\n\r\n").unwrap();
+    let mut out = String::new();
+    s.read_to_string(&mut out).unwrap();
+    out
+}
+
+#[test]
+fn a_grpc_session_opens_a_haptic_channel_named_after_its_id_and_exports_the_bridges_figures() {
+    use vademecum_client::{Client, SceneSpec};
+    let server = util::Server::start(&["--metrics", "127.0.0.1:0"], &[]);
+    let rt = util::runtime();
+    let client = rt.block_on(Client::connect(server.url.clone())).unwrap();
+    let session = rt
+        .block_on(client.create_haptic_session(SceneSpec::Builtin("organ".into()), "organ", "haptic", ""))
+        .unwrap();
+    let id = session.info().session_id.clone();
+    assert_eq!(session.info().haptic_channel, id);
+    // one channel, one session: a second session on it is refused with the reason
+    let e = rt
+        .block_on(client.create_haptic_session(SceneSpec::Builtin("organ".into()), "organ", "", &id))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("in use"), "{e}");
+    let e = rt
+        .block_on(client.create_haptic_session(SceneSpec::Builtin("organ".into()), "organ", "", "no/slash"))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("haptic channel name"), "{e}");
+    // a bridge with a still device for 1.5 s
+    let out = Command::new(bridge_bin())
+        .args(["--session", &id, "--device", "null", "--no-realtime", "--duration", "1.5", "--json"])
+        .stderr(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // plumbing, not timing: on a loaded machine many ticks may go stale
+    let fresh = s["fresh_forces"].as_u64().unwrap();
+    assert!(fresh >= 100, "{s}");
+    // the bridge's final report reaches the session's statistics and the metrics
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let stats = loop {
+        let st = rt.block_on(session.stats()).unwrap();
+        if st.bridge_latency_p50_us > 0.0 || Instant::now() > deadline {
+            break st;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(stats.haptic_answered >= fresh, "{stats:?}");
+    assert!(
+        stats.bridge_latency_p50_us > 0.0 && stats.bridge_latency_p99_us >= stats.bridge_latency_p50_us,
+        "{stats:?}"
+    );
+    let text = scrape(server.metrics.as_deref().unwrap());
+    for name in [
+        "vademecum_haptic_answers_total{session=",
+        "vademecum_bridge_latency_seconds{session=",
+        "vademecum_bridge_deadline_misses_total{session=",
+        "vademecum_bridge_watchdog_ticks_total{session=",
+    ] {
+        assert!(text.contains(name), "{name} missing from:\n{text}");
+    }
+}

@@ -1,0 +1,17 @@
+//! The end-to-end tests across processes, as modules of one test binary (one link instead of
+//! one per file). `agones.rs` stays apart: it needs the `agones` feature.
+//! Run one module with `cargo test -p vademecum-tests --test it haptic::`.
+
+mod util;
+
+mod bundle_store;
+mod cutting;
+mod devices;
+mod fleet;
+mod haptic;
+mod hardening;
+mod load;
+mod python;
+mod server;
+mod tearing;
+mod web;
