@@ -242,7 +242,10 @@ fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
     std::fs::write(&scene, toml.replace(line, "cut_force = 0.1")).unwrap();
     let ch = channel("scalpel");
     let record = dir.path().join("run");
-    let mut server = HapticRun::start_with("patch_cut", &ch, &record, &[scene.to_str().unwrap(), "--duration", "12"]);
+    // its own bundle folder: the shared one holds the built-in patch_cut's bundle, which other
+    // tests of this binary use while this one runs
+    let own = dir.path().join("bundles");
+    let mut server = HapticRun::start_with(own.to_str().unwrap(), &ch, &record, &[scene.to_str().unwrap(), "--duration", "12"]);
     let script = std::fs::read_to_string(record.join("trajectory.csv")).unwrap();
     assert!(script.lines().next().unwrap().contains("bx_m"), "the hand script carries the blade");
     let trace = dir.path().join("trace.csv");
