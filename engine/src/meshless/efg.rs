@@ -135,8 +135,8 @@ pub struct EfgSolution {
     pub error: f64,
     /// `‖f_int − f_ext‖ / ‖f_int‖` over the free field variables at the end.
     pub residual: f64,
-    /// Times the relaxation started again with heavier masses after a material point
-    /// inverted in a transient.
+    /// Times the relaxation started again with heavier masses (and, while loading, a longer
+    /// ramp) after a material point inverted in a transient.
     pub restarts: usize,
 }
 
@@ -150,6 +150,8 @@ const RESCALE_EVERY: usize = 250;
 /// Restarts allowed after an inverted transient, and the mass factor of each.
 const MAX_RESTARTS: usize = 4;
 const RESTART_MASS: f64 = 4.0;
+/// Factor on the loading ramp's steps at each restart.
+const RESTART_RAMP: usize = 8;
 /// Integration points per parallel task.
 const PARALLEL_BLOCK: usize = 512;
 
@@ -274,7 +276,7 @@ fn run(
     let d = cloud.dim();
     let n = cloud.len();
     let nd = d * n;
-    let loading_steps = if start.is_some() { 0 } else { params.loading_steps };
+    let mut loading_steps = if start.is_some() { 0 } else { params.loading_steps };
     let mut shapes = Vec::with_capacity(problem.points.len());
     for p in &problem.points {
         let mut s = ShapeValues::default();
@@ -449,6 +451,11 @@ fn run(
             restarts += 1;
             for m in &mut mass {
                 *m *= RESTART_MASS;
+            }
+            // and a gentler ramp: heavier masses alone make the prescribed motion faster
+            // against the structure's slower dynamics (the next attempt's transient as violent)
+            if loading_steps > 0 {
+                loading_steps = (loading_steps * RESTART_RAMP).min(params.max_steps / 4);
             }
             (omega2, estimate) = (1e-6, 1e-6);
             u.copy_from_slice(&initial);
