@@ -162,11 +162,12 @@ fn obj_reading_embedding_and_splitting_never_panic() {
 
 /// A session's pipeline on a loaded bundle, ticked `ticks` times by each of the scene's tools
 /// pressing into the middle of the organ (a blade across it, a grasper closed): what a client
-/// of a server hosting the bundle would drive. Panics are the fuzzer's to catch.
-fn drive(scene: &Scene, bundle: vademecum_engine::pgd::offline::LoadedBundle, ticks: usize) {
+/// of a server hosting the bundle would drive. Panics are the fuzzer's to catch. Whether a
+/// session could be made of it (a session checks the tearing arrays against its scene).
+fn drive(scene: &Scene, bundle: vademecum_engine::pgd::offline::LoadedBundle, ticks: usize) -> bool {
     use vademecum_engine::pipeline::{Pipeline, ToolInput, ToolKind};
     let Ok(mut p) = Pipeline::for_scene(scene, &[std::sync::Arc::new(bundle)]) else {
-        return;
+        return false;
     };
     let (lo, hi) = scene.organ_mesh(0).unwrap().bounding_box();
     let mid: [f64; 3] = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
@@ -191,6 +192,7 @@ fn drive(scene: &Scene, bundle: vademecum_engine::pgd::offline::LoadedBundle, ti
             let _ = p.tick(&tool);
         }
     }
+    true
 }
 
 /// The bundles of cutting (`patch_cut`: the enriched basis, `cut_*` arrays) and tearing
@@ -226,27 +228,17 @@ fn cutting_and_tearing_bundles_never_panic_when_loaded_or_run() {
                 let loaded = offline::load_bundle(&dir);
                 std::fs::write(dir.join(&file), &good).unwrap();
                 std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
-                match loaded {
-                    Ok(bundle) => {
-                        drive(&scene, bundle, 100);
-                        true
-                    }
-                    Err(_) => false,
-                }
+                loaded.is_ok_and(|bundle| drive(&scene, bundle, 100))
             });
-            eprintln!("{name} {file}: {n} of {PER_ARRAY} mutants loaded and ran");
+            eprintln!("{name} {file}: {n} of {PER_ARRAY} mutants made a session that ran");
             // the same with its values poked (header kept), so that most load and run
             let mut rng = Rng(seed + 100 + i as u64);
             let mut ran = 0;
             for k in 0..PER_ARRAY {
                 let b = common::mutate::poke_npy_values(&good, &mut rng);
                 forge(&dir, &file, &b);
-                let outcome = catch_unwind(AssertUnwindSafe(|| match offline::load_bundle(&dir) {
-                    Ok(bundle) => {
-                        drive(&scene, bundle, 100);
-                        true
-                    }
-                    Err(_) => false,
+                let outcome = catch_unwind(AssertUnwindSafe(|| {
+                    offline::load_bundle(&dir).is_ok_and(|bundle| drive(&scene, bundle, 100))
                 }));
                 std::fs::write(dir.join(&file), &good).unwrap();
                 std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
@@ -259,7 +251,7 @@ fn cutting_and_tearing_bundles_never_panic_when_loaded_or_run() {
                     }
                 }
             }
-            eprintln!("{name} {file}: {ran} of {PER_ARRAY} poked mutants loaded and ran");
+            eprintln!("{name} {file}: {ran} of {PER_ARRAY} poked mutants made a session that ran");
         }
     }
 }
