@@ -27,6 +27,7 @@ pub mod loads;
 pub mod nodal;
 pub mod nonlinear_static;
 pub mod shape;
+pub mod system;
 
 pub use element::Locking;
 

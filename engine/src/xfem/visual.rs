@@ -37,7 +37,21 @@ use std::path::Path;
 use crate::mesh::{CellKind, Mesh};
 
 use super::enrichment::Enrichment;
-use super::visual_split::VertexSide;
+
+/// Which side of the cut a vertex of a split surface follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum VertexSide {
+    /// The side of the cut plane its position lies on (a vertex off the plane; a vertex on it
+    /// counts as on the negative side, as a node does).
+    #[default]
+    Own,
+    /// The positive side (an opened vertex's first copy).
+    Positive,
+    /// The negative side (an opened vertex's second copy).
+    Negative,
+    /// The mean of both sides: a vertex where the split surface closes.
+    Mean,
+}
 
 /// A visual (or collision) surface: vertices (m) and triangles.
 #[derive(Debug, Clone, PartialEq)]

@@ -47,24 +47,10 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 
 use super::progressive::{ProgressiveCut, TET_EDGES};
 use super::subcell::Plane;
+pub use super::visual::VertexSide;
 use super::visual::VisualMesh;
 use crate::mesh::{CellKind, Mesh};
 use crate::vec3::{cross, dot, lerp, sub};
-
-/// Which side of the cut a vertex of a split surface follows.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum VertexSide {
-    /// The side of the cut plane its position lies on (a vertex off the plane; a vertex on it
-    /// counts as on the negative side, as a node does).
-    #[default]
-    Own,
-    /// The positive side (an opened vertex's first copy).
-    Positive,
-    /// The negative side (an opened vertex's second copy).
-    Negative,
-    /// The mean of both sides: a vertex where the split surface closes.
-    Mean,
-}
 
 /// A visual surface split along a cut.
 #[derive(Debug, Clone, PartialEq)]

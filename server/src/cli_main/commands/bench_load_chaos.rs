@@ -18,7 +18,7 @@ use std::time::Duration;
 
 use anyhow::Context;
 
-use super::bench_load::{ClientAccount, Drive, client};
+use super::bench_load_client::{ClientAccount, Drive, client};
 use crate::cli_main::cli::LoadClientArgs;
 
 /// `vademecum bench load-client`: one chaos client (module docs).

@@ -13,8 +13,8 @@ use vademecum_engine::rom::palpation::LatticeTarget;
 use vademecum_engine::scene::Scene;
 use vademecum_engine::xfem::accuracy::SliverTarget;
 
+use super::scene_input::{load_scene, memory_limit};
 use crate::cli_main::cli::{BuildArgs, MergeArgs, ModesMethod};
-use crate::cli_main::commands::solve::load_scene;
 use crate::cli_main::progress::Stages;
 
 /// Builds organ `i` of `scene` with the greedy PGD, with a progress display.
@@ -116,7 +116,7 @@ const TIMED_FRAMES: usize = 400;
 /// error.
 fn within_tick(built: &offline::Built, target_us: f64) -> anyhow::Result<Result<f64, String>> {
     let v = &built.vademecum;
-    let frames = super::study::Frames::of(v, &built.model.boundary.triangles())?;
+    let frames = super::frame_cost::Frames::of(v, &built.model.boundary.triangles())?;
     let kept = v.modes();
     let p50 = frames.p50_us(v, kept, TIMED_FRAMES);
     if p50 <= target_us {
@@ -210,7 +210,7 @@ fn tear_within_tick(scene: &Scene, i: usize, built: &Built, target_us: f64) -> R
     let (_, limits) = organ::settings(scene);
     let variant = scene.spec.fidelity.tearing.variant;
     let p50 = |off: &Arc<TearOffline>| {
-        let times = super::study_tear::step_times(off, variant, limits, super::study_tear::EVERY_DIRECTION, TIMED_TEAR_STEPS);
+        let times = super::tear_timing::step_times(off, variant, limits, super::tear_timing::EVERY_DIRECTION, TIMED_TEAR_STEPS);
         if times.is_empty() {
             0.0
         } else {
@@ -658,24 +658,6 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<(ExitCode, Vec<PathB
     Ok((ExitCode::SUCCESS, written))
 }
 
-/// The memory a solve may use (bytes): `--max-memory` (GB = 10⁹ bytes, refused unless
-/// positive), else what the kernel says is available (`MemAvailable` of `/proc/meminfo`), else
-/// no limit.
-pub(crate) fn memory_limit(max_memory_gb: Option<f64>) -> anyhow::Result<Option<u64>> {
-    match max_memory_gb {
-        Some(gb) if gb.is_finite() && gb > 0.0 => Ok(Some((gb * 1e9) as u64)),
-        Some(gb) => anyhow::bail!("--max-memory must be a positive number of GB, got {gb}"),
-        None => Ok(std::fs::read_to_string("/proc/meminfo").ok().and_then(|t| mem_available(&t))),
-    }
-}
-
-/// `MemAvailable` of a `/proc/meminfo` text, in bytes.
-fn mem_available(meminfo: &str) -> Option<u64> {
-    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
 /// Each tearing build of a report: the scene's grasp, then the other grasp sites, each with
 /// how the messages name it.
 fn tear_builds(r: &offline::BuildReport) -> impl Iterator<Item = (String, &TearBuildReport)> {
@@ -812,20 +794,5 @@ fn force_error_line(t: &TearBuildReport) -> String {
         )
     } else {
         "not calibrated (a full-order pull across the load failed): the grasper's forces carry no error estimate".into()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_memory_limit_is_the_option_or_what_meminfo_says() {
-        let text = "MemTotal:        8000000 kB\nMemFree:          100000 kB\nMemAvailable:    6000000 kB\n";
-        assert_eq!(mem_available(text), Some(6_000_000 * 1024));
-        assert_eq!(mem_available("MemTotal: 1 kB\n"), None);
-        assert_eq!(memory_limit(Some(2.5)).unwrap(), Some(2_500_000_000));
-        assert!(memory_limit(Some(-1.0)).unwrap_err().to_string().contains("positive"));
-        assert!(memory_limit(Some(f64::NAN)).is_err());
     }
 }

@@ -23,9 +23,9 @@ use serde::Serialize;
 use vademecum_engine::mesh::vtk::{self, Field};
 use vademecum_engine::pipeline::{Events, MAX_BLADE_EDGE};
 
+use super::scene_input::load_scene;
 use crate::cli_main::cli::RunArgs;
 use crate::cli_main::commands::build::ensure_bundles;
-use crate::cli_main::commands::solve::load_scene;
 
 /// What `vademecum run` reports (also written as `summary.json`).
 #[derive(Debug, Serialize)]

@@ -22,7 +22,8 @@ use vademecum_engine::scene::{OrganModel, Scene};
 use vademecum_engine::xfem::view::SplitMesh;
 use vademecum_engine::xfem::{Detached, Enrichment, system};
 
-use crate::cli_main::cli::{SceneSource, SolveArgs};
+use super::scene_input::load_scene;
+use crate::cli_main::cli::SolveArgs;
 use crate::cli_main::progress::Stages;
 
 /// The JSON summary of one organ (`--json`, and `summary.json`).
@@ -112,19 +113,11 @@ struct Summary {
     organs: Vec<OrganSummary>,
 }
 
-/// Loads the scene named by the arguments.
-pub(crate) fn load_scene(source: &SceneSource) -> anyhow::Result<Scene> {
-    Ok(match &source.scene {
-        Some(p) => Scene::load(p)?,
-        None => Scene::builtin(&source.builtin)?,
-    })
-}
-
 pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
     std::fs::create_dir_all(&out).with_context(|| format!("cannot create output folder {}", out.display()))?;
-    let max_memory = super::build::memory_limit(a.max_memory)?;
+    let max_memory = super::scene_input::memory_limit(a.max_memory)?;
     let mut organs = Vec::new();
     for i in 0..scene.spec.organs.len() {
         let name = scene.spec.organs[i].name.clone();

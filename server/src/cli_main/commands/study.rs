@@ -16,17 +16,17 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, bail};
-use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
-use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
 use vademecum_engine::scene::Scene;
 
-use super::bench_pgd::{Rng, stat, time_n};
+use super::bench_pgd::{stat, time_n};
+use super::frame_cost::Frames;
+use super::scene_input::load_scene;
+use super::study_report::{Group, pareto, scatter};
 use crate::cli_main::cli::StudyArgs;
 use crate::cli_main::commands::build::build_with_progress;
-use crate::cli_main::commands::solve::load_scene;
 
 /// What the study keeps of its build (`build.json`).
 #[derive(Debug, Serialize, Deserialize, PartialEq)]
@@ -72,25 +72,6 @@ fn fnv(text: &str) -> String {
         h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
     }
     format!("{h:016x}")
-}
-
-/// JSON has no NaN: serde writes it as `null`, read back here as NaN (a measurement that
-/// could not be made, kept in a resumable record).
-pub(super) fn nan_if_null<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
-}
-
-/// `|a − b| / |b|` (a vanishing `b` divides by the least positive number, not by zero).
-pub(super) fn rel(a: f64, b: f64) -> f64 {
-    (a - b).abs() / b.abs().max(f64::MIN_POSITIVE)
-}
-
-/// Marks the points no other point beats in both `cost` and error (ties kept).
-pub(super) fn pareto(points: &[(f64, f64)]) -> Vec<bool> {
-    points
-        .iter()
-        .map(|&(c, e)| !points.iter().any(|&(c2, e2)| c2 <= c && e2 <= e && (c2 < c || e2 < e)))
-        .collect()
 }
 
 fn file_bytes(path: &Path) -> u64 {
@@ -139,58 +120,6 @@ fn build(a: &StudyArgs, scene: &Scene, out: &Path) -> anyhow::Result<(BuildRecor
     // points measured on another build are stale
     let _ = std::fs::remove_file(out.join("points.jsonl"));
     Ok((rec, offline::load_bundle(&bundle_dir)?))
-}
-
-/// What a frame evaluates: the surface nodes, and the mode coefficients (f32, every mode) of
-/// 64 real contacts — a unit force at random points of the loadable surface.
-pub(super) struct Frames {
-    nodes: Vec<usize>,
-    coeffs: Vec<Vec<f32>>,
-}
-
-impl Frames {
-    /// The frames of vademecum `v` on the boundary `surface`.
-    pub(super) fn of(v: &Vademecum, surface: &[[usize; 3]]) -> anyhow::Result<Self> {
-        let mut nodes: Vec<usize> = surface.iter().flatten().copied().collect();
-        nodes.sort_unstable();
-        nodes.dedup();
-        let tris: Vec<[usize; 3]> = surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
-        if tris.is_empty() {
-            bail!("the bundle has no surface triangle whose three nodes are loadable");
-        }
-        let mut rng = Rng(0x005E_ED0F_57D4);
-        let mut full = vec![0.0; v.modes()];
-        let coeffs = (0..64)
-            .map(|_| {
-                let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
-                let (u, w) = (rng.unit(), rng.unit());
-                let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
-                v.coefficients(tri, [1.0 - u - w, u, w], [0.0, 0.0, -1.0], &mut full);
-                full.iter().map(|&c| c as f32).collect()
-            })
-            .collect();
-        Ok(Self { nodes, coeffs })
-    }
-
-    /// The p50 time (µs) of one frame's surface field with the first `modes` modes of `v`
-    /// stored node-major in f32 (what a session's frames evaluate), over `repeat` frames.
-    pub(super) fn p50_us(&self, v: &Vademecum, modes: usize, repeat: usize) -> f64 {
-        self.timing(v, modes, repeat).0
-    }
-
-    /// [`Frames::p50_us`] with the p99 and a null loop's p50 timed in the same run (µs).
-    pub(super) fn timing(&self, v: &Vademecum, modes: usize, repeat: usize) -> (f64, f64, f64) {
-        let field = NodeMajorField::from_mode_major(v.f_raw(), v.n_nodes(), modes, &self.nodes);
-        let mut out = vec![0.0f32; 3 * self.nodes.len()];
-        let mut i = 0;
-        let times = time_n(repeat, || {
-            i = (i + 1) % self.coeffs.len();
-            field.eval(&self.coeffs[i][..modes], &mut out);
-            out[0] as f64
-        });
-        let (frame, null) = (stat("frame", times), stat("null", time_n(repeat, || 0.0)));
-        (frame.p50_us, frame.p99_us, null.p50_us)
-    }
 }
 
 /// Measures one point: the surface field of a frame at `modes` modes in `storage`.
@@ -267,96 +196,6 @@ fn plot(
         .collect();
     let f = points.iter().filter(|p| front(p)).map(|p| (cost(p), err(p))).collect();
     scatter(file, title, (x_desc, "relative L2 error of the displacement field"), &groups, f)
-}
-
-/// One group of points of a study's scatter plot ([`scatter`]).
-pub(super) struct Group {
-    pub(super) label: String,
-    /// Triangles (their tags below them) instead of circles.
-    pub(super) triangles: bool,
-    /// `(cost, error, the tag written beside the point; none when empty)`.
-    pub(super) points: Vec<(f64, f64, String)>,
-}
-
-/// A sweep's error against its cost, log–log: each group in its colour with its legend, each
-/// point's tag beside it, the Pareto front `front` as a line. Points without a positive
-/// finite cost and error are left out (a log scale has no place for them); nothing is
-/// written when none is left.
-pub(super) fn scatter(
-    file: &Path,
-    title: &str,
-    (x_desc, y_desc): (&str, &str),
-    groups: &[Group],
-    front: Vec<(f64, f64)>,
-) -> anyhow::Result<()> {
-    let drawable = |p: &&(f64, f64, String)| p.0.is_finite() && p.0 > 0.0 && p.1.is_finite() && p.1 > 0.0;
-    let all: Vec<&(f64, f64, String)> = groups.iter().flat_map(|g| &g.points).filter(drawable).collect();
-    if all.is_empty() {
-        return Ok(());
-    }
-    let range = |f: fn(&(f64, f64, String)) -> f64| all.iter().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(f(p)), b.max(f(p))));
-    let ((x0, x1), (e0, e1)) = (range(|p| p.0), range(|p| p.1));
-    let root = SVGBackend::new(file, (900, 600)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 18))
-        .margin(14)
-        .x_label_area_size(44)
-        .y_label_area_size(70)
-        .build_cartesian_2d((x0 * 0.7..x1 * 1.4).log_scale(), (e0 * 0.3..e1 * 3.0).log_scale())?;
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(y_desc)
-        .y_label_formatter(&|v| format!("{v:.0e}"))
-        .draw()?;
-    for (c, g) in groups.iter().enumerate() {
-        let points: Vec<&(f64, f64, String)> = g.points.iter().filter(drawable).collect();
-        if points.is_empty() {
-            continue;
-        }
-        let color = super::bench_anm::PALETTE[c % super::bench_anm::PALETTE.len()];
-        if g.triangles {
-            chart
-                .draw_series(points.iter().map(|p| TriangleMarker::new((p.0, p.1), 6, color.filled())))?
-                .label(&g.label)
-                .legend(move |(x, y)| TriangleMarker::new((x + 10, y), 6, color.filled()));
-        } else {
-            chart
-                .draw_series(points.iter().map(|p| Circle::new((p.0, p.1), 5, color.filled())))?
-                .label(&g.label)
-                .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
-        }
-        let dy = if g.triangles { 0.8 } else { 1.3 };
-        chart.draw_series(
-            points
-                .iter()
-                .filter(|p| !p.2.is_empty())
-                .map(|p| Text::new(p.2.clone(), (p.0 * 1.05, p.1 * dy), ("sans-serif", 12).into_font())),
-        )?;
-    }
-    draw_front(&mut chart, front)?;
-    root.present()?;
-    Ok(())
-}
-
-/// Draws the Pareto front `front` (its points, in any order) as a line, and the legend.
-pub(super) fn draw_front<'a>(
-    chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<LogCoord<f64>, LogCoord<f64>>>,
-    mut front: Vec<(f64, f64)>,
-) -> anyhow::Result<()> {
-    front.sort_by(|a, b| a.0.total_cmp(&b.0));
-    chart
-        .draw_series(LineSeries::new(front, BLACK.stroke_width(2)))?
-        .label("Pareto front")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.9))
-        .border_style(BLACK)
-        .draw()?;
-    Ok(())
 }
 
 pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {

@@ -36,7 +36,7 @@ use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
 use vademecum_engine::xfem::{Enrichment, Plane, XfemParams};
 
 use super::bench_pgd::{stat, time_n};
-use super::study::{Group, scatter};
+use super::study_report::{Group, scatter};
 
 /// Sliver thresholds swept beside the scene's.
 const SLIVERS: [f64; 3] = [1e-3, 1e-2, 5e-2];
@@ -246,7 +246,7 @@ pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyh
         bar.inc(1);
     }
     bar.finish_and_clear();
-    let front = super::study::pareto(&points.iter().map(|p| (p.tick_p50_us, p.force_error_max)).collect::<Vec<_>>());
+    let front = super::study_report::pareto(&points.iter().map(|p| (p.tick_p50_us, p.force_error_max)).collect::<Vec<_>>());
     for (p, f) in points.iter_mut().zip(front) {
         p.front = f;
     }

@@ -26,7 +26,7 @@ use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::LargeFidelity;
 
 use super::bench_pgd::{stat, time_n};
-use super::study::{Group, scatter};
+use super::study_report::{Group, scatter};
 
 /// Positions blended per contact: the reduced fidelity's one, and the session's four.
 const NEIGHBOURS: [usize; 2] = [1, 4];
@@ -271,7 +271,7 @@ pub(super) fn sweep(scene: &Scene, key: &str, nodes: usize, out: &Path) -> anyho
         }
     }
     bar.finish_and_clear();
-    let front = super::study::pareto(&points.iter().map(|p| (p.tick_mean_us, p.max_error)).collect::<Vec<_>>());
+    let front = super::study_report::pareto(&points.iter().map(|p| (p.tick_mean_us, p.max_error)).collect::<Vec<_>>());
     for (p, f) in points.iter_mut().zip(front) {
         p.front = f;
     }

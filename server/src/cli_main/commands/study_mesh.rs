@@ -39,7 +39,8 @@ use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::DeformationModel;
 
-use super::study::{Frames, Group, rel, scatter};
+use super::frame_cost::Frames;
+use super::study_report::{Group, rel, scatter};
 
 /// Points of the accessible surface where the contact force is compared.
 const PROBES: usize = 16;
@@ -60,7 +61,7 @@ pub(super) struct MeshLevel {
     pub(super) cells: usize,
     /// A typical cell size: the mean length of the edges at a node, over the nodes (m; NaN
     /// for a failed level).
-    #[serde(deserialize_with = "super::study::nan_if_null")]
+    #[serde(deserialize_with = "super::study_report::nan_if_null")]
     pub(super) cell_size: f64,
     pub(super) modes: usize,
     pub(super) build_s: f64,
@@ -371,7 +372,7 @@ fn measure(l: &Level, probe_points: &mut Vec<[f64; 3]>, tmp: &Path, stage: impl 
     stage("building");
     // a level too large for this machine fails with the build's memory diagnostic, not the OOM killer
     let opts = BuildOptions {
-        max_memory: super::build::memory_limit(None)?,
+        max_memory: super::scene_input::memory_limit(None)?,
         ..BuildOptions::for_scene(&l.scene, true)
     };
     let t = Instant::now();
@@ -441,7 +442,7 @@ fn finish(rec: &mut MeshSweep) {
         .iter()
         .map(|&i| (rec.levels[i].build_s, rec.levels[i].force_error_median.unwrap_or(f64::INFINITY)))
         .collect();
-    for (&i, f) in coarser.iter().zip(super::study::pareto(&cost)) {
+    for (&i, f) in coarser.iter().zip(super::study_report::pareto(&cost)) {
         rec.levels[i].front = f;
     }
     if let [.., a, b, c] = ok[..] {
@@ -521,7 +522,7 @@ fn write_outputs(s: &MeshSweep, scene: &str, out: &Path) -> anyhow::Result<()> {
             .collect();
         let front = coarser
             .iter()
-            .zip(super::study::pareto(&costs))
+            .zip(super::study_report::pareto(&costs))
             .filter(|(_, f)| *f)
             .filter_map(|(l, _)| Some((cost(l)?, l.force_error_median?)))
             .collect();

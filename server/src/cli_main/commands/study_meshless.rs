@@ -34,7 +34,7 @@ use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::SolverKind;
 
 use super::solve::{meshless_law, meshless_settings};
-use super::study::{Group, rel, scatter};
+use super::study_report::{Group, rel, scatter};
 
 /// Influence radii swept beside the scene's (mean edge lengths at the node).
 const SUPPORTS: [f64; 2] = [1.6, 3.0];
@@ -56,11 +56,11 @@ pub(super) struct MeshlessPoint {
     /// Against the finite-element solve, before any cut: the displacement at the mesh's nodes,
     /// the reactions over the named regions (relative L2) and the strain energy (`NaN`, kept
     /// as `null`, when the solve failed).
-    #[serde(deserialize_with = "super::study::nan_if_null")]
+    #[serde(deserialize_with = "super::study_report::nan_if_null")]
     pub(super) field_error: f64,
-    #[serde(deserialize_with = "super::study::nan_if_null")]
+    #[serde(deserialize_with = "super::study_report::nan_if_null")]
     pub(super) reaction_error: f64,
-    #[serde(deserialize_with = "super::study::nan_if_null")]
+    #[serde(deserialize_with = "super::study_report::nan_if_null")]
     pub(super) energy_error: f64,
     /// After the cuts (scenes with cuts): the reactions' relative difference from the most
     /// accurate setting's (filled when the outputs are written).
@@ -298,7 +298,7 @@ fn finish(points: &mut [MeshlessPoint], own: &OrganSettings, cut: bool) {
             }
         })
         .collect();
-    for (p, f) in points.iter_mut().zip(super::study::pareto(&cost)) {
+    for (p, f) in points.iter_mut().zip(super::study_report::pareto(&cost)) {
         p.front = f && p.failure.is_none();
     }
 }

@@ -37,36 +37,14 @@ use vademecum_engine::rom::pod::PodCriterion;
 use vademecum_engine::scene::Scene;
 
 use super::bench_pgd::{stat, time_n};
-use super::study::{Group, scatter};
+use super::study_report::{Group, scatter};
+use super::tear_timing::{EVERY_DIRECTION, step_times};
 
 /// Prefixes of each vademecum measured (capped at its modes; all of them always).
 const PREFIXES: [usize; 4] = [5, 10, 20, 40];
 
 /// Online steps timed per point (whole schedules).
 const TIMED_STEPS: usize = 2000;
-
-/// The pull along the diagonal of the load and the two directions across it: a step with it
-/// engages every pull pattern's modes (what the tick costs while the grasper pulls obliquely).
-pub(crate) const EVERY_DIRECTION: [f64; 3] = [0.577_350_269_189_625_8; 3];
-
-/// The online step's times (µs), at least `n` of them, over whole schedules of `off` from the
-/// virgin state, each step pulling with the multipliers `mix` of the schedule's increment
-/// (`[1, 0, 0]`: along the load; a mix of all three engages every pull pattern's modes).
-pub(crate) fn step_times(off: &Arc<TearOffline>, variant: Variant, limits: StepLimits, mix: [f64; 3], n: usize) -> Vec<f64> {
-    let mut times = Vec::with_capacity(n + off.model.schedule.len());
-    while times.len() < n {
-        let mut online = OnlineTear::new(off.clone(), variant, limits);
-        for &ds in &off.model.schedule {
-            let t = Instant::now();
-            std::hint::black_box(online.step_pull(mix.map(|m| m * ds)));
-            times.push(t.elapsed().as_secs_f64() * 1e6);
-        }
-        if off.model.schedule.is_empty() {
-            break;
-        }
-    }
-    times
-}
 
 /// One point of the sweep.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -223,7 +201,7 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
                 let r = &truth.steps[s + 1].u;
                 field_error = field_error.max(reference::l2_error(&u, r).1);
                 let (a, b) = (response(&u), response(r));
-                response_error = response_error.max(super::study::rel(a, b));
+                response_error = response_error.max(super::study_report::rel(a, b));
             }
             // the step's cost over whole schedules
             let times = step_times(&off, variant, limits, [1.0, 0.0, 0.0], TIMED_STEPS);
@@ -243,7 +221,7 @@ pub(super) fn sweep(scene: &Scene, key: &str, out: &Path) -> anyhow::Result<Opti
             });
         }
     }
-    let front = super::study::pareto(&points.iter().map(|p| (p.step_p50_us, p.field_error)).collect::<Vec<_>>());
+    let front = super::study_report::pareto(&points.iter().map(|p| (p.step_p50_us, p.field_error)).collect::<Vec<_>>());
     for (p, f) in points.iter_mut().zip(front) {
         p.front = f;
     }
