@@ -76,7 +76,7 @@ use crate::xfem::visual::{Embedding, VisualMesh};
 use crate::xfem::visual_split::{self, VertexSide};
 
 use super::Contact;
-use super::cutting::CutPicture;
+use super::cut_picture::CutPicture;
 
 /// Frames over which the scene's loads are ramped in from rest.
 pub const RAMP_FRAMES: u64 = 10;

@@ -19,6 +19,7 @@
 //!   tick, the grasp lost when the tissue tears.
 
 pub mod corotational;
+pub mod cut_picture;
 pub mod cutting;
 pub mod estimate;
 pub mod palpation;
