@@ -140,6 +140,7 @@ impl TearOffline {
         }
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
         if !(finite(&a.pod_basis)
+            && finite(&a.singular_values)
             && finite(&a.lo)
             && finite(&a.hi)
             && finite(&a.spatial)

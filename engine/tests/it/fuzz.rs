@@ -306,3 +306,55 @@ fn shards_and_their_merge_never_panic() {
         eprintln!("shard {file}: {n} of {PER_FILE} mutants merged");
     }
 }
+
+/// A tearing bundle holding one non-finite value in a float array (its checksum forged to
+/// match, as damage or a hostile copy would) is refused when a session is made of it, with
+/// what is wrong — not served as NaN forces that the tick would then zero. (The value-poking
+/// fuzzer above found `tear_singular_values` accepted with a NaN.)
+#[test]
+fn a_tearing_bundle_with_a_non_finite_value_is_refused_when_a_session_is_made() {
+    use vademecum_engine::pipeline::Pipeline;
+    let scene = Scene::builtin("cube_tear").unwrap();
+    let built = offline::build_organ(&scene, 0, &BuildOptions::for_scene(&scene, true), &mut |_| {}).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("b");
+    offline::write_bundle(&dir, &scene, &built).unwrap();
+    let manifest = std::fs::read(dir.join("manifest.json")).unwrap();
+    let good = offline::load_bundle(&dir).unwrap();
+    assert!(Pipeline::for_scene(&scene, &[std::sync::Arc::new(good)]).is_ok());
+    for array in [
+        "tear_pod_basis",
+        "tear_singular_values",
+        "tear_spatial",
+        "tear_factors",
+        "tear_ritz_v",
+        "tear_lo",
+    ] {
+        let file = format!("{array}.npy");
+        let bytes = std::fs::read(dir.join(&file)).unwrap();
+        // the first value after the header, in the array's own width
+        let data = bytes.iter().position(|&b| b == b'\n').unwrap() + 1;
+        let header = String::from_utf8_lossy(&bytes[..data]);
+        let mut bad = bytes.clone();
+        if header.contains("<f4") {
+            bad[data..data + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        } else {
+            assert!(header.contains("<f8"), "{array}: {header}");
+            bad[data..data + 8].copy_from_slice(&f64::NAN.to_le_bytes());
+        }
+        forge(&dir, &file, &bad);
+        let refused = match offline::load_bundle(&dir) {
+            Err(e) => e.to_string(),
+            Ok(b) => match Pipeline::for_scene(&scene, &[std::sync::Arc::new(b)]) {
+                Err(e) => e.to_string(),
+                Ok(_) => panic!("{array} with a NaN made a session"),
+            },
+        };
+        assert!(
+            refused.contains("non-finite") || refused.contains("not finite"),
+            "{array}: {refused}"
+        );
+        std::fs::write(dir.join(&file), &bytes).unwrap();
+        std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
+    }
+}
