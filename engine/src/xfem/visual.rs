@@ -207,9 +207,10 @@ fn positions_only(bytes: &[u8]) -> Result<Vec<u8>, String> {
                 out.push('f');
                 for corner in words {
                     let index = corner.split('/').next().unwrap_or("");
-                    let i: i64 = index
-                        .parse()
-                        .map_err(|_| format!("line {}: face corner '{}' has no vertex index", line + 1, clip(corner)))?;
+                    let i: i64 = index.parse().map_err(|_| {
+                        let shown: String = corner.chars().take(32).collect();
+                        format!("line {}: face corner '{shown}' has no vertex index", line + 1)
+                    })?;
                     if i == 0 || i > vertices || i < -vertices {
                         return Err(format!(
                             "line {}: face vertex {i} is not one of the {vertices} vertices given before it",
@@ -225,11 +226,6 @@ fn positions_only(bytes: &[u8]) -> Result<Vec<u8>, String> {
         }
     }
     Ok(out.into_bytes())
-}
-
-/// At most 32 characters of `s`, for an error message.
-fn clip(s: &str) -> String {
-    s.chars().take(32).collect()
 }
 
 /// The vertices of a visual mesh embedded in a tetrahedral mesh.
@@ -275,6 +271,9 @@ impl Embedding {
             return Err(VisualError::NotTetrahedra(mesh.kind));
         }
         let nc = mesh.n_cells();
+        if nc == 0 {
+            return Err(VisualError::Malformed("the simulation mesh has no cell".into()));
+        }
         let (lo, hi) = mesh.bounding_box();
         let cells_per_axis = ((nc as f64).cbrt().ceil() as usize).clamp(1, 64);
         let size: [f64; 3] = std::array::from_fn(|k| ((hi[k] - lo[k]) / cells_per_axis as f64).max(f64::MIN_POSITIVE));
@@ -299,9 +298,6 @@ impl Embedding {
                     }
                 }
             }
-        }
-        if nc == 0 {
-            return Err(VisualError::Malformed("the simulation mesh has no cell".into()));
         }
         let n = cells_per_axis as isize;
         // the last vertex each cell was tried for: a cell in several slots is tried once

@@ -195,13 +195,8 @@ fn each_vertex_is_embedded_in_the_cell_it_is_least_outside_of_at_a_cost_linear_i
     // number of cells, not all of them, and still follows any affine motion exactly
     let block = vademecum_engine::mesh::procedural::block_tet([0.0; 3], [1.0; 3], [12, 12, 12]);
     let mut vertices = Vec::new();
-    let mut rng = 0x2545_f491_4f6c_dd1du64;
-    let mut next = || {
-        rng ^= rng << 13;
-        rng ^= rng >> 7;
-        rng ^= rng << 17;
-        (rng >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = common::mutate::Rng(0x2545_f491_4f6c_dd1d);
+    let mut next = || (rng.next() >> 11) as f64 / (1u64 << 53) as f64;
     for _ in 0..3000 {
         let c: [f64; 3] = std::array::from_fn(|_| -0.5 + 2.0 * next());
         for corner in 0..8 {
