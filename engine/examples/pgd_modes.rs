@@ -14,7 +14,8 @@
 
 use std::time::Instant;
 
-use vademecum_engine::pgd::{PgdParams, SeparatedSolution, brute, build, compress, offline};
+use vademecum_engine::offline;
+use vademecum_engine::pgd::{PgdParams, SeparatedSolution, brute, build, compress};
 use vademecum_engine::scene::Scene;
 
 fn main() {

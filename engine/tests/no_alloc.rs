@@ -8,7 +8,8 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::sync::Arc;
 
-use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::bundle;
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::{Events, Fidelity, Pipeline, ToolInput};
 use vademecum_engine::scene::Scene;
 
@@ -43,7 +44,7 @@ fn pipeline(scene: &Scene) -> Pipeline {
     let built = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), scene, &built).unwrap();
-    let b = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    let b = Arc::new(bundle::load_bundle(dir.path()).unwrap());
     Pipeline::for_scene(scene, &[b]).unwrap()
 }
 
@@ -120,7 +121,7 @@ fn a_large_deformation_palpation_tick_allocates_nothing() {
 
 #[test]
 fn the_contact_compliance_of_a_cut_organ_allocates_nothing() {
-    use vademecum_engine::meshless::cut::Cut;
+    use vademecum_engine::geometry::cut::Cut;
     use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
     use vademecum_engine::xfem::{Enrichment, XfemParams};
     let scene = Scene::builtin("patch").unwrap();
@@ -272,13 +273,14 @@ fn a_co_rotational_cutting_tick_allocates_and_frees_nothing_while_corrections_la
 
 #[test]
 fn a_tearing_step_allocates_nothing() {
+    use vademecum_engine::damage::build;
     use vademecum_engine::damage::online::{OnlineTear, StepLimits, Variant};
-    use vademecum_engine::damage::{build, organ};
+    use vademecum_engine::scene::tearing;
     // the seed's cube: steps, steps split into sub-steps (a fast pull), and rebuilding the
     // whole displacement field
     let scene = Scene::builtin("cube_tear").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, _) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, _) = tearing::settings(&scene);
     let (off, _, _) = build::build(model, &settings, |_, _| {}).unwrap();
     let off = Arc::new(off);
     let limits = StepLimits {

@@ -129,6 +129,71 @@ pub struct BridgeReport {
     pub latency_max_ns: u64,
 }
 
+impl BridgeReport {
+    /// The number of its fields, all `u64`.
+    pub const WORDS: usize = 15;
+
+    /// Its fields in declaration order: what a reader that keeps the latest report as
+    /// atomics, field by field, stores ([`Self::from_words`] reads them back by name).
+    pub fn to_words(&self) -> [u64; Self::WORDS] {
+        [
+            self.t_ns,
+            self.ticks,
+            self.deadline_misses,
+            self.fresh_forces,
+            self.watchdog_ticks,
+            self.rejected_non_finite,
+            self.clamped_jumps,
+            self.clamped_workspace,
+            self.rejected_forces,
+            self.clamped_forces,
+            self.rate_limited_forces,
+            self.latency_p50_ns,
+            self.latency_p99_ns,
+            self.latency_p999_ns,
+            self.latency_max_ns,
+        ]
+    }
+
+    /// The report whose fields in declaration order are `words` ([`Self::to_words`]).
+    pub fn from_words(words: [u64; Self::WORDS]) -> Self {
+        let [
+            t_ns,
+            ticks,
+            deadline_misses,
+            fresh_forces,
+            watchdog_ticks,
+            rejected_non_finite,
+            clamped_jumps,
+            clamped_workspace,
+            rejected_forces,
+            clamped_forces,
+            rate_limited_forces,
+            latency_p50_ns,
+            latency_p99_ns,
+            latency_p999_ns,
+            latency_max_ns,
+        ] = words;
+        Self {
+            t_ns,
+            ticks,
+            deadline_misses,
+            fresh_forces,
+            watchdog_ticks,
+            rejected_non_finite,
+            clamped_jumps,
+            clamped_workspace,
+            rejected_forces,
+            clamped_forces,
+            rate_limited_forces,
+            latency_p50_ns,
+            latency_p99_ns,
+            latency_p999_ns,
+            latency_max_ns,
+        }
+    }
+}
+
 /// Why a channel name was refused.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ChannelNameError {
@@ -332,6 +397,16 @@ pub fn monotonic_ns() -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bridge_report_goes_through_its_words_field_by_field() {
+        let words: [u64; BridgeReport::WORDS] = std::array::from_fn(|i| 1000 + i as u64);
+        let r = BridgeReport::from_words(words);
+        assert_eq!(r.to_words(), words);
+        // declaration order, and every field distinct
+        assert_eq!((r.t_ns, r.ticks, r.rate_limited_forces, r.latency_max_ns), (1000, 1001, 1010, 1014));
+        assert_eq!(std::mem::size_of::<BridgeReport>(), 8 * BridgeReport::WORDS);
+    }
 
     #[test]
     fn channel_names_are_checked() {

@@ -24,14 +24,14 @@
 //! streams end with OK), in-flight calls complete, and the sessions' threads are joined as
 //! the last stream lets go of each.
 //!
-//! - [`cli_main`]: the `vademecum` command line (`cli` = clap definitions, `commands/` = one
-//!   file per subcommand); `main.rs` only calls [`cli_main::main_entry`].
+//! The `vademecum` command line that starts it (`serve`) and drives it headless (`run`) is the
+//! `vademecum-cli` crate, above this one; this library depends on neither the client SDK nor
+//! the plotting and progress crates.
 
 #[cfg(feature = "agones")]
 pub mod agones;
 pub mod auth;
 pub mod bundle_fetch;
-pub mod cli_main;
 pub mod config;
 pub mod convert;
 pub mod error;

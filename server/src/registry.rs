@@ -10,8 +10,9 @@ use std::path::{Component, Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 
+use vademecum_engine::bundle;
+use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::bundle::store;
-use vademecum_engine::pgd::offline::{self, LoadedBundle};
 use vademecum_engine::scene::Scene;
 
 use crate::auth::Caller;
@@ -463,7 +464,7 @@ impl Registry {
         {
             return Ok(b);
         }
-        let b = Arc::new(offline::load_bundle(path).map_err(|e| ServerError::Precondition(e.to_string()))?);
+        let b = Arc::new(bundle::load_bundle(path).map_err(|e| ServerError::Precondition(e.to_string()))?);
         let mut cache = self.shared.bundles.lock().unwrap_or_else(|p| p.into_inner());
         cache.retain(|_, w| w.strong_count() > 0);
         cache.insert(key, Arc::downgrade(&b));
@@ -539,7 +540,7 @@ impl Registry {
             };
             let b = self.bundle(&path)?;
             let mesh = scene.organ_mesh(i).map_err(|e| ServerError::Invalid(e.to_string()))?;
-            offline::check_matches(&path, &b.manifest, &scene, &mesh).map_err(|e| ServerError::Precondition(e.to_string()))?;
+            bundle::check_matches(&path, &b.manifest, &scene, &mesh).map_err(|e| ServerError::Precondition(e.to_string()))?;
             bundles.push(b);
         }
         let n = self.shared.next.fetch_add(1, Ordering::Relaxed);

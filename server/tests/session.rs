@@ -10,8 +10,10 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use vademecum_engine::bundle;
+use vademecum_engine::bundle::LoadedBundle;
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pgd::PgdParams;
-use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
 use vademecum_engine::pipeline::{Events, Pipeline, PipelineError, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_server::session::{
@@ -109,7 +111,7 @@ fn slab() -> (Arc<Scene>, Vec<Arc<LoadedBundle>>, tempfile::TempDir) {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("slab.bundle");
     offline::write_bundle(&path, &scene, &built).unwrap();
-    let b = Arc::new(offline::load_bundle(&path).unwrap());
+    let b = Arc::new(bundle::load_bundle(&path).unwrap());
     (Arc::new(scene), vec![b], dir)
 }
 
@@ -399,7 +401,7 @@ fn happenings_of_ticks_that_answer_no_one_come_with_the_next_answer() {
     let built = offline::build_organ(&scene, 0, &BuildOptions::for_scene(&scene, true), &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
-    let bundles = vec![Arc::new(offline::load_bundle(dir.path()).unwrap())];
+    let bundles = vec![Arc::new(bundle::load_bundle(dir.path()).unwrap())];
     let session = Session::start("s5".into(), Arc::new(scene), bundles, SessionConfig::default()).unwrap();
     let uncut = session.memory();
     let cutting = |m: &vademecum_server::session::SessionMemory| m.parts.iter().find(|p| p.0 == "effect:cutting").map(|p| p.1);

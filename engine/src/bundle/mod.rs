@@ -38,8 +38,12 @@ pub const MANIFEST: &str = "manifest.json";
 /// Largest manifest read (bytes).
 const MAX_MANIFEST_BYTES: u64 = 1 << 20;
 
+mod loaded;
 pub mod npy;
 pub mod store;
+
+pub use loaded::{CutBasis, KIND, LoadedBundle, check_matches, load_bundle};
+pub(crate) use loaded::{TEAR_ARRAYS, tear_prefix};
 
 /// Why a bundle could not be written or read.
 #[derive(Debug, thiserror::Error)]

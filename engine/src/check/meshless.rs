@@ -5,7 +5,7 @@
 //! stress-free, ν = 0.499, and a 100 % stretch. Each must stop on its own error estimate.
 
 use super::{Case, Expect, Outcome, Size, diagnostic, finite, outcome, relative};
-use crate::meshless::cut::Cut;
+use crate::geometry::cut::Cut;
 use crate::meshless::cutting;
 use crate::meshless::efg::{self, AdrParams, EfgSolution};
 use crate::meshless::reference;

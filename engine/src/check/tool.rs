@@ -8,7 +8,9 @@
 use std::sync::{Arc, Mutex};
 
 use super::{Case, Expect, Outcome, Size, diagnostic, once_per_size, outcome, relative};
-use crate::pgd::offline::{self, BuildOptions, LoadedBundle};
+use crate::bundle;
+use crate::bundle::LoadedBundle;
+use crate::offline::{self, BuildOptions};
 use crate::pipeline::{Events, MAX_TOOL_SPEED_M_S, Pipeline, QUATERNION_NORM_TOLERANCE, TickState, ToolInput};
 use crate::scene::Scene;
 
@@ -34,7 +36,7 @@ fn organ_bundle(scene: &Scene, size: Size) -> Result<Arc<LoadedBundle>, Outcome>
         let dir = std::env::temp_dir().join(format!("vademecum-check-{}-{size:?}", std::process::id()));
         let loaded = offline::write_bundle(&dir, scene, &b)
             .map_err(diagnostic)
-            .and_then(|_| offline::load_bundle(&dir).map_err(diagnostic));
+            .and_then(|_| bundle::load_bundle(&dir).map_err(diagnostic));
         let _ = std::fs::remove_dir_all(&dir);
         loaded
     })

@@ -42,7 +42,7 @@ mod surface;
 pub use grid::CellClass;
 pub use surface::{Surface, SurfacePoint};
 
-use crate::vec3::{norm, sub};
+use crate::geometry::vec3::{norm, sub};
 
 /// Most walk steps per tick. A step moves to a neighbouring triangle; at the tick rate a tool
 /// moving at 1 m/s crosses about one 1 mm triangle per tick, so 256 steps is a bound against a

@@ -2,7 +2,7 @@
 //! normals, triangle neighbourhoods and a grid that also knows inside from outside.
 
 use super::grid::{CellClass, Grid};
-use crate::vec3::{cross, dot, sub};
+use crate::geometry::vec3::{cross, dot, sub};
 
 /// A point on a surface triangle.
 #[derive(Debug, Clone, Copy, PartialEq)]

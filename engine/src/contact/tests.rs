@@ -1,7 +1,7 @@
 use super::*;
+use crate::geometry::vec3::{dot, sub};
 use crate::mesh::boundary::Boundary;
 use crate::mesh::procedural;
-use crate::vec3::{dot, sub};
 
 fn lobe() -> (Vec<[f64; 3]>, Surface, Bounds) {
     let mesh = procedural::lobe(&procedural::LobeParams::default());

@@ -17,15 +17,15 @@
 //!   rank-one tangent terms).
 //! - [`sites`]: where else the grasper can take hold — grasp sites spread over the tearable
 //!   surface, each with its own load and offline stage.
-//! - [`organ`]: a scene's tearable organ as a [`model::TearModel`], and its settings.
 //! - [`build`]: the offline stage — snapshots, POD, vademecum, Ritz form, validation.
 //! - [`store`]: the offline stage's arrays, as a bundle stores them.
+//!
+//! A scene's tearable organ becomes a [`model::TearModel`] in `crate::scene::tearing`.
 
 pub mod build;
 pub mod law;
 pub mod model;
 pub mod online;
-pub mod organ;
 pub mod pod;
 pub mod points;
 pub mod reference;

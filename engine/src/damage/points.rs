@@ -18,7 +18,7 @@ use std::sync::Arc;
 use super::law::{DamageLaw, PointState};
 use crate::fem::assembly::{DofMap, MaterialMap, SymmetricMatrix, SymmetricPattern, scatter_cell};
 use crate::fem::element::ElementError;
-use crate::fem::shape;
+use crate::mesh::shape;
 use crate::mesh::{CellKind, Mesh};
 
 /// A symmetric tensor in Voigt order with tensor shear components.

@@ -6,9 +6,9 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::shape;
 use crate::material::LinearElastic;
 use crate::mesh::CellKind;
+use crate::mesh::shape;
 
 /// How the volumetric part of the stiffness is integrated (what fights volumetric locking as
 /// ν → ½).
@@ -306,7 +306,7 @@ pub fn lumped_mass(kind: CellKind, x: &[[f64; 3]], rho: f64, s: &ElementScratch,
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fem::shape::HEX_NODES;
+    use crate::mesh::shape::HEX_NODES;
 
     fn distorted_hex() -> Vec<[f64; 3]> {
         HEX_NODES

@@ -29,9 +29,9 @@
 
 use nalgebra::Matrix3;
 
-use super::shape;
 use crate::material::hyperelastic::{Hyperelastic, Part, VOIGT};
 use crate::mesh::CellKind;
+use crate::mesh::shape;
 
 /// How the volumetric energy is integrated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]

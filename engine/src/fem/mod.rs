@@ -12,12 +12,13 @@
 //! split is what the locking-free options act on ([`Locking`]).
 //!
 //! # Layout
-//! - [`shape`]: shape functions and Jacobians.
+//! The shape functions and Jacobians are the mesh's ([`crate::mesh::shape`]).
 //! - [`element`]: cell stiffness, mass, stress.
 //! - [`assembly`]: degree-of-freedom numbering, sparsity pattern, global assembly.
 //! - [`loads`]: nodal forces from point, surface and body loads.
 //! - [`nodal`]: the averaged-nodal-pressure tetrahedron (locking-free tet4).
 //! - [`linear_static`]: the static solve driver (loads → displacements, reactions, energy).
+//! - [`organ`]: [`OrganModel`], the finite-element problem an organ of a scene becomes.
 
 pub mod assembly;
 pub mod element;
@@ -26,10 +27,11 @@ pub mod linear_static;
 pub mod loads;
 pub mod nodal;
 pub mod nonlinear_static;
-pub mod shape;
+pub mod organ;
 pub mod system;
 
 pub use element::Locking;
+pub use organ::OrganModel;
 
 /// The sum over `nodes` of a field with three components per node (e.g. the reactions on a
 /// region, N).

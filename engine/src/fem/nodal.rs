@@ -39,8 +39,8 @@
 use nalgebra::Vector3;
 
 use super::hyperelastic::{CellError, LawMap, Volumetric, deformation_gradient};
-use super::shape;
 use super::system::{DofMap, SymmetricMatrix, scatter_cell};
+use crate::mesh::shape;
 use crate::mesh::{CellKind, Mesh};
 
 /// The cells and nodes around every node of a tetrahedral mesh, and the nodal volumes.

@@ -328,6 +328,151 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// The symbolic analysis of the tangent's pattern, made at the first factorization and
+/// reused by every later one.
+#[derive(Default)]
+struct Factorizer {
+    symbolic: Option<faer::sparse::linalg::solvers::SymbolicLlt<usize>>,
+}
+
+impl Factorizer {
+    fn factor(&mut self, k: &SymmetricMatrix) -> Result<Cholesky, SolveError> {
+        let sym = match &self.symbolic {
+            Some(s) => s,
+            None => self.symbolic.insert(Cholesky::analyze(k)?),
+        };
+        Cholesky::factor_with(sym.clone(), k)
+    }
+}
+
+/// One load step from the converged state `u` at load factor `lambda` to `target`: the
+/// consistent predictor for the prescribed displacements' increment, then Newton–Raphson with
+/// an Armijo line search on the potential energy (on the residual with follower pressures).
+/// The converged state, its assembly, residual and iterations; or why it failed, with the
+/// last residual.
+fn load_step(
+    model: &Model<'_>,
+    problem: &StaticProblem,
+    f_ext_f: &[f64],
+    factor: &mut Factorizer,
+    params: &NewtonParams,
+    u: &[f64],
+    lambda: f64,
+    target: f64,
+) -> Result<(Vec<f64>, Assembled, f64, usize), (String, Option<f64>)> {
+    let nd = u.len();
+    let nf = model.dofs.n_free();
+    let potential = |energy: f64, lambda: f64, u: &[f64]| energy - lambda * dot(&problem.forces, u);
+    let cell_err = |AssembleError::Cell(c, e)| (format!("cell {c}: {e}"), None);
+    // 1. predictor
+    let delta: Vec<f64> = (0..nd)
+        .map(|d| {
+            if problem.constrained[d] {
+                (target - lambda) * problem.prescribed[d]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let a = model.assemble(u, target, true, Some(&delta)).map_err(cell_err)?;
+    let mut rhs = a.predictor.clone();
+    let mut r0 = vec![0.0; nf];
+    model.dofs.restrict(&a.f_int, &mut r0);
+    for e in 0..nf {
+        rhs[e] += target * f_ext_f[e] - r0[e];
+    }
+    let chol = factor
+        .factor(a.k.as_ref().expect("tangent assembled"))
+        .map_err(|e| (tangent_failure(e, model.laws), None))?;
+    chol.solve_in_place(&mut rhs);
+    let mut ut = u.to_vec();
+    for d in 0..nd {
+        if problem.constrained[d] {
+            ut[d] = target * problem.prescribed[d];
+        } else if let Some(e) = model.dofs.eq(d) {
+            ut[d] += rhs[e];
+        }
+    }
+    // 2. Newton with line search
+    let mut iterations = 0;
+    let (mut best, mut since_best) = (f64::INFINITY, 0);
+    loop {
+        let a = model.assemble(&ut, target, true, None).map_err(cell_err)?;
+        let mut r = vec![0.0; nf];
+        model.dofs.restrict(&a.f_int, &mut r);
+        for e in 0..nf {
+            r[e] = target * f_ext_f[e] - r[e];
+        }
+        let reaction: f64 = (0..nd)
+            .filter(|&d| problem.constrained[d])
+            .map(|d| a.f_int[d] * a.f_int[d])
+            .sum::<f64>()
+            .sqrt();
+        let scale = (target * norm(f_ext_f)).max(reaction).max(f64::MIN_POSITIVE);
+        let residual = norm(&r) / scale;
+        if !residual.is_finite() {
+            return Err(("the residual is not finite (a law evaluated outside its domain)".into(), None));
+        }
+        if residual <= params.tolerance {
+            return Ok((ut, a, residual, iterations));
+        }
+        if iterations >= params.max_iterations {
+            return Err((format!("no convergence in {iterations} Newton iterations"), Some(residual)));
+        }
+        if residual < best {
+            (best, since_best) = (residual, 0);
+        } else {
+            since_best += 1;
+            if since_best >= DIVERGING_ITERATIONS {
+                return Err((
+                    format!("Newton diverges (the residual has not decreased in {since_best} iterations)"),
+                    Some(residual),
+                ));
+            }
+        }
+        iterations += 1;
+        let chol = factor
+            .factor(a.k.as_ref().expect("tangent assembled"))
+            .map_err(|e| (tangent_failure(e, model.laws), Some(residual)))?;
+        let mut du = r.clone();
+        chol.solve_in_place(&mut du);
+        let p0 = potential(a.energy, target, &ut);
+        let slope = -dot(&r, &du);
+        let mut alpha = 1.0;
+        let next = loop {
+            let mut trial = ut.clone();
+            for d in 0..nd {
+                if let Some(e) = model.dofs.eq(d) {
+                    trial[d] += alpha * du[e];
+                }
+            }
+            // follower pressures have no potential here: their merit is the residual
+            let accept = |t: &Assembled| {
+                if model.pressures.is_empty() {
+                    potential(t.energy, target, &trial) <= p0 + 1e-4 * alpha * slope
+                } else {
+                    let mut rt = vec![0.0; nf];
+                    model.dofs.restrict(&t.f_int, &mut rt);
+                    let rt: f64 = rt
+                        .iter()
+                        .zip(f_ext_f)
+                        .map(|(fi, fe)| (target * fe - fi).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    rt <= (1.0 - 1e-4 * alpha) * norm(&r)
+                }
+            };
+            match model.assemble(&trial, target, false, None) {
+                Ok(t) if accept(&t) || alpha < 1.0 / 64.0 => break trial,
+                Ok(_) | Err(AssembleError::Cell(..)) if alpha >= 1.0 / 1024.0 => alpha /= 2.0,
+                Ok(_) => break trial,
+                Err(e) => return Err(cell_err(e)),
+            }
+        };
+        ut = next;
+    }
+}
+
 /// Solves `problem` (prescribed displacements and nodal forces, applied proportionally to
 /// the load factor) on `mesh` made of `laws`; `progress(λ, u)` is called after each converged
 /// step with its load factor and displacement (the snapshots of a POD basis).
@@ -375,15 +520,7 @@ pub fn solve(
         model.dofs.restrict(&problem.forces, &mut f);
         f
     };
-    let mut symbolic = None;
-    let mut factor = |k: &SymmetricMatrix| -> Result<Cholesky, SolveError> {
-        let sym = match &symbolic {
-            Some(s) => s,
-            None => symbolic.insert(Cholesky::analyze(k)?),
-        };
-        Cholesky::factor_with(sym.clone(), k)
-    };
-    let potential = |energy: f64, lambda: f64, u: &[f64]| energy - lambda * dot(&problem.forces, u);
+    let mut factor = Factorizer::default();
     let mut info = NewtonInfo::default();
     let mut u = vec![0.0; nd];
     let (mut lambda, mut step) = (0.0f64, 1.0 / params.steps as f64);
@@ -394,112 +531,7 @@ pub fn solve(
         .map_err(|AssembleError::Cell(cell, source)| NonlinearError::Mesh { cell, source })?;
     while lambda < 1.0 {
         let target = (lambda + step).min(1.0);
-        let attempt = (|| -> Result<(Vec<f64>, Assembled, f64, usize), (String, Option<f64>)> {
-            let cell_err = |AssembleError::Cell(c, e)| (format!("cell {c}: {e}"), None);
-            // 1. predictor
-            let delta: Vec<f64> = (0..nd)
-                .map(|d| {
-                    if problem.constrained[d] {
-                        (target - lambda) * problem.prescribed[d]
-                    } else {
-                        0.0
-                    }
-                })
-                .collect();
-            let a = model.assemble(&u, target, true, Some(&delta)).map_err(cell_err)?;
-            let mut rhs = a.predictor.clone();
-            let mut r0 = vec![0.0; nf];
-            model.dofs.restrict(&a.f_int, &mut r0);
-            for e in 0..nf {
-                rhs[e] += target * f_ext_f[e] - r0[e];
-            }
-            let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e, laws), None))?;
-            chol.solve_in_place(&mut rhs);
-            let mut ut = u.clone();
-            for d in 0..nd {
-                if problem.constrained[d] {
-                    ut[d] = target * problem.prescribed[d];
-                } else if let Some(e) = model.dofs.eq(d) {
-                    ut[d] += rhs[e];
-                }
-            }
-            // 2. Newton with line search
-            let mut iterations = 0;
-            let (mut best, mut since_best) = (f64::INFINITY, 0);
-            loop {
-                let a = model.assemble(&ut, target, true, None).map_err(cell_err)?;
-                let mut r = vec![0.0; nf];
-                model.dofs.restrict(&a.f_int, &mut r);
-                for e in 0..nf {
-                    r[e] = target * f_ext_f[e] - r[e];
-                }
-                let reaction: f64 = (0..nd)
-                    .filter(|&d| problem.constrained[d])
-                    .map(|d| a.f_int[d] * a.f_int[d])
-                    .sum::<f64>()
-                    .sqrt();
-                let scale = (target * norm(&f_ext_f)).max(reaction).max(f64::MIN_POSITIVE);
-                let residual = norm(&r) / scale;
-                if !residual.is_finite() {
-                    return Err(("the residual is not finite (a law evaluated outside its domain)".into(), None));
-                }
-                if residual <= params.tolerance {
-                    return Ok((ut, a, residual, iterations));
-                }
-                if iterations >= params.max_iterations {
-                    return Err((format!("no convergence in {iterations} Newton iterations"), Some(residual)));
-                }
-                if residual < best {
-                    (best, since_best) = (residual, 0);
-                } else {
-                    since_best += 1;
-                    if since_best >= DIVERGING_ITERATIONS {
-                        return Err((
-                            format!("Newton diverges (the residual has not decreased in {since_best} iterations)"),
-                            Some(residual),
-                        ));
-                    }
-                }
-                iterations += 1;
-                let chol = factor(a.k.as_ref().expect("tangent assembled")).map_err(|e| (tangent_failure(e, laws), Some(residual)))?;
-                let mut du = r.clone();
-                chol.solve_in_place(&mut du);
-                let p0 = potential(a.energy, target, &ut);
-                let slope = -dot(&r, &du);
-                let mut alpha = 1.0;
-                let next = loop {
-                    let mut trial = ut.clone();
-                    for d in 0..nd {
-                        if let Some(e) = model.dofs.eq(d) {
-                            trial[d] += alpha * du[e];
-                        }
-                    }
-                    // follower pressures have no potential here: their merit is the residual
-                    let accept = |t: &Assembled| {
-                        if model.pressures.is_empty() {
-                            potential(t.energy, target, &trial) <= p0 + 1e-4 * alpha * slope
-                        } else {
-                            let mut rt = vec![0.0; nf];
-                            model.dofs.restrict(&t.f_int, &mut rt);
-                            let rt: f64 = rt
-                                .iter()
-                                .zip(&f_ext_f)
-                                .map(|(fi, fe)| (target * fe - fi).powi(2))
-                                .sum::<f64>()
-                                .sqrt();
-                            rt <= (1.0 - 1e-4 * alpha) * norm(&r)
-                        }
-                    };
-                    match model.assemble(&trial, target, false, None) {
-                        Ok(t) if accept(&t) || alpha < 1.0 / 64.0 => break trial,
-                        Ok(_) | Err(AssembleError::Cell(..)) if alpha >= 1.0 / 1024.0 => alpha /= 2.0,
-                        Ok(_) => break trial,
-                        Err(e) => return Err(cell_err(e)),
-                    }
-                };
-                ut = next;
-            }
-        })();
+        let attempt = load_step(&model, problem, &f_ext_f, &mut factor, params, &u, lambda, target);
         match attempt {
             Ok((ut, a, residual, iterations)) => {
                 u = ut;

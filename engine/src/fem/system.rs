@@ -210,6 +210,12 @@ impl SymmetricMatrix {
     }
 }
 
+impl crate::solve::LowerTriangle for SymmetricMatrix {
+    fn lower(&self) -> SparseColMatRef<'_, usize, f64> {
+        self.as_faer()
+    }
+}
+
 /// Adds a cell matrix `ke` (`nd × nd`, row-major, `nd = eqs.len()`) of the cell with nodes
 /// `cell` into the lower triangle of `K_ff`, and `−K_fc ū_c` into `rhs` (length `n_free`) for
 /// the prescribed values `prescribed` (full length; `None`: no right-hand side). `eqs[p]` is

@@ -10,6 +10,8 @@
 //! - [`boundary`]: the boundary surface with the cell owning each face.
 //! - [`select`]: node and face sets chosen by a [`select::Region`].
 //! - [`quality`]: volumes, aspect ratios, inverted and degenerate cells.
+//! - [`shape`]: the shape functions of both cell kinds, their gradients and Jacobians (what
+//!   the quality measures and every element read).
 //! - [`procedural`]: structured blocks (hex and tet) and an organ-like lobe.
 //!
 //! Node numbering of both cell kinds follows VTK (and Gmsh, which agrees for these two):
@@ -22,6 +24,7 @@ pub mod gmsh;
 pub mod procedural;
 pub mod quality;
 pub mod select;
+pub mod shape;
 pub mod vtk;
 
 use std::collections::BTreeMap;

@@ -1,7 +1,7 @@
 //! Cell volumes and quality measures (what `vademecum mesh info` prints).
 
 use super::{CellKind, Mesh};
-use crate::fem::shape;
+use crate::mesh::shape;
 
 /// Signed volume of every cell (m³): `det[x1−x0, x2−x0, x3−x0]/6` for a tetrahedron, the
 /// 2×2×2 Gauss sum of `det J` for a hexahedron. Negative means inverted orientation.

@@ -15,8 +15,8 @@
 //! with a longer cut (progressive cutting) splits the former tip node and discretises only the
 //! new part: stations already carrying a pair are skipped.
 
-use super::cut::Cut;
 use super::mls::{MlsError, NodeCloud, ShapeValues};
+use crate::geometry::cut::Cut;
 
 /// What cutting did to the cloud.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

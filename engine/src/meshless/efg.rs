@@ -81,7 +81,7 @@ pub enum EfgError {
     Shape(#[from] MlsError),
     /// A cut could not be built.
     #[error(transparent)]
-    Cut(#[from] super::cut::CutError),
+    Cut(#[from] crate::geometry::cut::CutError),
     /// A point given on the deformed body could not be traced back to the reference body.
     #[error(
         "the point ({x:.4e}, {y:.4e}, {z:.4e}) of the deformed body could not be placed in the reference configuration (is it inside the body?)"
@@ -266,6 +266,271 @@ pub fn relax(problem: &EfgProblem, params: &AdrParams, start: &[f64], progress: 
     run(problem, params, Some(start), progress)
 }
 
+/// The essential boundary of an EFG problem, imposed by Eq. 3.18: the nodes with a prescribed
+/// component, the shape functions at them (`Φ_bb`, factored), and the prescribed values.
+struct EssentialBoundary {
+    dim: usize,
+    /// The boundary nodes, sorted.
+    bnodes: Vec<usize>,
+    /// The shape functions at each boundary node.
+    at_b: Vec<ShapeValues>,
+    /// `Φ_bb`: the boundary nodes' shape functions at the boundary nodes; its LU and that of
+    /// its transpose (the reactions).
+    phi_bb: DMatrix<f64>,
+    lu: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    lu_t: nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>,
+    /// Per boundary node and component, the value prescribed at λ = 1.
+    target: Vec<Option<f64>>,
+    /// Per field variable, whether it is prescribed.
+    constrained: Vec<bool>,
+}
+
+impl EssentialBoundary {
+    fn new(problem: &EfgProblem) -> Result<Self, EfgError> {
+        let cloud = &problem.cloud;
+        let d = cloud.dim();
+        let nd = d * cloud.len();
+        let mut bnodes: Vec<usize> = problem.prescribed.iter().map(|&(i, _, _)| i).collect();
+        bnodes.sort_unstable();
+        bnodes.dedup();
+        let bindex = |i: usize| bnodes.binary_search(&i).ok();
+        let mut at_b = Vec::with_capacity(bnodes.len());
+        for &i in &bnodes {
+            let mut s = ShapeValues::default();
+            cloud.shape_at_node(i, &mut s)?;
+            at_b.push(s);
+        }
+        let nb = bnodes.len();
+        let mut phi_bb = DMatrix::<f64>::zeros(nb, nb);
+        for (r, s) in at_b.iter().enumerate() {
+            for (a, &j) in s.nodes.iter().enumerate() {
+                if let Some(c) = bindex(j) {
+                    phi_bb[(r, c)] = s.phi[a];
+                }
+            }
+        }
+        let lu = phi_bb.clone().lu();
+        if !lu.is_invertible() {
+            return Err(EfgError::Boundary);
+        }
+        let lu_t = phi_bb.transpose().lu();
+        // which components are prescribed at each boundary node, and to what (at λ = 1)
+        let mut target = vec![None; nb * d];
+        for &(i, k, v) in &problem.prescribed {
+            target[bindex(i).expect("listed") * d + k] = Some(v);
+        }
+        let constrained: Vec<bool> = (0..nd)
+            .map(|q| bindex(q / d).is_some_and(|b| target[b * d + q % d].is_some()))
+            .collect();
+        Ok(Self {
+            dim: d,
+            bnodes,
+            at_b,
+            phi_bb,
+            lu,
+            lu_t,
+            target,
+            constrained,
+        })
+    }
+
+    /// The index of node `i` among the boundary nodes.
+    fn index(&self, i: usize) -> Option<usize> {
+        self.bnodes.binary_search(&i).ok()
+    }
+
+    /// Eq. 3.18: `U_b = Φ_bb⁻¹ (λŪ − Φ_bm U_m)`, component by component, into `u`.
+    fn impose(&self, u: &mut [f64], lambda: f64) {
+        let (d, nb, target) = (self.dim, self.bnodes.len(), &self.target);
+        for k in 0..d {
+            let mut rhs = nalgebra::DVector::zeros(nb);
+            for (r, s) in self.at_b.iter().enumerate() {
+                let Some(v) = target[r * d + k] else {
+                    continue;
+                };
+                let mut x = lambda * v;
+                for (a, &j) in s.nodes.iter().enumerate() {
+                    if self.index(j).is_none_or(|c| target[c * d + k].is_none()) {
+                        x -= s.phi[a] * u[d * j + k];
+                    }
+                }
+                rhs[r] = x;
+            }
+            // rows without a target in this component: keep the current field variable
+            let mut m = self.phi_bb.clone();
+            for r in 0..nb {
+                if target[r * d + k].is_none() {
+                    m.row_mut(r).fill(0.0);
+                    m[(r, r)] = 1.0;
+                    rhs[r] = u[d * self.bnodes[r] + k];
+                }
+            }
+            if let Some(sol) = if (0..nb).all(|r| target[r * d + k].is_some()) {
+                self.lu.solve(&rhs)
+            } else {
+                m.lu().solve(&rhs)
+            } {
+                for r in 0..nb {
+                    u[d * self.bnodes[r] + k] = sol[r];
+                }
+            }
+        }
+    }
+
+    /// The reactions at the `prescribed` components, `Φ_bb⁻ᵀ f_b` per component, of the
+    /// internal forces `f`.
+    fn reactions(&self, f: &[f64], prescribed: &[(usize, usize, f64)]) -> Vec<f64> {
+        let (d, nb) = (self.dim, self.bnodes.len());
+        let mut per = vec![0.0; nb * d];
+        for k in 0..d {
+            let fb = nalgebra::DVector::from_iterator(nb, self.bnodes.iter().map(|&i| f[d * i + k]));
+            if let Some(r) = self.lu_t.solve(&fb) {
+                for b in 0..nb {
+                    per[b * d + k] = r[b];
+                }
+            }
+        }
+        prescribed
+            .iter()
+            .map(|&(i, k, _)| per[self.index(i).expect("listed") * d + k])
+            .collect()
+    }
+}
+
+/// The external forces through the shape functions at the loaded nodes.
+fn external_forces(problem: &EfgProblem) -> Result<Vec<f64>, EfgError> {
+    let cloud = &problem.cloud;
+    let d = cloud.dim();
+    let mut f_ext = vec![0.0; d * cloud.len()];
+    for &(j, force) in &problem.loads {
+        let mut s = ShapeValues::default();
+        cloud.shape_at_node(j, &mut s)?;
+        for (a, &i) in s.nodes.iter().enumerate() {
+            for k in 0..d {
+                f_ext[d * i + k] += s.phi[a] * force[k];
+            }
+        }
+    }
+    Ok(f_ext)
+}
+
+/// The nodal masses of the `n` nodes: the Gershgorin bound of the stiffness row sums, so that
+/// `ω²_max ≤ 4` with `Δt = 1` (none zero).
+fn gershgorin_masses(model: &Model, n: usize) -> Vec<f64> {
+    let d = model.dim;
+    let modulus = match model.law {
+        Hyperelastic::NeoHookean { mu, kappa, .. } | Hyperelastic::MooneyRivlin { c10: mu, kappa, .. } => kappa + 4.0 / 3.0 * mu,
+        Hyperelastic::StVenantKirchhoff { lambda, mu } => lambda + 2.0 * mu,
+    };
+    let mut mass = vec![0.0; n];
+    for (s, &w) in model.shapes.iter().zip(&model.weights) {
+        let norms: Vec<f64> = (0..s.nodes.len())
+            .map(|a| (0..d).map(|k| s.grad[a * d + k].powi(2)).sum::<f64>().sqrt())
+            .collect();
+        let total: f64 = norms.iter().sum();
+        for (a, &i) in s.nodes.iter().enumerate() {
+            mass[i] += w * modulus * norms[a] * total * d as f64;
+        }
+    }
+    for m in &mut mass {
+        if *m <= 0.0 {
+            *m = f64::MIN_POSITIVE;
+        }
+    }
+    mass
+}
+
+/// Scales the Gershgorin `mass`es, loose by a factor of a few, so that the highest frequency
+/// of `M⁻¹K` at the state `u`, measured by power iteration, sits at `4/MARGIN`; the probe
+/// direction and the cloud's size, kept to measure it again along the way (large strains
+/// stiffen).
+fn calibrate_masses(model: &Model, cloud: &NodeCloud, constrained: &[bool], u: &[f64], mass: &mut [f64]) -> (Vec<f64>, f64) {
+    let d = model.dim;
+    // The bound is loose by a factor of a few: measure the highest frequency of M⁻¹K at the
+    // reference state by power iteration and scale the masses so that it sits at 4/MARGIN;
+    // the measurement is repeated along the way, since large strains stiffen.
+    let size = cloud
+        .points()
+        .iter()
+        .flat_map(|p| p.iter().take(d).copied())
+        .fold(0.0f64, |a, x| a.max(x.abs()))
+        .max(f64::MIN_POSITIVE);
+    let nd = constrained.len();
+    let mut probe_dir: Vec<f64> = (0..nd)
+        .map(|q| {
+            if constrained[q] {
+                0.0
+            } else {
+                ((q * 7919) % 13) as f64 - 6.0 + 0.5
+            }
+        })
+        .collect();
+    let highest = highest_frequency(model, u, mass, constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS);
+    if highest.is_finite() && highest > 0.0 {
+        for m in mass.iter_mut() {
+            *m *= highest * MARGIN / 4.0;
+        }
+    }
+    (probe_dir, size)
+}
+
+/// Eq. 3.8 with `l` the previous step: `Δuᵀ Δf / Δuᵀ M Δu` over the free field variables
+/// (`Δu = u − prev`, `Δf = f − f_prev`), when both are positive.
+fn rayleigh_quotient(u: &[f64], prev: &[f64], f: &[f64], f_prev: &[f64], mass: &[f64], constrained: &[bool], d: usize) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for q in 0..u.len() {
+        if !constrained[q] {
+            let du = u[q] - prev[q];
+            num += du * (f[q] - f_prev[q]);
+            den += du * du * mass[q / d];
+        }
+    }
+    (den > 0.0 && num > 0.0).then(|| num / den)
+}
+
+/// The solution at convergence: the energy, the relative residual of the out-of-balance
+/// force `f_int − f_ext` over the free field variables, the reactions at the prescribed
+/// components, and the displacement at the nodes (`u` holds the field variables; `f` is
+/// scratch for the forces).
+fn converged(
+    problem: &EfgProblem,
+    model: &Model,
+    boundary: &EssentialBoundary,
+    f_ext: &[f64],
+    u: Vec<f64>,
+    f: &mut [f64],
+    steps: usize,
+    error: f64,
+    restarts: usize,
+) -> Result<EfgSolution, EfgError> {
+    let (cloud, constrained) = (&problem.cloud, &boundary.constrained);
+    let d = cloud.dim();
+    let (n, nd) = (cloud.len(), d * cloud.len());
+    let energy = model.forces(&u, f).unwrap_or(f64::NAN);
+    let scale = f.iter().map(|x| x * x).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
+    for (fq, e) in f.iter_mut().zip(f_ext) {
+        *fq -= e;
+    }
+    let residual = (0..nd).filter(|&q| !constrained[q]).map(|q| f[q] * f[q]).sum::<f64>().sqrt() / scale;
+    let reactions = boundary.reactions(f, &problem.prescribed);
+    let mut displacement = Vec::with_capacity(nd);
+    let mut s = ShapeValues::default();
+    for i in 0..n {
+        cloud.shape_at_node(i, &mut s)?;
+        displacement.extend_from_slice(&s.interpolate(&u, d)[..d]);
+    }
+    Ok(EfgSolution {
+        field: u,
+        displacement,
+        energy,
+        reactions,
+        steps,
+        error,
+        residual,
+        restarts,
+    })
+}
+
 fn run(
     problem: &EfgProblem,
     params: &AdrParams,
@@ -289,133 +554,16 @@ fn run(
         shapes,
         law: problem.law,
     };
+    let f_ext = external_forces(problem)?;
     // essential boundary: the nodes with a prescribed component, their shape functions there
-    let mut bnodes: Vec<usize> = problem.prescribed.iter().map(|&(i, _, _)| i).collect();
-    bnodes.sort_unstable();
-    bnodes.dedup();
-    let bindex = |i: usize| bnodes.binary_search(&i).ok();
-    let mut at_b = Vec::with_capacity(bnodes.len());
-    for &i in &bnodes {
-        let mut s = ShapeValues::default();
-        cloud.shape_at_node(i, &mut s)?;
-        at_b.push(s);
-    }
-    let nb = bnodes.len();
-    // external forces through the shape functions at the loaded nodes
-    let mut f_ext = vec![0.0; nd];
-    for &(j, force) in &problem.loads {
-        let mut s = ShapeValues::default();
-        cloud.shape_at_node(j, &mut s)?;
-        for (a, &i) in s.nodes.iter().enumerate() {
-            for k in 0..d {
-                f_ext[d * i + k] += s.phi[a] * force[k];
-            }
-        }
-    }
-    let mut phi_bb = DMatrix::<f64>::zeros(nb, nb);
-    for (r, s) in at_b.iter().enumerate() {
-        for (a, &j) in s.nodes.iter().enumerate() {
-            if let Some(c) = bindex(j) {
-                phi_bb[(r, c)] = s.phi[a];
-            }
-        }
-    }
-    let lu = phi_bb.clone().lu();
-    if !lu.is_invertible() {
-        return Err(EfgError::Boundary);
-    }
-    let lu_t = phi_bb.transpose().lu();
-    // which components are prescribed at each boundary node, and to what (at λ = 1)
-    let mut target = vec![None; nb * d];
-    for &(i, k, v) in &problem.prescribed {
-        target[bindex(i).expect("listed") * d + k] = Some(v);
-    }
-    let constrained: Vec<bool> = (0..nd)
-        .map(|q| bindex(q / d).is_some_and(|b| target[b * d + q % d].is_some()))
-        .collect();
-    // Eq. 3.18: U_b = Φ_bb⁻¹ (λŪ − Φ_bm U_m), component by component
-    let impose = |u: &mut [f64], lambda: f64| {
-        for k in 0..d {
-            let mut rhs = nalgebra::DVector::zeros(nb);
-            for (r, s) in at_b.iter().enumerate() {
-                let Some(v) = target[r * d + k] else {
-                    continue;
-                };
-                let mut x = lambda * v;
-                for (a, &j) in s.nodes.iter().enumerate() {
-                    if bindex(j).is_none_or(|c| target[c * d + k].is_none()) {
-                        x -= s.phi[a] * u[d * j + k];
-                    }
-                }
-                rhs[r] = x;
-            }
-            // rows without a target in this component: keep the current field variable
-            let mut m = phi_bb.clone();
-            for r in 0..nb {
-                if target[r * d + k].is_none() {
-                    m.row_mut(r).fill(0.0);
-                    m[(r, r)] = 1.0;
-                    rhs[r] = u[d * bnodes[r] + k];
-                }
-            }
-            if let Some(sol) = if (0..nb).all(|r| target[r * d + k].is_some()) {
-                lu.solve(&rhs)
-            } else {
-                m.lu().solve(&rhs)
-            } {
-                for r in 0..nb {
-                    u[d * bnodes[r] + k] = sol[r];
-                }
-            }
-        }
-    };
+    let boundary = EssentialBoundary::new(problem)?;
+    let constrained = &boundary.constrained;
     // masses: Gershgorin bound of the stiffness row sums, so that ω²_max ≤ 4 with Δt = 1
-    let modulus = match problem.law {
-        Hyperelastic::NeoHookean { mu, kappa, .. } | Hyperelastic::MooneyRivlin { c10: mu, kappa, .. } => kappa + 4.0 / 3.0 * mu,
-        Hyperelastic::StVenantKirchhoff { lambda, mu } => lambda + 2.0 * mu,
-    };
-    let mut mass = vec![0.0; n];
-    for (s, &w) in model.shapes.iter().zip(&model.weights) {
-        let norms: Vec<f64> = (0..s.nodes.len())
-            .map(|a| (0..d).map(|k| s.grad[a * d + k].powi(2)).sum::<f64>().sqrt())
-            .collect();
-        let total: f64 = norms.iter().sum();
-        for (a, &i) in s.nodes.iter().enumerate() {
-            mass[i] += w * modulus * norms[a] * total * d as f64;
-        }
-    }
-    for m in &mut mass {
-        if *m <= 0.0 {
-            *m = f64::MIN_POSITIVE;
-        }
-    }
-    // The bound is loose by a factor of a few: measure the highest frequency of M⁻¹K at the
-    // reference state by power iteration and scale the masses so that it sits at 4/MARGIN;
-    // the measurement is repeated along the way, since large strains stiffen.
-    let size = cloud
-        .points()
-        .iter()
-        .flat_map(|p| p.iter().take(d).copied())
-        .fold(0.0f64, |a, x| a.max(x.abs()))
-        .max(f64::MIN_POSITIVE);
-    let mut probe_dir: Vec<f64> = (0..nd)
-        .map(|q| {
-            if constrained[q] {
-                0.0
-            } else {
-                ((q * 7919) % 13) as f64 - 6.0 + 0.5
-            }
-        })
-        .collect();
+    let mut mass = gershgorin_masses(&model, n);
     let mut u = start.map_or_else(|| vec![0.0; nd], <[f64]>::to_vec);
-    let highest = highest_frequency(&model, &u, &mass, &constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS);
-    if highest.is_finite() && highest > 0.0 {
-        for m in &mut mass {
-            *m *= highest * MARGIN / 4.0;
-        }
-    }
+    let (mut probe_dir, size) = calibrate_masses(&model, cloud, constrained, &u, &mut mass);
     if start.is_some() {
-        impose(&mut u, 1.0);
+        boundary.impose(&mut u, 1.0);
     }
     let initial = u.clone();
     let mut prev = u.clone();
@@ -470,16 +618,8 @@ fn run(
         }
         // Eq. 3.8 with l = the previous step: the Rayleigh quotient of the last change, which
         // aligns with the slowest mode as the relaxation proceeds
-        let (mut num, mut den) = (0.0, 0.0);
-        for q in 0..nd {
-            if !constrained[q] {
-                let du = u[q] - prev[q];
-                num += du * (f[q] - f_prev[q]);
-                den += du * du * mass[q / d];
-            }
-        }
-        if den > 0.0 && num > 0.0 {
-            estimate = (num / den).min(4.0);
+        if let Some(q) = rayleigh_quotient(&u, &prev, &f, &f_prev, &mass, constrained, d) {
+            estimate = q.min(4.0);
         }
         f_prev.copy_from_slice(&f);
         if step % params.update_every.max(1) == 0 && step > 0 {
@@ -487,7 +627,7 @@ fn run(
         }
         // large strains stiffen: re-measure the highest frequency and grow the masses
         if step > 0 && step % RESCALE_EVERY == 0 {
-            let now = highest_frequency(&model, &u, &mass, &constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS / 4);
+            let now = highest_frequency(&model, &u, &mass, constrained, &mut probe_dir, 1e-7 * size, POWER_ITERATIONS / 4);
             if now.is_finite() && now * MARGIN > 4.0 {
                 let grow = now * MARGIN / 4.0;
                 for m in &mut mass {
@@ -516,7 +656,7 @@ fn run(
                 prev[q] = u[q];
             }
         }
-        impose(&mut u, lambda);
+        boundary.impose(&mut u, lambda);
         if !loading {
             let w = omega2.sqrt();
             let rho = (2.0 - w) / (2.0 + w);
@@ -526,42 +666,7 @@ fn run(
                 progress(step, error);
             }
             if error < params.tolerance && local > loading_steps + 2 * params.update_every {
-                let energy = model.forces(&u, &mut f).unwrap_or(f64::NAN);
-                let scale = f.iter().map(|x| x * x).sum::<f64>().sqrt().max(f64::MIN_POSITIVE);
-                for (fq, e) in f.iter_mut().zip(&f_ext) {
-                    *fq -= e;
-                }
-                let residual = (0..nd).filter(|&q| !constrained[q]).map(|q| f[q] * f[q]).sum::<f64>().sqrt() / scale;
-                // reactions: Φ_bb⁻ᵀ f_b per component
-                let mut reactions = Vec::with_capacity(problem.prescribed.len());
-                let mut per = vec![0.0; nb * d];
-                for k in 0..d {
-                    let fb = nalgebra::DVector::from_iterator(nb, bnodes.iter().map(|&i| f[d * i + k]));
-                    if let Some(r) = lu_t.solve(&fb) {
-                        for b in 0..nb {
-                            per[b * d + k] = r[b];
-                        }
-                    }
-                }
-                for &(i, k, _) in &problem.prescribed {
-                    reactions.push(per[bindex(i).expect("listed") * d + k]);
-                }
-                let mut displacement = Vec::with_capacity(nd);
-                let mut s = ShapeValues::default();
-                for i in 0..n {
-                    cloud.shape_at_node(i, &mut s)?;
-                    displacement.extend_from_slice(&s.interpolate(&u, d)[..d]);
-                }
-                return Ok(EfgSolution {
-                    field: u,
-                    displacement,
-                    energy,
-                    reactions,
-                    steps: step + 1,
-                    error,
-                    residual,
-                    restarts,
-                });
+                return converged(problem, &model, &boundary, &f_ext, u, &mut f, step + 1, error, restarts);
             }
         }
     }

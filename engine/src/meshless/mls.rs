@@ -16,11 +16,11 @@
 //! The basis is evaluated in coordinates centred on `x` and scaled by the local support size,
 //! so `A` stays well conditioned for any physical units.
 //!
-//! With a cut ([`super::cut`]), a node's influence domain loses the points it cannot see
+//! With a cut ([`crate::geometry::cut`]), a node's influence domain loses the points it cannot see
 //! through the cut (the visibility criterion).
 
-use super::cut::Cut;
 use crate::dense::{cholesky_relative, cholesky_solve};
+use crate::geometry::cut::Cut;
 
 /// The quartic spline weight `w(r̄)` and its derivative `dw/dr̄` (Eq. 3.9).
 pub fn quartic_spline(r: f64) -> (f64, f64) {
@@ -104,7 +104,7 @@ pub struct NodeCloud {
     dims: [usize; 3],
     buckets: Vec<Vec<usize>>,
     /// The cut, if any, with each node's side (±1, for nodes on the cut), its sight position
-    /// (see [`super::cut`]) and whether its influence domain reaches the cut.
+    /// (see [`crate::geometry::cut`]) and whether its influence domain reaches the cut.
     cut: Option<CutState>,
 }
 

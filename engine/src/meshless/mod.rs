@@ -9,9 +9,9 @@
 //! - [`mod@reference`]: seed 004's verification problems (the Table 3.2 square).
 //!
 //! The total Lagrangian neo-Hookean forces, adaptive dynamic relaxation, essential boundary
-//! conditions and cutting build on these.
+//! conditions and cutting build on these; a cut's level sets and the visibility criterion are
+//! [`crate::geometry::cut`]'s (the XFEM reads the same cuts).
 
-pub mod cut;
 pub mod cutting;
 pub mod efg;
 pub mod grid;

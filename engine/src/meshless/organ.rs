@@ -10,15 +10,15 @@
 
 use nalgebra::Matrix3;
 
-use super::cut::Cut;
 use super::cutting::{CutNodes, cut_cloud};
 use super::efg::{self, AdrParams, EfgError, EfgProblem, EfgSolution};
 use super::grid::IntegrationPoint;
 use super::mls::NodeCloud;
 use crate::fem::element::von_mises;
 use crate::fem::linear_static::StaticProblem;
-use crate::fem::shape;
+use crate::geometry::cut::Cut;
 use crate::material::hyperelastic::{Hyperelastic, Part};
+use crate::mesh::shape;
 use crate::mesh::{CellKind, Mesh};
 
 /// How an organ is discretised and relaxed.

@@ -172,9 +172,9 @@ pub fn square_cut(
     params: &super::efg::AdrParams,
     mut progress: impl FnMut(usize, usize, f64),
 ) -> Result<CutStudy, super::efg::EfgError> {
-    use super::cut::Cut;
     use super::cutting::cut_cloud;
     use super::efg::{EfgError, pull_back, relax, solve};
+    use crate::geometry::cut::Cut;
     let pulled = square(setup.nodes, 0.2, 0.49, setup.integration).map_err(|e| EfgError::Diverged {
         step: 0,
         why: e.to_string(),

@@ -27,14 +27,14 @@
 //! - [`brute`]: the brute-force parametric solution and error measures.
 //! - [`compress`]: recompression of the modes by QR + SVD (an orthonormal basis, fewer modes
 //!   at equal error).
-//! - [`offline`]: an organ's whole build (modes from the greedy PGD or from the snapshots),
-//!   bundles; [`shard`]: the snapshots solved in shards on separate machines, merged.
+//! - [`vademecum`]: the online evaluator (Eq. 2.6 at a load state, local compliances).
+//!
+//! An organ's whole build (modes from the greedy PGD or from sharded snapshots, and every
+//! other method's stage) is [`crate::offline`]'s; the bundle it writes is [`crate::bundle`]'s.
 
 pub mod brute;
 pub mod build;
 pub mod compress;
-pub mod offline;
-pub mod shard;
 pub mod vademecum;
 
 pub use build::{LoadVector, PgdInfo, PgdParams, SeparatedSolution};

@@ -46,7 +46,7 @@
 //! solve left: `|f − f_target| + max_± |f(ΔC_target ± spread) − f_target|`
 //! ([`corrected_force_error`]), added to the cut's own ([`super::cutting::force_error`]).
 //! `vademecum study` checks it by replaying a press frame by frame against a fresh factor at
-//! each frame's state ([`super::estimate::corotational_samples`]).
+//! each frame's state (`study::estimate::corotational_samples`).
 //!
 //! # The landing of a frame
 //! A new correction would change the force at once, by `|f(ΔC_new) − f(ΔC_old)|` at the same

@@ -21,13 +21,12 @@
 pub mod corotational;
 pub mod cut_picture;
 pub mod cutting;
-pub mod estimate;
 pub mod palpation;
 pub mod tearing;
 
 use std::sync::Arc;
 
-use crate::pgd::offline::LoadedBundle;
+use crate::bundle::LoadedBundle;
 use crate::scene::Scene;
 use crate::scene::schema::{DeformationModel, GLOBAL_FORCE_LIMIT_N, ToolSpec};
 
@@ -674,8 +673,8 @@ fn tearing_effect(
     max_force: f64,
 ) -> Result<(Tearing, TearPictures, Vec<Arc<crate::damage::online::TearOffline>>), PipelineError> {
     use crate::damage::online::TearOffline;
-    use crate::damage::organ;
-    let Some(i) = organ::tearable_organ(scene) else {
+    use crate::scene::tearing;
+    let Some(i) = tearing::tearable_organ(scene) else {
         return Err(PipelineError::Tearing {
             organ: 0,
             message: "no organ has a material with damage".into(),
@@ -688,7 +687,7 @@ fn tearing_effect(
                 .into(),
         ));
     }
-    let (model, _) = organ::tear_model(scene, i).map_err(|e| fail(e.to_string()))?;
+    let (model, _) = tearing::tear_model(scene, i).map_err(|e| fail(e.to_string()))?;
     let offs = bundles[i]
         .tear
         .iter()
@@ -699,7 +698,7 @@ fn tearing_effect(
                 .map_err(|e| fail(if k == 0 { e } else { format!("grasp site {k}: {e}") }))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let (_, limits) = organ::settings(scene);
+    let (_, limits) = tearing::settings(scene);
     let variant = scene.spec.fidelity.tearing.variant;
     let (t, pictures) = Tearing::new(i, offs.clone(), variant, limits, jaw_width, max_force).map_err(|e| fail(e.to_string()))?;
     Ok((t, pictures, offs))
@@ -713,7 +712,7 @@ fn tearing_effect(
 /// `vademecum study`'s check of the per-answer estimate.
 pub fn session_cut_model(
     scene: &Scene,
-    model: &crate::scene::OrganModel,
+    model: &crate::fem::OrganModel,
     bundle: &LoadedBundle,
 ) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
     let same = model.mesh.nodes.len() == bundle.nodes.len()
@@ -742,9 +741,9 @@ pub fn cut_params(scene: &Scene, sliver: Option<f64>) -> crate::xfem::XfemParams
 /// scene's). What `vademecum build --target-tick-us` times before writing the bundle.
 pub fn cut_model(
     scene: &Scene,
-    model: &crate::scene::OrganModel,
+    model: &crate::fem::OrganModel,
     v: &crate::pgd::Vademecum,
-    cut_basis: Option<&crate::pgd::offline::CutBasis>,
+    cut_basis: Option<&crate::bundle::CutBasis>,
     sliver: Option<f64>,
 ) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
     use crate::xfem::reduced::{Discontinuous, ReducedCut};

@@ -41,9 +41,9 @@
 use std::sync::Arc;
 
 use super::{Contact, Effect, Events, Fidelity, TickState, ToolInput};
+use crate::bundle::LoadedBundle;
 use crate::contact::{Bounds, Proxy, Surface, Touch};
 use crate::pgd::Vademecum;
-use crate::pgd::offline::LoadedBundle;
 
 /// One organ as the probe sees it.
 #[derive(Debug, Clone)]
@@ -70,8 +70,7 @@ pub struct Palpation {
     neighbours: usize,
 }
 
-/// Lattice positions blended per evaluation (seed 001 §6.1 interpolates among four).
-pub const NEIGHBOURS: usize = 4;
+pub use crate::rom::lattice_check::NEIGHBOURS;
 
 /// The relative error of the linear law's force against the full-order model: the round-off of
 /// the exact local compliances (computed by a direct solve; `vademecum study` measures it, at

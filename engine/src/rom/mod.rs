@@ -10,6 +10,8 @@
 //!   Grassmann manifold's log/exp maps.
 //! - [`lattice`]: reduced models on a lattice of load positions and their interpolation
 //!   off it, against the full model.
+//! - [`lattice_check`]: a palpation lattice against the full model's force–depth laws at
+//!   nodes off it (what `build --target-error` holds a lattice to).
 //! - [`palpation`]: the online large-deformation model — ANM paths on a lattice of surface
 //!   positions, served as a nonlinear force–depth law under the tool.
 //! - [`podi_online`]: seed 001 §5 online — a model at a new position from its neighbours'
@@ -20,6 +22,7 @@
 pub mod anm;
 pub mod interpolate;
 pub mod lattice;
+pub mod lattice_check;
 pub mod palpation;
 pub mod pod;
 pub mod podi_online;

@@ -31,10 +31,10 @@ use super::pod::{Pod, PodCriterion};
 use super::study::StudyError;
 use super::svk::ReducedSvk;
 use super::unit;
+use crate::fem::OrganModel;
 use crate::fem::hyperelastic::{LawMap, Volumetric};
 use crate::fem::nonlinear_static::{self, NewtonParams};
 use crate::mesh::boundary::triangle_area_normal;
-use crate::scene::OrganModel;
 
 /// Settings of the lattice build.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -278,7 +278,7 @@ impl AnmLattice {
     /// of [`FEWEST_TARGET_POSITIONS`] positions, then twice as many, … up to
     /// `params.positions` (each size the first positions of the next: nothing is built
     /// twice), each checked by `error_of` (the largest relative error of its served force over
-    /// states the caller checks it at: [`crate::pipeline::estimate::lattice_error`]). The first
+    /// states the caller checks it at: [`super::lattice_check::lattice_error`]). The first
     /// size within `target` is kept; none within it, the most positions are kept and the
     /// target is not met. `progress(done, most)` after each position.
     pub fn build_for_target(

@@ -4,13 +4,14 @@
 //! # Layout
 //! - [`schema`]: the serde types of the TOML format (documented in `docs/scene.md`).
 //! - [`locate`]: maps a key path to its line in the source text.
-//! - this file: [`Scene`] (a validated scene), [`SceneError`], [`OrganModel`] (an organ's
-//!   mesh, materials, constraints and loads, ready to solve), and [`builtin`] scenes.
+//! - this file: [`Scene`] (a validated scene), [`SceneError`], the organ a scene describes as
+//!   the finite-element problem [`OrganModel`] (`crate::fem::organ`), and [`builtin`] scenes.
 
 pub mod schema;
 
 mod builtin_scenes;
 pub mod locate;
+pub mod tearing;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -19,13 +20,14 @@ use crate::damage::law::{DamageLaw, LawError};
 use crate::fem::assembly::MaterialMap;
 use crate::fem::hyperelastic::LawMap;
 use crate::fem::linear_static::StaticProblem;
+use crate::fem::organ::OrganModel;
 use crate::fem::{Locking, loads};
+use crate::geometry::cut::Cut;
 use crate::material::hyperelastic::Hyperelastic;
 use crate::material::{self, LinearElastic};
 use crate::mesh::boundary::Boundary;
 use crate::mesh::select::{GroupRef, Region, nearest_node};
 use crate::mesh::{self, CellKind, Mesh, procedural};
-use crate::meshless::cut::Cut;
 pub use builtin_scenes::{BUILTIN_NAMES, builtin};
 use locate::Seg;
 use schema::*;
@@ -116,7 +118,7 @@ impl Scene {
     /// Whether what is built for `other` is what is built for this scene: the same scene but
     /// for what a session reads at run time only — `fidelity.fallback`, the description — and
     /// the text's comments and layout. A bundle built from either serves both, so changing
-    /// a runtime setting never forces a rebuild ([`crate::pgd::offline::check_matches`]).
+    /// a runtime setting never forces a rebuild ([`crate::bundle::check_matches`]).
     pub fn builds_like(&self, other: &SceneFile) -> bool {
         let built = |s: &SceneFile| {
             let mut s = s.clone();
@@ -154,8 +156,7 @@ impl Scene {
     /// Checks everything that can be checked without reading meshes.
     fn validate(&self) -> Result<(), SceneError> {
         let s = &self.spec;
-        let name_ok = |n: &str| !n.is_empty() && n.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
-        if !name_ok(&s.scene.name) {
+        if !is_name(&s.scene.name) {
             return Err(self.error_at(
                 &[Seg::Key("scene"), Seg::Key("name")],
                 "a scene name must be non-empty and use only letters, digits, '-' and '_' (it names output folders)",
@@ -164,94 +165,126 @@ impl Scene {
         if s.organs.is_empty() {
             return Err(self.error_at(&[Seg::Key("organs")], "a scene needs at least one [[organs]] entry"));
         }
-        for (i, o) in s.organs.iter().enumerate() {
-            let at = |rest: &[Seg<'static>]| -> Vec<Seg<'static>> {
-                let mut v = vec![Seg::Key("organs"), Seg::Index(i)];
-                v.extend_from_slice(rest);
-                v
+        for i in 0..s.organs.len() {
+            self.validate_organ(i)?;
+        }
+        self.validate_tools()?;
+        if s.effects.cutting && !s.tools.iter().any(|t| matches!(t, ToolSpec::Scalpel { .. })) {
+            return Err(self.error_at(
+                &[Seg::Key("effects"), Seg::Key("cutting")],
+                "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\"",
+            ));
+        }
+        if s.fidelity.cutting == schema::CuttingModel::CorotationalXfem && !s.effects.cutting {
+            return Err(self.error_at(
+                &[Seg::Key("fidelity"), Seg::Key("cutting")],
+                "fidelity.cutting = \"corotational_xfem\" chooses a cutting model, but cutting is off: set effects.cutting = true",
+            ));
+        }
+        self.validate_visuals()?;
+        if s.effects.tearing && !s.tools.iter().any(|t| matches!(t, ToolSpec::Grasper { .. })) {
+            return Err(self.error_at(
+                &[Seg::Key("effects"), Seg::Key("tearing")],
+                "tearing is enabled but the scene has no grasper tool; add a [[tools]] entry with kind = \"grasper\"",
+            ));
+        }
+        self.validate_tearing()?;
+        self.validate_reduced_settings()?;
+        self.validate_meshless()
+    }
+
+    /// Organ `i`: its name (unique), density, mesh settings, materials, accessible region,
+    /// supports and loads, each checked without reading its mesh.
+    fn validate_organ(&self, i: usize) -> Result<(), SceneError> {
+        let (s, o) = (&self.spec, &self.spec.organs[i]);
+        let at = |rest: &[Seg<'static>]| organ_key(i, rest);
+        if !is_name(&o.name) {
+            return Err(self.error_at(
+                &at(&[Seg::Key("name")]),
+                "an organ name must be non-empty and use only letters, digits, '-' and '_'",
+            ));
+        }
+        if s.organs[..i].iter().any(|p| p.name == o.name) {
+            return Err(self.error_at(&at(&[Seg::Key("name")]), format!("organ name '{}' is used twice", o.name)));
+        }
+        if let Err(e) = material::validate_density(o.density) {
+            return Err(self.error_at(&at(&[Seg::Key("density")]), e.to_string()));
+        }
+        self.validate_mesh_spec(&o.mesh, &at(&[Seg::Key("mesh")]))?;
+        if o.materials.is_empty() {
+            return Err(self.error_at(
+                &at(&[Seg::Key("materials")]),
+                "an organ needs at least one [[organs.materials]] entry",
+            ));
+        }
+        for (m, spec) in o.materials.iter().enumerate() {
+            self.validate_material(spec, &at(&[Seg::Key("materials"), Seg::Index(m)]))?;
+        }
+        if let Err(e) = o.accessible.validate() {
+            return Err(self.error_at(&at(&[Seg::Key("accessible")]), e.to_string()));
+        }
+        let supports = o.fixed.supports();
+        if supports.is_empty() {
+            return Err(self.error_at(&at(&[Seg::Key("fixed")]), "an organ needs at least one support"));
+        }
+        for (k, sup) in supports.iter().enumerate() {
+            let key = match o.fixed {
+                FixedSpec::Region(_) => at(&[Seg::Key("fixed")]),
+                FixedSpec::Supports(_) => at(&[Seg::Key("fixed"), Seg::Index(k)]),
             };
-            if !name_ok(&o.name) {
-                return Err(self.error_at(
-                    &at(&[Seg::Key("name")]),
-                    "an organ name must be non-empty and use only letters, digits, '-' and '_'",
-                ));
+            if let Err(e) = sup.region.validate() {
+                return Err(self.error_at(&key, e.to_string()));
             }
-            if s.organs[..i].iter().any(|p| p.name == o.name) {
-                return Err(self.error_at(&at(&[Seg::Key("name")]), format!("organ name '{}' is used twice", o.name)));
+            if sup.components.as_ref().is_some_and(|c| c.is_empty()) {
+                return Err(self.error_at(&key, "`components` must name at least one of \"x\", \"y\", \"z\""));
             }
-            if let Err(e) = material::validate_density(o.density) {
-                return Err(self.error_at(&at(&[Seg::Key("density")]), e.to_string()));
-            }
-            self.validate_mesh_spec(&o.mesh, &at(&[Seg::Key("mesh")]))?;
-            if o.materials.is_empty() {
-                return Err(self.error_at(
-                    &at(&[Seg::Key("materials")]),
-                    "an organ needs at least one [[organs.materials]] entry",
-                ));
-            }
-            for (m, spec) in o.materials.iter().enumerate() {
-                self.validate_material(spec, &at(&[Seg::Key("materials"), Seg::Index(m)]))?;
-            }
-            if let Err(e) = o.accessible.validate() {
-                return Err(self.error_at(&at(&[Seg::Key("accessible")]), e.to_string()));
-            }
-            let supports = o.fixed.supports();
-            if supports.is_empty() {
-                return Err(self.error_at(&at(&[Seg::Key("fixed")]), "an organ needs at least one support"));
-            }
-            for (k, sup) in supports.iter().enumerate() {
-                let key = match o.fixed {
-                    FixedSpec::Region(_) => at(&[Seg::Key("fixed")]),
-                    FixedSpec::Supports(_) => at(&[Seg::Key("fixed"), Seg::Index(k)]),
-                };
-                if let Err(e) = sup.region.validate() {
-                    return Err(self.error_at(&key, e.to_string()));
-                }
-                if sup.components.as_ref().is_some_and(|c| c.is_empty()) {
-                    return Err(self.error_at(&key, "`components` must name at least one of \"x\", \"y\", \"z\""));
-                }
-                if sup.stiffness.is_some_and(|k| !(k.is_finite() && k > 0.0)) {
-                    return Err(self.error_at(&key, "`stiffness` must be positive (Pa/m: springs per unit area)"));
-                }
-            }
-            for (l, load) in o.loads.iter().enumerate() {
-                let p = at(&[Seg::Key("loads"), Seg::Index(l)]);
-                let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
-                let bad = match load {
-                    LoadSpec::Point { at, force } => (!finite(at) || !finite(force)).then_some("point loads need finite `at` and `force`"),
-                    LoadSpec::Force { region, force, .. } => region
-                        .validate()
-                        .err()
-                        .map(|_| "invalid region")
-                        .or((!finite(force)).then_some("`force` must be finite")),
-                    LoadSpec::Traction { region, traction } => region
-                        .validate()
-                        .err()
-                        .map(|_| "invalid region")
-                        .or((!finite(traction)).then_some("`traction` must be finite")),
-                    LoadSpec::Pressure { region, pressure } => region
-                        .validate()
-                        .err()
-                        .map(|_| "invalid region")
-                        .or((!pressure.is_finite()).then_some("`pressure` must be finite (Pa)")),
-                    LoadSpec::Gravity { acceleration } => (!finite(acceleration)).then_some("`acceleration` must be finite"),
-                    LoadSpec::Displacement { region, x, y, z, .. } => {
-                        if region.validate().is_err() {
-                            Some("invalid region")
-                        } else if x.is_none() && y.is_none() && z.is_none() {
-                            Some("a displacement load must prescribe at least one of x, y, z")
-                        } else if [x, y, z].iter().any(|c| c.is_some_and(|v| !v.is_finite())) {
-                            Some("prescribed displacements must be finite")
-                        } else {
-                            None
-                        }
-                    }
-                };
-                if let Some(msg) = bad {
-                    return Err(self.error_at(&p, msg));
-                }
+            if sup.stiffness.is_some_and(|k| !(k.is_finite() && k > 0.0)) {
+                return Err(self.error_at(&key, "`stiffness` must be positive (Pa/m: springs per unit area)"));
             }
         }
+        for (l, load) in o.loads.iter().enumerate() {
+            let p = at(&[Seg::Key("loads"), Seg::Index(l)]);
+            let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+            let bad = match load {
+                LoadSpec::Point { at, force } => (!finite(at) || !finite(force)).then_some("point loads need finite `at` and `force`"),
+                LoadSpec::Force { region, force, .. } => region
+                    .validate()
+                    .err()
+                    .map(|_| "invalid region")
+                    .or((!finite(force)).then_some("`force` must be finite")),
+                LoadSpec::Traction { region, traction } => region
+                    .validate()
+                    .err()
+                    .map(|_| "invalid region")
+                    .or((!finite(traction)).then_some("`traction` must be finite")),
+                LoadSpec::Pressure { region, pressure } => region
+                    .validate()
+                    .err()
+                    .map(|_| "invalid region")
+                    .or((!pressure.is_finite()).then_some("`pressure` must be finite (Pa)")),
+                LoadSpec::Gravity { acceleration } => (!finite(acceleration)).then_some("`acceleration` must be finite"),
+                LoadSpec::Displacement { region, x, y, z, .. } => {
+                    if region.validate().is_err() {
+                        Some("invalid region")
+                    } else if x.is_none() && y.is_none() && z.is_none() {
+                        Some("a displacement load must prescribe at least one of x, y, z")
+                    } else if [x, y, z].iter().any(|c| c.is_some_and(|v| !v.is_finite())) {
+                        Some("prescribed displacements must be finite")
+                    } else {
+                        None
+                    }
+                }
+            };
+            if let Some(msg) = bad {
+                return Err(self.error_at(&p, msg));
+            }
+        }
+        Ok(())
+    }
+
+    /// The tools: unique names, positive dimensions and forces within the global limit.
+    fn validate_tools(&self) -> Result<(), SceneError> {
+        let s = &self.spec;
         let mut seen = Vec::new();
         for (t, tool) in s.tools.iter().enumerate() {
             let at = [Seg::Key("tools"), Seg::Index(t)];
@@ -279,18 +312,13 @@ impl Scene {
                 ));
             }
         }
-        if s.effects.cutting && !s.tools.iter().any(|t| matches!(t, ToolSpec::Scalpel { .. })) {
-            return Err(self.error_at(
-                &[Seg::Key("effects"), Seg::Key("cutting")],
-                "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\"",
-            ));
-        }
-        if s.fidelity.cutting == schema::CuttingModel::CorotationalXfem && !s.effects.cutting {
-            return Err(self.error_at(
-                &[Seg::Key("fidelity"), Seg::Key("cutting")],
-                "fidelity.cutting = \"corotational_xfem\" chooses a cutting model, but cutting is off: set effects.cutting = true",
-            ));
-        }
+        Ok(())
+    }
+
+    /// The organs' visual meshes: drawn by co-rotational cutting only, Wavefront `.obj`, a
+    /// positive scale.
+    fn validate_visuals(&self) -> Result<(), SceneError> {
+        let s = &self.spec;
         for (i, o) in s.organs.iter().enumerate() {
             let Some(v) = &o.visual else { continue };
             let at = [Seg::Key("organs"), Seg::Index(i), Seg::Key("visual")];
@@ -307,13 +335,13 @@ impl Scene {
                 return Err(self.error_at(&at, "`scale` must be a positive number"));
             }
         }
-        if s.effects.tearing && !s.tools.iter().any(|t| matches!(t, ToolSpec::Grasper { .. })) {
-            return Err(self.error_at(
-                &[Seg::Key("effects"), Seg::Key("tearing")],
-                "tearing is enabled but the scene has no grasper tool; add a [[tools]] entry with kind = \"grasper\"",
-            ));
-        }
-        self.validate_tearing()?;
+        Ok(())
+    }
+
+    /// `[fidelity.pgd]` and `[fidelity.large]`: tolerances in (0, 1), counts at least 1 and
+    /// at most what a build may take, the ANM order in range, a positive force.
+    fn validate_reduced_settings(&self) -> Result<(), SceneError> {
+        let s = &self.spec;
         let p = &s.fidelity.pgd;
         let pgd = [Seg::Key("fidelity"), Seg::Key("pgd")];
         let in_unit = |t: f64| t > 0.0 && t < 1.0;
@@ -352,7 +380,7 @@ impl Scene {
         if !(l.max_force.is_finite() && l.max_force > 0.0) {
             return Err(self.error_at(&large("max_force"), "max_force must be a positive force (N)"));
         }
-        self.validate_meshless()
+        Ok(())
     }
 
     /// Tearable materials against `effects.tearing`, and `[fidelity.tearing]`.
@@ -952,11 +980,46 @@ impl Scene {
     /// Like [`Scene::organ_model`], with a mesh already built (e.g. to reuse it).
     pub fn organ_model_with_mesh(&self, index: usize, mesh: Mesh) -> Result<OrganModel, SceneError> {
         let o = &self.spec.organs[index];
-        let base = |rest: &[Seg<'static>]| -> Vec<Seg<'static>> {
-            let mut v = vec![Seg::Key("organs"), Seg::Index(index)];
-            v.extend_from_slice(rest);
-            v
-        };
+        let base = |rest: &[Seg<'static>]| organ_key(index, rest);
+        let (materials, laws) = self.organ_materials(index, &mesh)?;
+
+        let (locking, warnings) = resolve_locking(self.spec.fidelity.locking, mesh.kind, &materials, laws.as_ref())
+            .map_err(|m| self.error_at(&[Seg::Key("fidelity"), Seg::Key("locking")], format!("organ '{}': {m}", o.name)))?;
+        let warnings = warnings.into_iter().map(|w| format!("organ '{}': {w}", o.name)).collect();
+
+        let boundary = Boundary::of(&mesh);
+        let mut problem = StaticProblem::new(mesh.n_nodes());
+        let mut named_regions = self.organ_supports(index, &mesh, &boundary, &mut problem)?;
+        let accessible_nodes = o
+            .accessible
+            .surface_nodes(&mesh, &boundary)
+            .map_err(|e| self.error_at(&base(&[Seg::Key("accessible")]), e.to_string()))?;
+        if accessible_nodes.is_empty() {
+            return Err(self.error_at(
+                &base(&[Seg::Key("accessible")]),
+                "the accessible region contains no surface node; tools could touch nothing",
+            ));
+        }
+        self.organ_loads(index, &mesh, &boundary, &materials, &mut problem, &mut named_regions)?;
+        Ok(OrganModel {
+            name: o.name.clone(),
+            mesh,
+            materials,
+            laws,
+            locking,
+            warnings,
+            problem,
+            named_regions,
+            accessible_nodes,
+            boundary,
+        })
+    }
+
+    /// Organ `index`'s materials on `mesh`: each cell's (later entries override earlier ones
+    /// on the cells they cover), and the hyperelastic laws when the materials are hyperelastic.
+    fn organ_materials(&self, index: usize, mesh: &Mesh) -> Result<(MaterialMap, Option<LawMap>), SceneError> {
+        let o = &self.spec.organs[index];
+        let base = |rest: &[Seg<'static>]| organ_key(index, rest);
         // Materials: later entries override earlier ones on the cells they cover.
         let mut of_cell: Vec<Option<u16>> = vec![None; mesh.n_cells()];
         let mut table = Vec::new();
@@ -982,7 +1045,7 @@ impl Scene {
                 None => None,
                 Some(r) => {
                     let nodes = r
-                        .nodes(&mesh)
+                        .nodes(mesh)
                         .map_err(|e| self.error_at(&[at.clone(), vec![Seg::Key("within")]].concat(), e.to_string()))?;
                     let mut node_in = vec![false; mesh.n_nodes()];
                     nodes.iter().for_each(|&n| node_in[n] = true);
@@ -1040,20 +1103,27 @@ impl Scene {
             table,
             of_cell,
         };
+        Ok((materials, laws))
+    }
 
-        let (locking, warnings) = resolve_locking(self.spec.fidelity.locking, mesh.kind, &materials, laws.as_ref())
-            .map_err(|m| self.error_at(&[Seg::Key("fidelity"), Seg::Key("locking")], format!("organ '{}': {m}", o.name)))?;
-        let warnings = warnings.into_iter().map(|w| format!("organ '{}': {w}", o.name)).collect();
-
-        let boundary = Boundary::of(&mesh);
-        let mut problem = StaticProblem::new(mesh.n_nodes());
+    /// Organ `index`'s supports on `mesh` into `problem` (fixed components, or elastic
+    /// foundations on the region's boundary faces): each support's name and nodes.
+    fn organ_supports(
+        &self,
+        index: usize,
+        mesh: &Mesh,
+        boundary: &Boundary,
+        problem: &mut StaticProblem,
+    ) -> Result<Vec<(String, Vec<usize>)>, SceneError> {
+        let o = &self.spec.organs[index];
+        let base = |rest: &[Seg<'static>]| organ_key(index, rest);
         let mut named_regions = Vec::new();
         for (k, sup) in o.fixed.supports().iter().enumerate() {
             let key = match o.fixed {
                 FixedSpec::Region(_) => base(&[Seg::Key("fixed")]),
                 FixedSpec::Supports(_) => base(&[Seg::Key("fixed"), Seg::Index(k)]),
             };
-            let nodes = sup.region.nodes(&mesh).map_err(|e| self.error_at(&key, e.to_string()))?;
+            let nodes = sup.region.nodes(mesh).map_err(|e| self.error_at(&key, e.to_string()))?;
             if nodes.is_empty() {
                 return Err(self.error_at(
                     &key,
@@ -1071,11 +1141,11 @@ impl Scene {
                     }
                 }
                 Some(k) => {
-                    let faces = sup.region.faces(&mesh, &boundary).map_err(|e| self.error_at(&key, e.to_string()))?;
+                    let faces = sup.region.faces(mesh, boundary).map_err(|e| self.error_at(&key, e.to_string()))?;
                     if faces.is_empty() {
                         return Err(self.error_at(&key, "an elastic foundation needs boundary faces inside its region"));
                     }
-                    loads::add_foundation(&mut problem.springs, &mesh, &boundary, &faces, k, &components);
+                    loads::add_foundation(&mut problem.springs, mesh, boundary, &faces, k, &components);
                 }
             }
             let name = sup
@@ -1084,20 +1154,26 @@ impl Scene {
                 .unwrap_or_else(|| if k == 0 { "fixed".into() } else { format!("fixed{}", k + 1) });
             named_regions.push((name, nodes));
         }
-        let accessible_nodes = o
-            .accessible
-            .surface_nodes(&mesh, &boundary)
-            .map_err(|e| self.error_at(&base(&[Seg::Key("accessible")]), e.to_string()))?;
-        if accessible_nodes.is_empty() {
-            return Err(self.error_at(
-                &base(&[Seg::Key("accessible")]),
-                "the accessible region contains no surface node; tools could touch nothing",
-            ));
-        }
+        Ok(named_regions)
+    }
+
+    /// Organ `index`'s loads on `mesh` into `problem` (forces, tractions, pressures, gravity,
+    /// prescribed displacements — whose regions are added to `named_regions`).
+    fn organ_loads(
+        &self,
+        index: usize,
+        mesh: &Mesh,
+        boundary: &Boundary,
+        materials: &MaterialMap,
+        problem: &mut StaticProblem,
+        named_regions: &mut Vec<(String, Vec<usize>)>,
+    ) -> Result<(), SceneError> {
+        let o = &self.spec.organs[index];
+        let base = |rest: &[Seg<'static>]| organ_key(index, rest);
         for (l, load) in o.loads.iter().enumerate() {
             let at = base(&[Seg::Key("loads"), Seg::Index(l)]);
             let region_nodes = |r: &Region| {
-                r.nodes(&mesh)
+                r.nodes(mesh)
                     .map_err(|e| self.error_at(&[at.clone(), vec![Seg::Key("region")]].concat(), e.to_string()))
             };
             let empty = |what: &str| {
@@ -1108,7 +1184,7 @@ impl Scene {
             };
             match load {
                 LoadSpec::Point { at: p, force } => {
-                    let n = nearest_node(&mesh, *p).ok_or_else(|| self.error_at(&at, "the mesh has no nodes"))?;
+                    let n = nearest_node(mesh, *p).ok_or_else(|| self.error_at(&at, "the mesh has no nodes"))?;
                     loads::add_point_force(&mut problem.forces, n, *force);
                 }
                 LoadSpec::Force {
@@ -1124,13 +1200,13 @@ impl Scene {
                         loads::add_distributed_force(&mut problem.forces, &nodes, *force);
                     }
                     ForceDistribution::Surface => {
-                        let faces = region.faces(&mesh, &boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
+                        let faces = region.faces(mesh, boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
                         if faces.is_empty() {
                             return Err(empty("force (no boundary face has all its nodes inside)"));
                         }
                         // a unit traction's nodal shares ∫ N_a dA, and their sum, the area
                         let mut share = vec![0.0; problem.forces.len()];
-                        let area = loads::add_traction(&mut share, &mesh, &boundary, &faces, [1.0, 0.0, 0.0]);
+                        let area = loads::add_traction(&mut share, mesh, boundary, &faces, [1.0, 0.0, 0.0]);
                         for n in 0..mesh.n_nodes() {
                             loads::add_point_force(&mut problem.forces, n, force.map(|f| f * share[3 * n] / area));
                         }
@@ -1144,26 +1220,26 @@ impl Scene {
                         if cells.is_empty() {
                             return Err(empty("force (no cell has all its nodes inside)"));
                         }
-                        loads::add_volume_force(&mut problem.forces, &mesh, &cells, *force)
+                        loads::add_volume_force(&mut problem.forces, mesh, &cells, *force)
                             .map_err(|e| self.error_at(&at, e.to_string()))?;
                     }
                 },
                 LoadSpec::Traction { region, traction } => {
-                    let faces = region.faces(&mesh, &boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
+                    let faces = region.faces(mesh, boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
                     if faces.is_empty() {
                         return Err(empty("traction (no boundary face has all its nodes inside)"));
                     }
-                    loads::add_traction(&mut problem.forces, &mesh, &boundary, &faces, *traction);
+                    loads::add_traction(&mut problem.forces, mesh, boundary, &faces, *traction);
                 }
                 LoadSpec::Pressure { region, pressure } => {
-                    let faces = region.faces(&mesh, &boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
+                    let faces = region.faces(mesh, boundary).map_err(|e| self.error_at(&at, e.to_string()))?;
                     if faces.is_empty() {
                         return Err(empty("pressure (no boundary face has all its nodes inside)"));
                     }
-                    problem.add_pressure(&mesh, loads::PressureLoad::on(&boundary, &faces, *pressure));
+                    problem.add_pressure(mesh, loads::PressureLoad::on(boundary, &faces, *pressure));
                 }
                 LoadSpec::Gravity { acceleration } => {
-                    loads::add_body_force(&mut problem.forces, &mesh, &materials, *acceleration)
+                    loads::add_body_force(&mut problem.forces, mesh, materials, *acceleration)
                         .map_err(|e| self.error_at(&at, e.to_string()))?;
                 }
                 LoadSpec::Displacement { name, region, x, y, z } => {
@@ -1180,18 +1256,7 @@ impl Scene {
                 }
             }
         }
-        Ok(OrganModel {
-            name: o.name.clone(),
-            mesh,
-            materials,
-            laws,
-            locking,
-            warnings,
-            problem,
-            named_regions,
-            accessible_nodes,
-            boundary,
-        })
+        Ok(())
     }
 }
 
@@ -1300,6 +1365,18 @@ pub fn resolve_locking(
     Ok((locking, warnings))
 }
 
+/// Whether `n` can name a scene, an organ or a folder: non-empty, letters, digits, '-' and '_'.
+fn is_name(n: &str) -> bool {
+    !n.is_empty() && n.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+}
+
+/// The key path `organs[index]` followed by `rest`.
+fn organ_key(index: usize, rest: &[Seg<'static>]) -> Vec<Seg<'static>> {
+    let mut v = vec![Seg::Key("organs"), Seg::Index(index)];
+    v.extend_from_slice(rest);
+    v
+}
+
 fn locking_name(l: Locking) -> &'static str {
     match l {
         Locking::None => "none",
@@ -1307,31 +1384,4 @@ fn locking_name(l: Locking) -> &'static str {
         Locking::Bbar => "bbar",
         Locking::Nodal => "nodal",
     }
-}
-
-/// One organ of a scene, ready for a static solve.
-#[derive(Debug, Clone)]
-pub struct OrganModel {
-    /// Organ name.
-    pub name: String,
-    /// Its mesh (m).
-    pub mesh: Mesh,
-    /// Materials per cell (for hyperelastic organs, their small-strain moduli: what the
-    /// linear vademecum and the mass use).
-    pub materials: MaterialMap,
-    /// Hyperelastic laws per cell, when the organ's materials are hyperelastic (`None`:
-    /// linear elasticity).
-    pub laws: Option<LawMap>,
-    /// Locking treatment (the scene's, or the default for the mesh and materials).
-    pub locking: Locking,
-    /// What the user should know before trusting the results (an element that will lock).
-    pub warnings: Vec<String>,
-    /// Constraints and loads.
-    pub problem: StaticProblem,
-    /// Regions whose reactions are reported: `fixed`, then each displacement load's name.
-    pub named_regions: Vec<(String, Vec<usize>)>,
-    /// Surface nodes tools may touch.
-    pub accessible_nodes: Vec<usize>,
-    /// The boundary surface.
-    pub boundary: Boundary,
 }

@@ -7,10 +7,17 @@ pub mod memory;
 use faer::MatMut;
 use faer::Side;
 use faer::linalg::solvers::Solve;
+use faer::sparse::SparseColMatRef;
 use faer::sparse::linalg::LltError;
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 
-use crate::fem::assembly::SymmetricMatrix;
+/// A symmetric sparse matrix given by its lower triangle in compressed columns (row indices
+/// sorted within each column): what the factorizations take. The finite elements' assembled
+/// matrix (`crate::fem::system::SymmetricMatrix`) is one; this module imports no element.
+pub trait LowerTriangle {
+    /// The lower triangle as a faer matrix.
+    fn lower(&self) -> SparseColMatRef<'_, usize, f64>;
+}
 
 /// Why a factorization failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -42,14 +49,14 @@ pub struct Cholesky {
 
 impl Cholesky {
     /// Symbolic analysis (fill-reducing ordering, elimination tree) of `k`'s pattern.
-    pub fn analyze(k: &SymmetricMatrix) -> Result<SymbolicLlt<usize>, SolveError> {
-        SymbolicLlt::try_new(k.pattern.symbolic().as_ref(), Side::Lower).map_err(|e| SolveError::Internal(format!("{e:?}")))
+    pub fn analyze(k: &impl LowerTriangle) -> Result<SymbolicLlt<usize>, SolveError> {
+        SymbolicLlt::try_new(k.lower().symbolic(), Side::Lower).map_err(|e| SolveError::Internal(format!("{e:?}")))
     }
 
     /// Numeric factorization of `k` with an existing symbolic analysis of its pattern.
-    pub fn factor_with(symbolic: SymbolicLlt<usize>, k: &SymmetricMatrix) -> Result<Self, SolveError> {
-        let n = k.pattern.n();
-        let llt = Llt::try_new_with_symbolic(symbolic.clone(), k.as_faer(), Side::Lower).map_err(|e| match e {
+    pub fn factor_with(symbolic: SymbolicLlt<usize>, k: &impl LowerTriangle) -> Result<Self, SolveError> {
+        let n = k.lower().nrows();
+        let llt = Llt::try_new_with_symbolic(symbolic.clone(), k.lower(), Side::Lower).map_err(|e| match e {
             LltError::Numeric(faer::linalg::cholesky::llt::factor::LltError::NonPositivePivot { index }) => {
                 SolveError::NotPositiveDefinite { pivot: index, n }
             }
@@ -59,13 +66,13 @@ impl Cholesky {
     }
 
     /// Symbolic analysis and numeric factorization in one go.
-    pub fn factor(k: &SymmetricMatrix) -> Result<Self, SolveError> {
+    pub fn factor(k: &impl LowerTriangle) -> Result<Self, SolveError> {
         let s = Self::analyze(k)?;
         Self::factor_with(s, k)
     }
 
     /// Refactors a matrix with the same pattern, keeping the symbolic analysis.
-    pub fn refactor(&mut self, k: &SymmetricMatrix) -> Result<(), SolveError> {
+    pub fn refactor(&mut self, k: &impl LowerTriangle) -> Result<(), SolveError> {
         *self = Self::factor_with(self.symbolic.clone(), k)?;
         Ok(())
     }

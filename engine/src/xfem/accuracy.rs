@@ -10,22 +10,44 @@
 
 use super::reduced::{Discontinuous, ReducedCut, RitzBasis};
 use super::{Enrichment, Plane, XfemParams, system};
+use crate::fem::OrganModel;
+use crate::geometry::cut::Cut;
 use crate::pgd::Vademecum;
-use crate::scene::{OrganModel, Scene};
 
 /// Cracked surface nodes where the force is compared.
 pub const CONTACTS: usize = 4;
 
+/// Why the served cut force could not be held against the full XFEM.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum AccuracyError {
+    /// The cut crosses no cell of the organ.
+    #[error("the cut crosses no cell of the organ")]
+    NoCutCell,
+    /// The cut cracks no node that is free to move.
+    #[error("the cut cracks no node free to move")]
+    NoFreeCrackedNode,
+    /// The cut's enrichment could not be made.
+    #[error(transparent)]
+    Enrichment(#[from] super::enrichment::EnrichmentError),
+    /// A full-order XFEM solve failed.
+    #[error(transparent)]
+    Solve(#[from] super::system::XfemError),
+    /// The session's reduced cut model could not be made or cut.
+    #[error(transparent)]
+    Reduced(#[from] super::reduced::ReducedError),
+}
+
 /// A 3×3 compliance (m/N).
 pub type Compliance = [[f64; 3]; 3];
 
-/// The cut cells of the scene's pre-planned cuts on organ 0 (each cell once), or without any,
-/// the cells crossed by the plane through the organ's centre normal to y.
-pub fn cut_cells(scene: &Scene, model: &OrganModel, params: &XfemParams) -> Result<Vec<(usize, Plane)>, String> {
-    let cuts = scene.organ_cuts(0).map_err(|e| e.to_string())?;
+/// The cells of organ `model` crossed by its pre-planned `cuts` (a scene's
+/// `organ_cuts`; each cell once), or without any, the cells crossed by
+/// the plane through the organ's centre normal to y.
+pub fn cut_cells(cuts: &[Cut], model: &OrganModel, params: &XfemParams) -> Result<Vec<(usize, Plane)>, AccuracyError> {
     let mut cells: Vec<(usize, Plane)> = Vec::new();
-    for cut in &cuts {
-        for (c, p) in Enrichment::cut_cells(&model.mesh, cut, params).map_err(|e| e.to_string())? {
+    for cut in cuts {
+        for (c, p) in Enrichment::cut_cells(&model.mesh, cut, params)? {
             if !cells.iter().any(|(d, _)| *d == c) {
                 cells.push((c, p));
             }
@@ -66,7 +88,7 @@ pub fn contact_nodes_up_to(model: &OrganModel, enr: &Enrichment, most: usize) ->
 
 /// The compliance at `node` of the XFEM with enrichment `enr`: three full-order solves with a
 /// unit force there.
-pub fn full_compliance(model: &OrganModel, enr: &Enrichment, params: &XfemParams, node: usize) -> Result<Compliance, String> {
+pub fn full_compliance(model: &OrganModel, enr: &Enrichment, params: &XfemParams, node: usize) -> Result<Compliance, AccuracyError> {
     patch_compliance(model, enr, params, &[node], &[1.0])
 }
 
@@ -79,7 +101,7 @@ pub fn patch_compliance(
     params: &XfemParams,
     nodes: &[usize],
     weights: &[f64],
-) -> Result<Compliance, String> {
+) -> Result<Compliance, AccuracyError> {
     let mut c = [[0.0; 3]; 3];
     for j in 0..3 {
         let mut problem = model.problem.clone();
@@ -88,7 +110,7 @@ pub fn patch_compliance(
         for (&a, &w) in nodes.iter().zip(weights) {
             problem.forces[3 * a + j] += w;
         }
-        let sol = system::solve(&model.mesh, &model.materials, model.locking, &problem, enr, params).map_err(|e| e.to_string())?;
+        let sol = system::solve(&model.mesh, &model.materials, model.locking, &problem, enr, params)?;
         for (i, ci) in c.iter_mut().enumerate() {
             ci[j] = nodes.iter().zip(weights).map(|(&a, &w)| w * sol.u[3 * a + i]).sum();
         }
@@ -125,31 +147,31 @@ pub struct Reference {
 }
 
 impl Reference {
-    /// The reference of organ 0 of `scene` at `params`, at [`CONTACTS`] nodes;
+    /// The reference of organ `model` cut by `cuts` at `params`, at [`CONTACTS`] nodes;
     /// `progress(done, total)` after each full solve triple. An error when the cut crosses no
     /// cell or cracks no free node.
-    pub fn of(scene: &Scene, model: &OrganModel, params: &XfemParams, progress: impl FnMut(usize, usize)) -> Result<Self, String> {
-        Self::at(scene, model, params, CONTACTS, progress)
+    pub fn of(cuts: &[Cut], model: &OrganModel, params: &XfemParams, progress: impl FnMut(usize, usize)) -> Result<Self, AccuracyError> {
+        Self::at(cuts, model, params, CONTACTS, progress)
     }
 
     /// [`Self::of`] at up to `contacts` cracked surface nodes.
     pub fn at(
-        scene: &Scene,
+        cuts: &[Cut],
         model: &OrganModel,
         params: &XfemParams,
         contacts: usize,
         mut progress: impl FnMut(usize, usize),
-    ) -> Result<Self, String> {
-        let cells = cut_cells(scene, model, params)?;
+    ) -> Result<Self, AccuracyError> {
+        let cells = cut_cells(cuts, model, params)?;
         if cells.is_empty() {
-            return Err("the cut crosses no cell of organ 0".into());
+            return Err(AccuracyError::NoCutCell);
         }
-        let reference = Enrichment::from_cut_cells(&model.mesh, &cells, params).map_err(|e| e.to_string())?;
+        let reference = Enrichment::from_cut_cells(&model.mesh, &cells, params)?;
         let contacts = contact_nodes_up_to(model, &reference, contacts);
         if contacts.is_empty() {
-            return Err("the cut cracks no node free to move".into());
+            return Err(AccuracyError::NoFreeCrackedNode);
         }
-        let uncut_enr = Enrichment::from_cut_cells(&model.mesh, &[], params).map_err(|e| e.to_string())?;
+        let uncut_enr = Enrichment::from_cut_cells(&model.mesh, &[], params)?;
         let (mut full, mut uncut) = (Vec::new(), Vec::new());
         for (k, &a) in contacts.iter().enumerate() {
             full.push(full_compliance(model, &reference, params, a)?);
@@ -186,17 +208,13 @@ impl Reference {
 /// and the sorted relative errors of its forces against `reference` (`None` when it enriches
 /// exactly the reference's nodes: the same model).
 pub fn local_fields_errors(
-    scene: &Scene,
+    cuts: &[Cut],
     model: &OrganModel,
     params: &XfemParams,
     reference: &Reference,
-) -> Result<Option<(usize, Vec<f64>)>, String> {
-    let cells = cut_cells(scene, model, params)?;
-    if Enrichment::from_cut_cells(&model.mesh, &cells, params)
-        .map_err(|e| e.to_string())?
-        .nodes
-        == reference.enriched
-    {
+) -> Result<Option<(usize, Vec<f64>)>, AccuracyError> {
+    let cells = cut_cells(cuts, model, params)?;
+    if Enrichment::from_cut_cells(&model.mesh, &cells, params)?.nodes == reference.enriched {
         return Ok(None);
     }
     let mut r = ReducedCut::new(
@@ -209,9 +227,8 @@ pub fn local_fields_errors(
         RitzBasis::Srb,
         Discontinuous::LocalFields,
         params,
-    )
-    .map_err(|e| e.to_string())?;
-    r.cut(&model.mesh, &cells).map_err(|e| e.to_string())?;
+    )?;
+    r.cut(&model.mesh, &cells)?;
     let enriched = r.enrichment().len();
     Ok(Some((enriched, reference.errors(&mut r.view()))))
 }
@@ -232,16 +249,16 @@ pub const BARE_CONTACTS: usize = 12;
 /// ([`patch_samples`]). `progress(done, total)` after each patch.
 #[allow(clippy::too_many_arguments)]
 pub fn bare_force_error(
-    scene: &Scene,
+    cuts: &[Cut],
     model: &OrganModel,
     params: &XfemParams,
     basis: super::reduced::RitzBasis,
     x: std::sync::Arc<[f64]>,
     size: usize,
     progress: impl FnMut(usize, usize),
-) -> Result<(f64, usize), String> {
-    let cells = cut_cells(scene, model, params)?;
-    let cut = Enrichment::from_cut_cells(&model.mesh, &cells, params).map_err(|e| e.to_string())?;
+) -> Result<(f64, usize), AccuracyError> {
+    let cells = cut_cells(cuts, model, params)?;
+    let cut = Enrichment::from_cut_cells(&model.mesh, &cells, params)?;
     let tris = crack_triangles(model, &cut);
     let n = tris.len().min(BARE_CONTACTS);
     let patches: Vec<([usize; 3], [f64; 3])> = contact_nodes_up_to(model, &cut, BARE_CONTACTS)
@@ -259,9 +276,8 @@ pub fn bare_force_error(
         size,
         Discontinuous::Bare,
         params,
-    )
-    .map_err(|e| e.to_string())?;
-    r.cut(&model.mesh, &cells).map_err(|e| e.to_string())?;
+    )?;
+    r.cut(&model.mesh, &cells)?;
     let samples = patch_forces(model, params, &cut, &mut r.view(), &patches, progress)?;
     let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
     let worst = samples
@@ -306,8 +322,8 @@ pub fn patch_forces(
     view: &mut super::reduced::CutView,
     patches: &[([usize; 3], [f64; 3])],
     mut progress: impl FnMut(usize, usize),
-) -> Result<Vec<PatchSample>, String> {
-    let uncut = Enrichment::from_cut_cells(&model.mesh, &[], params).map_err(|e| e.to_string())?;
+) -> Result<Vec<PatchSample>, AccuracyError> {
+    let uncut = Enrichment::from_cut_cells(&model.mesh, &[], params)?;
     let mut out = Vec::with_capacity(3 * patches.len());
     for (k, (t, w)) in patches.iter().enumerate() {
         let full = patch_compliance(model, cut, params, t, w)?;
@@ -339,8 +355,8 @@ pub fn patch_samples(
     view: &mut super::reduced::CutView,
     count: usize,
     progress: impl FnMut(usize, usize),
-) -> Result<Vec<PatchSample>, String> {
-    let cut = Enrichment::from_cut_cells(&model.mesh, cells, params).map_err(|e| e.to_string())?;
+) -> Result<Vec<PatchSample>, AccuracyError> {
+    let cut = Enrichment::from_cut_cells(&model.mesh, cells, params)?;
     let tris = crack_triangles(model, &cut);
     if tris.is_empty() {
         return Ok(Vec::new());
@@ -377,16 +393,16 @@ pub struct SliverTarget {
 /// nodes, a cheaper cut and tick —, or the scene's own (exact: the local fields are the full
 /// XFEM's Schur complement).
 pub fn sliver_for_target(
-    scene: &Scene,
+    cuts: &[Cut],
     model: &OrganModel,
     params: &XfemParams,
     target: f64,
     reference: &Reference,
-) -> Result<SliverTarget, String> {
+) -> Result<SliverTarget, AccuracyError> {
     let mut tried = Vec::new();
     for sliver in TARGET_SLIVERS.into_iter().filter(|&s| s > params.sliver) {
         let p = XfemParams { sliver, ..*params };
-        let Some((enriched, errors)) = local_fields_errors(scene, model, &p, reference)? else {
+        let Some((enriched, errors)) = local_fields_errors(cuts, model, &p, reference)? else {
             continue;
         };
         let worst = errors.last().copied().unwrap_or(f64::INFINITY);

@@ -28,8 +28,8 @@
 //! stays attached to the other side. The dropped nodes are reported.
 
 use super::subcell::{self, Plane};
+use crate::geometry::cut::Cut;
 use crate::mesh::{CellKind, Mesh, quality};
-use crate::meshless::cut::Cut;
 
 /// What a scene does with a piece of tissue the cuts have detached from every support.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]

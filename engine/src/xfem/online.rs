@@ -18,8 +18,8 @@
 use super::blade::{Blade, ForceSplit};
 use super::enrichment::{Enrichment, XfemParams};
 use super::reduced::{ReducedCut, ReducedError};
+use crate::geometry::cut::Cut;
 use crate::mesh::Mesh;
-use crate::meshless::cut::Cut;
 
 /// The distance from `p` to `q`.
 fn moved(p: [f64; 3], q: [f64; 3]) -> f64 {

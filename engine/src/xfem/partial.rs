@@ -11,8 +11,8 @@
 //! retired and never clipped again, so the work follows the blade's front, not the length of
 //! the cut.
 
+use crate::geometry::vec3::{cross, dot, lerp, norm, sub};
 use crate::mesh::{CellKind, Mesh};
-use crate::vec3::{cross, dot, lerp, norm, sub};
 
 /// The part of `polygon` (planar, convex or not, its vertices in order) on the side of the
 /// plane `dot(n, x) <= offset` (Sutherland–Hodgman against one plane).

@@ -15,8 +15,8 @@
 
 use std::collections::BTreeMap;
 
+use crate::geometry::vec3::{cross, dot, sub};
 use crate::mesh::{CellKind, Mesh};
-use crate::vec3::{cross, dot, sub};
 
 /// The six edges of a tetrahedron (local vertex pairs).
 pub const TET_EDGES: [[usize; 2]; 6] = [[0, 1], [0, 2], [0, 3], [1, 2], [1, 3], [2, 3]];

@@ -17,8 +17,8 @@
 
 use std::sync::OnceLock;
 
-use crate::fem::shape;
 use crate::mesh::CellKind;
+use crate::mesh::shape;
 
 /// A cut plane `φ(x) = n·(x − p) = 0`, `n` of unit length; its positive side is `φ > 0`.
 #[derive(Debug, Clone, Copy, PartialEq)]

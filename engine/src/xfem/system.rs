@@ -47,8 +47,8 @@ use crate::fem::assembly::{self, AssemblyError, DofMap, MaterialMap, SymmetricMa
 use crate::fem::element::{self, ElementError, Locking};
 use crate::fem::linear_static::{StaticError, StaticProblem};
 use crate::fem::nodal::{self, NodalPatches};
-use crate::fem::shape;
 use crate::material::LinearElastic;
+use crate::mesh::shape;
 use crate::mesh::{CellKind, Mesh};
 use crate::solve::{self, Cholesky, SolveError};
 

@@ -49,8 +49,8 @@ use super::progressive::{ProgressiveCut, TET_EDGES};
 use super::subcell::Plane;
 pub use super::visual::VertexSide;
 use super::visual::VisualMesh;
+use crate::geometry::vec3::{cross, dot, lerp, sub};
 use crate::mesh::{CellKind, Mesh};
-use crate::vec3::{cross, dot, lerp, sub};
 
 /// A visual surface split along a cut.
 #[derive(Debug, Clone, PartialEq)]
@@ -517,9 +517,10 @@ fn triangulate(
     Ok((cap, cap_area))
 }
 
-/// The surface `visual` split along the part of `plane` inside `cut_cells` of `mesh`, and
-/// closed by the cut faces (module docs).
-pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize]) -> Result<SplitSurface, SplitError> {
+/// The arguments of [`split`] checked (tetrahedra, cells in range, a well-formed surface, a
+/// finite plane), the plane's normal made unit, and the size of the scene (the diagonal of
+/// the box around the surface and the mesh) that the tolerances scale with.
+fn checked_plane(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize]) -> Result<(Plane, f64), SplitError> {
     if mesh.kind != CellKind::Tet4 {
         return Err(SplitError::NotTetrahedra(mesh.kind));
     }
@@ -540,7 +541,6 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
         point: plane.point,
         normal: [plane.normal[0] / l, plane.normal[1] / l, plane.normal[2] / l],
     };
-    let frame = Frame::new(&plane);
     let size = {
         let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for p in visual.vertices.iter().chain(&mesh.nodes) {
@@ -551,6 +551,340 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
         }
         dot(sub(hi, lo), sub(hi, lo)).sqrt()
     };
+    Ok((plane, size))
+}
+
+/// Marks where each contour segment and each segment of the cut region's boundary cross or
+/// touch (an end of one within `touch` of the other): the splits of both, a new point at each
+/// crossing.
+fn mark_crossings(
+    points: &mut Vec<PlanePoint>,
+    contour_segments: &mut [Segment],
+    region_segments: &mut [Segment],
+    frame: &Frame,
+    touch: f64,
+) {
+    let tol = 1e-9;
+    let contour_len = contour_segments.len();
+    for ci in 0..contour_len {
+        let [a, b] = contour_segments[ci].ends;
+        let (pa, pb) = (points[a].xy, points[b].xy);
+        for seg in region_segments.iter_mut() {
+            let [p, q] = seg.ends;
+            let (pp, pq) = (points[p].xy, points[q].xy);
+            // an end of either lying on the other
+            for (end, at) in [(p, pp), (q, pq)] {
+                let (t, d) = project(pa, pb, at);
+                if d <= touch && t > tol && t < 1.0 - tol {
+                    let x = lerp(points[a].x, points[b].x, t);
+                    points[end].x = x;
+                    contour_segments[ci].splits.push((t, end));
+                }
+            }
+            for (end, at) in [(a, pa), (b, pb)] {
+                let (t, d) = project(pp, pq, at);
+                if d <= touch && t > tol && t < 1.0 - tol {
+                    seg.splits.push((t, end));
+                }
+            }
+            if let Some((t, u)) = segments_meet(pa, pb, pp, pq, 0.0)
+                && t > tol
+                && t < 1.0 - tol
+                && u > tol
+                && u < 1.0 - tol
+            {
+                let x = lerp(points[a].x, points[b].x, t);
+                points.push(PlanePoint {
+                    xy: frame.to_2d(x),
+                    x,
+                    vertex: None,
+                });
+                let id = points.len() - 1;
+                contour_segments[ci].splits.push((t, id));
+                seg.splits.push((u, id));
+            }
+        }
+    }
+}
+
+/// Each point, or the contour vertex's point it lies on (within `touch`): a region point
+/// that fell on a contour vertex is that vertex.
+fn aliases(points: &[PlanePoint], vertex_points: impl Iterator<Item = usize>, touch: f64) -> Vec<usize> {
+    let mut alias: Vec<usize> = (0..points.len()).collect();
+    for pv in vertex_points {
+        for (i, p) in points.iter().enumerate().filter(|(_, p)| p.vertex.is_none()) {
+            let d = [p.xy[0] - points[pv].xy[0], p.xy[1] - points[pv].xy[1]];
+            if (d[0] * d[0] + d[1] * d[1]).sqrt() <= touch {
+                alias[i] = pv;
+            }
+        }
+    }
+    alias
+}
+
+/// The contour's segments cut at their splits into pieces between points (aliases resolved,
+/// empty pieces dropped); each new point inside a segment becomes a surface vertex on the
+/// plane, and the surface edge it lies on is to be split there: the pieces, and the splits of
+/// each edge (lower vertex, higher vertex) by parameter from the lower.
+fn split_contour(
+    points: &mut [PlanePoint],
+    contour_segments: &[Segment],
+    alias: &[usize],
+    vertices: &mut Vec<[f64; 3]>,
+    phi: &mut Vec<f64>,
+) -> (Vec<[usize; 2]>, HashMap<(usize, usize), Vec<(f64, usize)>>) {
+    let mut edge_splits: HashMap<(usize, usize), Vec<(f64, usize)>> = HashMap::new();
+    let mut contour_pieces: Vec<[usize; 2]> = Vec::new();
+    for seg in contour_segments {
+        let pieces: Vec<[usize; 2]> = seg
+            .pieces()
+            .into_iter()
+            .map(|[p, q]| [alias[p], alias[q]])
+            .filter(|[p, q]| p != q)
+            .collect();
+        for &[_, q] in &pieces[..pieces.len().saturating_sub(1)] {
+            if points[q].vertex.is_none() {
+                vertices.push(points[q].x);
+                phi.push(0.0);
+                points[q].vertex = Some(vertices.len() - 1);
+            }
+        }
+        let (a, b) = (
+            points[seg.ends[0]].vertex.unwrap_or(usize::MAX),
+            points[seg.ends[1]].vertex.unwrap_or(usize::MAX),
+        );
+        let inner: Vec<(f64, usize)> = pieces[..pieces.len().saturating_sub(1)]
+            .iter()
+            .filter_map(|&[_, q]| {
+                let v = points[q].vertex?;
+                let (t, _) = project(points[seg.ends[0]].xy, points[seg.ends[1]].xy, points[q].xy);
+                Some((t, v))
+            })
+            .collect();
+        if !inner.is_empty() {
+            // parameters from the lower vertex to the higher
+            let list = edge_splits.entry((a.min(b), a.max(b))).or_default();
+            for (t, v) in inner {
+                list.push((if a < b { t } else { 1.0 - t }, v));
+            }
+        }
+        contour_pieces.extend(pieces);
+    }
+    (contour_pieces, edge_splits)
+}
+
+/// How the cap's triangles meet the contour.
+struct CapEdges {
+    /// Each cap edge (lower point, higher point) and the cap triangles on it (1: its boundary).
+    cap_edges: HashMap<(usize, usize), u32>,
+    /// The contour's pieces as edges.
+    contour_set: std::collections::HashSet<(usize, usize)>,
+    /// Points on the cut's front: the cap's boundary off the contour.
+    on_front: Vec<bool>,
+    /// Per contour point: its contour edges the cap opened, and those it left closed.
+    opened_at: HashMap<usize, (u32, u32)>,
+    /// Contour edges the cap opened.
+    opened_edges: usize,
+}
+
+/// The edges of `cap` (over `n_points` plane points) against the contour's pieces.
+fn cap_edges(cap: &[[usize; 3]], contour_pieces: &[[usize; 2]], n_points: usize) -> CapEdges {
+    let mut cap_edges: HashMap<(usize, usize), u32> = HashMap::new();
+    for t in cap {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            *cap_edges.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    let contour_set: std::collections::HashSet<(usize, usize)> = contour_pieces.iter().map(|&[p, q]| (p.min(q), p.max(q))).collect();
+    let mut on_front = vec![false; n_points];
+    for (&(p, q), &n) in &cap_edges {
+        if n == 1 && !contour_set.contains(&(p, q)) {
+            on_front[p] = true;
+            on_front[q] = true;
+        }
+    }
+    // per contour vertex: (opened, closed) contour edges
+    let mut opened_at: HashMap<usize, (u32, u32)> = HashMap::new();
+    let mut opened_edges = 0;
+    for &[p, q] in contour_pieces {
+        let open = cap_edges.contains_key(&(p.min(q), p.max(q)));
+        opened_edges += usize::from(open);
+        for r in [p, q] {
+            let e = opened_at.entry(r).or_default();
+            if open { e.0 += 1 } else { e.1 += 1 }
+        }
+    }
+    CapEdges {
+        cap_edges,
+        contour_set,
+        on_front,
+        opened_at,
+        opened_edges,
+    }
+}
+
+/// Whether `p` lies inside the closed contour made of the segments `contour` (crossings of
+/// a ray along +x, even–odd).
+fn inside_contour(contour: &[([f64; 2], [f64; 2])], p: [f64; 2]) -> bool {
+    let mut inside = false;
+    for &(a, b) in contour {
+        if (a[1] > p[1]) != (b[1] > p[1]) {
+            let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
+            if x > p[0] {
+                inside = !inside;
+            }
+        }
+    }
+    inside
+}
+
+/// Whether `p` lies in the cut region: the nearest of the cells' cross-sections `sections`
+/// (each marked cut or not) is a cut one, a cut one winning a tie.
+fn inside_cut(sections: &[(bool, Vec<[f64; 2]>)], p: [f64; 2]) -> bool {
+    let mut best = (f64::INFINITY, false);
+    for (cut, poly) in sections {
+        let d = polygon_distance(poly, p);
+        if d < best.0 || (d == best.0 && *cut) {
+            best = (d, *cut);
+        }
+        if d == 0.0 && *cut {
+            break;
+        }
+    }
+    best.1
+}
+
+/// The surface vertices of the cap's points.
+struct CapVertices {
+    /// Each doubled contour vertex's twin on the negative side.
+    twin: HashMap<usize, usize>,
+    /// Each cap point's vertex on the positive and on the negative side.
+    made: HashMap<usize, [usize; 2]>,
+    /// Vertices doubled, and made on the front.
+    doubled_vertices: usize,
+    front_vertices: usize,
+}
+
+/// Each point of `cap`'s vertex on the positive and on the negative side: contour vertices
+/// doubled where every contour edge at them opened and the front does not reach them; points
+/// inside the cap doubled, points on the front made once (new vertices appended to
+/// `vertices` with their `side`).
+fn cap_vertices(
+    cap: &[[usize; 3]],
+    points: &[PlanePoint],
+    opened_at: &HashMap<usize, (u32, u32)>,
+    on_front: &[bool],
+    vertices: &mut Vec<[f64; 3]>,
+    side: &mut Vec<VertexSide>,
+) -> CapVertices {
+    let mut twin: HashMap<usize, usize> = HashMap::new();
+    let mut made: HashMap<usize, [usize; 2]> = HashMap::new();
+    let (mut doubled_vertices, mut front_vertices) = (0, 0);
+    let mut cap_points: Vec<usize> = cap.iter().flatten().copied().collect();
+    cap_points.sort_unstable();
+    cap_points.dedup();
+    let mut push = |x: [f64; 3], s: VertexSide, vertices: &mut Vec<[f64; 3]>| {
+        vertices.push(x);
+        side.push(s);
+        vertices.len() - 1
+    };
+    for &p in &cap_points {
+        match (points[p].vertex, opened_at.get(&p)) {
+            (Some(v), Some(&(open, closed))) => {
+                if open > 0 && closed == 0 && !on_front[p] {
+                    let w = push(vertices[v], VertexSide::Negative, vertices);
+                    twin.insert(v, w);
+                    made.insert(p, [v, w]);
+                    doubled_vertices += 1;
+                } else {
+                    made.insert(p, [v, v]);
+                }
+            }
+            (Some(v), None) => {
+                made.insert(p, [v, v]);
+            }
+            (None, _) if on_front[p] => {
+                let v = push(points[p].x, VertexSide::Mean, vertices);
+                made.insert(p, [v, v]);
+                front_vertices += 1;
+            }
+            (None, _) => {
+                let a = push(points[p].x, VertexSide::Positive, vertices);
+                let b = push(points[p].x, VertexSide::Negative, vertices);
+                made.insert(p, [a, b]);
+            }
+        }
+    }
+    CapVertices {
+        twin,
+        made,
+        doubled_vertices,
+        front_vertices,
+    }
+}
+
+/// Splits the surface's `tagged` triangles (with their side) where an edge parts — an opened
+/// contour edge, an edge inside the cap — but both its ends stay shared (where the front
+/// crosses the contour, or runs across the cap): at the edge's midpoint, one new vertex per
+/// side (appended to `vertices` and `side`, counted in `doubled_vertices`).
+fn part_at_midpoints(
+    tagged: Vec<([usize; 3], i8)>,
+    cap_edges: &HashMap<(usize, usize), u32>,
+    contour_set: &std::collections::HashSet<(usize, usize)>,
+    made: &HashMap<usize, [usize; 2]>,
+    vertices: &mut Vec<[f64; 3]>,
+    side: &mut Vec<VertexSide>,
+    doubled_vertices: &mut usize,
+) -> Vec<[usize; 3]> {
+    // an edge that parts (an opened contour edge, an edge inside the cap) but whose two ends
+    // stay shared (where the front crosses the contour, or runs across the cap) parts at its
+    // midpoint, one per side
+    let mut midpoints: HashMap<(usize, usize), [usize; 2]> = HashMap::new();
+    let mut parting: Vec<(usize, usize)> = cap_edges
+        .iter()
+        .filter(|e| *e.1 == 2 || contour_set.contains(e.0))
+        .map(|e| *e.0)
+        .collect();
+    parting.sort_unstable();
+    for (p, q) in parting {
+        let (a, b) = (made[&p], made[&q]);
+        if a[0] == a[1] && b[0] == b[1] {
+            let x = lerp(vertices[a[0]], vertices[b[0]], 0.5);
+            let m = [vertices.len(), vertices.len() + 1];
+            vertices.extend([x, x]);
+            side.extend([VertexSide::Positive, VertexSide::Negative]);
+            midpoints.insert((a[0].min(b[0]), a[0].max(b[0])), m);
+            *doubled_vertices += 1;
+        }
+    }
+    let mut out: Vec<[usize; 3]> = Vec::with_capacity(tagged.len() + 4 * midpoints.len());
+    for (t, side) in tagged {
+        // each parting edge of the triangle split in turn
+        let mut stack = vec![t];
+        while let Some(t) = stack.pop() {
+            let split_at = (0..3).find_map(|k| {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                midpoints.get(&(a.min(b), a.max(b))).map(|m| (k, m[usize::from(side < 0)]))
+            });
+            match split_at {
+                Some((k, m)) => {
+                    let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
+                    stack.push([a, m, c]);
+                    stack.push([m, b, c]);
+                }
+                None => out.push(t),
+            }
+        }
+    }
+    out
+}
+
+/// The surface `visual` split along the part of `plane` inside `cut_cells` of `mesh`, and
+/// closed by the cut faces (module docs).
+pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize]) -> Result<SplitSurface, SplitError> {
+    let (plane, size) = checked_plane(visual, mesh, plane, cut_cells)?;
+    let frame = Frame::new(&plane);
     let hair = 1e-9 * size;
     let snapped = |x: [f64; 3]| {
         let f = plane.phi(x);
@@ -594,98 +928,13 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
     } = cut_region(mesh, &node_phi, &is_cut, &frame, &mut points);
 
     // crossings and touchings of the contour with the region's boundary, on both
-    let tol = 1e-9;
     let touch = 1e-9 * size;
-    let contour_len = contour_segments.len();
-    for ci in 0..contour_len {
-        let [a, b] = contour_segments[ci].ends;
-        let (pa, pb) = (points[a].xy, points[b].xy);
-        for seg in region_segments.iter_mut() {
-            let [p, q] = seg.ends;
-            let (pp, pq) = (points[p].xy, points[q].xy);
-            // an end of either lying on the other
-            for (end, at) in [(p, pp), (q, pq)] {
-                let (t, d) = project(pa, pb, at);
-                if d <= touch && t > tol && t < 1.0 - tol {
-                    let x = lerp(points[a].x, points[b].x, t);
-                    points[end].x = x;
-                    contour_segments[ci].splits.push((t, end));
-                }
-            }
-            for (end, at) in [(a, pa), (b, pb)] {
-                let (t, d) = project(pp, pq, at);
-                if d <= touch && t > tol && t < 1.0 - tol {
-                    seg.splits.push((t, end));
-                }
-            }
-            if let Some((t, u)) = segments_meet(pa, pb, pp, pq, 0.0)
-                && t > tol
-                && t < 1.0 - tol
-                && u > tol
-                && u < 1.0 - tol
-            {
-                let x = lerp(points[a].x, points[b].x, t);
-                points.push(PlanePoint {
-                    xy: frame.to_2d(x),
-                    x,
-                    vertex: None,
-                });
-                let id = points.len() - 1;
-                contour_segments[ci].splits.push((t, id));
-                seg.splits.push((u, id));
-            }
-        }
-    }
+    mark_crossings(&mut points, &mut contour_segments, &mut region_segments, &frame, touch);
     // region points that fell on a contour vertex are that vertex
-    let mut alias: Vec<usize> = (0..points.len()).collect();
-    for &pv in point_of_vertex.values() {
-        for (i, p) in points.iter().enumerate().filter(|(_, p)| p.vertex.is_none()) {
-            let d = [p.xy[0] - points[pv].xy[0], p.xy[1] - points[pv].xy[1]];
-            if (d[0] * d[0] + d[1] * d[1]).sqrt() <= touch {
-                alias[i] = pv;
-            }
-        }
-    }
-    let resolve = |p: usize| alias[p];
+    let alias = aliases(&points, point_of_vertex.values().copied(), touch);
 
     // contour edges split at the crossings: in the surface too
-    let mut edge_splits: HashMap<(usize, usize), Vec<(f64, usize)>> = HashMap::new();
-    let mut contour_pieces: Vec<[usize; 2]> = Vec::new();
-    for seg in &contour_segments {
-        let pieces: Vec<[usize; 2]> = seg
-            .pieces()
-            .into_iter()
-            .map(|[p, q]| [resolve(p), resolve(q)])
-            .filter(|[p, q]| p != q)
-            .collect();
-        for &[_, q] in &pieces[..pieces.len().saturating_sub(1)] {
-            if points[q].vertex.is_none() {
-                vertices.push(points[q].x);
-                phi.push(0.0);
-                points[q].vertex = Some(vertices.len() - 1);
-            }
-        }
-        let (a, b) = (
-            points[seg.ends[0]].vertex.unwrap_or(usize::MAX),
-            points[seg.ends[1]].vertex.unwrap_or(usize::MAX),
-        );
-        let inner: Vec<(f64, usize)> = pieces[..pieces.len().saturating_sub(1)]
-            .iter()
-            .filter_map(|&[_, q]| {
-                let v = points[q].vertex?;
-                let (t, _) = project(points[seg.ends[0]].xy, points[seg.ends[1]].xy, points[q].xy);
-                Some((t, v))
-            })
-            .collect();
-        if !inner.is_empty() {
-            // parameters from the lower vertex to the higher
-            let list = edge_splits.entry((a.min(b), a.max(b))).or_default();
-            for (t, v) in inner {
-                list.push((if a < b { t } else { 1.0 - t }, v));
-            }
-        }
-        contour_pieces.extend(pieces);
-    }
+    let (contour_pieces, edge_splits) = split_contour(&mut points, &contour_segments, &alias, &mut vertices, &mut phi);
     if !edge_splits.is_empty() {
         triangles = split_edges(&triangles, &edge_splits);
     }
@@ -693,12 +942,7 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
     // the constrained triangulation of the plane
     let mut region_pieces: Vec<[usize; 2]> = Vec::new();
     for seg in &region_segments {
-        region_pieces.extend(
-            seg.pieces()
-                .into_iter()
-                .map(|[p, q]| [resolve(p), resolve(q)])
-                .filter(|[p, q]| p != q),
-        );
+        region_pieces.extend(seg.pieces().into_iter().map(|[p, q]| [alias[p], alias[q]]).filter(|[p, q]| p != q));
     }
     let pieces: Vec<[usize; 2]> = contour_pieces.iter().chain(&region_pieces).copied().collect();
 
@@ -707,103 +951,25 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
         .iter()
         .map(|&(a, b)| (frame.to_2d(vertices[a]), frame.to_2d(vertices[b])))
         .collect();
-    let inside_surface = |p: [f64; 2]| {
-        let mut inside = false;
-        for &(a, b) in &contour_xy {
-            if (a[1] > p[1]) != (b[1] > p[1]) {
-                let x = a[0] + (p[1] - a[1]) * (b[0] - a[0]) / (b[1] - a[1]);
-                if x > p[0] {
-                    inside = !inside;
-                }
-            }
-        }
-        inside
-    };
-    let inside_cut = |p: [f64; 2]| {
-        let mut best = (f64::INFINITY, false);
-        for (cut, poly) in &sections {
-            let d = polygon_distance(poly, p);
-            if d < best.0 || (d == best.0 && *cut) {
-                best = (d, *cut);
-            }
-            if d == 0.0 && *cut {
-                break;
-            }
-        }
-        best.1
-    };
-    let (cap, cap_area) = triangulate(&points, &pieces, |p| inside_surface(p) && inside_cut(p))?;
+    let (cap, cap_area) = triangulate(&points, &pieces, |p| inside_contour(&contour_xy, p) && inside_cut(&sections, p))?;
 
     // the cap's edges: on its boundary (once), the contour's opened ones and the front
-    let mut cap_edges: HashMap<(usize, usize), u32> = HashMap::new();
-    for t in &cap {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *cap_edges.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
-    }
-    let contour_set: std::collections::HashSet<(usize, usize)> = contour_pieces.iter().map(|&[p, q]| (p.min(q), p.max(q))).collect();
-    let mut on_front = vec![false; points.len()];
-    for (&(p, q), &n) in &cap_edges {
-        if n == 1 && !contour_set.contains(&(p, q)) {
-            on_front[p] = true;
-            on_front[q] = true;
-        }
-    }
-    // per contour vertex: (opened, closed) contour edges
-    let mut opened_at: HashMap<usize, (u32, u32)> = HashMap::new();
-    let mut opened_edges = 0;
-    for &[p, q] in &contour_pieces {
-        let open = cap_edges.contains_key(&(p.min(q), p.max(q)));
-        opened_edges += usize::from(open);
-        for r in [p, q] {
-            let e = opened_at.entry(r).or_default();
-            if open { e.0 += 1 } else { e.1 += 1 }
-        }
-    }
-    // each cap point's vertex on the positive and on the negative side: contour vertices
-    // doubled where every contour edge at them opened and the front does not reach them;
-    // points inside the cap doubled, points on the front made once
+    let CapEdges {
+        cap_edges,
+        contour_set,
+        on_front,
+        opened_at,
+        opened_edges,
+    } = cap_edges(&cap, &contour_pieces, points.len());
+    // each cap point's vertex on the positive and on the negative side
     let n_before = vertices.len();
-    let mut twin: HashMap<usize, usize> = HashMap::new();
-    let mut made: HashMap<usize, [usize; 2]> = HashMap::new();
-    let (mut doubled_vertices, mut front_vertices) = (0, 0);
-    let mut cap_points: Vec<usize> = cap.iter().flatten().copied().collect();
-    cap_points.sort_unstable();
-    cap_points.dedup();
     let mut side = vec![VertexSide::Own; vertices.len()];
-    let mut push = |x: [f64; 3], s: VertexSide, vertices: &mut Vec<[f64; 3]>| {
-        vertices.push(x);
-        side.push(s);
-        vertices.len() - 1
-    };
-    for &p in &cap_points {
-        match (points[p].vertex, opened_at.get(&p)) {
-            (Some(v), Some(&(open, closed))) => {
-                if open > 0 && closed == 0 && !on_front[p] {
-                    let w = push(vertices[v], VertexSide::Negative, &mut vertices);
-                    twin.insert(v, w);
-                    made.insert(p, [v, w]);
-                    doubled_vertices += 1;
-                } else {
-                    made.insert(p, [v, v]);
-                }
-            }
-            (Some(v), None) => {
-                made.insert(p, [v, v]);
-            }
-            (None, _) if on_front[p] => {
-                let v = push(points[p].x, VertexSide::Mean, &mut vertices);
-                made.insert(p, [v, v]);
-                front_vertices += 1;
-            }
-            (None, _) => {
-                let a = push(points[p].x, VertexSide::Positive, &mut vertices);
-                let b = push(points[p].x, VertexSide::Negative, &mut vertices);
-                made.insert(p, [a, b]);
-            }
-        }
-    }
+    let CapVertices {
+        twin,
+        made,
+        mut doubled_vertices,
+        front_vertices,
+    } = cap_vertices(&cap, &points, &opened_at, &on_front, &mut vertices, &mut side);
     let mut tagged: Vec<([usize; 3], i8)> = triangles
         .iter()
         .map(|&(t, side)| {
@@ -822,47 +988,15 @@ pub fn split(visual: &VisualMesh, mesh: &Mesh, plane: &Plane, cut_cells: &[usize
         tagged.push(([a[0], c[0], b[0]], 1));
         tagged.push(([a[1], b[1], c[1]], -1));
     }
-    // an edge that parts (an opened contour edge, an edge inside the cap) but whose two ends
-    // stay shared (where the front crosses the contour, or runs across the cap) parts at its
-    // midpoint, one per side
-    let mut midpoints: HashMap<(usize, usize), [usize; 2]> = HashMap::new();
-    let mut parting: Vec<(usize, usize)> = cap_edges
-        .iter()
-        .filter(|e| *e.1 == 2 || contour_set.contains(e.0))
-        .map(|e| *e.0)
-        .collect();
-    parting.sort_unstable();
-    for (p, q) in parting {
-        let (a, b) = (made[&p], made[&q]);
-        if a[0] == a[1] && b[0] == b[1] {
-            let x = lerp(vertices[a[0]], vertices[b[0]], 0.5);
-            let m = [
-                push(x, VertexSide::Positive, &mut vertices),
-                push(x, VertexSide::Negative, &mut vertices),
-            ];
-            midpoints.insert((a[0].min(b[0]), a[0].max(b[0])), m);
-            doubled_vertices += 1;
-        }
-    }
-    let mut out: Vec<[usize; 3]> = Vec::with_capacity(tagged.len() + 4 * midpoints.len());
-    for (t, side) in tagged {
-        // each parting edge of the triangle split in turn
-        let mut stack = vec![t];
-        while let Some(t) = stack.pop() {
-            let split_at = (0..3).find_map(|k| {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                midpoints.get(&(a.min(b), a.max(b))).map(|m| (k, m[usize::from(side < 0)]))
-            });
-            match split_at {
-                Some((k, m)) => {
-                    let (a, b, c) = (t[k], t[(k + 1) % 3], t[(k + 2) % 3]);
-                    stack.push([a, m, c]);
-                    stack.push([m, b, c]);
-                }
-                None => out.push(t),
-            }
-        }
-    }
+    let out = part_at_midpoints(
+        tagged,
+        &cap_edges,
+        &contour_set,
+        &made,
+        &mut vertices,
+        &mut side,
+        &mut doubled_vertices,
+    );
     for (v, s) in side.iter_mut().enumerate().take(n_before) {
         if phi[v] == 0.0 {
             *s = VertexSide::Mean;

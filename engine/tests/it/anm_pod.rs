@@ -5,10 +5,11 @@ use crate::common;
 
 use std::path::PathBuf;
 
+use vademecum_engine::fem::OrganModel;
 use vademecum_engine::fem::hyperelastic::LawMap;
 use vademecum_engine::material::hyperelastic::Hyperelastic;
 use vademecum_engine::rom::study::{self, Study, StudyParams};
-use vademecum_engine::scene::{OrganModel, Scene};
+use vademecum_engine::scene::Scene;
 
 fn svk(organ: &OrganModel) -> LawMap {
     LawMap {

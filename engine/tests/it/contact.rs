@@ -10,8 +10,10 @@ use crate::common;
 
 use std::sync::Arc;
 
+use vademecum_engine::bundle;
+use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::contact::{Surface, SurfacePoint};
-use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, palpation};
 use vademecum_engine::scene::Scene;
 
@@ -20,7 +22,7 @@ fn bundle(scene: &Scene) -> Arc<LoadedBundle> {
     let built = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), scene, &built).unwrap();
-    Arc::new(offline::load_bundle(dir.path()).unwrap())
+    Arc::new(bundle::load_bundle(dir.path()).unwrap())
 }
 
 fn tick(p: &mut Pipeline, tip: [f64; 3]) -> TickState {

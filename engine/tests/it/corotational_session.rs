@@ -127,8 +127,11 @@ fn surface_of(mesh: &Mesh) -> VisualMesh {
             let f = [t[i], t[j], t[k]];
             // outward: the opposite vertex behind the face
             let [a, b, cc] = f.map(|v| mesh.nodes[v]);
-            let n = vademecum_engine::vec3::cross(vademecum_engine::vec3::sub(b, a), vademecum_engine::vec3::sub(cc, a));
-            let f = if vademecum_engine::vec3::dot(n, vademecum_engine::vec3::sub(mesh.nodes[t[l]], a)) > 0.0 {
+            let n = vademecum_engine::geometry::vec3::cross(
+                vademecum_engine::geometry::vec3::sub(b, a),
+                vademecum_engine::geometry::vec3::sub(cc, a),
+            );
+            let f = if vademecum_engine::geometry::vec3::dot(n, vademecum_engine::geometry::vec3::sub(mesh.nodes[t[l]], a)) > 0.0 {
                 [f[0], f[2], f[1]]
             } else {
                 f
@@ -377,7 +380,7 @@ fn under_load_the_frames_keep_their_factor_and_still_reach_equilibrium() {
 /// at the deformation shown (`pipeline::estimate::corotational_samples`).
 #[test]
 fn the_corrected_force_follows_the_deformation_shown_within_its_estimate() {
-    use vademecum_engine::pipeline::estimate::{self, Coverage};
+    use vademecum_engine::study::estimate::{self, Coverage};
     let (mesh, problem, _) = cantilever();
     let contact = tip_contact(&mesh, [0.0, 0.0, -0.8]);
     let samples = estimate::corotational_samples(&mesh, &materials(&mesh), &problem, &contact, None).unwrap();
@@ -396,7 +399,7 @@ fn the_corrected_force_follows_the_deformation_shown_within_its_estimate() {
 /// cut opens as the beam bends, the correction is that of the cut model's deformation.
 #[test]
 fn on_a_cut_organ_the_corrected_force_follows_the_deformation_shown_within_its_estimate() {
-    use vademecum_engine::pipeline::estimate::{self, COROTATIONAL_CUT, Coverage};
+    use vademecum_engine::study::estimate::{self, COROTATIONAL_CUT, Coverage};
     let (mesh, problem, _) = cantilever();
     let plane = Plane {
         point: [2.1, 0.0, 0.0],

@@ -7,10 +7,11 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
 
-use vademecum_engine::pgd::offline::{self, BuildOptions};
-use vademecum_engine::pipeline::estimate::{self, Coverage};
+use vademecum_engine::bundle;
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::{Pipeline, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::study::estimate::{self, Coverage};
 
 /// `patch_cut` (§3.5.1) with the bare enrichment on the vademecum's modes.
 fn bare_patch() -> Scene {
@@ -41,7 +42,7 @@ fn the_bare_enrichment_carries_its_calibrated_force_error_and_it_bounds_the_full
     assert!(e > 0.05 && e < 10.0, "{e}");
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
-    let bundle = offline::load_bundle(dir.path()).unwrap();
+    let bundle = bundle::load_bundle(dir.path()).unwrap();
     assert_eq!(bundle.cut_bare_force_error(), Ok(Some(e)));
 
     // between the cracked nodes: the estimate bounds the full XFEM's force (measured: 48 of
@@ -113,7 +114,7 @@ fn the_local_fields_forces_between_the_cracked_nodes_agree_with_the_full_xfem() 
     );
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
-    let bundle = offline::load_bundle(dir.path()).unwrap();
+    let bundle = bundle::load_bundle(dir.path()).unwrap();
     let model = scene.organ_model(0).unwrap();
     let samples = estimate::cut_samples(&scene, &model, &bundle, 8, |_, _| {}).unwrap();
     let c = Coverage::of(&samples);

@@ -4,6 +4,7 @@
 
 use crate::common;
 
+use vademecum_engine::bundle;
 use vademecum_engine::scene::Scene;
 use vademecum_engine::xfem::accuracy::{Reference, TARGET_SLIVERS, sliver_for_target};
 
@@ -15,19 +16,20 @@ fn a_target_error_keeps_the_largest_sliver_threshold_whose_force_meets_it() {
     let scene = Scene::builtin("liver_cut").unwrap();
     let model = scene.organ_model(0).unwrap();
     let params = scene.spec.fidelity.xfem.params();
-    let reference = Reference::of(&scene, &model, &params, |_, _| {}).unwrap();
+    let cuts = scene.organ_cuts(0).unwrap();
+    let reference = Reference::of(&cuts, &model, &params, |_, _| {}).unwrap();
     assert!(
         !reference.contacts.is_empty() && reference.enriched.len() > 20,
         "{:?}",
         reference.contacts
     );
     // a loose target: the cheapest threshold that changes the model, if within it
-    let loose = sliver_for_target(&scene, &model, &params, 10.0, &reference).unwrap();
+    let loose = sliver_for_target(&cuts, &model, &params, 10.0, &reference).unwrap();
     assert_eq!(loose.tried.len(), 1, "{loose:?}");
     assert_eq!(loose.sliver, loose.tried[0].0);
     // a target no larger threshold meets: the scene's own (exact) rule, every one tried, each
     // enriching fewer nodes and erring more than the target
-    let strict = sliver_for_target(&scene, &model, &params, 1e-9, &reference).unwrap();
+    let strict = sliver_for_target(&cuts, &model, &params, 1e-9, &reference).unwrap();
     assert_eq!(strict.sliver, params.sliver);
     assert!(!strict.tried.is_empty(), "{strict:?}");
     for &(s, n, e) in &strict.tried {
@@ -36,7 +38,7 @@ fn a_target_error_keeps_the_largest_sliver_threshold_whose_force_meets_it() {
     }
     // between: the first threshold (cheapest first) within the target
     let (s, _, e) = *strict.tried.last().unwrap();
-    let mid = sliver_for_target(&scene, &model, &params, e, &reference).unwrap();
+    let mid = sliver_for_target(&cuts, &model, &params, e, &reference).unwrap();
     let kept = strict.tried.iter().find(|r| r.2 <= e).unwrap().0;
     assert_eq!(mid.sliver, kept, "{mid:?}");
     assert!(kept >= s);
@@ -47,7 +49,7 @@ fn a_target_error_keeps_the_largest_sliver_threshold_whose_force_meets_it() {
 #[test]
 fn the_bundle_keeps_the_chosen_sliver_rule_and_a_session_cuts_with_it() {
     use std::sync::Arc;
-    use vademecum_engine::pgd::offline::{self, BuildOptions};
+    use vademecum_engine::offline::{self, BuildOptions};
     use vademecum_engine::pipeline::Pipeline;
     if common::shared_data().is_none() {
         return;
@@ -63,7 +65,7 @@ fn the_bundle_keeps_the_chosen_sliver_rule_and_a_session_cuts_with_it() {
     assert!(cut.sliver > scene.spec.fidelity.xfem.sliver && cut.sliver == t.sliver, "{cut:?}");
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
-    let bundle = offline::load_bundle(dir.path()).unwrap();
+    let bundle = bundle::load_bundle(dir.path()).unwrap();
     assert_eq!(bundle.cut_sliver(), Ok(Some(cut.sliver)));
     Pipeline::for_scene(&scene, &[Arc::new(bundle.clone())]).expect("a session cuts with the stored rule");
     // a bundle built without a target says nothing: the scene's rule

@@ -7,7 +7,8 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
 
-use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
+use vademecum_engine::bundle::{self, LoadedBundle};
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::corotational::BLEND_TICKS;
 use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
@@ -17,7 +18,7 @@ fn bundle(scene: &Scene) -> Arc<LoadedBundle> {
     let built = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), scene, &built).unwrap();
-    Arc::new(offline::load_bundle(dir.path()).unwrap())
+    Arc::new(bundle::load_bundle(dir.path()).unwrap())
 }
 
 fn patch_cut() -> Pipeline {
@@ -245,7 +246,7 @@ fn a_bundle_stores_the_basis_bare_enrichment_needs_and_old_bundles_still_load() 
     assert_eq!(manifest.info["cut"]["discontinuous"], "bare");
     let size = manifest.info["cut"]["basis_size"].as_u64().unwrap() as usize;
     assert!(size > 0 && size <= built.vademecum.modes());
-    let loaded = offline::load_bundle(dir.path()).unwrap();
+    let loaded = bundle::load_bundle(dir.path()).unwrap();
     let stored = loaded.cut_basis.clone().expect("the bundle holds the basis");
     assert_eq!((stored.size, stored.x.len() % size), (size, 0));
     assert_eq!(stored.x, built.cut_basis.as_ref().unwrap().x, "stored exactly (f64)");
@@ -272,10 +273,10 @@ fn a_bundle_stores_the_basis_bare_enrichment_needs_and_old_bundles_still_load() 
     let v2 = format!("\"version\": {}", bundle::VERSION);
     assert!(m.contains(&v2), "{m}");
     std::fs::write(&path, m.replace(&v2, "\"version\": 1")).unwrap();
-    let l = offline::load_bundle(old.path()).unwrap();
+    let l = bundle::load_bundle(old.path()).unwrap();
     assert!(l.cut_basis.is_none() && l.manifest.version == 1);
     std::fs::write(&path, m.replace(&v2, "\"version\": 99")).unwrap();
-    let e = offline::load_bundle(old.path()).unwrap_err().to_string();
+    let e = bundle::load_bundle(old.path()).unwrap_err().to_string();
     assert!(e.contains("version 99") && e.contains("rebuild"), "{e}");
 }
 

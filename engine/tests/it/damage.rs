@@ -334,13 +334,13 @@ fn regularised_softening_dissipates_the_same_energy_on_three_meshes() {
 
 #[test]
 fn the_built_in_tearing_scenes_build_and_the_fat_tears_under_the_jaws() {
-    use vademecum_engine::damage::organ;
     use vademecum_engine::scene::Scene;
+    use vademecum_engine::scene::tearing;
     // the seed's cubes: one hexahedron, every point tearable, plain hexahedron as the seed
     for name in ["cube_tear", "cube_shear"] {
         let scene = Scene::builtin(name).unwrap();
-        let i = organ::tearable_organ(&scene).unwrap();
-        let (model, warnings) = organ::tear_model(&scene, i).unwrap();
+        let i = tearing::tearable_organ(&scene).unwrap();
+        let (model, warnings) = tearing::tear_model(&scene, i).unwrap();
         assert!(warnings.is_empty(), "{name}: {warnings:?}");
         assert_eq!(model.points.tearable.len(), 8, "{name}");
         let steps = if name == "cube_tear" { 10 } else { 200 };
@@ -349,7 +349,7 @@ fn the_built_in_tearing_scenes_build_and_the_fat_tears_under_the_jaws() {
 
     // the gallbladder: only the fat layer tears, progressively, where it is grasped
     let scene = Scene::builtin("gallbladder_fat").unwrap();
-    let (model, warnings) = organ::tear_model(&scene, 0).unwrap();
+    let (model, warnings) = tearing::tear_model(&scene, 0).unwrap();
     assert_eq!(warnings.len(), 1, "plain tetrahedra at nu = 0.495 are reported: {warnings:?}");
     assert_eq!(model.points.tearable.len(), 274);
     let run = reference::run(&model, RunSettings::seed(Scheme::Explicit(Tangent::Secant)), |_, _| {}).unwrap();
@@ -440,13 +440,14 @@ pod_vectors = 3
 #[test]
 fn a_step_updates_only_the_tearable_region_and_the_whole_field_is_rebuilt_exactly() {
     use std::sync::Arc;
+    use vademecum_engine::damage::build;
     use vademecum_engine::damage::online::{OnlineTear, Variant};
-    use vademecum_engine::damage::{build, organ};
     use vademecum_engine::scene::Scene;
+    use vademecum_engine::scene::tearing;
     let scene = Scene::from_toml(PARTLY_TEARABLE_BAR, "bar.toml").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
     assert_eq!(model.points.tearable.len(), 8 * 8, "the 8 middle cells, 8 points each");
-    let (settings, limits) = organ::settings(&scene);
+    let (settings, limits) = tearing::settings(&scene);
     let (off, report, runs) = build::build(model, &settings, |_, _| {}).unwrap();
     // the middle cells' nodes, 3 planes x = 1, 2, 3 of 9 nodes, and the loaded end x = 4
     // (the grasp's displacement is read there)

@@ -8,7 +8,9 @@ use crate::common;
 use std::path::Path;
 use std::sync::Arc;
 
-use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
+use vademecum_engine::bundle;
+use vademecum_engine::bundle::LoadedBundle;
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::Pipeline;
 use vademecum_engine::scene::{self, Scene};
 
@@ -18,7 +20,7 @@ fn bundle(scene: &Scene) -> (Arc<LoadedBundle>, Vec<String>, u64) {
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), scene, &built).unwrap();
     let (files, bytes) = files(dir.path());
-    (Arc::new(offline::load_bundle(dir.path()).unwrap()), files, bytes)
+    (Arc::new(bundle::load_bundle(dir.path()).unwrap()), files, bytes)
 }
 
 fn files(dir: &Path) -> (Vec<String>, u64) {

@@ -14,9 +14,10 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
 use common::mutate::{Rng, mutate};
+use vademecum_engine::bundle;
 use vademecum_engine::mesh;
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pgd::PgdParams;
-use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
 
 /// Mutants per corpus file: enough to reach every section of these small files many times
@@ -125,7 +126,7 @@ fn bundle_loading_never_panics_even_with_forged_checksums() {
             } else {
                 forge(&dir, file, b);
             }
-            let ok = offline::load_bundle(&dir).is_ok();
+            let ok = bundle::load_bundle(&dir).is_ok();
             std::fs::write(dir.join(file), &good).unwrap();
             ok
         });
@@ -164,7 +165,7 @@ fn obj_reading_embedding_and_splitting_never_panic() {
 /// pressing into the middle of the organ (a blade across it, a grasper closed): what a client
 /// of a server hosting the bundle would drive. Panics are the fuzzer's to catch. Whether a
 /// session could be made of it (a session checks the tearing arrays against its scene).
-fn drive(scene: &Scene, bundle: vademecum_engine::pgd::offline::LoadedBundle, ticks: usize) -> bool {
+fn drive(scene: &Scene, bundle: vademecum_engine::bundle::LoadedBundle, ticks: usize) -> bool {
     use vademecum_engine::pipeline::{Pipeline, ToolInput, ToolKind};
     let Ok(mut p) = Pipeline::for_scene(scene, &[std::sync::Arc::new(bundle)]) else {
         return false;
@@ -225,7 +226,7 @@ fn cutting_and_tearing_bundles_never_panic_when_loaded_or_run() {
             let n = fuzz_n(&file, &good, seed + i as u64, PER_ARRAY, |b| {
                 std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
                 forge(&dir, &file, b);
-                let loaded = offline::load_bundle(&dir);
+                let loaded = bundle::load_bundle(&dir);
                 std::fs::write(dir.join(&file), &good).unwrap();
                 std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
                 loaded.is_ok_and(|bundle| drive(&scene, bundle, 100))
@@ -238,7 +239,7 @@ fn cutting_and_tearing_bundles_never_panic_when_loaded_or_run() {
                 let b = common::mutate::poke_npy_values(&good, &mut rng);
                 forge(&dir, &file, &b);
                 let outcome = catch_unwind(AssertUnwindSafe(|| {
-                    offline::load_bundle(&dir).is_ok_and(|bundle| drive(&scene, bundle, 100))
+                    bundle::load_bundle(&dir).is_ok_and(|bundle| drive(&scene, bundle, 100))
                 }));
                 std::fs::write(dir.join(&file), &good).unwrap();
                 std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
@@ -261,8 +262,8 @@ fn cutting_and_tearing_bundles_never_panic_when_loaded_or_run() {
 /// error, never a panic (a NaN in `U` once panicked the SVD of the merge).
 #[test]
 fn shards_and_their_merge_never_panic() {
-    use vademecum_engine::pgd::offline::ModesFrom;
-    use vademecum_engine::pgd::shard::{self, ShardInfo, ShardOf};
+    use vademecum_engine::offline::ModesFrom;
+    use vademecum_engine::offline::shard::{self, ShardInfo, ShardOf};
     const PER_FILE: usize = 150;
     let scene = Scene::builtin("patch").unwrap();
     let opts = BuildOptions::for_scene(&scene, true);
@@ -320,7 +321,7 @@ fn a_tearing_bundle_with_a_non_finite_value_is_refused_when_a_session_is_made() 
     let dir = tmp.path().join("b");
     offline::write_bundle(&dir, &scene, &built).unwrap();
     let manifest = std::fs::read(dir.join("manifest.json")).unwrap();
-    let good = offline::load_bundle(&dir).unwrap();
+    let good = bundle::load_bundle(&dir).unwrap();
     assert!(Pipeline::for_scene(&scene, &[std::sync::Arc::new(good)]).is_ok());
     for array in [
         "tear_pod_basis",
@@ -343,7 +344,7 @@ fn a_tearing_bundle_with_a_non_finite_value_is_refused_when_a_session_is_made() 
             bad[data..data + 8].copy_from_slice(&f64::NAN.to_le_bytes());
         }
         forge(&dir, &file, &bad);
-        let refused = match offline::load_bundle(&dir) {
+        let refused = match bundle::load_bundle(&dir) {
             Err(e) => e.to_string(),
             Ok(b) => match Pipeline::for_scene(&scene, &[std::sync::Arc::new(b)]) {
                 Err(e) => e.to_string(),

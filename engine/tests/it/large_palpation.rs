@@ -4,7 +4,8 @@
 
 use std::sync::Arc;
 
-use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::bundle;
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::{Events, Fidelity, Pipeline, PipelineError, ToolInput};
 use vademecum_engine::rom::palpation::{AnmLattice, AnmLatticeParams, NewtonLaw};
 use vademecum_engine::scene::Scene;
@@ -113,7 +114,7 @@ fn a_large_deformation_scene_builds_a_lattice_bundle_and_the_pipeline_scales_the
     assert_eq!(built.report.anm_positions, 3);
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
-    let bundle = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    let bundle = Arc::new(bundle::load_bundle(dir.path()).unwrap());
     let lattice = bundle.anm.clone().expect("the bundle carries the lattice");
     assert_eq!(Some(&lattice), built.anm.as_ref());
 
@@ -160,7 +161,7 @@ fn a_large_deformation_scene_builds_a_lattice_bundle_and_the_pipeline_scales_the
     let plain = offline::build_organ(&cornea(false), 0, &BuildOptions::for_scene(&cornea(false), true), &mut |_| {}).unwrap();
     let dir2 = tempfile::tempdir().unwrap();
     offline::write_bundle(dir2.path(), &cornea(false), &plain).unwrap();
-    let plain = Arc::new(offline::load_bundle(dir2.path()).unwrap());
+    let plain = Arc::new(bundle::load_bundle(dir2.path()).unwrap());
     assert!(plain.anm.is_none());
     let e = Pipeline::for_scene(&scene, &[plain]).unwrap_err();
     assert_eq!(e, PipelineError::NoLattice { organ: 0 });
@@ -173,13 +174,13 @@ fn a_large_deformation_scene_builds_a_lattice_bundle_and_the_pipeline_scales_the
 /// past its paths are checked too — and at random points for the linear law.
 #[test]
 fn the_error_estimate_bounds_the_full_model_off_the_lattice() {
-    use vademecum_engine::pipeline::estimate::{Coverage, large_samples, linear_samples};
+    use vademecum_engine::study::estimate::{Coverage, large_samples, linear_samples};
     let scene = cornea(true);
     let opts = BuildOptions::for_scene(&scene, true);
     let built = offline::build_organ(&scene, 0, &opts, &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
-    let bundle = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    let bundle = Arc::new(bundle::load_bundle(dir.path()).unwrap());
     let lattice = bundle.anm.clone().unwrap();
     let organ = scene.organ_model(0).unwrap();
 
@@ -237,7 +238,7 @@ fn the_error_estimate_bounds_the_full_model_off_the_lattice() {
 /// within the target of full Newton at nodes off the lattice.
 #[test]
 fn a_target_error_builds_the_fewest_lattice_positions_that_meet_it() {
-    use vademecum_engine::pipeline::estimate::{lattice_error, newton_laws};
+    use vademecum_engine::rom::lattice_check::{lattice_error, newton_laws};
     let scene = cornea(false);
     let organ = scene.organ_model(0).unwrap();
     let laws = organ.laws.clone().unwrap();

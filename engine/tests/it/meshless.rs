@@ -1,6 +1,6 @@
 //! The meshless solver (seed 004) against its published references.
 
-use vademecum_engine::meshless::cut::Cut;
+use vademecum_engine::geometry::cut::Cut;
 use vademecum_engine::meshless::cutting;
 use vademecum_engine::meshless::efg::{self, AdrParams};
 use vademecum_engine::meshless::reference::{self, TABLE_3_2};

@@ -187,8 +187,11 @@ fn the_swept_surface_is_shown_in_the_cells_the_blade_entered_and_not_in_those_it
     let mut shown = PartialSurface::new(&mesh).unwrap();
     let mut swept: Vec<[[f64; 3]; 3]> = Vec::new();
     let area = |t: &[[f64; 3]; 3]| {
-        let n = vademecum_engine::vec3::cross(vademecum_engine::vec3::sub(t[1], t[0]), vademecum_engine::vec3::sub(t[2], t[0]));
-        0.5 * vademecum_engine::vec3::dot(n, n).sqrt()
+        let n = vademecum_engine::geometry::vec3::cross(
+            vademecum_engine::geometry::vec3::sub(t[1], t[0]),
+            vademecum_engine::geometry::vec3::sub(t[2], t[0]),
+        );
+        0.5 * vademecum_engine::geometry::vec3::dot(n, n).sqrt()
     };
     // the blade's swept surface inside the block up to x, its tip at depth 0.25: the part of
     // the plane over 0 ≤ x ≤ x_end, 0.25 ≤ z ≤ 1, tilted by the slope
@@ -244,7 +247,7 @@ fn the_swept_surface_is_shown_in_the_cells_the_blade_entered_and_not_in_those_it
 
 /// Whether `p` lies inside tetrahedron `tet` (barycentric coordinates all ≥ −10⁻¹²).
 fn barycentric_inside(tet: &[[f64; 3]; 4], p: [f64; 3]) -> bool {
-    use vademecum_engine::vec3::{cross, dot, sub};
+    use vademecum_engine::geometry::vec3::{cross, dot, sub};
     let vol = |a: [f64; 3], b: [f64; 3], c: [f64; 3], d: [f64; 3]| dot(sub(b, a), cross(sub(c, a), sub(d, a)));
     let v = vol(tet[0], tet[1], tet[2], tet[3]);
     let l = [

@@ -6,15 +6,16 @@
 
 use std::sync::Arc;
 
+use vademecum_engine::damage::build;
 use vademecum_engine::damage::online::TearOffline;
-use vademecum_engine::damage::{build, organ};
-use vademecum_engine::pipeline::estimate::{self, Coverage};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::tearing;
+use vademecum_engine::study::estimate::{self, Coverage};
 
 fn built() -> (Arc<TearOffline>, build::TearBuildReport) {
     let scene = Scene::builtin("cube_tear").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, _) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, _) = tearing::settings(&scene);
     let (off, report, _) = build::build(model, &settings, |_, _| {}).unwrap();
     (Arc::new(off), report)
 }
@@ -65,7 +66,7 @@ fn a_bundle_keeps_the_calibration_and_refuses_a_corrupt_one() {
     let (off, _) = built();
     let arrays = off.to_arrays();
     let scene = Scene::builtin("cube_tear").unwrap();
-    let model = organ::tear_model(&scene, 0).unwrap().0;
+    let model = tearing::tear_model(&scene, 0).unwrap().0;
     let back = TearOffline::from_arrays(model.clone(), arrays.clone()).unwrap();
     assert_eq!(back.force_error, off.force_error);
     // a bundle without it (built before the calibration) gives no estimate
@@ -85,8 +86,8 @@ fn a_bundle_keeps_the_calibration_and_refuses_a_corrupt_one() {
 #[test]
 fn a_target_force_error_keeps_the_fewest_modes_that_meet_it_or_all_of_them() {
     let scene = Scene::builtin("cube_tear").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, _) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, _) = tearing::settings(&scene);
     let (all, all_report) = built();
     let with = |target: f64| {
         let s = build::TearSettings {
@@ -152,10 +153,10 @@ fn later_grasps_add_the_damage_the_basis_does_not_see() {
     let scene = Scene::builtin("cube_tear").unwrap();
     let (off, _) = built();
     // the cube's second grasp site (another upper corner), built as a bundle builds it
-    let site = organ::extra_sites(&scene, 0, &off.model).unwrap().remove(0);
+    let site = tearing::extra_sites(&scene, 0, &off.model).unwrap().remove(0);
     let mut model = off.model.clone();
     model.load = site.full(model.mesh.n_nodes());
-    let (settings, _) = organ::settings(&scene);
+    let (settings, _) = tearing::settings(&scene);
     let other = Arc::new(build::build(model, &settings, |_, _| {}).unwrap().0);
 
     // virgin tissue adds nothing (the calibration started there), nor, to the basis's

@@ -6,17 +6,19 @@
 
 use std::sync::Arc;
 
+use vademecum_engine::bundle;
+use vademecum_engine::damage::build;
 use vademecum_engine::damage::online::{OnlineTear, StepLimits, TearOffline, Variant};
 use vademecum_engine::damage::vademecum::AffineSystem;
-use vademecum_engine::damage::{build, organ};
-use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::{Fidelity, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::tearing;
 
 fn built(target: Option<f64>) -> (TearOffline, build::TearBuildReport) {
     let scene = Scene::builtin("cube_tear").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, _) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, _) = tearing::settings(&scene);
     let settings = build::TearSettings {
         target_force_error: target,
         ..settings
@@ -53,7 +55,7 @@ fn the_build_stores_the_fewest_modes_whose_force_stays_about_as_accurate() {
 
     // the bundle's arrays keep it; corrupt ones are refused with the rebuild advice
     let scene = Scene::builtin("cube_tear").unwrap();
-    let model = organ::tear_model(&scene, 0).unwrap().0;
+    let model = tearing::tear_model(&scene, 0).unwrap().0;
     let arrays = off.to_arrays();
     let back = TearOffline::from_arrays(model.clone(), arrays.clone()).unwrap();
     assert_eq!(back.fallback, off.fallback);
@@ -127,8 +129,8 @@ fn a_session_falls_back_mid_pull_without_a_jump_and_returns() {
     let built = offline::build_organ(&scene, 0, &BuildOptions::for_scene(&scene, true), &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &built).unwrap();
-    let bundle = Arc::new(offline::load_bundle(dir.path()).unwrap());
-    let stored = TearOffline::from_arrays(organ::tear_model(&scene, 0).unwrap().0, (*bundle.tear[0]).clone()).unwrap();
+    let bundle = Arc::new(bundle::load_bundle(dir.path()).unwrap());
+    let stored = TearOffline::from_arrays(tearing::tear_model(&scene, 0).unwrap().0, (*bundle.tear[0]).clone()).unwrap();
     let fallback = stored.fallback.clone().expect("the stored bundle keeps its fallback");
     let run = |switch: Option<(usize, usize)>| -> Vec<TickState> {
         let mut p = Pipeline::for_scene(&scene, std::slice::from_ref(&bundle)).unwrap();

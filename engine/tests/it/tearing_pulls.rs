@@ -4,14 +4,15 @@
 
 use std::sync::Arc;
 
+use vademecum_engine::damage::build;
 use vademecum_engine::damage::model::TearModel;
 use vademecum_engine::damage::online::{OnlineTear, TearOffline, Variant};
-use vademecum_engine::damage::{build, organ};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::tearing;
 
 /// The model of the seed's cube (`cube_tear`).
 fn cube() -> TearModel {
-    organ::tear_model(&Scene::builtin("cube_tear").unwrap(), 0).unwrap().0
+    tearing::tear_model(&Scene::builtin("cube_tear").unwrap(), 0).unwrap().0
 }
 
 /// The worst relative L2 error over the schedule of pulling with `mix` (along the load,
@@ -43,8 +44,8 @@ fn the_pull_frame_is_orthonormal_and_the_cross_loads_keep_the_resultant() {
 #[test]
 fn pulled_across_or_obliquely_the_integrator_follows_the_full_order_reference() {
     let scene = Scene::builtin("cube_tear").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, _) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, _) = tearing::settings(&scene);
     let (off, report, _) = build::build(model.clone(), &settings, |_, _| {}).unwrap();
     // the seed's 3 POD vectors of the pull along the load; the pulls across it have their own
     // vademecums over the same coefficients
@@ -70,8 +71,8 @@ fn the_full_integrator_takes_the_pulls_across_from_their_vademecums() {
     // the rank-one terms act on the pull along the load (its Ritz basis): a pull across alone
     // is the simplified integrator's, bit for bit, and the tissue moves with it
     let scene = Scene::builtin("cube_tear").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, limits) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, limits) = tearing::settings(&scene);
     let off = Arc::new(build::build(model.clone(), &settings, |_, _| {}).unwrap().0);
     let t1 = model.pull_frame().unwrap()[1];
     let mut simplified = OnlineTear::new(off.clone(), Variant::Simplified, limits);
@@ -94,7 +95,7 @@ fn a_vademecums_prefix_is_the_greedy_build_stopped_there() {
     use vademecum_engine::damage::vademecum::{self, AffineSystem, VademecumSettings};
     let scene = Scene::builtin("cube_tear").unwrap();
     let model = cube();
-    let (settings, _) = organ::settings(&scene);
+    let (settings, _) = tearing::settings(&scene);
     let runs = build::references(&model, |_, _| {}).unwrap();
     let snaps = build::snapshots(&runs);
     assert_eq!(
@@ -127,8 +128,8 @@ fn a_vademecums_prefix_is_the_greedy_build_stopped_there() {
 #[test]
 fn a_pattern_prefix_keeps_the_first_modes_of_each_pull_pattern() {
     let scene = vademecum_engine::scene::Scene::builtin("cube_tear").unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, _) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, _) = tearing::settings(&scene);
     let (off, _, _) = build::build(model, &settings, |_, _| {}).unwrap();
     let v = &off.vademecum;
     assert_eq!(v.patterns.len(), 3, "{:?}", v.patterns);

@@ -5,12 +5,15 @@
 
 use std::sync::Arc;
 
+use vademecum_engine::bundle;
+use vademecum_engine::bundle::LoadedBundle;
+use vademecum_engine::damage::build;
 use vademecum_engine::damage::online::{OnlineTear, TearOffline, Variant};
-use vademecum_engine::damage::{build, organ};
-use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::tearing::FADE_TICKS;
 use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::tearing;
 
 /// The seed's cube (E = 5 Pa), its upper corner (1, 1, 1) the grasp pulled up, with Simó
 /// damage `alpha`, `beta` (0.4, 0.4: the seed's, D tends to 0.6 and never reaches the 0.8
@@ -30,7 +33,7 @@ fn bundle(scene: &Scene) -> Arc<LoadedBundle> {
     assert!(!built.tear.is_empty(), "a tearing scene's bundle holds the tearing vademecum");
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), scene, &built).unwrap();
-    Arc::new(offline::load_bundle(dir.path()).unwrap())
+    Arc::new(bundle::load_bundle(dir.path()).unwrap())
 }
 
 fn jaws(at: [f64; 3], closure: f64) -> ToolInput {
@@ -54,8 +57,8 @@ fn fz(s: &TickState) -> f64 {
 fn the_stored_offline_stage_steps_exactly_as_the_built_one() {
     let scene = cube(0.4, 0.4, 1.0);
     let b = bundle(&scene);
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, limits) = organ::settings(&scene);
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, limits) = tearing::settings(&scene);
     let (built, _, _) = build::build(model.clone(), &settings, |_, _| {}).unwrap();
     let stored = TearOffline::from_arrays(model, (*b.tear[0]).clone()).unwrap();
     for variant in [Variant::Simplified, Variant::Full] {

@@ -6,12 +6,15 @@
 
 use std::sync::Arc;
 
+use vademecum_engine::bundle;
+use vademecum_engine::bundle::LoadedBundle;
+use vademecum_engine::damage::build;
 use vademecum_engine::damage::online::{OnlineTear, TearOffline, Variant};
-use vademecum_engine::damage::{build, organ};
-use vademecum_engine::pgd::offline::{self, BuildOptions, LoadedBundle};
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pipeline::tearing::FADE_TICKS;
 use vademecum_engine::pipeline::{Events, Pipeline, TearPictures, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::tearing;
 
 const JAW: f64 = 0.5;
 
@@ -83,8 +86,8 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
 
 /// The extra sites' centres and pull directions.
 fn extra(scene: &Scene) -> Vec<([f64; 3], [f64; 3])> {
-    let (model, _) = organ::tear_model(scene, 0).unwrap();
-    organ::extra_sites(scene, 0, &model)
+    let (model, _) = tearing::tear_model(scene, 0).unwrap();
+    tearing::extra_sites(scene, 0, &model)
         .unwrap()
         .iter()
         .map(|s| {
@@ -153,7 +156,7 @@ fn bundle(scene: &Scene) -> (Arc<LoadedBundle>, offline::Built) {
     let built = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).unwrap();
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), scene, &built).unwrap();
-    (Arc::new(offline::load_bundle(dir.path()).unwrap()), built)
+    (Arc::new(bundle::load_bundle(dir.path()).unwrap()), built)
 }
 
 #[test]
@@ -162,9 +165,9 @@ fn every_site_is_stored_and_as_accurate_as_the_scenes_grasp() {
     let (b, built) = bundle(&scene);
     assert_eq!(b.tear.len(), 3);
     assert_eq!(built.report.tear_sites.len(), 2);
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let (settings, limits) = organ::settings(&scene);
-    let sites = organ::extra_sites(&scene, 0, &model).unwrap();
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let (settings, limits) = tearing::settings(&scene);
+    let sites = tearing::extra_sites(&scene, 0, &model).unwrap();
     for (k, arrays) in b.tear.iter().enumerate() {
         let stored = Arc::new(TearOffline::from_arrays(model.clone(), (**arrays).clone()).unwrap());
         // the stored stage is the built one: the site's load, and bit-identical steps
@@ -201,7 +204,7 @@ fn every_site_is_stored_and_as_accurate_as_the_scenes_grasp() {
     let mut m: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&mpath).unwrap()).unwrap();
     m["arrays"].as_object_mut().unwrap().remove("tear2_meta");
     std::fs::write(&mpath, serde_json::to_string_pretty(&m).unwrap()).unwrap();
-    let e = offline::load_bundle(dir.path()).unwrap_err().to_string();
+    let e = bundle::load_bundle(dir.path()).unwrap_err().to_string();
     assert!(e.contains("3 grasp site(s)") && e.contains("of 2") && e.contains("rebuild"), "{e}");
     // a site's stored load that does not fit the mesh is refused with a clear error
     let mut bad = (*b.tear[1]).clone();
@@ -338,9 +341,9 @@ fn on_the_gallbladder_the_sites_lie_on_the_fat_free_of_its_anchors_and_face_up()
         .source
         .replace("pod_vectors = 3 ", "grasp_sites = 8\npod_vectors = 3 ");
     let scene = Scene::from_toml(&text, "<builtin:gallbladder_fat>").unwrap();
-    let jaw = organ::jaw_width(&scene).unwrap();
-    let (model, _) = organ::tear_model(&scene, 0).unwrap();
-    let sites = organ::extra_sites(&scene, 0, &model).unwrap();
+    let jaw = tearing::jaw_width(&scene).unwrap();
+    let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+    let sites = tearing::extra_sites(&scene, 0, &model).unwrap();
     assert!(sites.len() >= 3, "{} sites", sites.len());
     let anchored: Vec<[f64; 3]> = (0..model.mesh.n_nodes())
         .filter(|&n| (0..3).any(|k| model.dofs.is_constrained(3 * n + k)))

@@ -4,8 +4,9 @@
 
 use std::path::Path;
 
+use vademecum_engine::bundle;
 use vademecum_engine::bundle::BundleError;
-use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pgd::{PgdParams, Vademecum};
 use vademecum_engine::scene::Scene;
 
@@ -159,10 +160,10 @@ fn bundles_round_trip_exactly() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("slab.bundle");
     let (scene, b) = write(&dir);
-    let l = offline::load_bundle(&dir).unwrap();
+    let l = bundle::load_bundle(&dir).unwrap();
     assert_eq!(l.vademecum, b.vademecum);
     assert_eq!(l.nodes, b.model.mesh.nodes);
-    offline::check_matches(&dir, &l.manifest, &scene, &b.model.mesh).unwrap();
+    bundle::check_matches(&dir, &l.manifest, &scene, &b.model.mesh).unwrap();
     assert_eq!(std::fs::read_to_string(dir.join("scene.toml")).unwrap(), SCENE);
     // the prefix a session's frames fall back to: the fewest modes of the build's error curve
     // that meet the error, none when every mode is needed or the bundle is that coarse already
@@ -186,14 +187,14 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
     let mid = bytes.len() / 2;
     bytes[mid] ^= 0x40;
     std::fs::write(&f, &bytes).unwrap();
-    let e = offline::load_bundle(&dir).unwrap_err();
+    let e = bundle::load_bundle(&dir).unwrap_err();
     assert!(matches!(e, BundleError::Checksum { .. }) && e.to_string().contains("F.npy"), "{e}");
     // truncated
     std::fs::write(&f, &good[..good.len() - 100]).unwrap();
-    let e = offline::load_bundle(&dir).unwrap_err();
+    let e = bundle::load_bundle(&dir).unwrap_err();
     assert!(matches!(e, BundleError::Checksum { .. }), "{e}");
     std::fs::write(&f, &good).unwrap();
-    offline::load_bundle(&dir).unwrap();
+    bundle::load_bundle(&dir).unwrap();
     // another format version
     let m = dir.join("manifest.json");
     let text = std::fs::read_to_string(&m).unwrap();
@@ -202,21 +203,21 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
         text.replacen(&format!("\"version\": {}", vademecum_engine::bundle::VERSION), "\"version\": 99", 1),
     )
     .unwrap();
-    let e = offline::load_bundle(&dir).unwrap_err();
+    let e = bundle::load_bundle(&dir).unwrap_err();
     assert!(matches!(e, BundleError::Version { found: 99, .. }), "{e}");
     // not a bundle at all
     std::fs::write(&m, "{\"hello\": 1}").unwrap();
-    assert!(matches!(offline::load_bundle(&dir).unwrap_err(), BundleError::NotABundle { .. }));
+    assert!(matches!(bundle::load_bundle(&dir).unwrap_err(), BundleError::NotABundle { .. }));
     std::fs::remove_file(&m).unwrap();
-    assert!(matches!(offline::load_bundle(&dir).unwrap_err(), BundleError::NotABundle { .. }));
+    assert!(matches!(bundle::load_bundle(&dir).unwrap_err(), BundleError::NotABundle { .. }));
     // a bundle used with another scene or mesh
     std::fs::write(&m, text).unwrap();
-    let l = offline::load_bundle(&dir).unwrap();
+    let l = bundle::load_bundle(&dir).unwrap();
     let other = Scene::from_toml(&SCENE.replace("divisions = [8, 4, 2]", "divisions = [8, 4, 3]"), "other.toml").unwrap();
     let other_mesh = other.organ_mesh(0).unwrap();
-    let e = offline::check_matches(&dir, &l.manifest, &other, &other_mesh).unwrap_err();
+    let e = bundle::check_matches(&dir, &l.manifest, &other, &other_mesh).unwrap_err();
     assert!(matches!(e, BundleError::Mismatch { what: "scene", .. }), "{e}");
-    let e = offline::check_matches(&dir, &l.manifest, &scene, &other_mesh).unwrap_err();
+    let e = bundle::check_matches(&dir, &l.manifest, &scene, &other_mesh).unwrap_err();
     assert!(matches!(e, BundleError::Mismatch { what: "mesh", .. }), "{e}");
     // runtime settings, comments and layout build the same: the bundle serves them unrebuilt
     let runtime = format!(
@@ -225,10 +226,10 @@ fn damaged_truncated_or_foreign_bundles_are_refused() {
     );
     let runtime = Scene::from_toml(&runtime, "runtime.toml").unwrap();
     assert_ne!(runtime.source, scene.source);
-    offline::check_matches(&dir, &l.manifest, &runtime, &b.model.mesh).unwrap();
+    bundle::check_matches(&dir, &l.manifest, &runtime, &b.model.mesh).unwrap();
     // a fidelity setting that is built is no runtime setting
     let built = Scene::from_toml(&format!("{SCENE}\n[fidelity.pgd]\nmax_modes = 7\n"), "built.toml").unwrap();
-    let e = offline::check_matches(&dir, &l.manifest, &built, &b.model.mesh).unwrap_err();
+    let e = bundle::check_matches(&dir, &l.manifest, &built, &b.model.mesh).unwrap_err();
     assert!(matches!(e, BundleError::Mismatch { what: "scene", .. }), "{e}");
     let _ = b;
 }
@@ -255,10 +256,10 @@ fn hostile_bundles_are_refused_even_with_matching_checksums() {
     let restore = || {
         std::fs::write(&f, &good).unwrap();
         std::fs::write(dir.join("manifest.json"), &manifest).unwrap();
-        offline::load_bundle(&dir).unwrap();
+        bundle::load_bundle(&dir).unwrap();
     };
     let refused = |why: &str| {
-        let e = offline::load_bundle(&dir).unwrap_err();
+        let e = bundle::load_bundle(&dir).unwrap_err();
         assert!(e.to_string().contains(why), "expected '{why}': {e}");
         e
     };
@@ -323,7 +324,7 @@ fn hostile_bundles_are_refused_even_with_matching_checksums() {
     std::fs::remove_file(&scene).unwrap();
     refused("scene.toml");
     std::fs::write(&scene, "").unwrap();
-    assert!(matches!(offline::load_bundle(&dir).unwrap_err(), BundleError::Checksum { .. }));
+    assert!(matches!(bundle::load_bundle(&dir).unwrap_err(), BundleError::Checksum { .. }));
     std::fs::write(&scene, text.replace("young = 5e3", "young = 5e4")).unwrap();
     refused("checksum");
     std::fs::write(&scene, &text).unwrap();
@@ -337,7 +338,7 @@ fn the_probe_feels_the_tissue_on_the_accessible_surface_and_the_support_below() 
     let (scene, b) = built(400);
     let dir = tempfile::tempdir().unwrap();
     offline::write_bundle(dir.path(), &scene, &b).unwrap();
-    let bundle = Arc::new(offline::load_bundle(dir.path()).unwrap());
+    let bundle = Arc::new(bundle::load_bundle(dir.path()).unwrap());
     let r = 0.012;
     let fresh = || Pipeline::for_scene(&scene, std::slice::from_ref(&bundle)).unwrap();
     let at = |p: &mut Pipeline, tip: [f64; 3]| {
@@ -549,7 +550,7 @@ fn rewriting_a_bundle_never_writes_through_links() {
     offline::write_bundle(&dir, &scene, &b).unwrap();
     assert_eq!(std::fs::read_to_string(&outside).unwrap(), "not a bundle's");
     assert!(std::fs::symlink_metadata(dir.join("F.npy")).unwrap().is_file());
-    offline::load_bundle(&dir).unwrap();
+    bundle::load_bundle(&dir).unwrap();
     // the bundle folder a link to another folder: the link is replaced, its target untouched
     let elsewhere = tmp.path().join("elsewhere");
     std::fs::create_dir(&elsewhere).unwrap();
@@ -560,7 +561,7 @@ fn rewriting_a_bundle_never_writes_through_links() {
     assert!(std::fs::symlink_metadata(&dir).unwrap().is_dir());
     let names: Vec<_> = std::fs::read_dir(&elsewhere).unwrap().flatten().map(|e| e.file_name()).collect();
     assert_eq!(names, [std::ffi::OsString::from("keep.txt")]);
-    offline::load_bundle(&dir).unwrap();
+    bundle::load_bundle(&dir).unwrap();
     // nothing but the bundle and what was there is left beside it
     let mut beside: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().flatten().map(|e| e.file_name()).collect();
     beside.sort();

@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use vademecum_engine::pgd::offline::{self, BuildOptions};
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
 
 fn default_build(scene: &Scene) -> offline::BuildReport {

@@ -8,8 +8,8 @@ use crate::common;
 use std::collections::HashMap;
 use std::path::PathBuf;
 
+use vademecum_engine::geometry::vec3::{cross, dot, sub};
 use vademecum_engine::mesh::{self, Mesh, procedural};
-use vademecum_engine::vec3::{cross, dot, sub};
 use vademecum_engine::xfem::progressive::ProgressiveCut;
 use vademecum_engine::xfem::visual::{Embedding, VisualMesh};
 use vademecum_engine::xfem::visual_split::{self, SplitError, SplitSurface, VertexSide};

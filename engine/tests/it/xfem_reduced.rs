@@ -2,9 +2,9 @@
 //! engine part 2): the PGD modes of the patch's vademecum as a Ritz basis (PRB and SRB),
 //! bordered with the enriched nodes as the cut grows.
 
-use vademecum_engine::meshless::cut::Cut;
+use vademecum_engine::geometry::cut::Cut;
+use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pgd::PgdParams;
-use vademecum_engine::pgd::offline::{self, BuildOptions};
 use vademecum_engine::scene::Scene;
 use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, ReducedError, RitzBasis};
 use vademecum_engine::xfem::system;

@@ -9,9 +9,9 @@ use std::thread::Thread;
 use std::time::{Duration, Instant};
 
 use tokio::sync::watch;
+use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::contact::Bounds;
 use vademecum_engine::damage::online::TearOffline;
-use vademecum_engine::pgd::offline::LoadedBundle;
 use vademecum_engine::pgd::vademecum::NodeMajorField;
 use vademecum_engine::pipeline::Contact;
 use vademecum_engine::pipeline::corotational::CorotationalDeformation;

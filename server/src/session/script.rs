@@ -3,7 +3,7 @@
 //! the built-in incisions along a cutting scene's pre-planned cuts.
 
 use vademecum_bridge::trajectory::{BladeKey, Trajectory};
-use vademecum_engine::pgd::offline::LoadedBundle;
+use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::pipeline::{ToolInput, ToolKind};
 
 /// The tool state of `trajectory` at `t` seconds after its first keyframe: a probe's, or a

@@ -19,6 +19,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use hdrhistogram::Histogram;
 use serde::Serialize;
+use vademecum_proto::shm::BridgeReport;
 
 /// Highest latency a histogram tracks (ns): 10 s; larger values are clamped.
 const MAX_NS: u64 = 10_000_000_000;
@@ -223,7 +224,7 @@ impl TickStats {
 /// see fields of two consecutive reports; each is exact).
 #[derive(Debug, Default)]
 pub struct BridgeStats {
-    fields: [AtomicU64; 15],
+    words: [AtomicU64; BridgeReport::WORDS],
 }
 
 /// A bridge report as plain numbers (µs for latencies).
@@ -253,57 +254,43 @@ pub struct BridgeSnapshot {
     pub latency_us: Percentiles,
 }
 
+impl From<&BridgeReport> for BridgeSnapshot {
+    fn from(r: &BridgeReport) -> Self {
+        let us = |ns: u64| ns as f64 / 1e3;
+        Self {
+            ticks: r.ticks,
+            deadline_misses: r.deadline_misses,
+            fresh_forces: r.fresh_forces,
+            watchdog_ticks: r.watchdog_ticks,
+            rejected_non_finite: r.rejected_non_finite,
+            clamped_jumps: r.clamped_jumps,
+            clamped_workspace: r.clamped_workspace,
+            rejected_forces: r.rejected_forces,
+            clamped_forces: r.clamped_forces,
+            rate_limited_forces: r.rate_limited_forces,
+            latency_us: Percentiles {
+                count: r.fresh_forces,
+                p50: us(r.latency_p50_ns),
+                p99: us(r.latency_p99_ns),
+                p999: us(r.latency_p999_ns),
+                max: us(r.latency_max_ns),
+            },
+        }
+    }
+}
+
 impl BridgeStats {
     /// Stores a report.
-    pub fn store(&self, r: &vademecum_proto::shm::BridgeReport) {
-        let v = [
-            r.t_ns,
-            r.ticks,
-            r.deadline_misses,
-            r.fresh_forces,
-            r.watchdog_ticks,
-            r.rejected_non_finite,
-            r.clamped_jumps,
-            r.clamped_workspace,
-            r.rejected_forces,
-            r.clamped_forces,
-            r.rate_limited_forces,
-            r.latency_p50_ns,
-            r.latency_p99_ns,
-            r.latency_p999_ns,
-            r.latency_max_ns,
-        ];
-        for (a, x) in self.fields.iter().zip(v) {
+    pub fn store(&self, r: &BridgeReport) {
+        for (a, x) in self.words.iter().zip(r.to_words()) {
             a.store(x, Ordering::Relaxed);
         }
     }
 
     /// The latest report, or `None` before the first.
     pub fn snapshot(&self) -> Option<BridgeSnapshot> {
-        let f = |i: usize| self.fields[i].load(Ordering::Relaxed);
-        if f(0) == 0 {
-            return None;
-        }
-        let us = |i: usize| f(i) as f64 / 1e3;
-        Some(BridgeSnapshot {
-            ticks: f(1),
-            deadline_misses: f(2),
-            fresh_forces: f(3),
-            watchdog_ticks: f(4),
-            rejected_non_finite: f(5),
-            clamped_jumps: f(6),
-            clamped_workspace: f(7),
-            rejected_forces: f(8),
-            clamped_forces: f(9),
-            rate_limited_forces: f(10),
-            latency_us: Percentiles {
-                count: f(3),
-                p50: us(11),
-                p99: us(12),
-                p999: us(13),
-                max: us(14),
-            },
-        })
+        let r = BridgeReport::from_words(std::array::from_fn(|i| self.words[i].load(Ordering::Relaxed)));
+        (r.t_ns != 0).then(|| BridgeSnapshot::from(&r))
     }
 }
 

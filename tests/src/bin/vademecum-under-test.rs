@@ -3,5 +3,5 @@
 //! keeping it up to date — an integration test cannot name another package's binary.
 
 fn main() -> std::process::ExitCode {
-    vademecum_server::cli_main::main_entry()
+    vademecum_cli::main_entry()
 }

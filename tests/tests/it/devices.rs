@@ -7,7 +7,7 @@ use crate::util;
 use std::process::{Command, Stdio};
 
 use util::{assert_forces_match_engine, bridge_bin, bundles, engine, read_trace};
-use vademecum_engine::pgd::offline::load_bundle;
+use vademecum_engine::bundle::load_bundle;
 
 /// Three device sessions on one device worker (`serve --device-workers 1`): the worker blocks
 /// on the three bridges' events at once and answers each bridge's state with the engine's

@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use vademecum_client::{Client, ErrorKind, SceneSpec, f32s, tool_at};
-use vademecum_engine::pgd::offline;
+use vademecum_engine::bundle;
 use vademecum_engine::pipeline::{Events, Pipeline, ToolInput};
 use vademecum_engine::scene::Scene;
 
@@ -28,7 +28,7 @@ fn path(i: usize) -> [f64; 3] {
 /// The engine's own answer for the same tool state, from the same bundle on disk.
 fn direct(root: &std::path::Path) -> Pipeline {
     let scene = Scene::builtin("organ").unwrap();
-    let b = Arc::new(offline::load_bundle(&root.join("organ/lobe.bundle")).unwrap());
+    let b = Arc::new(bundle::load_bundle(&root.join("organ/lobe.bundle")).unwrap());
     Pipeline::for_scene(&scene, &[b]).unwrap()
 }
 

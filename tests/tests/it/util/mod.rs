@@ -11,7 +11,7 @@ use std::sync::{Arc, OnceLock, mpsc};
 
 use std::time::Duration;
 
-use vademecum_engine::pgd::offline::load_bundle;
+use vademecum_engine::bundle::load_bundle;
 use vademecum_engine::pipeline::{Pipeline, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 
