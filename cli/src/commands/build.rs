@@ -170,7 +170,8 @@ fn cut_tick(scene: &Scene, built: &Built) -> Result<Option<CutTick>, String> {
     let Some(report) = &built.report.cut else { return Ok(None) };
     let model = &built.model;
     let (mut reduced, params) =
-        vademecum_engine::pipeline::cut_model(scene, model, &built.vademecum, built.cut_basis.as_ref(), Some(report.sliver))?;
+        vademecum_engine::pipeline::cut_model(scene, model, &built.vademecum, built.cut_basis.as_ref(), Some(report.sliver))
+            .map_err(|e| e.to_string())?;
     reduced
         .cut(
             &model.mesh,

@@ -30,6 +30,19 @@ pub struct CutBasis {
     pub size: usize,
 }
 
+/// A value of a loaded bundle's build report (`manifest.info`) that a session reads and
+/// cannot take: the bundle is damaged or was written by another build.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the bundle's {key} {value} is not {expected}; rebuild it with `vademecum build`")]
+pub struct InfoError {
+    /// What the value is.
+    pub key: &'static str,
+    /// The value found.
+    pub value: String,
+    /// What it should be.
+    pub expected: &'static str,
+}
+
 /// A bundle loaded from disk.
 #[derive(Debug, Clone)]
 pub struct LoadedBundle {
@@ -74,15 +87,17 @@ impl LoadedBundle {
     /// The sliver rule the build chose for a cutting session (`info.cut.sliver`, set by
     /// `build --target-error`: [`CutReport::sliver`](crate::offline::CutReport::sliver)); `None` for a bundle that does not say
     /// (the scene's `fidelity.xfem.sliver` applies). An error for a value no sliver rule has.
-    pub fn cut_sliver(&self) -> Result<Option<f64>, String> {
+    pub fn cut_sliver(&self) -> Result<Option<f64>, InfoError> {
         let Some(v) = self.manifest.info.get("cut").and_then(|c| c.get("sliver")) else {
             return Ok(None);
         };
         match v.as_f64() {
             Some(s) if (0.0..0.5).contains(&s) => Ok(Some(s)),
-            _ => Err(format!(
-                "the bundle's cut sliver rule {v} is not a fraction in [0, 0.5); rebuild it with `vademecum build`"
-            )),
+            _ => Err(InfoError {
+                key: "cut sliver rule",
+                value: v.to_string(),
+                expected: "a fraction in [0, 0.5)",
+            }),
         }
     }
 
@@ -91,15 +106,17 @@ impl LoadedBundle {
     /// [`CutReport::bare_force_error`](crate::offline::CutReport::bare_force_error)); `None` for a bundle that has none (local fields, or
     /// built before the calibration). An error for a value that is not a finite non-negative
     /// number.
-    pub fn cut_bare_force_error(&self) -> Result<Option<f64>, String> {
+    pub fn cut_bare_force_error(&self) -> Result<Option<f64>, InfoError> {
         let Some(v) = self.manifest.info.get("cut").and_then(|c| c.get("bare_force_error")) else {
             return Ok(None);
         };
         match v.as_f64() {
             Some(e) if e.is_finite() && e >= 0.0 => Ok(Some(e)),
-            _ => Err(format!(
-                "the bundle's cut bare_force_error {v} is not a finite non-negative number; rebuild it with `vademecum build`"
-            )),
+            _ => Err(InfoError {
+                key: "cut bare_force_error",
+                value: v.to_string(),
+                expected: "a finite non-negative number",
+            }),
         }
     }
 
@@ -250,7 +267,7 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
             .collect::<Result<Vec<_>, _>>()?;
         patches.push((nodes, patch_weights[a as usize..b as usize].to_vec()));
     }
-    let mut vademecum = Vademecum::from_parts(n_nodes, fs[0] as usize, load_nodes, patches, f, g).map_err(bad)?;
+    let mut vademecum = Vademecum::from_parts(n_nodes, fs[0] as usize, load_nodes, patches, f, g).map_err(|e| bad(e.to_string()))?;
     let (_, local_ptr) = bundle::read_i64(dir, &manifest, "local_ptr")?;
     let (_, local_nbr) = bundle::read_i64(dir, &manifest, "local_nbr")?;
     let (_, local_c) = bundle::read_f64(dir, &manifest, "local_c")?;
@@ -267,7 +284,7 @@ pub fn load_bundle(dir: &Path) -> Result<LoadedBundle, BundleError> {
                 .map(|c| [[c[0], c[1], c[2]], [c[3], c[4], c[5]], [c[6], c[7], c[8]]])
                 .collect(),
         };
-        vademecum = vademecum.with_local(local).map_err(bad)?;
+        vademecum = vademecum.with_local(local).map_err(|e| bad(e.to_string()))?;
     }
     let anm = if manifest.arrays.contains_key("anm_nodes") {
         let f = |name: &str| bundle::read_f64(dir, &manifest, name).map(|(_, v)| v);

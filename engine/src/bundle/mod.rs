@@ -42,7 +42,7 @@ mod loaded;
 pub mod npy;
 pub mod store;
 
-pub use loaded::{CutBasis, KIND, LoadedBundle, check_matches, load_bundle};
+pub use loaded::{CutBasis, InfoError, KIND, LoadedBundle, check_matches, load_bundle};
 pub(crate) use loaded::{TEAR_ARRAYS, tear_prefix};
 
 /// Why a bundle could not be written or read.

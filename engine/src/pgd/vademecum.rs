@@ -47,6 +47,63 @@ impl LocalCompliance {
     }
 }
 
+/// Why arrays do not make a vademecum ([`Vademecum::from_parts`], [`Vademecum::with_local`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum VademecumError {
+    /// Not one load patch per load node.
+    #[error("{patches} load patches for {nodes} load nodes")]
+    PatchCount {
+        /// Patches given.
+        patches: usize,
+        /// Load nodes given.
+        nodes: usize,
+    },
+    /// A load patch is empty, names a node outside the mesh or has a non-finite weight.
+    #[error("a load patch is empty, out of range or not finite")]
+    BadPatch,
+    /// The spatial modes have the wrong size.
+    #[error("F has {found} values, expected {modes} modes × {dofs} dofs")]
+    FSize {
+        /// Values found.
+        found: usize,
+        /// Modes.
+        modes: usize,
+        /// Degrees of freedom.
+        dofs: usize,
+    },
+    /// The parametric modes have the wrong size.
+    #[error("G has {found} values, expected {modes} modes × {states} load states")]
+    GSize {
+        /// Values found.
+        found: usize,
+        /// Modes.
+        modes: usize,
+        /// Load states.
+        states: usize,
+    },
+    /// A load node is not a node of the mesh.
+    #[error("load node {node} is outside the mesh ({nodes} nodes)")]
+    NodeOutside {
+        /// The load node.
+        node: usize,
+        /// The mesh's nodes.
+        nodes: usize,
+    },
+    /// A load node is listed twice.
+    #[error("load node {0} is listed twice")]
+    NodeTwice(usize),
+    /// A mode holds a non-finite value.
+    #[error("the modes contain non-finite values")]
+    NonFinite,
+    /// The local compliance's arrays do not fit together.
+    #[error("local compliance arrays are inconsistent")]
+    LocalInconsistent,
+    /// The local compliance names a missing load node or holds a non-finite value.
+    #[error("local compliance refers to a missing load node or is not finite")]
+    LocalOutside,
+}
+
 /// A linear PGD vademecum ready for online evaluation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Vademecum {
@@ -99,34 +156,45 @@ impl Vademecum {
         patches: Vec<(Vec<usize>, Vec<f64>)>,
         f: Vec<f64>,
         g: Vec<f64>,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, VademecumError> {
         let p = 3 * load_nodes.len();
         if patches.len() != load_nodes.len() {
-            return Err(format!("{} load patches for {} load nodes", patches.len(), load_nodes.len()));
+            return Err(VademecumError::PatchCount {
+                patches: patches.len(),
+                nodes: load_nodes.len(),
+            });
         }
         for (nodes, w) in &patches {
             if nodes.len() != w.len() || nodes.is_empty() || nodes.iter().any(|&n| n >= n_nodes) || w.iter().any(|x| !x.is_finite()) {
-                return Err("a load patch is empty, out of range or not finite".into());
+                return Err(VademecumError::BadPatch);
             }
         }
         if f.len() != modes * 3 * n_nodes {
-            return Err(format!("F has {} values, expected {modes} modes × {} dofs", f.len(), 3 * n_nodes));
+            return Err(VademecumError::FSize {
+                found: f.len(),
+                modes,
+                dofs: 3 * n_nodes,
+            });
         }
         if g.len() != modes * p {
-            return Err(format!("G has {} values, expected {modes} modes × {p} load states", g.len()));
+            return Err(VademecumError::GSize {
+                found: g.len(),
+                modes,
+                states: p,
+            });
         }
         let mut param_of_node = vec![NOT_LOADABLE; n_nodes];
         for (j, &n) in load_nodes.iter().enumerate() {
             if n >= n_nodes {
-                return Err(format!("load node {n} is outside the mesh ({n_nodes} nodes)"));
+                return Err(VademecumError::NodeOutside { node: n, nodes: n_nodes });
             }
             if param_of_node[n] != NOT_LOADABLE {
-                return Err(format!("load node {n} is listed twice"));
+                return Err(VademecumError::NodeTwice(n));
             }
             param_of_node[n] = j as u32;
         }
         if f.iter().chain(&g).any(|v| !v.is_finite()) {
-            return Err("the modes contain non-finite values".into());
+            return Err(VademecumError::NonFinite);
         }
         let nl = load_nodes.len();
         let mut fl = vec![0.0; nl * modes * 3];
@@ -154,17 +222,17 @@ impl Vademecum {
     }
 
     /// Attaches exact local compliances (checked for size and finiteness).
-    pub fn with_local(mut self, local: LocalCompliance) -> Result<Self, String> {
+    pub fn with_local(mut self, local: LocalCompliance) -> Result<Self, VademecumError> {
         let nl = self.load_nodes.len();
         if local.ptr.len() != nl + 1
             || local.ptr.windows(2).any(|w| w[1] < w[0])
             || local.ptr[nl] != local.nbr.len()
             || local.nbr.len() != local.c.len()
         {
-            return Err("local compliance arrays are inconsistent".into());
+            return Err(VademecumError::LocalInconsistent);
         }
         if local.nbr.iter().any(|&b| b >= nl) || local.c.iter().flatten().flatten().any(|v| !v.is_finite()) {
-            return Err("local compliance refers to a missing load node or is not finite".into());
+            return Err(VademecumError::LocalOutside);
         }
         self.local = Some(local);
         Ok(self)

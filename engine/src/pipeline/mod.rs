@@ -704,6 +704,21 @@ fn tearing_effect(
     Ok((t, pictures, offs))
 }
 
+/// Why a cutting session's reduced model could not be made ([`session_cut_model`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CutModelError {
+    /// The bundle's mesh is not the scene's.
+    #[error("the bundle was built for another mesh than the scene's; rebuild it with `vademecum build`")]
+    OtherMesh,
+    /// The bundle's build report holds a value the session cannot take.
+    #[error(transparent)]
+    Info(#[from] crate::bundle::InfoError),
+    /// The reduced cut model could not be made.
+    #[error(transparent)]
+    Reduced(#[from] crate::xfem::reduced::ReducedError),
+}
+
 /// The reduced cut model a cutting session of organ 0 (`model`, the scene's organ model)
 /// starts from, with the XFEM settings it cuts with: the scene's `fidelity.xfem` at the sliver
 /// rule the bundle chose, the bare enrichment on the basis the bundle stores, keeping the
@@ -714,14 +729,14 @@ pub fn session_cut_model(
     scene: &Scene,
     model: &crate::fem::OrganModel,
     bundle: &LoadedBundle,
-) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
+) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), CutModelError> {
     let same = model.mesh.nodes.len() == bundle.nodes.len()
         && model.mesh.nodes.iter().zip(&bundle.nodes).all(|(p, q)| {
             let tol = 1e-9 * (1.0 + p.iter().chain(q).fold(0.0f64, |m, v| m.max(v.abs())));
             (0..3).all(|k| (p[k] - q[k]).abs() <= tol)
         });
     if !same {
-        return Err("the bundle was built for another mesh than the scene's; rebuild it with `vademecum build`".into());
+        return Err(CutModelError::OtherMesh);
     }
     cut_model(scene, model, &bundle.vademecum, bundle.cut_basis.as_ref(), bundle.cut_sliver()?)
 }
@@ -745,7 +760,7 @@ pub fn cut_model(
     v: &crate::pgd::Vademecum,
     cut_basis: Option<&crate::bundle::CutBasis>,
     sliver: Option<f64>,
-) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), String> {
+) -> Result<(crate::xfem::reduced::ReducedCut, crate::xfem::XfemParams), CutModelError> {
     use crate::xfem::reduced::{Discontinuous, ReducedCut};
     let fx = &scene.spec.fidelity.xfem;
     let params = cut_params(scene, sliver);
@@ -788,8 +803,7 @@ pub fn cut_model(
                 &params,
             )
         }
-    }
-    .map_err(|e| e.to_string())?;
+    }?;
     // the compliance at a contact in O(m) for every node the vademecum can load
     reduced.tabulate(v.load_nodes());
     Ok((reduced, params))
@@ -809,10 +823,10 @@ fn cutting_effect(
     let fail = |message: String| PipelineError::Cutting { organ: 0, message };
     let model = scene.organ_model(0).map_err(|e| fail(e.to_string()))?;
     let fx = &scene.spec.fidelity.xfem;
-    let (reduced, params) = session_cut_model(scene, &model, bundle).map_err(fail)?;
+    let (reduced, params) = session_cut_model(scene, &model, bundle).map_err(|e| fail(e.to_string()))?;
     let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(fail)?;
     let bare_error = match fx.discontinuous {
-        Discontinuous::Bare => bundle.cut_bare_force_error().map_err(fail)?,
+        Discontinuous::Bare => bundle.cut_bare_force_error().map_err(|e| fail(e.to_string()))?,
         Discontinuous::LocalFields => None,
     };
     if scene.spec.fidelity.cutting != crate::scene::schema::CuttingModel::CorotationalXfem {

@@ -909,7 +909,7 @@ impl Scene {
             // the wide stencil unless the scene names another treatment (conservative)
             let wide = mesh.kind == CellKind::Tet4 && matches!(self.spec.fidelity.locking, None | Some(Locking::Nodal));
             crate::solve::memory::check(&mesh, wide, limit)
-                .map_err(|m| self.error_at(&[Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh")], m))?;
+                .map_err(|m| self.error_at(&[Seg::Key("organs"), Seg::Index(index), Seg::Key("mesh")], m.to_string()))?;
         }
         let mut model = self.organ_model_with_mesh(index, mesh)?;
         let name = &self.spec.organs[index].name;

@@ -27,18 +27,35 @@ pub fn estimate_solve_bytes(mesh: &Mesh, wide: bool) -> u64 {
     (BYTES_PER_N43 * kind * n.powf(4.0 / 3.0) + 1024.0 * mesh.n_cells() as f64) as u64
 }
 
+/// A direct solve the machine cannot hold: its estimate against what is allowed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "a direct solve of this mesh ({nodes} nodes, {cells} cells) needs about {} of memory, more than the {} allowed; use a coarser mesh (or raise --max-memory if the machine has it)",
+    gigabytes(*.need),
+    gigabytes(*.limit)
+)]
+pub struct TooLarge {
+    /// The mesh's nodes and cells.
+    pub nodes: usize,
+    /// Cells.
+    pub cells: usize,
+    /// The estimate (bytes).
+    pub need: u64,
+    /// What is allowed (bytes).
+    pub limit: u64,
+}
+
 /// Refuses a solve whose estimate exceeds `limit` bytes (the memory the system has
 /// available, or a user's `--max-memory`), with both figures in the message.
-pub fn check(mesh: &Mesh, wide: bool, limit: u64) -> Result<(), String> {
+pub fn check(mesh: &Mesh, wide: bool, limit: u64) -> Result<(), TooLarge> {
     let need = estimate_solve_bytes(mesh, wide);
     if need > limit {
-        return Err(format!(
-            "a direct solve of this mesh ({} nodes, {} cells) needs about {} of memory, more than the {} allowed; use a coarser mesh (or raise --max-memory if the machine has it)",
-            mesh.n_nodes(),
-            mesh.n_cells(),
-            gigabytes(need),
-            gigabytes(limit)
-        ));
+        return Err(TooLarge {
+            nodes: mesh.n_nodes(),
+            cells: mesh.n_cells(),
+            need,
+            limit,
+        });
     }
     Ok(())
 }
@@ -62,7 +79,9 @@ mod tests {
         }
         let tets = block_tet([0.0; 3], [1.0; 3], [4, 4, 4]);
         assert!(estimate_solve_bytes(&tets, true) > estimate_solve_bytes(&tets, false));
-        let e = check(&block_hex([0.0; 3], [1.0; 3], [40, 40, 40]), false, 1_000_000_000).unwrap_err();
+        let e = check(&block_hex([0.0; 3], [1.0; 3], [40, 40, 40]), false, 1_000_000_000)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("needs about") && e.contains("1.0 GB allowed"), "{e}");
     }
 }

@@ -300,19 +300,19 @@ pub fn cut_samples(
 ) -> Result<Vec<Sample>, String> {
     use crate::xfem::reduced::Discontinuous;
     let disc = scene.spec.fidelity.xfem.discontinuous;
-    let params = crate::pipeline::cut_params(scene, bundle.cut_sliver()?);
+    let params = crate::pipeline::cut_params(scene, bundle.cut_sliver().map_err(|e| e.to_string())?);
     let organ_cuts = scene.organ_cuts(0).map_err(|e| e.to_string())?;
     let cells = crate::xfem::accuracy::cut_cells(&organ_cuts, model, &params).map_err(|e| e.to_string())?;
     let mut cuts = vec![(&cells[..], if disc == Discontinuous::Bare { CUT_BARE } else { CUT })];
     if disc == Discontinuous::Bare && cells.len() >= 2 {
         cuts.push((&cells[..cells.len() / 2], CUT_BARE_HALFWAY));
     }
-    let bare = bundle.cut_bare_force_error()?;
+    let bare = bundle.cut_bare_force_error().map_err(|e| e.to_string())?;
     let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
     let total = cuts.len() * count;
     let mut out = Vec::new();
     for (k, &(cells, label)) in cuts.iter().enumerate() {
-        let (mut reduced, _) = crate::pipeline::session_cut_model(scene, model, bundle)?;
+        let (mut reduced, _) = crate::pipeline::session_cut_model(scene, model, bundle).map_err(|e| e.to_string())?;
         reduced.cut(&model.mesh, cells).map_err(|e| e.to_string())?;
         let samples = crate::xfem::accuracy::patch_samples(model, &params, cells, &mut reduced.view(), count, |done, _| {
             progress(k * count + done, total)

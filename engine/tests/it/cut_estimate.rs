@@ -99,7 +99,7 @@ fn the_bare_enrichment_carries_its_calibrated_force_error_and_it_bounds_the_full
     let mut bad = bundle;
     bad.manifest.info["cut"]["bare_force_error"] = serde_json::json!(-1.0);
     let e = bad.cut_bare_force_error().unwrap_err();
-    assert!(e.contains("rebuild"), "{e}");
+    assert!(e.to_string().contains("rebuild"), "{e}");
     assert!(Pipeline::for_scene(&scene, &[Arc::new(bad)]).is_err());
 }
 

@@ -75,7 +75,7 @@ fn the_bundle_keeps_the_chosen_sliver_rule_and_a_session_cuts_with_it() {
     let mut bad = bundle;
     bad.manifest.info["cut"]["sliver"] = serde_json::json!(0.7);
     let e = bad.cut_sliver().unwrap_err();
-    assert!(e.contains("rebuild"), "{e}");
+    assert!(e.to_string().contains("rebuild"), "{e}");
     let Err(e) = Pipeline::for_scene(&scene, &[Arc::new(bad)]) else {
         panic!("a bundle with a sliver rule of 0.7 was accepted");
     };
