@@ -18,7 +18,7 @@ use vademecum_engine::fem::OrganModel;
 use vademecum_engine::geometry::cut::Cut;
 use vademecum_engine::geometry::vec3;
 use vademecum_engine::offline::{self, BuildOptions};
-use vademecum_engine::pgd::PgdParams;
+use vademecum_engine::pgd::{PgdParams, Vademecum};
 use vademecum_engine::scene::Scene;
 use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
 use vademecum_engine::xfem::system::{self, XfemSolution};
@@ -239,6 +239,264 @@ fn header(out: &mut impl Write, lead: &[&str], variants: &[String]) -> std::io::
     writeln!(out, "|{}", "---:|".repeat(lead.len() + variants.len()))
 }
 
+/// Stage 1 of `bench cut`: the organ cut along the scene's `cuts` blade position by blade
+/// position, each variant's displacement and opening against the full XFEM's at each; and
+/// the enrichment at the final cut.
+fn along_the_cuts(model: &OrganModel, v: &Vademecum, cuts: &[Cut], params: &XfemParams) -> anyhow::Result<(Vec<Step>, Enrichment)> {
+    let stages = Stages::start("accuracy along the cut");
+    let steps_cells = progressive_cells(model, cuts, params)?;
+    let mut models: Vec<ReducedCut> = VARIANTS
+        .iter()
+        .map(|&var| reduced(model, v.f_raw(), v.modes(), var, params))
+        .collect::<anyhow::Result<_>>()?;
+    let mut steps = Vec::new();
+    for (k, cells) in steps_cells.iter().enumerate() {
+        stages.stage(&format!("blade position {} of {}", k + 2, steps_cells.len() + 1));
+        for m in &mut models {
+            m.cut(&model.mesh, cells)?;
+        }
+        let enr = models[0].enrichment().clone();
+        let full = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, &enr, params)?;
+        let full_opening_m = (0..enr.len())
+            .map(|k| (0..3).map(|i| full.q[3 * k + i].powi(2)).sum::<f64>().sqrt())
+            .fold(0.0, f64::max);
+        let (mut errors, mut openings_m) = (Vec::new(), Vec::new());
+        for m in &models {
+            // each model keeps its own order of enriched nodes: compare through its enrichment
+            let (u, q) = m.displacements(&model.problem.forces);
+            let full_m = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, m.enrichment(), params)?;
+            let (e, o) = error(m.enrichment(), &u, &q, &full_m);
+            errors.push(e);
+            openings_m.push(o);
+        }
+        steps.push(Step {
+            blade_positions: k + 2,
+            cut_cells: enr.cut_cells.len(),
+            enriched_nodes: enr.len(),
+            errors,
+            full_opening_m,
+            openings_m,
+        });
+    }
+    stages.finish();
+    Ok((steps, models[0].enrichment().clone()))
+}
+
+/// Stage 2 of `bench cut`: at the final cut, each variant's error against the full XFEM
+/// with the first `modes` of the vademecum's modes (and all of them).
+fn error_against_modes(
+    model: &OrganModel,
+    v: &Vademecum,
+    modes: &[usize],
+    final_enr: &Enrichment,
+    final_cells: &[(usize, Plane)],
+    params: &XfemParams,
+) -> anyhow::Result<Vec<(usize, Vec<f64>)>> {
+    let stages = Stages::start("error against modes");
+    let full = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, final_enr, params)?;
+    let n_modes = v.modes();
+    let mut counts: Vec<usize> = modes.iter().copied().filter(|&m| m >= 1 && m <= n_modes).collect();
+    if !counts.contains(&n_modes) {
+        counts.push(n_modes);
+    }
+    let n_dofs = model.mesh.n_dofs();
+    let mut modes_sweep = Vec::new();
+    for &m in &counts {
+        stages.stage(&format!("{m} modes"));
+        let mut errs = Vec::new();
+        for &var in &VARIANTS {
+            let mut r = reduced(model, &v.f_raw()[..m * n_dofs], m, var, params)?;
+            r.cut(&model.mesh, final_cells)?;
+            let (u, q) = r.displacements(&model.problem.forces);
+            let full_m = if r.enrichment().nodes == final_enr.nodes {
+                None
+            } else {
+                Some(system::solve(
+                    &model.mesh,
+                    &model.materials,
+                    model.locking,
+                    &model.problem,
+                    r.enrichment(),
+                    params,
+                )?)
+            };
+            errs.push(error(r.enrichment(), &u, &q, full_m.as_ref().unwrap_or(&full)).0);
+        }
+        modes_sweep.push((m, errs));
+    }
+    stages.finish();
+    Ok(modes_sweep)
+}
+
+/// Stage 3 of `bench cut`: what a session's tick adds to the contact compliance, by forward
+/// substitution and from the contact table, as the cut grows to each of `enriched` nodes
+/// (`ticks_timed` ticks each), with the cost of bordering and tabulating per new node.
+fn tick_costs(
+    model: &OrganModel,
+    v: &Vademecum,
+    enriched: &[usize],
+    ticks_timed: usize,
+    params: &XfemParams,
+) -> anyhow::Result<Vec<TickRow>> {
+    let stages = Stages::start("tick cost");
+    let grow = growing_cells(model);
+    let mut ticks = Vec::new();
+    for &var in &[(RitzBasis::Srb, Discontinuous::LocalFields), (RitzBasis::Srb, Discontinuous::Bare)] {
+        // the same model without and with the contact table of the loadable nodes (a session's)
+        let mut r = reduced(model, v.f_raw(), v.modes(), var, params)?;
+        let mut tab = r.clone();
+        tab.tabulate(v.load_nodes());
+        let mut at = 0;
+        let (mut border_s, mut table_s, mut bordered) = (0.0, 0.0, 0usize);
+        for &target in enriched {
+            stages.stage(&format!("{} at {target} enriched nodes", variant_name(var)));
+            while r.enrichment().len() < target && at < grow.len() {
+                let next = (at + 4).min(grow.len());
+                let up = r.cut(&model.mesh, &grow[at..next])?;
+                border_s += up.assembly_s + up.bordering_s;
+                bordered += up.new_nodes.len();
+                table_s += tab.cut(&model.mesh, &grow[at..next])?.tabulating_s;
+                at = next;
+            }
+            if r.enrichment().len() < target {
+                stages.warn(&format!(
+                    "the organ's planes enrich only {} nodes; {target} not reached",
+                    r.enrichment().len()
+                ));
+                break;
+            }
+            // the contact: the two loadable nodes nearest the first enriched node
+            let first = model.mesh.nodes[r.enrichment().nodes[0]];
+            let mut near = v.load_nodes().to_vec();
+            let dist = |p: usize| vec3::norm(vec3::sub(model.mesh.nodes[p], first));
+            near.sort_by(|&p, &q| dist(p).total_cmp(&dist(q)));
+            let (a0, a1) = (near[0], *near.get(1).unwrap_or(&near[0]));
+            let null = time_n(ticks_timed, || black_box(0.0));
+            // what a session's tick adds to the vademecum's compliance (the Ritz part, which
+            // contact_compliance adds, is the uncut model's and not the session's)
+            let time = |m: &ReducedCut| {
+                let mut view = m.view();
+                let mut flip = 0usize;
+                time_n(ticks_timed, || {
+                    flip += 1;
+                    let w = if flip.is_multiple_of(2) { [0.6, 0.4] } else { [0.4, 0.6] };
+                    let c = view.added_compliance(&[a0, a1], &w);
+                    c[0][0] + c[1][1] + c[2][2]
+                })
+            };
+            let (direct, tabulated) = (time(&r), time(&tab));
+            let per_node = |s: f64| 1e6 * s / bordered.max(1) as f64;
+            ticks.push(TickRow {
+                enriched_nodes: r.enrichment().len(),
+                unknowns: r.dim(),
+                variant: variant_name(var),
+                bytes: r.bytes(),
+                border_per_node_us: per_node(border_s),
+                table_per_node_us: per_node(table_s),
+                table_bytes: tab.table_bytes(),
+                table_nodes: v.load_nodes().len(),
+                stats: vec![
+                    stat("null loop", null),
+                    stat("the cut's compliance at the contact, forward substitution (one tick)", direct),
+                    stat("the cut's compliance at the contact, contact table (one tick)", tabulated),
+                ],
+            });
+        }
+    }
+    stages.finish();
+    Ok(ticks)
+}
+
+impl Report {
+    /// The report as `bench cut` prints it (Markdown tables).
+    fn print(&self, out: &mut impl Write) -> std::io::Result<()> {
+        writeln!(
+            out,
+            "scene '{}', organ '{}': {} nodes, {} cells; vademecum of {} modes (PGD tolerance {:.0e})\n",
+            self.scene, self.organ, self.nodes, self.cells, self.modes, self.pgd_tolerance
+        )?;
+        writeln!(
+            out,
+            "Relative L2 error against the full XFEM along the cut (both lips of every node):\n"
+        )?;
+        header(
+            out,
+            &["blade positions", "cut cells", "enriched nodes", "opening, full (m)"],
+            &self.variants,
+        )?;
+        for s in &self.steps {
+            write!(
+                out,
+                "| {} | {} | {} | {:.3e} |",
+                s.blade_positions, s.cut_cells, s.enriched_nodes, s.full_opening_m
+            )?;
+            for e in &s.errors {
+                write!(out, " {e:.2e} |")?;
+            }
+            writeln!(out)?;
+        }
+        writeln!(
+            out,
+            "\nError at the final cut against the number of modes (plot: {}):\n",
+            self.plot.display()
+        )?;
+        header(out, &["modes"], &self.variants)?;
+        for (m, e) in &self.modes_sweep {
+            write!(out, "| {m} |")?;
+            for x in e {
+                write!(out, " {x:.2e} |")?;
+            }
+            writeln!(out)?;
+        }
+        writeln!(
+            out,
+            "\nTick cost against enriched nodes (the 3x3 compliance the cut adds at a two-node contact, what a session's tick adds to the vademecum's; each beside a null loop):\n"
+        )?;
+        for t in &self.ticks {
+            writeln!(
+                out,
+                "{}: {} enriched nodes, {} unknowns, {:.1} KiB, enriching one node {:.0} µs; contact table of {} loadable nodes {:.1} KiB, extended by {:.0} µs a node",
+                t.variant,
+                t.enriched_nodes,
+                t.unknowns,
+                t.bytes as f64 / 1024.0,
+                t.border_per_node_us,
+                t.table_nodes,
+                t.table_bytes as f64 / 1024.0,
+                t.table_per_node_us
+            )?;
+            write_stats(out, &t.stats)?;
+            writeln!(out)?;
+        }
+        if let Some(s) = &self.session {
+            writeln!(
+                out,
+                "The cutting pipeline of a session (the scene's scalpel drawing its pre-planned cuts at 1 kHz: {} cells, {} cracked nodes, {} cut models swapped into the tick):\n",
+                s.cut_cells, s.enriched_nodes, s.advances
+            )?;
+            write_stats(out, &s.ticks)?;
+            writeln!(
+                out,
+                "\nThe same cut, the contact force where the blade pressed along the first cut: the session (vademecum + the cut's local fields) against the full-order XFEM:\n"
+            )?;
+            writeln!(out, "| point (mm) | session (N) | full XFEM (N) | relative difference |")?;
+            writeln!(out, "|---|---|---|---:|")?;
+            let v = |x: [f64; 3], s: f64| format!("({:.4}, {:.4}, {:.4})", s * x[0], s * x[1], s * x[2]);
+            for f in &s.forces {
+                writeln!(
+                    out,
+                    "| {} | {} | {} | {:.2e} |",
+                    v(f.point_m, 1e3),
+                    v(f.session_n, 1.0),
+                    v(f.full_n, 1.0),
+                    f.relative_difference
+                )?;
+            }
+        }
+        Ok(())
+    }
+}
+
 pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
     if a.ticks == 0 {
         bail!("--ticks must be at least 1");
@@ -283,153 +541,14 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
     let variants: Vec<String> = VARIANTS.iter().map(|v| variant_name(*v)).collect();
 
     // 1. along the cuts
-    let stages = Stages::start("accuracy along the cut");
-    let steps_cells = progressive_cells(model, &cuts, &params)?;
-    let mut models: Vec<ReducedCut> = VARIANTS
-        .iter()
-        .map(|&var| reduced(model, v.f_raw(), n_modes, var, &params))
-        .collect::<anyhow::Result<_>>()?;
-    let mut steps = Vec::new();
-    for (k, cells) in steps_cells.iter().enumerate() {
-        stages.stage(&format!("blade position {} of {}", k + 2, steps_cells.len() + 1));
-        for m in &mut models {
-            m.cut(&model.mesh, cells)?;
-        }
-        let enr = models[0].enrichment().clone();
-        let full = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, &enr, &params)?;
-        let full_opening_m = (0..enr.len())
-            .map(|k| (0..3).map(|i| full.q[3 * k + i].powi(2)).sum::<f64>().sqrt())
-            .fold(0.0, f64::max);
-        let (mut errors, mut openings_m) = (Vec::new(), Vec::new());
-        for m in &models {
-            // each model keeps its own order of enriched nodes: compare through its enrichment
-            let (u, q) = m.displacements(&model.problem.forces);
-            let full_m = system::solve(
-                &model.mesh,
-                &model.materials,
-                model.locking,
-                &model.problem,
-                m.enrichment(),
-                &params,
-            )?;
-            let (e, o) = error(m.enrichment(), &u, &q, &full_m);
-            errors.push(e);
-            openings_m.push(o);
-        }
-        steps.push(Step {
-            blade_positions: k + 2,
-            cut_cells: enr.cut_cells.len(),
-            enriched_nodes: enr.len(),
-            errors,
-            full_opening_m,
-            openings_m,
-        });
-    }
-    stages.finish();
-    let final_enr = models[0].enrichment().clone();
+    let (steps, final_enr) = along_the_cuts(model, v, &cuts, &params)?;
     let final_cells = final_enr.cut_cells.clone();
 
     // 2. error against the number of modes, at the final cut
-    let stages = Stages::start("error against modes");
-    let full = system::solve(&model.mesh, &model.materials, model.locking, &model.problem, &final_enr, &params)?;
-    let mut counts: Vec<usize> = a.modes.iter().copied().filter(|&m| m >= 1 && m <= n_modes).collect();
-    if !counts.contains(&n_modes) {
-        counts.push(n_modes);
-    }
-    let n_dofs = model.mesh.n_dofs();
-    let mut modes_sweep = Vec::new();
-    for &m in &counts {
-        stages.stage(&format!("{m} modes"));
-        let mut errs = Vec::new();
-        for &var in &VARIANTS {
-            let mut r = reduced(model, &v.f_raw()[..m * n_dofs], m, var, &params)?;
-            r.cut(&model.mesh, &final_cells)?;
-            let (u, q) = r.displacements(&model.problem.forces);
-            let full_m = if r.enrichment().nodes == final_enr.nodes {
-                None
-            } else {
-                Some(system::solve(
-                    &model.mesh,
-                    &model.materials,
-                    model.locking,
-                    &model.problem,
-                    r.enrichment(),
-                    &params,
-                )?)
-            };
-            errs.push(error(r.enrichment(), &u, &q, full_m.as_ref().unwrap_or(&full)).0);
-        }
-        modes_sweep.push((m, errs));
-    }
-    stages.finish();
+    let modes_sweep = error_against_modes(model, v, &a.modes, &final_enr, &final_cells, &params)?;
 
     // 3. tick cost against enriched nodes
-    let stages = Stages::start("tick cost");
-    let grow = growing_cells(model);
-    let mut ticks = Vec::new();
-    for &var in &[(RitzBasis::Srb, Discontinuous::LocalFields), (RitzBasis::Srb, Discontinuous::Bare)] {
-        // the same model without and with the contact table of the loadable nodes (a session's)
-        let mut r = reduced(model, v.f_raw(), n_modes, var, &params)?;
-        let mut tab = r.clone();
-        tab.tabulate(v.load_nodes());
-        let mut at = 0;
-        let (mut border_s, mut table_s, mut bordered) = (0.0, 0.0, 0usize);
-        for &target in &a.enriched {
-            stages.stage(&format!("{} at {target} enriched nodes", variant_name(var)));
-            while r.enrichment().len() < target && at < grow.len() {
-                let next = (at + 4).min(grow.len());
-                let up = r.cut(&model.mesh, &grow[at..next])?;
-                border_s += up.assembly_s + up.bordering_s;
-                bordered += up.new_nodes.len();
-                table_s += tab.cut(&model.mesh, &grow[at..next])?.tabulating_s;
-                at = next;
-            }
-            if r.enrichment().len() < target {
-                stages.warn(&format!(
-                    "the organ's planes enrich only {} nodes; {target} not reached",
-                    r.enrichment().len()
-                ));
-                break;
-            }
-            // the contact: the two loadable nodes nearest the first enriched node
-            let first = model.mesh.nodes[r.enrichment().nodes[0]];
-            let mut near = v.load_nodes().to_vec();
-            let dist = |p: usize| vec3::norm(vec3::sub(model.mesh.nodes[p], first));
-            near.sort_by(|&p, &q| dist(p).total_cmp(&dist(q)));
-            let (a0, a1) = (near[0], *near.get(1).unwrap_or(&near[0]));
-            let null = time_n(a.ticks, || black_box(0.0));
-            // what a session's tick adds to the vademecum's compliance (the Ritz part, which
-            // contact_compliance adds, is the uncut model's and not the session's)
-            let time = |m: &ReducedCut| {
-                let mut view = m.view();
-                let mut flip = 0usize;
-                time_n(a.ticks, || {
-                    flip += 1;
-                    let w = if flip.is_multiple_of(2) { [0.6, 0.4] } else { [0.4, 0.6] };
-                    let c = view.added_compliance(&[a0, a1], &w);
-                    c[0][0] + c[1][1] + c[2][2]
-                })
-            };
-            let (direct, tabulated) = (time(&r), time(&tab));
-            let per_node = |s: f64| 1e6 * s / bordered.max(1) as f64;
-            ticks.push(TickRow {
-                enriched_nodes: r.enrichment().len(),
-                unknowns: r.dim(),
-                variant: variant_name(var),
-                bytes: r.bytes(),
-                border_per_node_us: per_node(border_s),
-                table_per_node_us: per_node(table_s),
-                table_bytes: tab.table_bytes(),
-                table_nodes: v.load_nodes().len(),
-                stats: vec![
-                    stat("null loop", null),
-                    stat("the cut's compliance at the contact, forward substitution (one tick)", direct),
-                    stat("the cut's compliance at the contact, contact table (one tick)", tabulated),
-                ],
-            });
-        }
-    }
-    stages.finish();
+    let ticks = tick_costs(model, v, &a.enriched, a.ticks, &params)?;
 
     // 4. the cutting pipeline of a session
     let session = if a.no_session {
@@ -468,88 +587,6 @@ pub fn run(a: BenchCutArgs) -> anyhow::Result<ExitCode> {
         writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
         return Ok(ExitCode::SUCCESS);
     }
-    writeln!(
-        out,
-        "scene '{}', organ '{}': {} nodes, {} cells; vademecum of {} modes (PGD tolerance {:.0e})\n",
-        report.scene, report.organ, report.nodes, report.cells, report.modes, report.pgd_tolerance
-    )?;
-    writeln!(
-        out,
-        "Relative L2 error against the full XFEM along the cut (both lips of every node):\n"
-    )?;
-    header(
-        &mut out,
-        &["blade positions", "cut cells", "enriched nodes", "opening, full (m)"],
-        &report.variants,
-    )?;
-    for s in &report.steps {
-        write!(
-            out,
-            "| {} | {} | {} | {:.3e} |",
-            s.blade_positions, s.cut_cells, s.enriched_nodes, s.full_opening_m
-        )?;
-        for e in &s.errors {
-            write!(out, " {e:.2e} |")?;
-        }
-        writeln!(out)?;
-    }
-    writeln!(
-        out,
-        "\nError at the final cut against the number of modes (plot: {}):\n",
-        report.plot.display()
-    )?;
-    header(&mut out, &["modes"], &report.variants)?;
-    for (m, e) in &report.modes_sweep {
-        write!(out, "| {m} |")?;
-        for x in e {
-            write!(out, " {x:.2e} |")?;
-        }
-        writeln!(out)?;
-    }
-    writeln!(
-        out,
-        "\nTick cost against enriched nodes (the 3x3 compliance the cut adds at a two-node contact, what a session's tick adds to the vademecum's; each beside a null loop):\n"
-    )?;
-    for t in &report.ticks {
-        writeln!(
-            out,
-            "{}: {} enriched nodes, {} unknowns, {:.1} KiB, enriching one node {:.0} µs; contact table of {} loadable nodes {:.1} KiB, extended by {:.0} µs a node",
-            t.variant,
-            t.enriched_nodes,
-            t.unknowns,
-            t.bytes as f64 / 1024.0,
-            t.border_per_node_us,
-            t.table_nodes,
-            t.table_bytes as f64 / 1024.0,
-            t.table_per_node_us
-        )?;
-        write_stats(&mut out, &t.stats)?;
-        writeln!(out)?;
-    }
-    if let Some(s) = &report.session {
-        writeln!(
-            out,
-            "The cutting pipeline of a session (the scene's scalpel drawing its pre-planned cuts at 1 kHz: {} cells, {} cracked nodes, {} cut models swapped into the tick):\n",
-            s.cut_cells, s.enriched_nodes, s.advances
-        )?;
-        write_stats(&mut out, &s.ticks)?;
-        writeln!(
-            out,
-            "\nThe same cut, the contact force where the blade pressed along the first cut: the session (vademecum + the cut's local fields) against the full-order XFEM:\n"
-        )?;
-        writeln!(out, "| point (mm) | session (N) | full XFEM (N) | relative difference |")?;
-        writeln!(out, "|---|---|---|---:|")?;
-        let v = |x: [f64; 3], s: f64| format!("({:.4}, {:.4}, {:.4})", s * x[0], s * x[1], s * x[2]);
-        for f in &s.forces {
-            writeln!(
-                out,
-                "| {} | {} | {} | {:.2e} |",
-                v(f.point_m, 1e3),
-                v(f.session_n, 1.0),
-                v(f.full_n, 1.0),
-                f.relative_difference
-            )?;
-        }
-    }
+    report.print(&mut out)?;
     Ok(ExitCode::SUCCESS)
 }

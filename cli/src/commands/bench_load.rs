@@ -334,7 +334,9 @@ async fn echo_client(echo: Arc<EchoServer>, period: Duration, stop: Arc<AtomicBo
     Ok(h)
 }
 
-pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
+/// Refuses durations, rates and counts out of their range, and more chaos and device clients
+/// than sessions, before anything starts.
+fn check_arguments(a: &BenchLoadArgs) -> anyhow::Result<()> {
     if !(a.seconds > 0.0 && a.seconds <= 3600.0) {
         bail!("--seconds must lie in (0, 3600], got {}", a.seconds);
     }
@@ -372,6 +374,12 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             a.sessions
         );
     }
+    Ok(())
+}
+
+pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
+    check_arguments(&a)?;
+    let chaos_sessions = if a.chaos_every.is_some() { a.chaos_clients } else { 0 };
     // the device sessions are the last --haptic ones
     let first_haptic = a.sessions - a.haptic;
     let scene = Scene::builtin(&a.builtin)?;
@@ -725,6 +733,44 @@ impl Sample {
     }
 }
 
+/// The load's windows as a table (RSS, misses, kills, fallbacks over time) and its trend
+/// from the first to the last.
+fn print_windows(out: &mut impl Write, windows: &[Window]) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "| t (s) | RSS (MiB) | null loop misses | sessions' misses | chaos sessions' misses | device sessions' misses | kills | fallbacks | sessions reduced |"
+    )?;
+    writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
+    let opt = |p: Option<f64>| p.map_or("—".into(), |p| format!("{p:.3} %"));
+    for w in windows {
+        writeln!(
+            out,
+            "| {:.0} | {:.1} | {:.3} % | {:.3} % | {} | {} | {} | {} | {} |",
+            w.t_s,
+            w.server_rss_mib,
+            w.null_miss_pct,
+            w.sessions_miss_pct,
+            opt(w.chaos_sessions_miss_pct),
+            opt(w.haptic_sessions_miss_pct),
+            w.kills,
+            w.fallbacks,
+            w.sessions_reduced
+        )?;
+    }
+    let (first, last) = (&windows[0], &windows[windows.len() - 1]);
+    let half = windows.len() / 2;
+    let mean = |ws: &[Window]| ws.iter().map(|w| w.sessions_miss_pct).sum::<f64>() / ws.len().max(1) as f64;
+    writeln!(
+        out,
+        "trend: RSS {:.1} → {:.1} MiB from the first window to the last; sessions' misses {:.3} % in the first half, {:.3} % in the second",
+        first.server_rss_mib,
+        last.server_rss_mib,
+        mean(&windows[..half]),
+        mean(&windows[half..])
+    )?;
+    Ok(())
+}
+
 fn print_report(r: &Report) -> anyhow::Result<()> {
     let mut out = std::io::stdout().lock();
     let pct = |n: u64, of: u64| 100.0 * n as f64 / of.max(1) as f64;
@@ -845,38 +891,7 @@ fn print_report(r: &Report) -> anyhow::Result<()> {
         )?;
     }
     if r.windows.len() > 1 {
-        writeln!(
-            out,
-            "| t (s) | RSS (MiB) | null loop misses | sessions' misses | chaos sessions' misses | device sessions' misses | kills | fallbacks | sessions reduced |"
-        )?;
-        writeln!(out, "|---:|---:|---:|---:|---:|---:|---:|---:|---:|")?;
-        let opt = |p: Option<f64>| p.map_or("—".into(), |p| format!("{p:.3} %"));
-        for w in &r.windows {
-            writeln!(
-                out,
-                "| {:.0} | {:.1} | {:.3} % | {:.3} % | {} | {} | {} | {} | {} |",
-                w.t_s,
-                w.server_rss_mib,
-                w.null_miss_pct,
-                w.sessions_miss_pct,
-                opt(w.chaos_sessions_miss_pct),
-                opt(w.haptic_sessions_miss_pct),
-                w.kills,
-                w.fallbacks,
-                w.sessions_reduced
-            )?;
-        }
-        let (first, last) = (&r.windows[0], &r.windows[r.windows.len() - 1]);
-        let half = r.windows.len() / 2;
-        let mean = |ws: &[Window]| ws.iter().map(|w| w.sessions_miss_pct).sum::<f64>() / ws.len().max(1) as f64;
-        writeln!(
-            out,
-            "trend: RSS {:.1} → {:.1} MiB from the first window to the last; sessions' misses {:.3} % in the first half, {:.3} % in the second",
-            first.server_rss_mib,
-            last.server_rss_mib,
-            mean(&r.windows[..half]),
-            mean(&r.windows[half..])
-        )?;
+        print_windows(&mut out, &r.windows)?;
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, bail};
 use serde::Serialize;
-use vademecum_engine::bundle;
+use vademecum_engine::bundle::{self, LoadedBundle};
 use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
 use vademecum_engine::pipeline::{Effect, Palpation, TickState, ToolInput};
@@ -76,16 +76,8 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
     if a.contacts == 0 || a.fields == 0 {
         bail!("--contacts and --fields must be at least 1");
     }
-    // bundle load time
-    let mut loads = Vec::new();
-    let mut bundle = None;
-    for _ in 0..5 {
-        let t = Instant::now();
-        let b = bundle::load_bundle(&a.bundle).with_context(|| format!("cannot load bundle {}", a.bundle.display()))?;
-        loads.push(t.elapsed().as_secs_f64() * 1e6);
-        bundle = Some(b);
-    }
-    let bundle = std::sync::Arc::new(bundle.expect("loaded at least once"));
+    let (bundle, loads) = timed_loads(&a.bundle)?;
+    let bundle = std::sync::Arc::new(bundle);
     let b = &*bundle;
     let v = &b.vademecum;
     let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
@@ -122,89 +114,16 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
     let radius = 0.004;
     let mut palpation = Palpation::new(vec![bundle.clone()], radius, false);
     let n_surface = b.surface.len();
-    let mut tick = Vec::with_capacity(a.contacts);
-    let mut touched = 0usize;
-    let mut press_points = Vec::with_capacity(a.contacts);
-    for _ in 0..a.contacts {
-        let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
-        let (u, w) = (rng.unit(), rng.unit());
-        let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
-        let p: Vec<f64> = (0..3)
-            .map(|k| (1.0 - u - w) * b.nodes[tri[0]][k] + u * b.nodes[tri[1]][k] + w * b.nodes[tri[2]][k])
-            .collect();
-        let (e1, e2): (Vec<f64>, Vec<f64>) = (
-            (0..3).map(|k| b.nodes[tri[1]][k] - b.nodes[tri[0]][k]).collect(),
-            (0..3).map(|k| b.nodes[tri[2]][k] - b.nodes[tri[0]][k]).collect(),
-        );
-        let n = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
-        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(f64::MIN_POSITIVE);
-        let lift = radius - 0.002 * rng.unit();
-        let tip = [p[0] + lift * n[0] / len, p[1] + lift * n[1] / len, p[2] + lift * n[2] / len];
-        press_points.push(tip);
-        let tool = ToolInput {
-            position_m: tip,
-            ..ToolInput::default()
-        };
-        let mut state = TickState::default();
-        palpation.reset();
-        let t = Instant::now();
-        palpation.tick(black_box(&tool), &mut state);
-        tick.push(t.elapsed().as_secs_f64() * 1e6);
-        if state.force_n != [0.0; 3] {
-            touched += 1;
-        }
-        acc += black_box(state.force_n)[2];
-    }
+    let (tick, touched, press_points) = press_ticks(&mut palpation, b, &tris, &mut rng, radius, a.contacts, &mut acc);
     // tracking: from one press point to the next in 20 steps, pressed all the way
-    let mut tracking = Vec::with_capacity(a.contacts);
-    palpation.reset();
-    'path: for pair in press_points.windows(2) {
-        for i in 0..20 {
-            let s = i as f64 / 20.0;
-            let tool = ToolInput {
-                position_m: [0, 1, 2].map(|k| pair[0][k] + s * (pair[1][k] - pair[0][k])),
-                ..ToolInput::default()
-            };
-            let mut state = TickState::default();
-            let t = Instant::now();
-            palpation.tick(black_box(&tool), &mut state);
-            tracking.push(t.elapsed().as_secs_f64() * 1e6);
-            acc += black_box(state.force_n)[2];
-            if tracking.len() == a.contacts {
-                break 'path;
-            }
-        }
-    }
+    let tracking = tracking_ticks(&mut palpation, &press_points, a.contacts, &mut acc);
     // fields
     let mut coeffs = vec![0.0; v.modes()];
-    let mut full = vec![0.0; 3 * v.n_nodes()];
     let mut surface_nodes: Vec<usize> = b.surface.iter().flatten().copied().collect();
     surface_nodes.sort_unstable();
     surface_nodes.dedup();
-    let mut surf = vec![0.0; 3 * surface_nodes.len()];
-    let (mut tf, mut ts, mut tr) = (Vec::new(), Vec::new(), Vec::new());
+    let (tf, ts, tr) = field_times(v, &tris, &surface_nodes, &mut coeffs, a.fields, &mut acc);
     let raw = v.f_raw();
-    for i in 0..a.fields {
-        let tri = tris[i % tris.len()];
-        v.coefficients(tri, [1.0 / 3.0; 3], [0.0, 0.0, -1.0], &mut coeffs);
-        let t = Instant::now();
-        v.field(black_box(&coeffs), &mut full);
-        tf.push(t.elapsed().as_secs_f64() * 1e6);
-        acc += black_box(&full)[i % full.len()];
-        let t = Instant::now();
-        v.field_at(black_box(&coeffs), &surface_nodes, &mut surf);
-        ts.push(t.elapsed().as_secs_f64() * 1e6);
-        acc += black_box(&surf)[0];
-        // baseline: stream the same bytes as the whole-mesh field reads
-        let t = Instant::now();
-        let s: f64 = black_box(raw).iter().sum();
-        tr.push(t.elapsed().as_secs_f64() * 1e6);
-        acc += black_box(s);
-    }
     // Node-major surface fields: the bundle's surface in f32 and i16, then synthetic modes of
     // the size of a 30k-node organ's surface for several mode counts (a prefix of the modes is
     // a coarser field), each beside a streaming read of the same bytes.
@@ -239,51 +158,7 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
             t16,
         ),
     ];
-    let syn_nodes: Vec<usize> = (0..a.surface_nodes).collect();
-    let mut mode_counts = vec![v.modes(), 200, 100, 50];
-    mode_counts.dedup();
-    for modes in mode_counts {
-        let syn_f: Vec<f64> = (0..modes * 3 * a.surface_nodes).map(|_| rng.unit() - 0.5).collect();
-        let c: Vec<f32> = (0..modes).map(|_| rng.unit() as f32).collect();
-        let mut out = vec![0.0f32; 3 * a.surface_nodes];
-        let f32_field = NodeMajorField::from_mode_major(&syn_f, a.surface_nodes, modes, &syn_nodes);
-        let i16_field = QuantizedField::from_mode_major(&syn_f, a.surface_nodes, modes, &syn_nodes);
-        drop(syn_f);
-        let t = time_n(a.fields, || {
-            f32_field.eval(black_box(&c), &mut out);
-            out[0] as f64
-        });
-        stats_fields.push(stat(
-            &format!(
-                "synthetic surface field, f32 node-major ({} nodes × {modes} modes, {:.1} MB)",
-                a.surface_nodes,
-                f32_field.bytes() as f64 / 1e6
-            ),
-            t,
-        ));
-        stats_fields.push(stat(
-            &format!("streaming read of the same {:.1} MB", f32_field.bytes() as f64 / 1e6),
-            streaming_read(f32_field.bytes(), a.fields),
-        ));
-        drop(f32_field);
-        let mut scaled = vec![0.0f32; modes];
-        let t = time_n(a.fields, || {
-            i16_field.eval(black_box(&c), &mut scaled, &mut out);
-            out[0] as f64
-        });
-        stats_fields.push(stat(
-            &format!(
-                "synthetic surface field, i16 node-major ({} nodes × {modes} modes, {:.1} MB)",
-                a.surface_nodes,
-                i16_field.bytes() as f64 / 1e6
-            ),
-            t,
-        ));
-        stats_fields.push(stat(
-            &format!("streaming read of the same {:.1} MB", i16_field.bytes() as f64 / 1e6),
-            streaming_read(i16_field.bytes(), a.fields),
-        ));
-    }
+    stats_fields.extend(synthetic_fields(&mut rng, v.modes(), a.surface_nodes, a.fields));
     black_box(acc);
     let mut stats = vec![
         stat("bundle load (verify checksums, build online layout)", loads),
@@ -344,6 +219,186 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         write_stats(&mut out, &stats)?;
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Node-major surface fields of synthetic modes, `surface_nodes` nodes (a 30k-node organ's
+/// surface) for the bundle's `modes_built` and fewer modes (a prefix of the modes is a coarser
+/// field), in f32 and i16, each beside a streaming read of the same bytes; `fields` timings
+/// each.
+fn synthetic_fields(rng: &mut Rng, modes_built: usize, surface_nodes: usize, fields: usize) -> Vec<Stat> {
+    let mut stats = Vec::new();
+    let syn_nodes: Vec<usize> = (0..surface_nodes).collect();
+    let mut mode_counts = vec![modes_built, 200, 100, 50];
+    mode_counts.dedup();
+    for modes in mode_counts {
+        let syn_f: Vec<f64> = (0..modes * 3 * surface_nodes).map(|_| rng.unit() - 0.5).collect();
+        let c: Vec<f32> = (0..modes).map(|_| rng.unit() as f32).collect();
+        let mut out = vec![0.0f32; 3 * surface_nodes];
+        let f32_field = NodeMajorField::from_mode_major(&syn_f, surface_nodes, modes, &syn_nodes);
+        let i16_field = QuantizedField::from_mode_major(&syn_f, surface_nodes, modes, &syn_nodes);
+        drop(syn_f);
+        let t = time_n(fields, || {
+            f32_field.eval(black_box(&c), &mut out);
+            out[0] as f64
+        });
+        stats.push(stat(
+            &format!(
+                "synthetic surface field, f32 node-major ({} nodes × {modes} modes, {:.1} MB)",
+                surface_nodes,
+                f32_field.bytes() as f64 / 1e6
+            ),
+            t,
+        ));
+        stats.push(stat(
+            &format!("streaming read of the same {:.1} MB", f32_field.bytes() as f64 / 1e6),
+            streaming_read(f32_field.bytes(), fields),
+        ));
+        drop(f32_field);
+        let mut scaled = vec![0.0f32; modes];
+        let t = time_n(fields, || {
+            i16_field.eval(black_box(&c), &mut scaled, &mut out);
+            out[0] as f64
+        });
+        stats.push(stat(
+            &format!(
+                "synthetic surface field, i16 node-major ({} nodes × {modes} modes, {:.1} MB)",
+                surface_nodes,
+                i16_field.bytes() as f64 / 1e6
+            ),
+            t,
+        ));
+        stats.push(stat(
+            &format!("streaming read of the same {:.1} MB", i16_field.bytes() as f64 / 1e6),
+            streaming_read(i16_field.bytes(), fields),
+        ));
+    }
+    stats
+}
+
+/// The bundle at `path`, loaded five times (verifying every checksum, building the online
+/// layout), with the time of each load (µs).
+fn timed_loads(path: &std::path::Path) -> anyhow::Result<(LoadedBundle, Vec<f64>)> {
+    let mut loads = Vec::new();
+    let mut bundle = None;
+    for _ in 0..5 {
+        let t = Instant::now();
+        let b = bundle::load_bundle(path).with_context(|| format!("cannot load bundle {}", path.display()))?;
+        loads.push(t.elapsed().as_secs_f64() * 1e6);
+        bundle = Some(b);
+    }
+    Ok((bundle.expect("loaded at least once"), loads))
+}
+
+/// The displacement field's times, `fields` of each: the whole mesh (f64, mode-major), the
+/// surface nodes only, and a streaming read of the bytes the whole-mesh field reads (the
+/// baseline); `coeffs` ends with the last evaluation's mode coefficients.
+fn field_times(
+    v: &Vademecum,
+    tris: &[[usize; 3]],
+    surface_nodes: &[usize],
+    coeffs: &mut [f64],
+    fields: usize,
+    acc: &mut f64,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let mut full = vec![0.0; 3 * v.n_nodes()];
+    let mut surf = vec![0.0; 3 * surface_nodes.len()];
+    let (mut tf, mut ts, mut tr) = (Vec::new(), Vec::new(), Vec::new());
+    let raw = v.f_raw();
+    for i in 0..fields {
+        let tri = tris[i % tris.len()];
+        v.coefficients(tri, [1.0 / 3.0; 3], [0.0, 0.0, -1.0], coeffs);
+        let t = Instant::now();
+        v.field(black_box(&*coeffs), &mut full);
+        tf.push(t.elapsed().as_secs_f64() * 1e6);
+        *acc += black_box(&full)[i % full.len()];
+        let t = Instant::now();
+        v.field_at(black_box(&*coeffs), surface_nodes, &mut surf);
+        ts.push(t.elapsed().as_secs_f64() * 1e6);
+        *acc += black_box(&surf)[0];
+        // baseline: stream the same bytes as the whole-mesh field reads
+        let t = Instant::now();
+        let s: f64 = black_box(raw).iter().sum();
+        tr.push(t.elapsed().as_secs_f64() * 1e6);
+        *acc += black_box(s);
+    }
+    (tf, ts, tr)
+}
+
+/// The palpation's tick times for a tool appearing at random points `radius` minus up to
+/// 2 mm off random loadable triangles `tris` of bundle `b`, the proxy reset before each (the
+/// search from scratch): the times, how many touched, and the points pressed.
+fn press_ticks(
+    palpation: &mut Palpation,
+    b: &LoadedBundle,
+    tris: &[[usize; 3]],
+    rng: &mut Rng,
+    radius: f64,
+    contacts: usize,
+    acc: &mut f64,
+) -> (Vec<f64>, usize, Vec<[f64; 3]>) {
+    let mut tick = Vec::with_capacity(contacts);
+    let mut touched = 0usize;
+    let mut press_points = Vec::with_capacity(contacts);
+    for _ in 0..contacts {
+        let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
+        let (u, w) = (rng.unit(), rng.unit());
+        let (u, w) = if u + w > 1.0 { (1.0 - u, 1.0 - w) } else { (u, w) };
+        let p: Vec<f64> = (0..3)
+            .map(|k| (1.0 - u - w) * b.nodes[tri[0]][k] + u * b.nodes[tri[1]][k] + w * b.nodes[tri[2]][k])
+            .collect();
+        let (e1, e2): (Vec<f64>, Vec<f64>) = (
+            (0..3).map(|k| b.nodes[tri[1]][k] - b.nodes[tri[0]][k]).collect(),
+            (0..3).map(|k| b.nodes[tri[2]][k] - b.nodes[tri[0]][k]).collect(),
+        );
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(f64::MIN_POSITIVE);
+        let lift = radius - 0.002 * rng.unit();
+        let tip = [p[0] + lift * n[0] / len, p[1] + lift * n[1] / len, p[2] + lift * n[2] / len];
+        press_points.push(tip);
+        let tool = ToolInput {
+            position_m: tip,
+            ..ToolInput::default()
+        };
+        let mut state = TickState::default();
+        palpation.reset();
+        let t = Instant::now();
+        palpation.tick(black_box(&tool), &mut state);
+        tick.push(t.elapsed().as_secs_f64() * 1e6);
+        if state.force_n != [0.0; 3] {
+            touched += 1;
+        }
+        *acc += black_box(state.force_n)[2];
+    }
+    (tick, touched, press_points)
+}
+
+/// The palpation's tick times while tracking a tool that slides from one of `press_points`
+/// to the next in 20 steps, pressed all the way (the steady state): `contacts` of them.
+fn tracking_ticks(palpation: &mut Palpation, press_points: &[[f64; 3]], contacts: usize, acc: &mut f64) -> Vec<f64> {
+    let mut tracking = Vec::with_capacity(contacts);
+    palpation.reset();
+    'path: for pair in press_points.windows(2) {
+        for i in 0..20 {
+            let s = i as f64 / 20.0;
+            let tool = ToolInput {
+                position_m: [0, 1, 2].map(|k| pair[0][k] + s * (pair[1][k] - pair[0][k])),
+                ..ToolInput::default()
+            };
+            let mut state = TickState::default();
+            let t = Instant::now();
+            palpation.tick(black_box(&tool), &mut state);
+            tracking.push(t.elapsed().as_secs_f64() * 1e6);
+            *acc += black_box(state.force_n)[2];
+            if tracking.len() == contacts {
+                break 'path;
+            }
+        }
+    }
+    tracking
 }
 
 /// The percentile table of `stats` (Markdown, µs).

@@ -499,163 +499,9 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<(ExitCode, Vec<PathB
                 std::fs::remove_dir_all(d).with_context(|| format!("cannot remove the merged shard {}", d.display()))?;
             }
         }
-        if let Some(e) = a.target_error {
-            eprintln!(
-                "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
-                r.modes, r.greedy.modes, r.error
-            );
-            if let Some(t) = &r.anm_target {
-                eprintln!("organ '{name}': large deformations: {}", lattice_target_line(t));
-            }
-            if let Some(c) = &r.cut {
-                match &c.target {
-                    Some(t) => eprintln!("organ '{name}': cutting: {}", sliver_target_line(t)),
-                    None => eprintln!(
-                        "organ '{name}': cutting: the bare enrichment's force is not held to --target-error (the study measures it against the full XFEM: docs/accuracy.md, \"Cutting\"); the local fields are exact"
-                    ),
-                }
-            }
-            for (site, t) in tear_builds(r) {
-                if let Some(line) = t.target.as_ref().map(tear_target_line) {
-                    eprintln!("organ '{name}': tearing{site}: {line}");
-                }
-            }
-        }
-        if let Some((p50, t)) = frame_p50 {
-            eprintln!(
-                "organ '{name}': its {} modes (error {:.3e}) take {p50:.1} µs per frame (p50 on this machine), within --target-tick-us {t}",
-                r.modes, r.error
-            );
-            let (steps, null) = tear_p50.clone().unwrap_or_default();
-            for ((site, b), p50) in tear_builds(r).zip(&steps) {
-                eprintln!(
-                    "organ '{name}': tearing{site}: a step of its PGD modes {:?} takes {p50:.2} µs (p50 on this machine, pulled in every direction; null loop {null:.2} µs), within --target-tick-us {t}",
-                    b.pattern_modes
-                );
-            }
-            if let Some(c) = &cut_p50 {
-                eprintln!(
-                    "organ '{name}': cutting: the compliance the scene's cut ({} cracked nodes) adds at a contact takes {:.2} µs (p50 on this machine; null loop {:.2} µs), within --target-tick-us {t}",
-                    c.nodes, c.p50_us, c.null_us
-                );
-            }
-        }
+        print_targets(&name, r, a.target_error, frame_p50, tear_p50.as_ref(), cut_p50.as_ref());
         if !a.json {
-            writeln!(
-                stdout,
-                "organ '{}': {} nodes, {} equations, {} load states ({} accessible nodes)",
-                r.organ, r.nodes, r.equations, r.load_states, r.load_nodes
-            )?;
-            writeln!(
-                stdout,
-                "  load footprint   radius {} m, {:.1} surface nodes per load on average",
-                r.load_radius, r.mean_patch_nodes
-            )?;
-            if r.modes_from == "pgd" {
-                writeln!(
-                    stdout,
-                    "  PGD              {} modes, {} solves with the one factorization, {:.2} s{}",
-                    r.greedy.modes,
-                    r.greedy.solves,
-                    r.pgd_s,
-                    if r.greedy.converged {
-                        ""
-                    } else {
-                        " (stopped by max_modes before reaching the tolerance)"
-                    }
-                )?;
-            } else {
-                writeln!(
-                    stdout,
-                    "  {:<16} the exact response of each of the {} load states{}",
-                    r.modes_from,
-                    r.load_states,
-                    if r.modes_from == "snapshots" {
-                        format!(", one solve each with the one factorization, {:.2} s", r.pgd_s)
-                    } else {
-                        ", solved by the shards".into()
-                    }
-                )?;
-            }
-            if r.recompressed {
-                writeln!(stdout, "  recompressed     QR + SVD of the modes ({:.3} s)", r.recompress_s)?;
-            }
-            writeln!(
-                stdout,
-                "  exact pass       brute-force solves {:.2} s, with the {} exact local compliance blocks and the error measurement {:.2} s",
-                r.brute_force_s, r.local_blocks, r.exact_pass_s
-            )?;
-            writeln!(
-                stdout,
-                "  error            {:.3e} relative L2 over all load states with {} modes (target {:.1e}; all {} {} modes: {:.3e})",
-                r.error,
-                r.modes,
-                r.tolerance,
-                r.greedy.modes,
-                if r.modes_from == "pgd" { "greedy" } else { "snapshot" },
-                r.error_greedy
-            )?;
-            if !r.target_met {
-                writeln!(
-                    stdout,
-                    "  warning          the target was not reached: lower fidelity.pgd.global_tolerance or raise max_modes"
-                )?;
-            }
-            writeln!(stdout, "  assembly/factor  {:.3} s / {:.3} s", r.assembly_s, r.factorization_s)?;
-            if let Some(l) = &built.anm {
-                let steps: usize = l.positions.iter().map(|p| p.path.steps.len()).sum();
-                writeln!(
-                    stdout,
-                    "  large            ANM-POD lattice of {} positions to {} N (St Venant-Kirchhoff; {} series in all), {:.2} s",
-                    r.anm_positions, l.max_force, steps, r.anm_s
-                )?;
-            }
-            if let Some(t) = &r.tear {
-                writeln!(
-                    stdout,
-                    "  tearing          {} damage snapshots, {} POD vectors ({:.6} of the energy); PGD modes along/across the pull {:?}; vademecum error {:.2e} along, {:.2e} across; references {:.1} s, build {:.1} s",
-                    t.snapshots,
-                    t.pod_vectors,
-                    t.captured,
-                    t.pattern_modes,
-                    t.vademecum_error,
-                    t.cross_vademecum_error,
-                    t.reference_seconds,
-                    t.build_seconds
-                )?;
-                writeln!(stdout, "  force error      {}", force_error_line(t))?;
-                if t.on_floor > 0 {
-                    writeln!(
-                        stdout,
-                        "  warning          the full-order reference ends with {} point(s) on the residual stiffness floor (fully damaged, carrying their share on a 1e-4 stiffness at a huge strain): {}",
-                        t.on_floor, t.on_floor_why
-                    )?;
-                }
-            }
-            for (k, s) in r.tear_sites.iter().enumerate() {
-                let t = &s.build;
-                writeln!(
-                    stdout,
-                    "  grasp site {:<5} at {} m pulled along {}, {} nodes: {} POD vectors, PGD modes {:?}; vademecum error {:.2e} along, {:.2e} across; {:.1} s; force error {}",
-                    k + 2,
-                    super::vec3(s.centre_m, 4),
-                    super::vec3(s.pull_direction, 2),
-                    s.nodes,
-                    t.pod_vectors,
-                    t.pattern_modes,
-                    t.vademecum_error,
-                    t.cross_vademecum_error,
-                    t.reference_seconds + t.build_seconds + t.calibration_seconds,
-                    force_error_line(t)
-                )?;
-            }
-            writeln!(
-                stdout,
-                "  size             {:.2} MB of modes (f32) vs {:.2} MB for the full parametric solution (f64)",
-                r.modes_bytes as f64 / 1e6,
-                r.full_bytes as f64 / 1e6
-            )?;
-            writeln!(stdout, "  bundle           {}", dir.display())?;
+            print_report(&mut stdout, &built, &dir)?;
         }
         reports.push(built.report);
     }
@@ -663,6 +509,182 @@ fn run_from(a: BuildArgs, source: Source) -> anyhow::Result<(ExitCode, Vec<PathB
         writeln!(stdout, "{}", serde_json::to_string_pretty(&reports)?)?;
     }
     Ok((ExitCode::SUCCESS, written))
+}
+
+/// What `build` says on stderr of the targets each organ met: the modes, lattice, sliver rule
+/// and tearing prefixes `--target-error` picked, and the per-tick costs `--target-tick-us`
+/// timed (`frame_p50`: the frame's p50 and the target; `tear_p50`: each site's step and the
+/// null loop).
+fn print_targets(
+    name: &str,
+    r: &offline::BuildReport,
+    target_error: Option<f64>,
+    frame_p50: Option<(f64, f64)>,
+    tear_p50: Option<&(Vec<f64>, f64)>,
+    cut_p50: Option<&CutTick>,
+) {
+    if let Some(e) = target_error {
+        eprintln!(
+            "organ '{name}': picked {} modes, the fewest of the {} built whose measured error ({:.3e}) meets --target-error {e:.1e}",
+            r.modes, r.greedy.modes, r.error
+        );
+        if let Some(t) = &r.anm_target {
+            eprintln!("organ '{name}': large deformations: {}", lattice_target_line(t));
+        }
+        if let Some(c) = &r.cut {
+            match &c.target {
+                Some(t) => eprintln!("organ '{name}': cutting: {}", sliver_target_line(t)),
+                None => eprintln!(
+                    "organ '{name}': cutting: the bare enrichment's force is not held to --target-error (the study measures it against the full XFEM: docs/accuracy.md, \"Cutting\"); the local fields are exact"
+                ),
+            }
+        }
+        for (site, t) in tear_builds(r) {
+            if let Some(line) = t.target.as_ref().map(tear_target_line) {
+                eprintln!("organ '{name}': tearing{site}: {line}");
+            }
+        }
+    }
+    if let Some((p50, t)) = frame_p50 {
+        eprintln!(
+            "organ '{name}': its {} modes (error {:.3e}) take {p50:.1} µs per frame (p50 on this machine), within --target-tick-us {t}",
+            r.modes, r.error
+        );
+        let (steps, null) = tear_p50.cloned().unwrap_or_default();
+        for ((site, b), p50) in tear_builds(r).zip(&steps) {
+            eprintln!(
+                "organ '{name}': tearing{site}: a step of its PGD modes {:?} takes {p50:.2} µs (p50 on this machine, pulled in every direction; null loop {null:.2} µs), within --target-tick-us {t}",
+                b.pattern_modes
+            );
+        }
+        if let Some(c) = cut_p50 {
+            eprintln!(
+                "organ '{name}': cutting: the compliance the scene's cut ({} cracked nodes) adds at a contact takes {:.2} µs (p50 on this machine; null loop {:.2} µs), within --target-tick-us {t}",
+                c.nodes, c.p50_us, c.null_us
+            );
+        }
+    }
+}
+
+/// The build report of one organ as `build` prints it; `dir` is its bundle.
+fn print_report(out: &mut impl Write, built: &Built, dir: &Path) -> std::io::Result<()> {
+    let r = &built.report;
+    writeln!(
+        out,
+        "organ '{}': {} nodes, {} equations, {} load states ({} accessible nodes)",
+        r.organ, r.nodes, r.equations, r.load_states, r.load_nodes
+    )?;
+    writeln!(
+        out,
+        "  load footprint   radius {} m, {:.1} surface nodes per load on average",
+        r.load_radius, r.mean_patch_nodes
+    )?;
+    if r.modes_from == "pgd" {
+        writeln!(
+            out,
+            "  PGD              {} modes, {} solves with the one factorization, {:.2} s{}",
+            r.greedy.modes,
+            r.greedy.solves,
+            r.pgd_s,
+            if r.greedy.converged {
+                ""
+            } else {
+                " (stopped by max_modes before reaching the tolerance)"
+            }
+        )?;
+    } else {
+        writeln!(
+            out,
+            "  {:<16} the exact response of each of the {} load states{}",
+            r.modes_from,
+            r.load_states,
+            if r.modes_from == "snapshots" {
+                format!(", one solve each with the one factorization, {:.2} s", r.pgd_s)
+            } else {
+                ", solved by the shards".into()
+            }
+        )?;
+    }
+    if r.recompressed {
+        writeln!(out, "  recompressed     QR + SVD of the modes ({:.3} s)", r.recompress_s)?;
+    }
+    writeln!(
+        out,
+        "  exact pass       brute-force solves {:.2} s, with the {} exact local compliance blocks and the error measurement {:.2} s",
+        r.brute_force_s, r.local_blocks, r.exact_pass_s
+    )?;
+    writeln!(
+        out,
+        "  error            {:.3e} relative L2 over all load states with {} modes (target {:.1e}; all {} {} modes: {:.3e})",
+        r.error,
+        r.modes,
+        r.tolerance,
+        r.greedy.modes,
+        if r.modes_from == "pgd" { "greedy" } else { "snapshot" },
+        r.error_greedy
+    )?;
+    if !r.target_met {
+        writeln!(
+            out,
+            "  warning          the target was not reached: lower fidelity.pgd.global_tolerance or raise max_modes"
+        )?;
+    }
+    writeln!(out, "  assembly/factor  {:.3} s / {:.3} s", r.assembly_s, r.factorization_s)?;
+    if let Some(l) = &built.anm {
+        let steps: usize = l.positions.iter().map(|p| p.path.steps.len()).sum();
+        writeln!(
+            out,
+            "  large            ANM-POD lattice of {} positions to {} N (St Venant-Kirchhoff; {} series in all), {:.2} s",
+            r.anm_positions, l.max_force, steps, r.anm_s
+        )?;
+    }
+    if let Some(t) = &r.tear {
+        writeln!(
+            out,
+            "  tearing          {} damage snapshots, {} POD vectors ({:.6} of the energy); PGD modes along/across the pull {:?}; vademecum error {:.2e} along, {:.2e} across; references {:.1} s, build {:.1} s",
+            t.snapshots,
+            t.pod_vectors,
+            t.captured,
+            t.pattern_modes,
+            t.vademecum_error,
+            t.cross_vademecum_error,
+            t.reference_seconds,
+            t.build_seconds
+        )?;
+        writeln!(out, "  force error      {}", force_error_line(t))?;
+        if t.on_floor > 0 {
+            writeln!(
+                out,
+                "  warning          the full-order reference ends with {} point(s) on the residual stiffness floor (fully damaged, carrying their share on a 1e-4 stiffness at a huge strain): {}",
+                t.on_floor, t.on_floor_why
+            )?;
+        }
+    }
+    for (k, s) in r.tear_sites.iter().enumerate() {
+        let t = &s.build;
+        writeln!(
+            out,
+            "  grasp site {:<5} at {} m pulled along {}, {} nodes: {} POD vectors, PGD modes {:?}; vademecum error {:.2e} along, {:.2e} across; {:.1} s; force error {}",
+            k + 2,
+            super::vec3(s.centre_m, 4),
+            super::vec3(s.pull_direction, 2),
+            s.nodes,
+            t.pod_vectors,
+            t.pattern_modes,
+            t.vademecum_error,
+            t.cross_vademecum_error,
+            t.reference_seconds + t.build_seconds + t.calibration_seconds,
+            force_error_line(t)
+        )?;
+    }
+    writeln!(
+        out,
+        "  size             {:.2} MB of modes (f32) vs {:.2} MB for the full parametric solution (f64)",
+        r.modes_bytes as f64 / 1e6,
+        r.full_bytes as f64 / 1e6
+    )?;
+    writeln!(out, "  bundle           {}", dir.display())?;
+    Ok(())
 }
 
 /// Each tearing build of a report: the scene's grasp, then the other grasp sites, each with

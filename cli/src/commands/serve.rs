@@ -91,7 +91,8 @@ async fn stop_signal() {
     }
 }
 
-pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
+/// Refuses counts, rates and worker numbers out of their range before anything starts.
+fn check_arguments(a: &ServeArgs) -> anyhow::Result<()> {
     if a.max_sessions == 0
         || a.client_sessions == 0
         || a.max_streams == 0
@@ -106,24 +107,9 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
     if !(a.max_frame_rate > 0.0 && a.max_frame_rate <= 240.0) {
         bail!("--max-frame-rate must lie in (0, 240] Hz, got {}", a.max_frame_rate);
     }
-    let tls = match (&a.tls_cert, &a.tls_key) {
-        (Some(c), Some(k)) => Some((
-            super::credential(c).with_context(|| format!("cannot read TLS certificate {}", c.display()))?,
-            super::credential(k).with_context(|| format!("cannot read TLS key {}", k.display()))?,
-        )),
-        (None, None) => None,
-        _ => bail!("--tls-cert and --tls-key go together"),
-    };
     if !(a.max_tick_load > 0.0 && a.max_tick_load <= 1.0) {
         bail!("--max-tick-load must lie in (0, 1], got {}", a.max_tick_load);
     }
-    let haptic_wait = match (a.device_workers, a.haptic_wait) {
-        (0, w) => w,
-        (_, None | Some(WaitStrategy::Event)) => Some(WaitStrategy::Event),
-        (_, Some(w)) => {
-            bail!("--device-workers waits for the bridges' events (--haptic-wait event), not --haptic-wait {w}: drop one of the two")
-        }
-    };
     for (flag, n) in [
         ("--tick-workers", a.tick_workers),
         ("--frame-workers", a.frame_workers),
@@ -133,6 +119,79 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             bail!("{flag} {n} is more than 256: one per CPU is the default");
         }
     }
+    Ok(())
+}
+
+/// What `serve` says on stdout once it listens: where, how (TLS, tokens), as what (Agones,
+/// fleet), and whether it holds the CPU's wake-up latency.
+fn print_banner(
+    a: &ServeArgs,
+    wake_latency: &Option<Result<vademecum_bridge::timing::WakeLatencyRequest, String>>,
+    listener: &tokio::net::TcpListener,
+    metrics: Option<&tokio::net::TcpListener>,
+    web: Option<&tokio::net::TcpListener>,
+    config: &ServerConfig,
+) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    match wake_latency {
+        Some(Ok(_)) => writeln!(out, "CPU wake-up latency: held at {} µs", a.wake_latency_us.unwrap_or(0))?,
+        Some(Err(e)) => writeln!(out, "CPU wake-up latency: not held ({e})")?,
+        None => {}
+    }
+    writeln!(out, "listening on {}", listener.local_addr()?)?;
+    if let Some(m) = metrics {
+        writeln!(out, "metrics on http://{}/metrics", m.local_addr()?)?;
+    }
+    if let Some(w) = web {
+        writeln!(out, "web viewer on http://{}/", w.local_addr()?)?;
+    }
+    writeln!(
+        out,
+        "transport: {}",
+        if config.tls.is_some() { "TLS (rustls)" } else { "plain HTTP/2" }
+    )?;
+    writeln!(
+        out,
+        "authentication: {}",
+        if config.tokens.is_some() {
+            "bearer tokens"
+        } else {
+            "none (every client is 'anonymous')"
+        }
+    )?;
+    if config.agones {
+        writeln!(out, "agones: a GameServer (Ready once serving; Allocated while it holds sessions)")?;
+    }
+    if let Some(f) = &config.fleet {
+        writeln!(
+            out,
+            "fleet: {} at {}, with {} peers (sessions are placed on the least-loaded server)",
+            config.name,
+            f.advertise,
+            f.peers.len()
+        )?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
+    check_arguments(&a)?;
+    let tls = match (&a.tls_cert, &a.tls_key) {
+        (Some(c), Some(k)) => Some((
+            super::credential(c).with_context(|| format!("cannot read TLS certificate {}", c.display()))?,
+            super::credential(k).with_context(|| format!("cannot read TLS key {}", k.display()))?,
+        )),
+        (None, None) => None,
+        _ => bail!("--tls-cert and --tls-key go together"),
+    };
+    let haptic_wait = match (a.device_workers, a.haptic_wait) {
+        (0, w) => w,
+        (_, None | Some(WaitStrategy::Event)) => Some(WaitStrategy::Event),
+        (_, Some(w)) => {
+            bail!("--device-workers waits for the bridges' events (--haptic-wait event), not --haptic-wait {w}: drop one of the two")
+        }
+    };
     let config = ServerConfig {
         tls,
         scene_root: a.scene_root.clone(),
@@ -232,48 +291,7 @@ pub fn run(a: ServeArgs) -> anyhow::Result<ExitCode> {
             ),
             None => None,
         };
-        {
-            let mut out = std::io::stdout().lock();
-            match &wake_latency {
-                Some(Ok(_)) => writeln!(out, "CPU wake-up latency: held at {} µs", a.wake_latency_us.unwrap_or(0))?,
-                Some(Err(e)) => writeln!(out, "CPU wake-up latency: not held ({e})")?,
-                None => {}
-            }
-            writeln!(out, "listening on {}", listener.local_addr()?)?;
-            if let Some(m) = &metrics {
-                writeln!(out, "metrics on http://{}/metrics", m.local_addr()?)?;
-            }
-            if let Some(w) = &web {
-                writeln!(out, "web viewer on http://{}/", w.local_addr()?)?;
-            }
-            writeln!(
-                out,
-                "transport: {}",
-                if config.tls.is_some() { "TLS (rustls)" } else { "plain HTTP/2" }
-            )?;
-            writeln!(
-                out,
-                "authentication: {}",
-                if config.tokens.is_some() {
-                    "bearer tokens"
-                } else {
-                    "none (every client is 'anonymous')"
-                }
-            )?;
-            if config.agones {
-                writeln!(out, "agones: a GameServer (Ready once serving; Allocated while it holds sessions)")?;
-            }
-            if let Some(f) = &config.fleet {
-                writeln!(
-                    out,
-                    "fleet: {} at {}, with {} peers (sessions are placed on the least-loaded server)",
-                    config.name,
-                    f.advertise,
-                    f.peers.len()
-                )?;
-            }
-            out.flush()?;
-        }
+        print_banner(&a, &wake_latency, &listener, metrics.as_ref(), web.as_ref(), &config)?;
         vademecum_server::run(listener, metrics, web, config, stop_signal()).await
     })?;
     Ok(ExitCode::SUCCESS)

@@ -114,6 +114,85 @@ struct Summary {
     organs: Vec<OrganSummary>,
 }
 
+impl Summary {
+    /// The summary as `solve` prints it.
+    fn print(&self, out: &mut impl Write) -> std::io::Result<()> {
+        writeln!(out, "scene '{}' ({})", self.scene, self.source)?;
+        for o in &self.organs {
+            writeln!(
+                out,
+                "organ '{}': {} nodes, {} {} cells, {} equations",
+                o.name, o.nodes, o.cells, o.cell_kind, o.equations
+            )?;
+            writeln!(out, "  strain energy      {:.6e} J", o.strain_energy_j)?;
+            writeln!(
+                out,
+                "  max displacement   {:.6e} m at node {}",
+                o.max_displacement_m, o.max_displacement_node
+            )?;
+            writeln!(out, "  max von Mises      {:.6e} Pa", o.max_von_mises_pa)?;
+            for (r, f) in &o.reaction_force_n {
+                writeln!(
+                    out,
+                    "  reaction '{r}'{:>width$} [{:+.6e}, {:+.6e}, {:+.6e}] N",
+                    "",
+                    f[0],
+                    f[1],
+                    f[2],
+                    width = 8usize.saturating_sub(r.len())
+                )?;
+            }
+            let t = &o.timings;
+            writeln!(
+                out,
+                "  time               {:.3} s (assembly {:.3}, analysis {:.3}, factorization {:.3}, solve {:.3}, post {:.3})",
+                o.solve_time_s, t.assembly_s, t.analysis_s, t.factorization_s, t.solve_s, t.post_s
+            )?;
+            if let Some(m) = &o.meshless {
+                writeln!(
+                    out,
+                    "  meshless           {} cloud nodes, {} integration points, {} relaxation steps (error {:.1e} m), {} thread(s)",
+                    m.cloud_nodes, m.integration_points, m.relaxation_steps, m.error_estimate_m, m.threads
+                )?;
+                if let Some(e) = m.uncut_strain_energy_j {
+                    writeln!(
+                        out,
+                        "  cuts               {} ({} nodes split, {} inserted); strain energy before cutting {e:.6e} J",
+                        m.cuts, m.nodes_split, m.nodes_inserted
+                    )?;
+                }
+                if let Some(f) = &m.cloud_output {
+                    writeln!(out, "  node cloud         {} (both faces of the cuts)", f.display())?;
+                }
+            }
+            if let Some(x) = &o.xfem {
+                writeln!(
+                    out,
+                    "  XFEM cut           {} cut(s): {} cells crossed, {} cracked nodes ({} left out by the sliver rule), largest opening {:.3e} m",
+                    x.cuts, x.cut_cells, x.enriched_nodes, x.sliver_nodes, x.max_opening_m
+                )?;
+                writeln!(out, "  uncut              strain energy {:.6e} J", x.uncut_strain_energy_j)?;
+                if x.detached_pieces > 0 {
+                    writeln!(out, "  detached pieces    {} ({})", x.detached_pieces, x.detached_action)?;
+                }
+            }
+            if let Some(n) = &o.newton {
+                writeln!(
+                    out,
+                    "  large deformations {} load steps, {} Newton iterations, {} step cuts",
+                    n.steps, n.iterations, n.cuts
+                )?;
+            }
+            writeln!(out, "  result             {}", o.output.display())?;
+        }
+        writeln!(
+            out,
+            "open the .vtu in ParaView; Filters > Warp By Vector on 'displacement' shows the deformed shape"
+        )?;
+        Ok(())
+    }
+}
+
 pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.source)?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&scene.spec.scene.name));
@@ -235,78 +314,7 @@ pub fn run(a: SolveArgs) -> anyhow::Result<ExitCode> {
     if a.json {
         writeln!(stdout, "{json}")?;
     } else {
-        writeln!(stdout, "scene '{}' ({})", summary.scene, summary.source)?;
-        for o in &summary.organs {
-            writeln!(
-                stdout,
-                "organ '{}': {} nodes, {} {} cells, {} equations",
-                o.name, o.nodes, o.cells, o.cell_kind, o.equations
-            )?;
-            writeln!(stdout, "  strain energy      {:.6e} J", o.strain_energy_j)?;
-            writeln!(
-                stdout,
-                "  max displacement   {:.6e} m at node {}",
-                o.max_displacement_m, o.max_displacement_node
-            )?;
-            writeln!(stdout, "  max von Mises      {:.6e} Pa", o.max_von_mises_pa)?;
-            for (r, f) in &o.reaction_force_n {
-                writeln!(
-                    stdout,
-                    "  reaction '{r}'{:>width$} [{:+.6e}, {:+.6e}, {:+.6e}] N",
-                    "",
-                    f[0],
-                    f[1],
-                    f[2],
-                    width = 8usize.saturating_sub(r.len())
-                )?;
-            }
-            let t = &o.timings;
-            writeln!(
-                stdout,
-                "  time               {:.3} s (assembly {:.3}, analysis {:.3}, factorization {:.3}, solve {:.3}, post {:.3})",
-                o.solve_time_s, t.assembly_s, t.analysis_s, t.factorization_s, t.solve_s, t.post_s
-            )?;
-            if let Some(m) = &o.meshless {
-                writeln!(
-                    stdout,
-                    "  meshless           {} cloud nodes, {} integration points, {} relaxation steps (error {:.1e} m), {} thread(s)",
-                    m.cloud_nodes, m.integration_points, m.relaxation_steps, m.error_estimate_m, m.threads
-                )?;
-                if let Some(e) = m.uncut_strain_energy_j {
-                    writeln!(
-                        stdout,
-                        "  cuts               {} ({} nodes split, {} inserted); strain energy before cutting {e:.6e} J",
-                        m.cuts, m.nodes_split, m.nodes_inserted
-                    )?;
-                }
-                if let Some(f) = &m.cloud_output {
-                    writeln!(stdout, "  node cloud         {} (both faces of the cuts)", f.display())?;
-                }
-            }
-            if let Some(x) = &o.xfem {
-                writeln!(
-                    stdout,
-                    "  XFEM cut           {} cut(s): {} cells crossed, {} cracked nodes ({} left out by the sliver rule), largest opening {:.3e} m",
-                    x.cuts, x.cut_cells, x.enriched_nodes, x.sliver_nodes, x.max_opening_m
-                )?;
-                writeln!(stdout, "  uncut              strain energy {:.6e} J", x.uncut_strain_energy_j)?;
-                if x.detached_pieces > 0 {
-                    writeln!(stdout, "  detached pieces    {} ({})", x.detached_pieces, x.detached_action)?;
-                }
-            }
-            if let Some(n) = &o.newton {
-                writeln!(
-                    stdout,
-                    "  large deformations {} load steps, {} Newton iterations, {} step cuts",
-                    n.steps, n.iterations, n.cuts
-                )?;
-            }
-            writeln!(stdout, "  result             {}", o.output.display())?;
-        }
-        writeln!(
-            stdout,
-            "open the .vtu in ParaView; Filters > Warp By Vector on 'displacement' shows the deformed shape"
-        )?;
+        summary.print(&mut stdout)?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -200,6 +200,128 @@ fn plot(
     scatter(file, title, (x_desc, "relative L2 error of the displacement field"), &groups, f)
 }
 
+/// The PGD's points as `study.csv`.
+fn points_csv(points: &[Point]) -> String {
+    let mut csv = String::from(
+        "storage,modes,field_error,force_error,frame_p50_us,frame_p99_us,null_p50_us,field_bytes,bundle_bytes,front_online,front_offline\n",
+    );
+    for p in points {
+        csv += &format!(
+            "{},{},{:e},{},{:.3},{:.3},{:.3},{},{},{},{}\n",
+            p.storage,
+            p.modes,
+            p.field_error,
+            p.force_error,
+            p.frame_p50_us,
+            p.frame_p99_us,
+            p.null_p50_us,
+            p.field_bytes,
+            p.bundle_bytes,
+            p.front_online,
+            p.front_offline
+        );
+    }
+    csv
+}
+
+/// What every sweep of the study found, beside the PGD's points.
+struct Sweeps {
+    estimate: super::study_estimate::EstimateRecord,
+    lattice: Option<Vec<super::study_lattice::LatticePoint>>,
+    cut: Option<super::study_cut::CutSweep>,
+    tear: Option<super::study_tear::TearSweep>,
+    meshless: Option<super::study_meshless::MeshlessSweep>,
+    mesh: Option<super::study_mesh::MeshSweep>,
+}
+
+/// The PGD's points as the study prints them, one row each, with the fronts they are on.
+fn print_points(o: &mut impl Write, points: &[Point]) -> std::io::Result<()> {
+    writeln!(
+        o,
+        "{:>7} {:>6} {:>11} {:>11} {:>11} {:>10}  front",
+        "storage", "modes", "field err", "frame p50", "frame p99", "bundle MB"
+    )?;
+    for p in points {
+        writeln!(
+            o,
+            "{:>7} {:>6} {:>11.3e} {:>9.2}µs {:>9.2}µs {:>10.2}  {}{}",
+            p.storage,
+            p.modes,
+            p.field_error,
+            p.frame_p50_us,
+            p.frame_p99_us,
+            p.bundle_bytes as f64 / 1e6,
+            if p.front_online { "online " } else { "" },
+            if p.front_offline { "offline" } else { "" }
+        )?;
+    }
+    Ok(())
+}
+
+/// The study's verdict in words: the cheapest point meeting the scene's tolerance, then each
+/// sweep's own.
+fn verdict(points: &[Point], scene: &Scene, rec: &BuildRecord, sweeps: &Sweeps) -> String {
+    let Sweeps {
+        estimate,
+        lattice,
+        cut,
+        tear,
+        meshless,
+        mesh,
+    } = sweeps;
+    let null = points.first().map_or(0.0, |p| p.null_p50_us);
+    let target = scene.spec.fidelity.pgd.tolerance;
+    let verdict = match points
+        .iter()
+        .filter(|p| p.field_error <= target && p.front_online)
+        .min_by(|a, b| a.frame_p50_us.total_cmp(&b.frame_p50_us))
+    {
+        Some(p) => format!(
+            "The scene's tolerance {target:.0e} is met at the least online cost by {} modes in {} (error {:.2e}, {:.1} µs per frame p50 beside a {:.2} µs null loop, {:.1} MB of bundle).",
+            p.modes,
+            p.storage,
+            p.field_error,
+            p.frame_p50_us,
+            null,
+            p.bundle_bytes as f64 / 1e6
+        ),
+        None => format!(
+            "No point meets the scene's tolerance {target:.0e}: the best is {:.2e} (raise fidelity.pgd.max_modes or lower --tolerance).",
+            points.iter().map(|p| p.field_error).fold(f64::INFINITY, f64::min)
+        ),
+    };
+    let verdict = format!(
+        "{verdict} The contact force does not depend on the modes (exact local compliances): no prefix changes it. One build measured all {} prefixes in {:.1} s ({} load states). {}",
+        rec.error_curve.len(),
+        rec.build_s,
+        rec.load_states,
+        super::study_estimate::verdict(estimate)
+    );
+    let verdict = match lattice {
+        Some(l) => format!("{verdict} {}", super::study_lattice::verdict(l, &scene.spec.fidelity.large)),
+        None => verdict,
+    };
+    let verdict = match tear {
+        Some(t) => format!("{verdict} {}", super::study_tear::verdict(t)),
+        None => verdict,
+    };
+    let verdict = match meshless {
+        Some(m) => format!("{verdict} {}", super::study_meshless::verdict(m)),
+        None => verdict,
+    };
+    let verdict = match mesh {
+        Some(m) => format!("{verdict} {}", super::study_mesh::verdict(m)),
+        None => verdict,
+    };
+    match cut {
+        Some(c) => format!(
+            "{verdict} {}",
+            super::study_cut::verdict(c, scene.spec.fidelity.xfem.sliver, scene.spec.fidelity.xfem.discontinuous)
+        ),
+        None => verdict,
+    }
+}
+
 pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     if !(a.tolerance > 0.0 && a.tolerance < 1.0) {
         bail!("--tolerance must lie in (0, 1), got {}", a.tolerance);
@@ -251,12 +373,22 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         done.insert((storage, k), p);
     }
     bar.finish();
-    let estimate = super::study_estimate::check(&scene, &bundle, &rec.key, a.estimate_points, a.estimate_nodes, &out)?;
-    let lattice = super::study_lattice::sweep(&scene, &rec.key, a.estimate_nodes, &out)?;
-    let cut = super::study_cut::sweep(&scene, &bundle.vademecum, &rec.key, &out)?;
-    let tear = super::study_tear::sweep(&scene, &rec.key, &out)?;
-    let meshless = super::study_meshless::sweep(&scene, &rec.key, &out)?;
-    let mesh = super::study_mesh::sweep(&scene, &rec.key, &a.refinements, &a.mesh_file, &out)?;
+    let sweeps = Sweeps {
+        estimate: super::study_estimate::check(&scene, &bundle, &rec.key, a.estimate_points, a.estimate_nodes, &out)?,
+        lattice: super::study_lattice::sweep(&scene, &rec.key, a.estimate_nodes, &out)?,
+        cut: super::study_cut::sweep(&scene, &bundle.vademecum, &rec.key, &out)?,
+        tear: super::study_tear::sweep(&scene, &rec.key, &out)?,
+        meshless: super::study_meshless::sweep(&scene, &rec.key, &out)?,
+        mesh: super::study_mesh::sweep(&scene, &rec.key, &a.refinements, &a.mesh_file, &out)?,
+    };
+    let Sweeps {
+        estimate,
+        lattice,
+        cut,
+        tear,
+        meshless,
+        mesh,
+    } = &sweeps;
 
     let mut points: Vec<Point> = done.into_values().collect();
     points.sort_by(|a, b| (a.storage.as_str(), a.modes).cmp(&(b.storage.as_str(), b.modes)));
@@ -267,26 +399,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
         p.front_offline = off;
     }
 
-    let mut csv = String::from(
-        "storage,modes,field_error,force_error,frame_p50_us,frame_p99_us,null_p50_us,field_bytes,bundle_bytes,front_online,front_offline\n",
-    );
-    for p in &points {
-        csv += &format!(
-            "{},{},{:e},{},{:.3},{:.3},{:.3},{},{},{},{}\n",
-            p.storage,
-            p.modes,
-            p.field_error,
-            p.force_error,
-            p.frame_p50_us,
-            p.frame_p99_us,
-            p.null_p50_us,
-            p.field_bytes,
-            p.bundle_bytes,
-            p.front_online,
-            p.front_offline
-        );
-    }
-    std::fs::write(out.join("study.csv"), csv)?;
+    std::fs::write(out.join("study.csv"), points_csv(&points))?;
     std::fs::write(
         out.join("study.json"),
         serde_json::to_string_pretty(
@@ -315,76 +428,8 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
 
     // the verdict
     let mut o = std::io::stdout().lock();
-    writeln!(
-        o,
-        "{:>7} {:>6} {:>11} {:>11} {:>11} {:>10}  front",
-        "storage", "modes", "field err", "frame p50", "frame p99", "bundle MB"
-    )?;
-    for p in &points {
-        writeln!(
-            o,
-            "{:>7} {:>6} {:>11.3e} {:>9.2}µs {:>9.2}µs {:>10.2}  {}{}",
-            p.storage,
-            p.modes,
-            p.field_error,
-            p.frame_p50_us,
-            p.frame_p99_us,
-            p.bundle_bytes as f64 / 1e6,
-            if p.front_online { "online " } else { "" },
-            if p.front_offline { "offline" } else { "" }
-        )?;
-    }
-    let null = points.first().map_or(0.0, |p| p.null_p50_us);
-    let target = scene.spec.fidelity.pgd.tolerance;
-    let verdict = match points
-        .iter()
-        .filter(|p| p.field_error <= target && p.front_online)
-        .min_by(|a, b| a.frame_p50_us.total_cmp(&b.frame_p50_us))
-    {
-        Some(p) => format!(
-            "The scene's tolerance {target:.0e} is met at the least online cost by {} modes in {} (error {:.2e}, {:.1} µs per frame p50 beside a {:.2} µs null loop, {:.1} MB of bundle).",
-            p.modes,
-            p.storage,
-            p.field_error,
-            p.frame_p50_us,
-            null,
-            p.bundle_bytes as f64 / 1e6
-        ),
-        None => format!(
-            "No point meets the scene's tolerance {target:.0e}: the best is {:.2e} (raise fidelity.pgd.max_modes or lower --tolerance).",
-            points.iter().map(|p| p.field_error).fold(f64::INFINITY, f64::min)
-        ),
-    };
-    let verdict = format!(
-        "{verdict} The contact force does not depend on the modes (exact local compliances): no prefix changes it. One build measured all {} prefixes in {:.1} s ({} load states). {}",
-        rec.error_curve.len(),
-        rec.build_s,
-        rec.load_states,
-        super::study_estimate::verdict(&estimate)
-    );
-    let verdict = match &lattice {
-        Some(l) => format!("{verdict} {}", super::study_lattice::verdict(l, &scene.spec.fidelity.large)),
-        None => verdict,
-    };
-    let verdict = match &tear {
-        Some(t) => format!("{verdict} {}", super::study_tear::verdict(t)),
-        None => verdict,
-    };
-    let verdict = match &meshless {
-        Some(m) => format!("{verdict} {}", super::study_meshless::verdict(m)),
-        None => verdict,
-    };
-    let verdict = match &mesh {
-        Some(m) => format!("{verdict} {}", super::study_mesh::verdict(m)),
-        None => verdict,
-    };
-    let verdict = match &cut {
-        Some(c) => format!(
-            "{verdict} {}",
-            super::study_cut::verdict(c, scene.spec.fidelity.xfem.sliver, scene.spec.fidelity.xfem.discontinuous)
-        ),
-        None => verdict,
-    };
+    print_points(&mut o, &points)?;
+    let verdict = verdict(&points, &scene, &rec, &sweeps);
     writeln!(
         o,
         "\n{verdict}\n\nwritten: {}/study.csv, study.json, error_vs_online.svg, error_vs_bundle.svg, estimate.csv, estimate_vs_error.svg{}",
@@ -405,7 +450,7 @@ pub fn run(a: StudyArgs) -> anyhow::Result<ExitCode> {
     let cut_holds = cut
         .as_ref()
         .is_none_or(|c| super::study_cut::estimate_holds(c, scene.spec.fidelity.xfem.sliver));
-    Ok(if super::study_estimate::holds(&estimate) && cut_holds {
+    Ok(if super::study_estimate::holds(estimate) && cut_holds {
         ExitCode::SUCCESS
     } else {
         ExitCode::FAILURE

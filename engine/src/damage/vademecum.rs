@@ -44,6 +44,18 @@ pub struct AffineSystem {
 }
 
 impl AffineSystem {
+    /// `K_j r` for each affine operator `K_j`.
+    fn apply_each(&self, r: &[f64]) -> Vec<Vec<f64>> {
+        self.ops
+            .iter()
+            .map(|o| {
+                let mut v = vec![0.0; r.len()];
+                o.mul_vec(r, &mut v);
+                v
+            })
+            .collect()
+    }
+
     /// The affine system of `model` over the damage basis.
     pub fn of(model: &TearModel, basis: &DamageBasis) -> Self {
         let nf = model.dofs.n_free();
@@ -244,6 +256,42 @@ impl Inners {
     }
 }
 
+/// The R-step's system (seed 000 Eq. 4.20) into `a` and the returned right-hand side: the
+/// affine operators `sys.ops[j]` weighted by the products of the current factors' inner
+/// products (`with_s`), the loads by those with 1 (`with_1`), less the earlier modes' `K_j F_i`
+/// (`kf`) weighted by the factors' inner products with theirs (`with_g`).
+fn r_step_system(
+    sys: &AffineSystem,
+    with_s: &Inners,
+    with_1: &Inners,
+    with_g: &[Inners],
+    kf: &[Vec<Vec<f64>>],
+    a: &mut SymmetricMatrix,
+) -> Vec<f64> {
+    let q = sys.q();
+    let c: Vec<f64> = (0..=q).map(|j| with_s.product(j, None)).collect();
+    a.values.iter_mut().for_each(|v| *v = 0.0);
+    for (j, cj) in c.iter().enumerate() {
+        for (v, o) in a.values.iter_mut().zip(&sys.ops[j].values) {
+            *v += cj * o;
+        }
+    }
+    let mut rhs = vec![0.0; sys.rhs[0].len()];
+    for j in 0..=q {
+        let e = with_1.product(j, None);
+        for (v, b) in rhs.iter_mut().zip(&sys.rhs[j]) {
+            *v += e * b;
+        }
+        for (i, wg) in with_g.iter().enumerate() {
+            let d = wg.product(j, None);
+            for (v, f) in rhs.iter_mut().zip(&kf[i][j]) {
+                *v -= d * f;
+            }
+        }
+    }
+    rhs
+}
+
 /// Builds the vademecum of `sys` over the box `lo..hi`; `progress(mode, amplitude ratio)`
 /// after each mode.
 pub fn build(
@@ -295,26 +343,7 @@ pub fn build(
             let mut with_1 = Inners::of(q, |k, xi| inner(k, &sk[k], &ones, xi));
             let mut with_g: Vec<Inners> = factors.iter().map(|g| Inners::of(q, |k, xi| inner(k, &sk[k], &g[k], xi))).collect();
             // R-step (Eq. 4.20)
-            let c: Vec<f64> = (0..=q).map(|j| with_s.product(j, None)).collect();
-            a.values.iter_mut().for_each(|v| *v = 0.0);
-            for (j, cj) in c.iter().enumerate() {
-                for (v, o) in a.values.iter_mut().zip(&sys.ops[j].values) {
-                    *v += cj * o;
-                }
-            }
-            let mut rhs = vec![0.0; nf];
-            for j in 0..=q {
-                let e = with_1.product(j, None);
-                for (v, b) in rhs.iter_mut().zip(&sys.rhs[j]) {
-                    *v += e * b;
-                }
-                for (i, wg) in with_g.iter().enumerate() {
-                    let d = wg.product(j, None);
-                    for (v, f) in rhs.iter_mut().zip(&kf[i][j]) {
-                        *v -= d * f;
-                    }
-                }
-            }
+            let mut rhs = r_step_system(sys, &with_s, &with_1, &with_g, &kf, &mut a);
             match &mut chol {
                 Some(ch) => ch.refactor(&a),
                 None => Cholesky::factor(&a).map(|ch| chol = Some(ch)),
@@ -391,16 +420,7 @@ pub fn build(
         if amplitude == 0.0 || (mode > 0 && amplitude < s.tolerance * first) {
             break;
         }
-        kf.push(
-            sys.ops
-                .iter()
-                .map(|o| {
-                    let mut v = vec![0.0; nf];
-                    o.mul_vec(&r, &mut v);
-                    v
-                })
-                .collect(),
-        );
+        kf.push(sys.apply_each(&r));
         spatial.push(r);
         factors.push(sk);
         report.amplitudes.push(amplitude);

@@ -350,6 +350,133 @@ fn parse_physical_names(cur: &mut Cursor<'_>, out: &mut BTreeMap<i32, String>, p
     Ok(())
 }
 
+/// A version 2 `$Nodes` section's count and nodes (ASCII or binary) into `out`, through its
+/// `$EndNodes`.
+fn v2_nodes(cur: &mut Cursor<'_>, binary: bool, swap: bool, out: &mut Collected, path: &Path) -> Result<(), MeshError> {
+    let err = |message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
+    let n: usize = parse_num(cur.line(), "the number of nodes", "$Nodes", path)?;
+    out.node_tags.reserve(n.min(1 << 24));
+    out.nodes.reserve(n.min(1 << 24));
+    for i in 0..n {
+        if binary {
+            let (t, x, y, z) = (cur.i32(swap), cur.f64(swap), cur.f64(swap), cur.f64(swap));
+            match (t, x, y, z) {
+                (Some(t), Some(x), Some(y), Some(z)) => {
+                    out.node_tags.push(t as u64);
+                    out.nodes.push([x, y, z]);
+                }
+                _ => return Err(err(format!("truncated $Nodes section: {i} of {n} nodes read"))),
+            }
+        } else {
+            let line = cur
+                .line()
+                .ok_or_else(|| err(format!("truncated $Nodes section: {i} of {n} nodes read")))?;
+            let mut it = line.split_whitespace();
+            let t: u64 = parse_num(it.next(), "a node tag", "$Nodes", path)?;
+            let x: f64 = parse_num(it.next(), "an x coordinate", "$Nodes", path)?;
+            let y: f64 = parse_num(it.next(), "a y coordinate", "$Nodes", path)?;
+            let z: f64 = parse_num(it.next(), "a z coordinate", "$Nodes", path)?;
+            out.node_tags.push(t);
+            out.nodes.push([x, y, z]);
+        }
+    }
+    if binary {
+        cur.line();
+    }
+    if cur.line() != Some("$EndNodes") {
+        return Err(err(
+            "the $Nodes section does not end with $EndNodes where its node count says".into()
+        ));
+    }
+    Ok(())
+}
+
+/// A version 2 `$Elements` section's count and elements (ASCII, or binary blocks of one type)
+/// into `out`, through its `$EndElements`.
+fn v2_elements(cur: &mut Cursor<'_>, binary: bool, swap: bool, out: &mut Collected, path: &Path) -> Result<(), MeshError> {
+    let err = |message: String| MeshError::Parse {
+        path: path.to_path_buf(),
+        message,
+    };
+    let n: usize = parse_num(cur.line(), "the number of elements", "$Elements", path)?;
+    let mut tags = Vec::new();
+    if binary {
+        let mut read = 0usize;
+        while read < n {
+            let (ty, count, ntags) = match (cur.i32(swap), cur.i32(swap), cur.i32(swap)) {
+                (Some(a), Some(b), Some(c)) => (a, b, c),
+                _ => return Err(err(format!("truncated $Elements section: {read} of {n} elements read"))),
+            };
+            let nn = nodes_of_type(ty).ok_or_else(|| err(format!("unknown element type {ty} in binary $Elements")))?;
+            if count <= 0 || !(0..=MAX_TAGS).contains(&ntags) || read + count as usize > n {
+                return Err(err(format!(
+                    "corrupt binary element block header (type {ty}, count {count}, tags {ntags})"
+                )));
+            }
+            let mut nodes = vec![0u64; nn];
+            for _ in 0..count {
+                let _id = cur.i32(swap);
+                tags.clear();
+                for _ in 0..ntags {
+                    tags.push(
+                        cur.i32(swap)
+                            .ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))?,
+                    );
+                }
+                for v in nodes.iter_mut() {
+                    *v = cur
+                        .i32(swap)
+                        .ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))?
+                        as u64;
+                }
+                out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes).map_err(err)?;
+                read += 1;
+            }
+        }
+        cur.line();
+    } else {
+        let mut nodes = Vec::new();
+        for i in 0..n {
+            let line = cur
+                .line()
+                .ok_or_else(|| err(format!("truncated $Elements section: {i} of {n} elements read")))?;
+            let mut it = line.split_whitespace();
+            let id: u64 = parse_num(it.next(), "an element id", "$Elements", path)?;
+            let ty: i32 = parse_num(it.next(), "an element type", "$Elements", path)?;
+            if nodes_of_type(ty).is_none() {
+                return Err(err(format!(
+                    "line {}: element {id} has type {ty}, which is no Gmsh element type",
+                    cur.line_number()
+                )));
+            }
+            let ntags: usize = parse_num(it.next(), "a tag count", "$Elements", path)?;
+            tags.clear();
+            for _ in 0..ntags {
+                tags.push(parse_num::<i32>(it.next(), "an element tag", "$Elements", path)?);
+            }
+            nodes.clear();
+            for v in it {
+                nodes.push(parse_num::<u64>(Some(v), "a node tag", "$Elements", path)?);
+            }
+            if let Some(nn) = nodes_of_type(ty)
+                && nodes.len() != nn
+            {
+                return Err(err(format!("element {i} of type {ty} lists {} nodes, expected {nn}", nodes.len())));
+            }
+            out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes).map_err(err)?;
+        }
+    }
+    if cur.line() != Some("$EndElements") {
+        return Err(err(
+            "the $Elements section does not end with $EndElements where its element count says".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Format version 2 (`2.x 0 8` ASCII, `2.x 1 8` binary).
 fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshError> {
     let err = |message: String| MeshError::Parse {
@@ -378,40 +505,7 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                 if have_nodes {
                     return Err(err(format!("line {}: a second $Nodes section (a file has one)", cur.line_number())));
                 }
-                let n: usize = parse_num(cur.line(), "the number of nodes", "$Nodes", path)?;
-                out.node_tags.reserve(n.min(1 << 24));
-                out.nodes.reserve(n.min(1 << 24));
-                for i in 0..n {
-                    if binary {
-                        let (t, x, y, z) = (cur.i32(swap), cur.f64(swap), cur.f64(swap), cur.f64(swap));
-                        match (t, x, y, z) {
-                            (Some(t), Some(x), Some(y), Some(z)) => {
-                                out.node_tags.push(t as u64);
-                                out.nodes.push([x, y, z]);
-                            }
-                            _ => return Err(err(format!("truncated $Nodes section: {i} of {n} nodes read"))),
-                        }
-                    } else {
-                        let line = cur
-                            .line()
-                            .ok_or_else(|| err(format!("truncated $Nodes section: {i} of {n} nodes read")))?;
-                        let mut it = line.split_whitespace();
-                        let t: u64 = parse_num(it.next(), "a node tag", "$Nodes", path)?;
-                        let x: f64 = parse_num(it.next(), "an x coordinate", "$Nodes", path)?;
-                        let y: f64 = parse_num(it.next(), "a y coordinate", "$Nodes", path)?;
-                        let z: f64 = parse_num(it.next(), "a z coordinate", "$Nodes", path)?;
-                        out.node_tags.push(t);
-                        out.nodes.push([x, y, z]);
-                    }
-                }
-                if binary {
-                    cur.line();
-                }
-                if cur.line() != Some("$EndNodes") {
-                    return Err(err(
-                        "the $Nodes section does not end with $EndNodes where its node count says".into()
-                    ));
-                }
+                v2_nodes(&mut cur, binary, swap, &mut out, path)?;
                 have_nodes = true;
             }
             "$Elements" => {
@@ -421,79 +515,7 @@ fn parse_v2(bytes: &[u8], binary: bool, path: &Path) -> Result<Collected, MeshEr
                         cur.line_number()
                     )));
                 }
-                let n: usize = parse_num(cur.line(), "the number of elements", "$Elements", path)?;
-                let mut tags = Vec::new();
-                if binary {
-                    let mut read = 0usize;
-                    while read < n {
-                        let (ty, count, ntags) = match (cur.i32(swap), cur.i32(swap), cur.i32(swap)) {
-                            (Some(a), Some(b), Some(c)) => (a, b, c),
-                            _ => return Err(err(format!("truncated $Elements section: {read} of {n} elements read"))),
-                        };
-                        let nn = nodes_of_type(ty).ok_or_else(|| err(format!("unknown element type {ty} in binary $Elements")))?;
-                        if count <= 0 || !(0..=MAX_TAGS).contains(&ntags) || read + count as usize > n {
-                            return Err(err(format!(
-                                "corrupt binary element block header (type {ty}, count {count}, tags {ntags})"
-                            )));
-                        }
-                        let mut nodes = vec![0u64; nn];
-                        for _ in 0..count {
-                            let _id = cur.i32(swap);
-                            tags.clear();
-                            for _ in 0..ntags {
-                                tags.push(
-                                    cur.i32(swap)
-                                        .ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))?,
-                                );
-                            }
-                            for v in nodes.iter_mut() {
-                                *v = cur
-                                    .i32(swap)
-                                    .ok_or_else(|| err(format!("truncated $Elements section: {read} of {n} elements read")))?
-                                    as u64;
-                            }
-                            out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes).map_err(err)?;
-                            read += 1;
-                        }
-                    }
-                    cur.line();
-                } else {
-                    let mut nodes = Vec::new();
-                    for i in 0..n {
-                        let line = cur
-                            .line()
-                            .ok_or_else(|| err(format!("truncated $Elements section: {i} of {n} elements read")))?;
-                        let mut it = line.split_whitespace();
-                        let id: u64 = parse_num(it.next(), "an element id", "$Elements", path)?;
-                        let ty: i32 = parse_num(it.next(), "an element type", "$Elements", path)?;
-                        if nodes_of_type(ty).is_none() {
-                            return Err(err(format!(
-                                "line {}: element {id} has type {ty}, which is no Gmsh element type",
-                                cur.line_number()
-                            )));
-                        }
-                        let ntags: usize = parse_num(it.next(), "a tag count", "$Elements", path)?;
-                        tags.clear();
-                        for _ in 0..ntags {
-                            tags.push(parse_num::<i32>(it.next(), "an element tag", "$Elements", path)?);
-                        }
-                        nodes.clear();
-                        for v in it {
-                            nodes.push(parse_num::<u64>(Some(v), "a node tag", "$Elements", path)?);
-                        }
-                        if let Some(nn) = nodes_of_type(ty)
-                            && nodes.len() != nn
-                        {
-                            return Err(err(format!("element {i} of type {ty} lists {} nodes, expected {nn}", nodes.len())));
-                        }
-                        out.push_element(ty, tags.first().copied().unwrap_or(0), &nodes).map_err(err)?;
-                    }
-                }
-                if cur.line() != Some("$EndElements") {
-                    return Err(err(
-                        "the $Elements section does not end with $EndElements where its element count says".into(),
-                    ));
-                }
+                v2_elements(&mut cur, binary, swap, &mut out, path)?;
                 have_elements = true;
             }
             s if s.starts_with('$') && !s.starts_with("$End") => {

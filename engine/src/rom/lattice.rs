@@ -27,7 +27,7 @@ use super::study::StudyError;
 use super::svk::ReducedSvk;
 use super::unit;
 use crate::fem::Locking;
-use crate::fem::assembly::{DofMap, MaterialMap, SymmetricPattern, assemble_stiffness};
+use crate::fem::assembly::{DofMap, MaterialMap, SymmetricMatrix, SymmetricPattern, assemble_stiffness};
 use crate::fem::hyperelastic::{LawMap, Volumetric};
 use crate::fem::linear_static::StaticProblem;
 use crate::fem::nonlinear_static::{self, NewtonParams};
@@ -331,6 +331,132 @@ fn projection_error(a: &DMatrix<f64>, snapshots: &[Vec<f64>]) -> f64 {
     (num / den.max(f64::MIN_POSITIVE)).sqrt()
 }
 
+/// The bases interpolated at the `test` position from its `order`ed neighbours with
+/// `weights` — nearest neighbour, PODI, Grassmann, and the POD of the neighbours' snapshots
+/// weighted by `√w_k` — each with the relative error of its reduced model at full load against
+/// full Newton (`newton`) and the projection error of the position's own snapshots on it; and
+/// what failed.
+fn interpolated_errors(
+    setup: &Setup<'_>,
+    lattice: &[Position],
+    order: &[usize],
+    weights: &[f64],
+    test: &Position,
+    modes: usize,
+    newton: f64,
+) -> ([f64; 4], [f64; 4], Vec<String>) {
+    let bases: Vec<DMatrix<f64>> = order.iter().map(|&k| lattice[k].basis.clone()).collect();
+    // the POD of the neighbours' snapshots, each set weighted by √w_k
+    let pooled: Vec<Vec<f64>> = order
+        .iter()
+        .zip(weights)
+        .filter(|&(_, &w)| w > 0.0)
+        .flat_map(|(&k, &w)| lattice[k].snapshots.iter().map(move |s| s.iter().map(|x| w.sqrt() * x).collect()))
+        .collect();
+    let pooled = Pod::from_snapshots(
+        &pooled,
+        PodCriterion {
+            energy: 1.0,
+            max_modes: modes,
+        },
+    )
+    .map(|p| DMatrix::from_column_slice(p.n, p.modes, &p.basis))
+    .map_err(|_| InterpolationError::Weights);
+    let candidates: [Result<DMatrix<f64>, InterpolationError>; 4] = [
+        Ok(bases[0].clone()),
+        interpolate::podi(&bases, weights),
+        interpolate::grassmann(&bases, weights),
+        pooled,
+    ];
+    let mut error = [f64::INFINITY; 4];
+    let mut failures = Vec::new();
+    let mut projection = [f64::NAN; 4];
+    for (m, c) in candidates.into_iter().enumerate() {
+        let Ok(a) = c else { continue };
+        projection[m] = projection_error(&a, &test.snapshots);
+        match setup.reduced_at_full_load(&a, &test.nodes) {
+            Ok(d) => error[m] = ((d - newton) / newton).abs(),
+            Err(e) => failures.push(format!("{}: {e}", METHODS[m])),
+        }
+    }
+    (error, projection, failures)
+}
+
+/// The models seed 001 §5 stores at each lattice position for its online interpolation: the
+/// position's basis (its first `modes`), reduced tangent, load and its own ANM series.
+fn stored_models(setup: &Setup<'_>, lattice: &[Position], modes: usize) -> Result<Vec<StoredModel>, StudyError> {
+    let mut stored = Vec::with_capacity(lattice.len());
+    for p in lattice {
+        let pod = Pod::from_columns(p.basis.nrows(), p.basis.as_slice().to_vec())?;
+        let model = ReducedSvk::build(setup.mesh, setup.laws, &pod)?;
+        let f = pod.project(&setup.problem(&p.nodes).forces);
+        let scale = anm::displacement_scale(&model, &f)?;
+        let series = anm::Series::expand(&model, &f, &vec![0.0; modes], 0.0, ONLINE_ORDER, scale, 1e-6)?;
+        stored.push(StoredModel::new(
+            p.basis.clone(),
+            DMatrix::from_row_slice(modes, modes, &model.k1),
+            &f,
+            &series,
+        ));
+    }
+    Ok(stored)
+}
+
+/// Seed 001 §5 online at the `test` position: the PODI basis of its `order`ed neighbours'
+/// `stored` models with `weights`, the interpolated tangent, load and nonlinear terms, one ANM
+/// series to the full load; its relative error against full Newton there and its time (µs).
+/// What fails is added to `failures` (the error is then infinite).
+fn online_at(
+    setup: &Setup<'_>,
+    lattice: &[Position],
+    stored: &[StoredModel],
+    order: &[usize],
+    weights: &[f64],
+    test: &Position,
+    (dofs, stiffness): (&DofMap, &SymmetricMatrix),
+    modes: usize,
+    failures: &mut Vec<String>,
+) -> Result<(f64, f64), StudyError> {
+    let newton = test.newton.last().map_or(0.0, |&(_, d)| d);
+    let hood = Neighbourhood::new(order.iter().map(|&k| stored[k].clone()).collect(), dofs, stiffness)
+        .map_err(|e| StudyError::Unsupported(e.to_string()))?;
+    let f_test = setup.problem(&test.nodes).forces;
+    let loads: Vec<DVector<f64>> = order
+        .iter()
+        .map(|&k| lattice[k].basis.transpose() * DVector::from_column_slice(&f_test))
+        .collect();
+    let probes: Vec<DVector<f64>> = order
+        .iter()
+        .map(|&k| {
+            let b = &lattice[k].basis;
+            DVector::from_fn(b.ncols(), |j, _| {
+                super::mean_along(b.column(j).as_slice(), &test.nodes, setup.direction)
+            })
+        })
+        .collect();
+    let clock = std::time::Instant::now();
+    let online = hood.series(weights, &loads, &probes, ONLINE_ORDER, 1e-6).map(|(s, probe)| {
+        let mut z = vec![0.0; modes];
+        s.solve_load(1.0, 8.0).map(|a| {
+            s.eval(a, &mut z);
+            probe.iter().zip(&z).map(|(p, z)| p * z).sum::<f64>()
+        })
+    });
+    let online_us = clock.elapsed().as_secs_f64() * 1e6;
+    let online_error = match online {
+        Ok(Some(d)) => ((d - newton) / newton).abs(),
+        Ok(None) => {
+            failures.push("seed §5 online: the series does not reach the full load".into());
+            f64::INFINITY
+        }
+        Err(e) => {
+            failures.push(format!("seed §5 online: {e}"));
+            f64::INFINITY
+        }
+    };
+    Ok((online_error, online_us))
+}
+
 /// Runs the lattice study for the load case `base` (its supports; its forces give the load
 /// point and the total force) on the accessible nodes; `progress` gets a stage label.
 pub fn interpolation_study(
@@ -403,20 +529,7 @@ pub fn interpolation_study(
         p.basis = p.basis.columns(0, modes).into_owned();
     }
     // the stored models of seed 001 §5 online: tangent, own series and its nonlinear terms
-    let mut stored = Vec::with_capacity(lattice.len());
-    for p in &lattice {
-        let pod = Pod::from_columns(p.basis.nrows(), p.basis.as_slice().to_vec())?;
-        let model = ReducedSvk::build(mesh, laws, &pod)?;
-        let f = pod.project(&setup.problem(&p.nodes).forces);
-        let scale = anm::displacement_scale(&model, &f)?;
-        let series = anm::Series::expand(&model, &f, &vec![0.0; modes], 0.0, ONLINE_ORDER, scale, 1e-6)?;
-        stored.push(StoredModel::new(
-            p.basis.clone(),
-            DMatrix::from_row_slice(modes, modes, &model.k1),
-            &f,
-            &series,
-        ));
-    }
+    let stored = stored_models(&setup, &lattice, modes)?;
     // test positions: cell centres, then midpoints of the edges of the central cell
     let mut tests = Vec::new();
     for j in 0..params.side - 1 {
@@ -438,40 +551,7 @@ pub fn interpolation_study(
         order.truncate(params.neighbours.min(lattice.len()));
         let distances: Vec<f64> = order.iter().map(|&k| dist(lattice[k].centre, test.centre)).collect();
         let weights = interpolate::inverse_distance_weights(&distances);
-        let bases: Vec<DMatrix<f64>> = order.iter().map(|&k| lattice[k].basis.clone()).collect();
-        // the POD of the neighbours' snapshots, each set weighted by √w_k
-        let pooled: Vec<Vec<f64>> = order
-            .iter()
-            .zip(&weights)
-            .filter(|&(_, &w)| w > 0.0)
-            .flat_map(|(&k, &w)| lattice[k].snapshots.iter().map(move |s| s.iter().map(|x| w.sqrt() * x).collect()))
-            .collect();
-        let pooled = Pod::from_snapshots(
-            &pooled,
-            PodCriterion {
-                energy: 1.0,
-                max_modes: modes,
-            },
-        )
-        .map(|p| DMatrix::from_column_slice(p.n, p.modes, &p.basis))
-        .map_err(|_| InterpolationError::Weights);
-        let candidates: [Result<DMatrix<f64>, InterpolationError>; 4] = [
-            Ok(bases[0].clone()),
-            interpolate::podi(&bases, &weights),
-            interpolate::grassmann(&bases, &weights),
-            pooled,
-        ];
-        let mut error = [f64::INFINITY; 4];
-        let mut failures = Vec::new();
-        let mut projection = [f64::NAN; 4];
-        for (m, c) in candidates.into_iter().enumerate() {
-            let Ok(a) = c else { continue };
-            projection[m] = projection_error(&a, &test.snapshots);
-            match setup.reduced_at_full_load(&a, &test.nodes) {
-                Ok(d) => error[m] = ((d - newton) / newton).abs(),
-                Err(e) => failures.push(format!("{}: {e}", METHODS[m])),
-            }
-        }
+        let (error, projection, mut failures) = interpolated_errors(&setup, &lattice, &order, &weights, &test, modes, newton);
         own_basis_error.push(
             setup
                 .reduced_at_full_load(&own, &test.nodes)
@@ -494,40 +574,17 @@ pub fn interpolation_study(
         let (own_lambda, _) = test.served.load_at_depth(newton, &mut zeta);
         let exact = own_lambda * test.served.d_linear / newton;
         // seed 001 §5 online: PODI basis, interpolated tangent, load and f_p^nl, one series
-        let hood = Neighbourhood::new(order.iter().map(|&k| stored[k].clone()).collect(), &dofs, &stiffness)
-            .map_err(|e| StudyError::Unsupported(e.to_string()))?;
-        let f_test = setup.problem(&test.nodes).forces;
-        let loads: Vec<DVector<f64>> = order
-            .iter()
-            .map(|&k| lattice[k].basis.transpose() * DVector::from_column_slice(&f_test))
-            .collect();
-        let probes: Vec<DVector<f64>> = order
-            .iter()
-            .map(|&k| {
-                let b = &lattice[k].basis;
-                DVector::from_fn(b.ncols(), |j, _| super::mean_along(b.column(j).as_slice(), &test.nodes, direction))
-            })
-            .collect();
-        let clock = std::time::Instant::now();
-        let online = hood.series(&weights, &loads, &probes, ONLINE_ORDER, 1e-6).map(|(s, probe)| {
-            let mut z = vec![0.0; modes];
-            s.solve_load(1.0, 8.0).map(|a| {
-                s.eval(a, &mut z);
-                probe.iter().zip(&z).map(|(p, z)| p * z).sum::<f64>()
-            })
-        });
-        let online_us = clock.elapsed().as_secs_f64() * 1e6;
-        let online_error = match online {
-            Ok(Some(d)) => ((d - newton) / newton).abs(),
-            Ok(None) => {
-                failures.push("seed §5 online: the series does not reach the full load".into());
-                f64::INFINITY
-            }
-            Err(e) => {
-                failures.push(format!("seed §5 online: {e}"));
-                f64::INFINITY
-            }
-        };
+        let (online_error, online_us) = online_at(
+            &setup,
+            &lattice,
+            &stored,
+            &order,
+            &weights,
+            &test,
+            (&dofs, &stiffness),
+            modes,
+            &mut failures,
+        )?;
         rows.push(TestRow {
             online_error,
             online_us,

@@ -488,29 +488,14 @@ pub(super) fn generalized_dofs(mesh: &Mesh, problem: &StaticProblem, enr: &Enric
     })
 }
 
-/// Assembles the XFEM system of `problem` with the cut `enr` (module docs).
-pub fn assemble(
-    mesh: &Mesh,
-    materials: &MaterialMap,
-    locking: Locking,
-    problem: &StaticProblem,
-    enr: &Enrichment,
-    params: &XfemParams,
-) -> Result<ExtendedSystem, XfemError> {
+/// Each generalized node's sorted neighbours in the extended system: the uncut mesh's (with
+/// the averaged nodal pressure's wider reach when `patches`), the generalized cells' nodes, and
+/// the nodal dilatation's reach into the enriched nodes of a patch's cut cells.
+fn generalized_adjacency(mesh: &Mesh, enr: &Enrichment, patches: Option<&NodalPatches>) -> Vec<Vec<usize>> {
     let n = mesh.n_nodes();
-    let m = enr.len();
-    let ng = n + m;
-    let Generalized {
-        supported,
-        constrained,
-        prescribed,
-        dofs,
-    } = generalized_dofs(mesh, problem, enr)?;
-    let volumetric = EnrichedVolumetric::of(mesh.kind, locking);
-    let patches = NodalPatches::when(mesh, volumetric == EnrichedVolumetric::Nodal).ok().flatten();
-    // the pattern: the uncut one (with the nodal pressure's wider reach) and the generalized cells
+    let ng = n + enr.len();
     let (mut cell_nodes, mut local) = (Vec::new(), Vec::new());
-    let mut adj: Vec<Vec<usize>> = match &patches {
+    let mut adj: Vec<Vec<usize>> = match patches {
         Some(patches) => patches.couplings(),
         None => vec![Vec::new(); n],
     };
@@ -521,7 +506,7 @@ pub fn assemble(
             adj[a].extend_from_slice(&cell_nodes);
         }
     }
-    if let Some(patches) = &patches {
+    if let Some(patches) = patches {
         // the nodal dilatation of node a reaches every generalized node of its patch's cells
         for a in 0..n {
             let mut reach: Vec<usize> = Vec::new();
@@ -544,6 +529,31 @@ pub fn assemble(
         l.sort_unstable();
         l.dedup();
     }
+    adj
+}
+
+/// Assembles the XFEM system of `problem` with the cut `enr` (module docs).
+pub fn assemble(
+    mesh: &Mesh,
+    materials: &MaterialMap,
+    locking: Locking,
+    problem: &StaticProblem,
+    enr: &Enrichment,
+    params: &XfemParams,
+) -> Result<ExtendedSystem, XfemError> {
+    let n = mesh.n_nodes();
+    let m = enr.len();
+    let ng = n + m;
+    let Generalized {
+        supported,
+        constrained,
+        prescribed,
+        dofs,
+    } = generalized_dofs(mesh, problem, enr)?;
+    let volumetric = EnrichedVolumetric::of(mesh.kind, locking);
+    let patches = NodalPatches::when(mesh, volumetric == EnrichedVolumetric::Nodal).ok().flatten();
+    // the pattern: the uncut one (with the nodal pressure's wider reach) and the generalized cells
+    let adj = generalized_adjacency(mesh, enr, patches.as_ref());
     let pattern = Arc::new(SymmetricPattern::from_adjacency(&adj, &dofs));
     let mut rhs = vec![0.0; dofs.n_free()];
     // the standard block: the uncut stiffness (standard equations come first in `dofs`)

@@ -113,9 +113,10 @@ fn liver_palpation_orders_5_and_6_stay_within_5_percent_up_to_5_mm() {
 fn interpolated_bases_between_lattice_positions_are_measured_against_full_newton() {
     use vademecum_engine::rom::lattice::{self, LatticeParams};
     // the cornea on a coarse mesh, so that 15 full paths take seconds
-    let text = vademecum_engine::scene::builtin("cornea")
-        .unwrap()
-        .replace("divisions = [24, 24, 3]", "divisions = [12, 12, 2]");
+    let text = common::with_keys(
+        vademecum_engine::scene::builtin("cornea").unwrap(),
+        &[("organs[0].mesh.divisions", vec![12, 12, 2].into())],
+    );
     let scene = Scene::from_toml(&text, ".").unwrap();
     let organ = scene.organ_model(0).unwrap();
     let laws = organ.laws.clone().unwrap();

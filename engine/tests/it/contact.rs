@@ -189,9 +189,10 @@ fn organ_entered_from_every_side_holds_the_contact_to_the_centre() {
 
 #[test]
 fn past_the_probe_force_limit_the_force_saturates_with_an_event() {
-    let text = vademecum_engine::scene::builtin("organ")
-        .unwrap()
-        .replace("radius = 0.004                       # m", "radius = 0.004\nmax_force = 5.0");
+    let text = common::with_keys(
+        vademecum_engine::scene::builtin("organ").unwrap(),
+        &[("tools[0].max_force", 5.0.into())],
+    );
     let scene = Scene::from_toml(&text, "organ.toml").unwrap();
     let b = bundle(&scene);
     let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();

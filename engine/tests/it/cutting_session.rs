@@ -3,6 +3,7 @@
 //! the cut model in and the tissue under the blade softens; the flat of the blade, friction and
 //! bad blade states cut nothing; a scene that does not cut carries no cutting effect.
 
+use crate::common;
 use std::sync::Arc;
 use std::sync::atomic::Ordering::Relaxed;
 use std::time::{Duration, Instant};
@@ -205,11 +206,7 @@ fn the_scalpels_force_is_clamped_to_its_max_force() {
     // the patch_cut scene with a scalpel that renders at most 0.5 N: pressed 0.6 m into the
     // top (a force of several newtons on this soft patch), the force keeps its direction,
     // its magnitude is the limit and the tick is flagged
-    let text = Scene::builtin("patch_cut")
-        .unwrap()
-        .source
-        .replace("cut_force = 1.0", "cut_force = 1.0\nmax_force = 0.5");
-    assert!(text.contains("max_force = 0.5"));
+    let text = common::with_keys(&Scene::builtin("patch_cut").unwrap().source, &[("tools[0].max_force", 0.5.into())]);
     let scene = Scene::from_toml(&text, "patch_cut_limited.toml").unwrap();
     let mut limited = Pipeline::for_scene(&scene, &[bundle(&scene)]).unwrap();
     let mut free = patch_cut();
@@ -224,7 +221,7 @@ fn the_scalpels_force_is_clamped_to_its_max_force() {
     let cos = (0..3).map(|k| a.force_n[k] * b.force_n[k]).sum::<f64>() / (norm(a.force_n) * norm(b.force_n));
     assert!((cos - 1.0).abs() < 1e-12);
     // and the scene says so
-    assert!(Scene::from_toml(&text.replace("max_force = 0.5", "max_force = 500.0"), "x.toml").is_err());
+    assert!(Scene::from_toml(&common::with_keys(&text, &[("tools[0].max_force", 500.0.into())]), "x.toml").is_err());
 }
 
 #[test]

@@ -37,14 +37,16 @@ fn files(dir: &Path) -> (Vec<String>, u64) {
 
 /// The built-in organ, coarse, with `model` and `deformation`.
 fn organ(model: &str, deformation: &str) -> Scene {
-    let text = scene::builtin("organ").unwrap();
-    let text = text
-        .replace("divisions = [16, 10, 6]", "divisions = [8, 5, 3]")
-        .replace("model = \"linear\"", &format!("model = \"{model}\""))
-        .replace(
-            "deformation = \"linear\"",
-            &format!("deformation = \"{deformation}\"\n\n[fidelity.large]\npositions = 2\nload_steps = 2\nmodes = 3"),
-        );
+    let large: toml::Table = toml::from_str("positions = 2\nload_steps = 2\nmodes = 3").unwrap();
+    let text = common::with_keys(
+        scene::builtin("organ").unwrap(),
+        &[
+            ("organs[0].mesh.divisions", vec![8, 5, 3].into()),
+            ("organs[0].materials[0].model", model.into()),
+            ("effects.deformation", deformation.into()),
+            ("fidelity.large", large.into()),
+        ],
+    );
     Scene::from_toml(&text, "<organ>").unwrap()
 }
 

@@ -2,6 +2,7 @@
 //! full Newton at its positions, its bundle form, and the pipeline that scales the linear
 //! vademecum's force by it.
 
+use crate::common;
 use std::sync::Arc;
 
 use vademecum_engine::bundle;
@@ -12,16 +13,15 @@ use vademecum_engine::scene::Scene;
 
 /// The built-in cornea on a coarse mesh, asking for large deformations with a small lattice.
 fn cornea(large: bool) -> Scene {
-    let text = vademecum_engine::scene::builtin("cornea")
-        .unwrap()
-        .replace("divisions = [24, 24, 3]", "divisions = [12, 12, 2]")
-        .replace("positions = 9", "positions = 3")
-        .replace("load_steps = 6", "load_steps = 4");
-    let text = if large {
-        text
-    } else {
-        text.replace("deformation = \"large\"", "deformation = \"linear\"")
-    };
+    let text = common::with_keys(
+        vademecum_engine::scene::builtin("cornea").unwrap(),
+        &[
+            ("organs[0].mesh.divisions", vec![12, 12, 2].into()),
+            ("fidelity.large.positions", 3.into()),
+            ("fidelity.large.load_steps", 4.into()),
+            ("effects.deformation", if large { "large" } else { "linear" }.into()),
+        ],
+    );
     Scene::from_toml(&text, ".").unwrap()
 }
 

@@ -1,6 +1,6 @@
 //! The engine's integration tests, as modules of one test binary (one link instead of one per
 //! file). `no_alloc.rs` stays apart: it installs its own counting global allocator.
-//! Run one module with `cargo test -p vademecum-engine --test it it::damage::`.
+//! Run one module with `cargo test -p vademecum-engine --test it damage::`.
 
 mod common;
 

@@ -3,6 +3,7 @@
 //! damage grows, the grasp is lost when the tissue under the jaws tears and the force fades
 //! without a jump; the offline stage survives the bundle bit for bit.
 
+use crate::common;
 use std::sync::Arc;
 
 use vademecum_engine::bundle;
@@ -19,11 +20,14 @@ use vademecum_engine::scene::tearing;
 /// damage `alpha`, `beta` (0.4, 0.4: the seed's, D tends to 0.6 and never reaches the 0.8
 /// threshold; 0.1, 0: the stiffness goes to zero, the cube tears near 20 % strain).
 fn cube(alpha: f64, beta: f64, max_force: f64) -> Scene {
-    let text = Scene::builtin("cube_tear")
-        .unwrap()
-        .source
-        .replace("alpha = 0.4, beta = 0.4", &format!("alpha = {alpha}, beta = {beta}"))
-        .replace("max_force = 1.0 ", &format!("max_force = {max_force} "));
+    let text = common::with_keys(
+        &Scene::builtin("cube_tear").unwrap().source,
+        &[
+            ("organs[0].materials[0].damage.alpha", alpha.into()),
+            ("organs[0].materials[0].damage.beta", beta.into()),
+            ("tools[0].max_force", max_force.into()),
+        ],
+    );
     Scene::from_toml(&text, "cube.toml").unwrap()
 }
 

@@ -4,6 +4,7 @@
 //! against its own full-order reference as the scene's, and the tissue keeps one damage
 //! whichever site the jaws take.
 
+use crate::common;
 use std::sync::Arc;
 
 use vademecum_engine::bundle;
@@ -135,7 +136,7 @@ fn the_sites_spread_over_the_tearable_surface_farthest_first() {
     }
     // the seed's cube: its three other upper corners (the base slides: no candidate there)
     let cube = Scene::builtin("cube_tear").unwrap();
-    let text = cube.source.replace("grasp_sites = 4 ", "grasp_sites = 8 ");
+    let text = common::with_keys(&cube.source, &[("fidelity.tearing.grasp_sites", 8.into())]);
     let corners = extra(&Scene::from_toml(&text, "cube.toml").unwrap());
     assert_eq!(corners.len(), 3);
     for (c, _) in corners {
@@ -145,10 +146,10 @@ fn the_sites_spread_over_the_tearable_surface_farthest_first() {
 
 #[test]
 fn a_scene_asking_for_no_site_or_too_many_is_refused_with_the_key() {
-    let text = slab(2).source.replace("grasp_sites = 2", "grasp_sites = 0");
+    let text = common::with_keys(&slab(2).source, &[("fidelity.tearing.grasp_sites", 0.into())]);
     let e = Scene::from_toml(&text, "slab.toml").unwrap_err().to_string();
     assert!(e.contains("grasp_sites"), "{e}");
-    let text = slab(2).source.replace("grasp_sites = 2", "grasp_sites = 65");
+    let text = common::with_keys(&slab(2).source, &[("fidelity.tearing.grasp_sites", 65.into())]);
     assert!(Scene::from_toml(&text, "slab.toml").is_err());
 }
 
@@ -336,10 +337,10 @@ fn a_site_torn_while_held_is_spent_and_the_others_still_hold() {
 #[test]
 fn on_the_gallbladder_the_sites_lie_on_the_fat_free_of_its_anchors_and_face_up() {
     // the fat is grasped from above (the scene pulls up) and anchored at its two ends
-    let text = Scene::builtin("gallbladder_fat")
-        .unwrap()
-        .source
-        .replace("pod_vectors = 3 ", "grasp_sites = 8\npod_vectors = 3 ");
+    let text = common::with_keys(
+        &Scene::builtin("gallbladder_fat").unwrap().source,
+        &[("fidelity.tearing.grasp_sites", 8.into())],
+    );
     let scene = Scene::from_toml(&text, "<builtin:gallbladder_fat>").unwrap();
     let jaw = tearing::jaw_width(&scene).unwrap();
     let (model, _) = tearing::tear_model(&scene, 0).unwrap();

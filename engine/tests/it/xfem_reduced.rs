@@ -2,6 +2,7 @@
 //! engine part 2): the PGD modes of the patch's vademecum as a Ritz basis (PRB and SRB),
 //! bordered with the enriched nodes as the cut grows.
 
+use crate::common;
 use vademecum_engine::geometry::cut::Cut;
 use vademecum_engine::offline::{self, BuildOptions};
 use vademecum_engine::pgd::PgdParams;
@@ -244,9 +245,10 @@ fn the_cut_compliance_at_a_node_is_the_full_xfem_displacement_per_unit_force() {
 /// corner loaded downwards by 1 N.
 fn bar(divisions: [usize; 3]) -> Scene {
     let [i, j, k] = divisions;
-    let text = vademecum_engine::scene::builtin("bar")
-        .unwrap()
-        .replace("divisions = [4, 1, 1]", &format!("divisions = [{i}, {j}, {k}]"));
+    let text = common::with_keys(
+        vademecum_engine::scene::builtin("bar").unwrap(),
+        &[("organs[0].mesh.divisions", vec![i as i64, j as i64, k as i64].into())],
+    );
     Scene::from_toml(&text, "bar.toml").unwrap()
 }
 

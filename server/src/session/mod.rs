@@ -289,6 +289,31 @@ pub struct Script {
     pub answers: tokio::sync::mpsc::Sender<Answer>,
 }
 
+/// Whether a session of `scene` with `config` falls back to its reduced fidelity under load:
+/// a live session whose server and scene allow it (a deterministic one never does).
+fn falls_back(config: &SessionConfig, scene: &Scene) -> bool {
+    config.fallback && !config.deterministic && scene.spec.fidelity.fallback == Fallback::Auto
+}
+
+/// What the frames show of a tearing session: its damage pictures on the torn organ's
+/// surface, when the pipeline tears.
+fn tear_view(
+    pictures: Option<vademecum_engine::pipeline::TearPictures>,
+    offline: Vec<Arc<vademecum_engine::damage::online::TearOffline>>,
+    geometry: &SurfaceGeometry,
+) -> Option<frames::TearView> {
+    match (pictures, offline) {
+        (Some(pictures), offline) if !offline.is_empty() => {
+            let o = pictures.peek_output_buffer().organ;
+            geometry
+                .organs
+                .get(o)
+                .map(|surface| frames::TearView::new(pictures, offline, surface))
+        }
+        _ => None,
+    }
+}
+
 impl Session {
     /// Starts a session on `scene` with one loaded bundle per organ.
     pub fn start(id: String, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, config: SessionConfig) -> Result<Self, SessionError> {
@@ -347,13 +372,10 @@ impl Session {
             &geometry,
         );
         let router = Arc::new(answers::Router::new());
-        let script = match script {
-            None => None,
-            Some(s) => Some(tick::ScriptRun {
-                to: router.register(s.answers).expect("a new router takes streams"),
-                trajectory: s.trajectory,
-            }),
-        };
+        let script = script.map(|s| tick::ScriptRun {
+            to: router.register(s.answers).expect("a new router takes streams"),
+            trajectory: s.trajectory,
+        });
         let (answers_done_tx, answers_done) = mpsc::sync_channel(1);
         let dispatcher = answers::Dispatcher {
             ring: ring.clone(),
@@ -381,10 +403,7 @@ impl Session {
             owed: 0,
             steps: 0,
             peer: None,
-            governor: fidelity::Governor::new(
-                config.period,
-                config.fallback && !config.deterministic && scene.spec.fidelity.fallback == Fallback::Auto,
-            ),
+            governor: fidelity::Governor::new(config.period, falls_back(&config, &scene)),
             lockstep: None,
             deterministic: config.deterministic,
         });
@@ -397,16 +416,7 @@ impl Session {
             finished: tick_finished.clone(),
             phase: None,
         };
-        let tear = match (tear_pictures, tear_offline) {
-            (Some(pictures), offline) if !offline.is_empty() => {
-                let o = pictures.peek_output_buffer().organ;
-                geometry
-                    .organs
-                    .get(o)
-                    .map(|surface| frames::TearView::new(pictures, offline, surface))
-            }
-            _ => None,
-        };
+        let tear = tear_view(tear_pictures, tear_offline, &geometry);
         let frame_demand = Arc::new(demand::FrameDemand::default());
         let producer = frames::FrameProducer::new(
             bundles.clone(),

@@ -41,3 +41,35 @@ pub fn shared_scene(file: &str, shared: &std::path::Path) -> Scene {
     let text = text.replace("../../shared/", &format!("{}/", shared.display()));
     Scene::from_toml(&text, &path).unwrap()
 }
+
+/// The scene `text` with each `(key, value)` of `edits` set, the key a dotted path from the
+/// root with array indices (`organs[0].mesh.divisions`, `fidelity.tearing.grasp_sites`,
+/// `tools[0].max_force`). The table holding the key must exist (a test never edits a scene it
+/// misreads); the key itself may be new. Comments and layout are not kept.
+pub fn with_keys(text: &str, edits: &[(&str, toml::Value)]) -> String {
+    let mut root: toml::Table = toml::from_str(text).expect("the scene is TOML");
+    for (path, value) in edits {
+        let mut segments: Vec<&str> = path.split('.').collect();
+        let last = segments.pop().expect("a key");
+        let mut table = &mut root;
+        for seg in segments {
+            let (name, index) = match seg.split_once('[') {
+                Some((n, i)) => (n, Some(i.trim_end_matches(']').parse::<usize>().expect("an index"))),
+                None => (seg, None),
+            };
+            let next = table
+                .get_mut(name)
+                .unwrap_or_else(|| panic!("the scene has no `{name}` on the way to `{path}`"));
+            let next = match index {
+                Some(i) => next
+                    .as_array_mut()
+                    .and_then(|a| a.get_mut(i))
+                    .unwrap_or_else(|| panic!("the scene has no `{name}[{i}]` on the way to `{path}`")),
+                None => next,
+            };
+            table = next.as_table_mut().unwrap_or_else(|| panic!("`{seg}` in `{path}` is no table"));
+        }
+        table.insert(last.to_string(), value.clone());
+    }
+    toml::to_string(&root).expect("a table serialises")
+}
