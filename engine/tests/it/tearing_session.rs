@@ -242,10 +242,8 @@ fn a_tearing_scene_needs_a_grasper_and_its_bundle_and_refuses_other_tools() {
     };
     assert!(p.tick(&bad).events.has(Events::REJECTED_INPUT));
     // without its grasper
-    let text = scene
-        .source
-        .replace("kind = \"grasper\"", "kind = \"probe\"\nradius = 0.01")
-        .replace("jaw_width = 0.2                      # m\n", "");
+    let probe: toml::Table = toml::from_str("kind = \"probe\"\nname = \"grasper\"\nradius = 0.01\nmax_force = 1.0").unwrap();
+    let text = common::with_keys(&scene.source, &[("tools[0]", probe.into())]);
     let e = Scene::from_toml(&text, "x.toml").unwrap_err();
     assert_eq!(e.key.as_deref(), Some("effects.tearing"), "{e}");
     assert!(e.to_string().contains("grasper"), "{e}");

@@ -44,8 +44,9 @@ pub fn shared_scene(file: &str, shared: &std::path::Path) -> Scene {
 
 /// The scene `text` with each `(key, value)` of `edits` set, the key a dotted path from the
 /// root with array indices (`organs[0].mesh.divisions`, `fidelity.tearing.grasp_sites`,
-/// `tools[0].max_force`). The table holding the key must exist (a test never edits a scene it
-/// misreads); the key itself may be new. Comments and layout are not kept.
+/// `tools[0].max_force`; `tools[0]` replaces the whole element). The table holding the key
+/// must exist (a test never edits a scene it misreads); the key itself may be new. Comments
+/// and layout are not kept.
 pub fn with_keys(text: &str, edits: &[(&str, toml::Value)]) -> String {
     let mut root: toml::Table = toml::from_str(text).expect("the scene is TOML");
     for (path, value) in edits {
@@ -69,7 +70,21 @@ pub fn with_keys(text: &str, edits: &[(&str, toml::Value)]) -> String {
             };
             table = next.as_table_mut().unwrap_or_else(|| panic!("`{seg}` in `{path}` is no table"));
         }
-        table.insert(last.to_string(), value.clone());
+        match last.split_once('[') {
+            // an element of an array of tables, replaced whole
+            Some((name, i)) => {
+                let i: usize = i.trim_end_matches(']').parse().expect("an index");
+                let slot = table
+                    .get_mut(name)
+                    .and_then(|a| a.as_array_mut())
+                    .and_then(|a| a.get_mut(i))
+                    .unwrap_or_else(|| panic!("the scene has no `{last}` to replace"));
+                *slot = value.clone();
+            }
+            None => {
+                table.insert(last.to_string(), value.clone());
+            }
+        }
     }
     toml::to_string(&root).expect("a table serialises")
 }
