@@ -957,13 +957,9 @@ fn cut_stage(
         None => None,
         Some(e) => {
             use crate::xfem::accuracy;
-            let params = fx.params();
-            let reference =
-                accuracy::Reference::of(&scene_cuts(scene)?, model, &params, |_, _| {}).map_err(|e| BuildError::Cutting(e.to_string()))?;
-            Some(
-                accuracy::sliver_for_target(&scene_cuts(scene)?, model, &params, e, &reference)
-                    .map_err(|e| BuildError::Cutting(e.to_string()))?,
-            )
+            let (params, cuts) = (fx.params(), scene_cuts(scene)?);
+            let reference = accuracy::Reference::of(&cuts, model, &params, |_, _| {}).map_err(|e| BuildError::Cutting(e.to_string()))?;
+            Some(accuracy::sliver_for_target(&cuts, model, &params, e, &reference).map_err(|e| BuildError::Cutting(e.to_string()))?)
         }
     };
     let report = CutReport {
