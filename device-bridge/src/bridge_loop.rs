@@ -29,7 +29,7 @@ use std::time::{Duration, Instant};
 use hdrhistogram::Histogram;
 use vademecum_proto::shm::{self, BridgeReport, HapticCommand, HapticState, STATE_ADJUSTED, TOOL_PROBE, TOOL_SCALPEL};
 
-use crate::device::{Device, DeviceError};
+use crate::device::{Device, DeviceError, DeviceReading};
 use crate::guard::{ForceGuard, InputGuard, watchdog_scale};
 use crate::link::Link;
 use crate::profile::{DeviceProfile, FrameMap};
@@ -206,9 +206,9 @@ pub struct BridgeOutcome {
     /// States, forces or reports that could not be sent.
     pub link_errors: u64,
     /// Whether the memory was locked before the loop, or why not.
-    pub memory_locked: Result<(), String>,
+    pub memory_locked: Result<(), timing::Refused>,
     /// Whether the CPU wake-up latency request was held during the loop, or why not.
-    pub wake_latency_held: Result<(), String>,
+    pub wake_latency_held: Result<(), timing::Refused>,
     /// vCPU steal time during the loop, summed over the machine's CPUs
     /// ([`timing::vcpu_steal`]; `None` where not reported).
     pub steal: Option<Duration>,
@@ -284,23 +284,9 @@ fn run_inner<D: Device + ?Sized, L: Link>(
     let period_ns = p.period.as_nanos() as u64;
     let mut input = InputGuard::new(&p.profile, dt);
     let mut force = ForceGuard::new(&p.profile, dt);
-    let mut latency = histogram();
-    let mut lateness = histogram();
-    let mut completion = histogram();
-    let mut trace = Vec::with_capacity(p.trace_limit);
-    let mut late_answers: Vec<HapticCommand> = Vec::with_capacity(p.trace_limit);
-    let mut trace_dropped = 0u64;
-    let mut link_errors = 0u64;
+    let mut log = Log::new(p.trace_limit);
     let mut r = BridgeReport::default();
-    let memory_locked = if p.lock_memory {
-        timing::prefault_stack();
-        timing::lock_memory()
-    } else {
-        Err("not asked".into())
-    };
-    let wake_latency = p.hold_wake_latency.then(|| timing::request_wake_latency(0));
-    let steal0 = timing::vcpu_steal();
-    let cpu0 = timing::thread_cpu_time();
+    let safeguards = Safeguards::take(p);
     let start = Instant::now();
     let t0_ns = shm::monotonic_ns();
     let mut next = start;
@@ -317,7 +303,7 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         timing::wait_until(next, p.strategy, p.window, || false);
         let woke = Instant::now();
         let late_ns = woke.saturating_duration_since(next).as_nanos() as u64;
-        let _ = lateness.record(late_ns.max(1));
+        let _ = log.lateness.record(late_ns.max(1));
         let t_s = tick as f64 * dt;
         if p.duration.is_some_and(|d| t_s >= d.as_secs_f64()) {
             break EndReason::Duration;
@@ -332,79 +318,15 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         r.rejected_non_finite += u64::from(verdict.non_finite);
         r.clamped_workspace += u64::from(verdict.outside);
         r.clamped_jumps += u64::from(verdict.jump);
-        let velocity = if verdict.adjusted() || !reading.velocity_m_s.iter().all(|v| v.is_finite()) {
-            [0.0; 3]
-        } else {
-            p.frame.velocity_to_organ(reading.velocity_m_s)
-        };
-        let closure = if reading.closure.is_finite() {
-            reading.closure.clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
-        // the blade moves with the tip the guard admitted; a non-finite one collapses onto the
-        // tip (a zero-length blade, which the server rejects)
-        let blade_end = reading
-            .blade_end_m
-            .filter(|e| e.iter().chain(&reading.position_m).all(|v| v.is_finite()))
-            .map_or(x_dev, |e| std::array::from_fn(|k| x_dev[k] + e[k] - reading.position_m[k]));
-        let orientation = if reading.orientation.iter().all(|v| v.is_finite()) {
-            reading.orientation
-        } else {
-            [0.0; 4]
-        };
-        let state = HapticState {
-            seq: tick,
-            t_read_ns,
-            position_m: p.frame.to_organ(x_dev),
-            velocity_m_s: velocity,
-            closure,
-            tool: p
-                .tool
-                .unwrap_or(if reading.blade_end_m.is_some() { TOOL_SCALPEL } else { TOOL_PROBE }),
-            flags: if verdict.adjusted() { STATE_ADJUSTED } else { 0 },
-            orientation,
-            blade_end_m: p.frame.to_organ(blade_end),
-        };
+        let state = tool_state(p, &reading, x_dev, verdict.adjusted(), tick, t_read_ns);
         // 3. send it
         if link.send_state(&state).is_err() {
-            link_errors += 1;
+            log.link_errors += 1;
         }
         let t_sent_ns = shm::monotonic_ns();
         // 4. take the newest force, polling a little for this tick's own answer
-        let mut newest = link.poll_command();
-        // (traced: an answer to an earlier state, kept for the trace whether used or not)
-        let mut keep_late = |c: &HapticCommand| {
-            if c.state_seq < tick && late_answers.len() < p.trace_limit && late_answers.last().is_none_or(|l| l.seq != c.seq) {
-                late_answers.push(*c);
-            }
-        };
-        if let Some(c) = &newest {
-            keep_late(c);
-        }
         let wait = !p.answer_wait.is_zero() && (missed_in_tick < GIVE_UP_WAITING || tick.is_multiple_of(16));
-        if wait && newest.is_none_or(|c| c.state_seq != tick || c.t_read_ns != t_read_ns) {
-            let until = Instant::now() + p.answer_wait;
-            let mut answered = |link: &mut L| {
-                if let Some(c) = link.poll_command() {
-                    keep_late(&c);
-                    newest = Some(c);
-                }
-                newest.is_some_and(|c| c.state_seq == tick && c.t_read_ns == t_read_ns)
-            };
-            let mut blocked = p.answer_wake == AnswerWake::Event;
-            while blocked && !answered(link) {
-                let left = until.saturating_duration_since(Instant::now());
-                if left.is_zero() {
-                    break;
-                }
-                // a link that cannot block falls back to polling
-                blocked = link.wait_command(left);
-            }
-            if !blocked {
-                timing::wait_between(Instant::now(), until, || answered(link));
-            }
-        }
+        let newest = newest_answer(link, p, wait, tick, t_read_ns, &mut log);
         // 5. fresh, or aged by the watchdog
         let fresh = newest.filter(|c| c.t_read_ns >= t0_ns && t_read_ns.saturating_sub(c.t_read_ns) < STALE_AFTER_TICKS * period_ns);
         if fresh.is_some_and(|c| c.t_read_ns == t_read_ns) {
@@ -430,44 +352,36 @@ fn run_inner<D: Device + ?Sized, L: Link>(
         device.write_force(out);
         let t_write_ns = shm::monotonic_ns();
         if let Some(c) = fresh {
-            let _ = latency.record(t_write_ns.saturating_sub(c.t_read_ns).max(1));
+            let _ = log.latency.record(t_write_ns.saturating_sub(c.t_read_ns).max(1));
         }
         let done = Instant::now();
-        let _ = completion.record(done.saturating_duration_since(next).as_nanos().max(1) as u64);
+        let _ = log.completion.record(done.saturating_duration_since(next).as_nanos().max(1) as u64);
         if done > next + p.period {
             r.deadline_misses += 1;
         }
         r.ticks += 1;
-        if trace.len() < p.trace_limit {
-            let own = fresh.filter(|c| c.t_read_ns == t_read_ns).unwrap_or_default();
-            trace.push(TraceRow {
-                tick,
-                t_read_ns,
-                lateness_ns: late_ns,
-                t_sent_ns,
-                t_write_ns,
-                t_peer_planned_ns: own.t_peer_planned_ns,
-                t_peer_polling_ns: own.t_peer_polling_ns,
-                t_peer_received_ns: own.t_peer_received_ns,
-                t_answer_ns: own.t_answer_ns,
-                position_m: state.position_m,
-                fresh: fresh.is_some(),
-                answers,
-                received_n,
-                output_n: out,
-                age,
-                input_adjusted: verdict.adjusted(),
-            });
-        } else {
-            trace_dropped += 1;
-        }
+        let own = fresh.filter(|c| c.t_read_ns == t_read_ns).unwrap_or_default();
+        log.trace(TraceRow {
+            tick,
+            t_read_ns,
+            lateness_ns: late_ns,
+            t_sent_ns,
+            t_write_ns,
+            t_peer_planned_ns: own.t_peer_planned_ns,
+            t_peer_polling_ns: own.t_peer_polling_ns,
+            t_peer_received_ns: own.t_peer_received_ns,
+            t_answer_ns: own.t_answer_ns,
+            position_m: state.position_m,
+            fresh: fresh.is_some(),
+            answers,
+            received_n,
+            output_n: out,
+            age,
+            input_adjusted: verdict.adjusted(),
+        });
         // 7. report; housekeeping while the server is away
         if (tick + 1).is_multiple_of(u64::from(p.report_every)) {
-            fill_percentiles(&mut r, &latency);
-            r.t_ns = shm::monotonic_ns();
-            if link.send_report(&r).is_err() {
-                link_errors += 1;
-            }
+            log.report(link, &mut r);
         }
         let silent = if age == u32::MAX { tick + 1 } else { u64::from(age) };
         if silent > 50 && tick.is_multiple_of(500) {
@@ -485,32 +399,190 @@ fn run_inner<D: Device + ?Sized, L: Link>(
             next = now;
         }
     };
-    fill_percentiles(&mut r, &latency);
-    r.t_ns = shm::monotonic_ns();
-    if link.send_report(&r).is_err() {
-        link_errors += 1;
+    log.report(link, &mut r);
+    Ok(log.outcome(end, r, link, safeguards, start))
+}
+
+/// The tool state of tick `tick` (read at `t_read_ns`) from the device's `reading`, whose
+/// position the input guard admitted as `x_dev` (`adjusted`: it had to change it: the
+/// velocity is then not trusted). Whatever else of the reading is not finite is dropped: the
+/// velocity and the orientation to zero, the closure to open, the blade onto the tip (a
+/// zero-length blade, which the server refuses).
+fn tool_state(p: &BridgeParams, reading: &DeviceReading, x_dev: [f64; 3], adjusted: bool, tick: u64, t_read_ns: u64) -> HapticState {
+    let velocity = if adjusted || !reading.velocity_m_s.iter().all(|v| v.is_finite()) {
+        [0.0; 3]
+    } else {
+        p.frame.velocity_to_organ(reading.velocity_m_s)
+    };
+    let closure = if reading.closure.is_finite() {
+        reading.closure.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    // the blade moves with the tip the guard admitted
+    let blade_end = reading
+        .blade_end_m
+        .filter(|e| e.iter().chain(&reading.position_m).all(|v| v.is_finite()))
+        .map_or(x_dev, |e| std::array::from_fn(|k| x_dev[k] + e[k] - reading.position_m[k]));
+    let orientation = if reading.orientation.iter().all(|v| v.is_finite()) {
+        reading.orientation
+    } else {
+        [0.0; 4]
+    };
+    HapticState {
+        seq: tick,
+        t_read_ns,
+        position_m: p.frame.to_organ(x_dev),
+        velocity_m_s: velocity,
+        closure,
+        tool: p
+            .tool
+            .unwrap_or(if reading.blade_end_m.is_some() { TOOL_SCALPEL } else { TOOL_PROBE }),
+        flags: if adjusted { STATE_ADJUSTED } else { 0 },
+        orientation,
+        blade_end_m: p.frame.to_organ(blade_end),
     }
-    Ok(BridgeOutcome {
-        end,
-        report: r,
-        latency_ns: latency,
-        lateness_ns: lateness,
-        completion_ns: completion,
-        trace,
-        late_answers,
-        trace_dropped,
-        skipped_forces: link.skipped(),
-        link_errors,
-        memory_locked,
-        wake_latency_held: match wake_latency {
-            Some(Ok(_held)) => Ok(()),
-            Some(Err(why)) => Err(why),
-            None => Err("not asked".into()),
-        },
-        steal: timing::vcpu_steal().zip(steal0).map(|(b, a)| b.saturating_sub(a)),
-        wall: start.elapsed(),
-        cpu: timing::thread_cpu_time().saturating_sub(cpu0),
-    })
+}
+
+/// The newest force on the link; when `wait`, polling (or blocking, [`AnswerWake::Event`]) up
+/// to [`BridgeParams::answer_wait`] for the answer to this tick's own state (`tick`, read at
+/// `t_read_ns`). Answers to earlier states met on the way go to the log's trace.
+fn newest_answer<L: Link>(link: &mut L, p: &BridgeParams, wait: bool, tick: u64, t_read_ns: u64, log: &mut Log) -> Option<HapticCommand> {
+    let mut newest = link.poll_command();
+    if let Some(c) = &newest {
+        log.keep_late(c, tick);
+    }
+    let own = |c: &HapticCommand| c.state_seq == tick && c.t_read_ns == t_read_ns;
+    if wait && !newest.as_ref().is_some_and(own) {
+        let until = Instant::now() + p.answer_wait;
+        let mut answered = |link: &mut L| {
+            if let Some(c) = link.poll_command() {
+                log.keep_late(&c, tick);
+                newest = Some(c);
+            }
+            newest.as_ref().is_some_and(own)
+        };
+        let mut blocked = p.answer_wake == AnswerWake::Event;
+        while blocked && !answered(link) {
+            let left = until.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                break;
+            }
+            // a link that cannot block falls back to polling
+            blocked = link.wait_command(left);
+        }
+        if !blocked {
+            timing::wait_between(Instant::now(), until, || answered(link));
+        }
+    }
+    newest
+}
+
+/// What the loop secured before it started ([`BridgeParams::lock_memory`],
+/// [`BridgeParams::hold_wake_latency`]; the request is held while this lives), and the
+/// clocks its outcome is measured from.
+struct Safeguards {
+    memory_locked: Result<(), timing::Refused>,
+    wake_latency: Option<Result<timing::WakeLatencyRequest, timing::Refused>>,
+    steal0: Option<Duration>,
+    cpu0: Duration,
+}
+
+impl Safeguards {
+    fn take(p: &BridgeParams) -> Self {
+        let memory_locked = if p.lock_memory {
+            timing::prefault_stack();
+            timing::lock_memory()
+        } else {
+            Err(timing::Refused::NotAsked)
+        };
+        Self {
+            memory_locked,
+            wake_latency: p.hold_wake_latency.then(|| timing::request_wake_latency(0)),
+            steal0: timing::vcpu_steal(),
+            cpu0: timing::thread_cpu_time(),
+        }
+    }
+}
+
+/// What the loop records for its outcome: the histograms, the trace (at most `limit` rows, and
+/// as many answers that came late) and the link's failures.
+struct Log {
+    latency: Histogram<u64>,
+    lateness: Histogram<u64>,
+    completion: Histogram<u64>,
+    trace: Vec<TraceRow>,
+    late_answers: Vec<HapticCommand>,
+    trace_dropped: u64,
+    link_errors: u64,
+    limit: usize,
+}
+
+impl Log {
+    /// Allocates everything before the loop: a tick does not allocate.
+    fn new(limit: usize) -> Self {
+        Self {
+            latency: histogram(),
+            lateness: histogram(),
+            completion: histogram(),
+            trace: Vec::with_capacity(limit),
+            late_answers: Vec::with_capacity(limit),
+            trace_dropped: 0,
+            link_errors: 0,
+            limit,
+        }
+    }
+
+    /// Keeps `c` for the trace if it answers a state before `tick`'s (once, whether used or
+    /// not).
+    fn keep_late(&mut self, c: &HapticCommand, tick: u64) {
+        if c.state_seq < tick && self.late_answers.len() < self.limit && self.late_answers.last().is_none_or(|l| l.seq != c.seq) {
+            self.late_answers.push(*c);
+        }
+    }
+
+    /// Traces a tick, or counts it dropped past the limit.
+    fn trace(&mut self, row: TraceRow) {
+        if self.trace.len() < self.limit {
+            self.trace.push(row);
+        } else {
+            self.trace_dropped += 1;
+        }
+    }
+
+    /// Sends `r`, its latency percentiles filled in and stamped now, to the server.
+    fn report<L: Link>(&mut self, link: &mut L, r: &mut BridgeReport) {
+        fill_percentiles(r, &self.latency);
+        r.t_ns = shm::monotonic_ns();
+        if link.send_report(r).is_err() {
+            self.link_errors += 1;
+        }
+    }
+
+    /// The loop's outcome: it ended for `end` with the counts `r`.
+    fn outcome<L: Link>(self, end: EndReason, report: BridgeReport, link: &L, safeguards: Safeguards, start: Instant) -> BridgeOutcome {
+        BridgeOutcome {
+            end,
+            report,
+            latency_ns: self.latency,
+            lateness_ns: self.lateness,
+            completion_ns: self.completion,
+            trace: self.trace,
+            late_answers: self.late_answers,
+            trace_dropped: self.trace_dropped,
+            skipped_forces: link.skipped(),
+            link_errors: self.link_errors,
+            memory_locked: safeguards.memory_locked,
+            wake_latency_held: match safeguards.wake_latency {
+                Some(Ok(_held)) => Ok(()),
+                Some(Err(why)) => Err(why),
+                None => Err(timing::Refused::NotAsked),
+            },
+            steal: timing::vcpu_steal().zip(safeguards.steal0).map(|(b, a)| b.saturating_sub(a)),
+            wall: start.elapsed(),
+            cpu: timing::thread_cpu_time().saturating_sub(safeguards.cpu0),
+        }
+    }
 }
 
 fn fill_percentiles(r: &mut BridgeReport, h: &Histogram<u64>) {

@@ -102,12 +102,12 @@ pub fn prefault_stack() {
 /// loop's code, stack and buffers are never paged out and never fault back in (memory the
 /// loop allocated before it started included; later allocations are not locked, so a low
 /// `RLIMIT_MEMLOCK` cannot make them fail). Refused gracefully: the reason is returned.
-pub fn lock_memory() -> Result<(), String> {
+pub fn lock_memory() -> Result<(), Refused> {
     // SAFETY: plain syscall with a valid flag.
     if unsafe { libc::mlockall(libc::MCL_CURRENT) } == 0 {
         Ok(())
     } else {
-        Err(format!("mlockall refused: {}", std::io::Error::last_os_error()))
+        Err(Refused::denied(Request::LockMemory))
     }
 }
 
@@ -124,18 +124,89 @@ pub struct WakeLatencyRequest {
 
 /// Asks for CPU wake-ups within `us` microseconds (see [`WakeLatencyRequest`]); refused
 /// gracefully (the device needs root, or is missing outside Linux): the reason is returned.
-pub fn request_wake_latency(us: u32) -> Result<WakeLatencyRequest, String> {
+pub fn request_wake_latency(us: u32) -> Result<WakeLatencyRequest, Refused> {
     use std::io::Write;
-    let path = "/dev/cpu_dma_latency";
+    let device = |action: &'static str| {
+        move |e: std::io::Error| Refused::Device {
+            action,
+            path: CPU_DMA_LATENCY,
+            errno: e.raw_os_error().unwrap_or(libc::EIO),
+        }
+    };
     let mut file = std::fs::OpenOptions::new()
         .write(true)
-        .open(path)
-        .map_err(|e| format!("cannot open {path}: {e}"))?;
+        .open(CPU_DMA_LATENCY)
+        .map_err(device("open"))?;
     // the device takes a native-endian 32-bit value; the request lasts while the file is open
     let bound = i32::try_from(us).unwrap_or(i32::MAX);
-    file.write_all(&bound.to_ne_bytes())
-        .map_err(|e| format!("cannot write {path}: {e}"))?;
+    file.write_all(&bound.to_ne_bytes()).map_err(device("write"))?;
     Ok(WakeLatencyRequest { _file: file })
+}
+
+/// The kernel's PM QoS device for the CPU wake-up latency ([`WakeLatencyRequest`]).
+const CPU_DMA_LATENCY: &str = "/dev/cpu_dma_latency";
+
+/// What a real-time loop asks of the OS ([`Refused::Denied`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Request {
+    /// Every mapped page locked in RAM ([`lock_memory`]).
+    LockMemory,
+    /// `SCHED_FIFO` ([`request_realtime`]).
+    Fifo,
+    /// The thread pinned to this CPU ([`request_realtime`]).
+    Cpu(usize),
+}
+
+impl std::fmt::Display for Request {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::LockMemory => f.write_str("mlockall"),
+            Self::Fifo => f.write_str("SCHED_FIFO"),
+            Self::Cpu(c) => write!(f, "CPU {c}"),
+        }
+    }
+}
+
+/// Why a real-time loop runs without one of its safeguards: never fatal, reported beside its
+/// figures (the loop runs, its tail is what the OS left it).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Refused {
+    /// The caller did not ask for it.
+    #[error("not asked")]
+    NotAsked,
+    /// The thread that asked never said what it was granted (it ended at once, or is not
+    /// known).
+    #[error("{0}")]
+    Unreported(&'static str),
+    /// The OS refused the request (e.g. `EPERM` without the capability or the rlimit).
+    #[error("{request} refused: {}", std::io::Error::from_raw_os_error(*errno))]
+    Denied {
+        /// What was asked.
+        request: Request,
+        /// The OS error number.
+        errno: i32,
+    },
+    /// A device the request goes through could not be opened or written (root only, or
+    /// missing outside Linux).
+    #[error("cannot {action} {path}: {}", std::io::Error::from_raw_os_error(*errno))]
+    Device {
+        /// `open` or `write`.
+        action: &'static str,
+        /// The device.
+        path: &'static str,
+        /// The OS error number.
+        errno: i32,
+    },
+}
+
+impl Refused {
+    /// `request` refused with the calling thread's last OS error.
+    fn denied(request: Request) -> Self {
+        Self::Denied {
+            request,
+            errno: std::io::Error::last_os_error().raw_os_error().unwrap_or(libc::EIO),
+        }
+    }
 }
 
 /// Time the hypervisor ran something else while this machine's vCPUs wanted to run (the
@@ -178,9 +249,9 @@ pub fn process_cpu_time() -> Duration {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RealtimeStatus {
     /// `SCHED_FIFO` at this priority, or `None` (normal scheduling) with the reason.
-    pub fifo: Result<i32, String>,
+    pub fifo: Result<i32, Refused>,
     /// Pinned to this CPU, or why not (`Ok(None)`: not asked).
-    pub cpu: Result<Option<usize>, String>,
+    pub cpu: Result<Option<usize>, Refused>,
 }
 
 impl std::fmt::Display for RealtimeStatus {
@@ -210,16 +281,12 @@ impl std::fmt::Display for RealtimeStatus {
 /// [`WaitStrategy::Hybrid`].
 pub fn request_realtime(priority: Option<i32>, cpu: Option<usize>) -> RealtimeStatus {
     let fifo = match priority {
-        None => Err("not asked".to_string()),
+        None => Err(Refused::NotAsked),
         Some(p) => {
             let param = libc::sched_param { sched_priority: p };
             // SAFETY: plain syscall on the calling thread with a valid parameter struct.
             let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK, &param) };
-            if rc == 0 {
-                Ok(p)
-            } else {
-                Err(format!("SCHED_FIFO refused: {}", std::io::Error::last_os_error()))
-            }
+            if rc == 0 { Ok(p) } else { Err(Refused::denied(Request::Fifo)) }
         }
     };
     let cpu = match cpu {
@@ -234,7 +301,7 @@ pub fn request_realtime(priority: Option<i32>, cpu: Option<usize>) -> RealtimeSt
             if rc == 0 {
                 Ok(Some(c))
             } else {
-                Err(format!("CPU {c} refused: {}", std::io::Error::last_os_error()))
+                Err(Refused::denied(Request::Cpu(c)))
             }
         }
     };

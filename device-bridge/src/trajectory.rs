@@ -37,6 +37,53 @@ pub enum ScriptError {
     },
 }
 
+/// Why keyframes do not make a trajectory ([`Trajectory::new`], [`Trajectory::with_blades`]);
+/// keyframes are numbered from 1.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum KeyframeError {
+    /// No keyframe at all.
+    #[error("a trajectory needs at least one keyframe")]
+    Empty,
+    /// A time or a position that is not a finite number.
+    #[error("keyframe {0}: time and position must be finite numbers")]
+    NotFinite(usize),
+    /// A closure outside [0, 1].
+    #[error("keyframe {keyframe}: closure {closure} is outside [0, 1]")]
+    Closure {
+        /// The keyframe.
+        keyframe: usize,
+        /// Its closure.
+        closure: f64,
+    },
+    /// A time not after the keyframe before.
+    #[error("keyframe {keyframe}: time {t_s} s does not increase")]
+    NotIncreasing {
+        /// The keyframe.
+        keyframe: usize,
+        /// Its time (s).
+        t_s: f64,
+    },
+    /// A time more than [`MAX_DURATION_S`] after the first (milliseconds taken for seconds).
+    #[error("keyframe {keyframe}: time {t_s} s is more than {MAX_DURATION_S} s (a day) after the first; times are in seconds")]
+    TooLate {
+        /// The keyframe.
+        keyframe: usize,
+        /// Its time (s).
+        t_s: f64,
+    },
+    /// Not one blade per keyframe.
+    #[error("{blades} blades for {keyframes} keyframes")]
+    BladeCount {
+        /// Blades given.
+        blades: usize,
+        /// Keyframes.
+        keyframes: usize,
+    },
+    /// A blade whose end is not finite or whose orientation is not a unit quaternion.
+    #[error("keyframe {0}: the blade's end must be finite and its orientation a unit quaternion")]
+    Blade(usize),
+}
+
 /// A trajectory's state at one time.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Sample {
@@ -128,25 +175,23 @@ pub const MAX_SCRIPT_BYTES: u64 = 1 << 30;
 impl Trajectory {
     /// From keyframes; times must be finite and strictly increasing, spanning at most
     /// [`MAX_DURATION_S`], positions finite, closures in [0, 1].
-    pub fn new(keys: Vec<(f64, [f64; 3], f64)>) -> Result<Self, String> {
+    pub fn new(keys: Vec<(f64, [f64; 3], f64)>) -> Result<Self, KeyframeError> {
         if keys.is_empty() {
-            return Err("a trajectory needs at least one keyframe".into());
+            return Err(KeyframeError::Empty);
         }
-        for (i, (t, p, c)) in keys.iter().enumerate() {
-            if !t.is_finite() || !p.iter().all(|x| x.is_finite()) {
-                return Err(format!("keyframe {}: time and position must be finite numbers", i + 1));
+        for (i, &(t_s, p, closure)) in keys.iter().enumerate() {
+            let keyframe = i + 1;
+            if !t_s.is_finite() || !p.iter().all(|x| x.is_finite()) {
+                return Err(KeyframeError::NotFinite(keyframe));
             }
-            if !(0.0..=1.0).contains(c) {
-                return Err(format!("keyframe {}: closure {c} is outside [0, 1]", i + 1));
+            if !(0.0..=1.0).contains(&closure) {
+                return Err(KeyframeError::Closure { keyframe, closure });
             }
-            if i > 0 && *t <= keys[i - 1].0 {
-                return Err(format!("keyframe {}: time {t} s does not increase", i + 1));
+            if i > 0 && t_s <= keys[i - 1].0 {
+                return Err(KeyframeError::NotIncreasing { keyframe, t_s });
             }
-            if *t - keys[0].0 > MAX_DURATION_S {
-                return Err(format!(
-                    "keyframe {}: time {t} s is more than {MAX_DURATION_S} s (a day) after the first; times are in seconds",
-                    i + 1
-                ));
+            if t_s - keys[0].0 > MAX_DURATION_S {
+                return Err(KeyframeError::TooLate { keyframe, t_s });
             }
         }
         Ok(Self {
@@ -159,17 +204,17 @@ impl Trajectory {
 
     /// The trajectory of a scalpel: one blade per keyframe, each with a finite end and a
     /// finite orientation of norm within 0.1 of 1.
-    pub fn with_blades(mut self, blades: Vec<BladeKey>) -> Result<Self, String> {
+    pub fn with_blades(mut self, blades: Vec<BladeKey>) -> Result<Self, KeyframeError> {
         if blades.len() != self.times.len() {
-            return Err(format!("{} blades for {} keyframes", blades.len(), self.times.len()));
+            return Err(KeyframeError::BladeCount {
+                blades: blades.len(),
+                keyframes: self.times.len(),
+            });
         }
         for (i, b) in blades.iter().enumerate() {
             let q = b.orientation.iter().map(|x| x * x).sum::<f64>().sqrt();
             if !b.end_m.iter().chain(&b.orientation).all(|x| x.is_finite()) || (q - 1.0).abs() > 0.1 {
-                return Err(format!(
-                    "keyframe {}: the blade's end must be finite and its orientation a unit quaternion",
-                    i + 1
-                ));
+                return Err(KeyframeError::Blade(i + 1));
             }
         }
         self.blades = Some(blades);
@@ -219,11 +264,11 @@ impl Trajectory {
             blades.extend(blade);
             keys.push((row.t_s, [row.x_m, row.y_m, row.z_m], row.closure));
         }
-        let t = Self::new(keys).map_err(bad)?;
+        let t = Self::new(keys).map_err(|e| bad(e.to_string()))?;
         if blades.is_empty() {
             Ok(t)
         } else {
-            t.with_blades(blades).map_err(bad)
+            t.with_blades(blades).map_err(|e| bad(e.to_string()))
         }
     }
 
@@ -372,14 +417,16 @@ mod tests {
     fn bad_trajectories_are_refused_with_the_keyframe() {
         assert!(Trajectory::new(vec![]).is_err());
         let e = Trajectory::new(vec![(0.0, [0.0; 3], 0.0), (0.0, [1.0; 3], 0.0)]).unwrap_err();
-        assert!(e.contains("keyframe 2"), "{e}");
+        assert!(matches!(e, KeyframeError::NotIncreasing { keyframe: 2, .. }), "{e}");
+        assert!(e.to_string().contains("keyframe 2"), "{e}");
         let e = Trajectory::new(vec![(0.0, [f64::NAN, 0.0, 0.0], 0.0)]).unwrap_err();
-        assert!(e.contains("finite"), "{e}");
+        assert_eq!(e, KeyframeError::NotFinite(1));
+        assert!(e.to_string().contains("finite"), "{e}");
         let e = Trajectory::new(vec![(0.0, [0.0; 3], 2.0)]).unwrap_err();
-        assert!(e.contains("closure"), "{e}");
+        assert!(e.to_string().contains("closure"), "{e}");
         // a keyframe at 10⁹ s (milliseconds or nanoseconds taken for seconds)
         let e = Trajectory::new(vec![(0.0, [0.0; 3], 0.0), (1e9, [0.0; 3], 0.0)]).unwrap_err();
-        assert!(e.contains("keyframe 2") && e.contains("a day"), "{e}");
+        assert!(e.to_string().contains("keyframe 2") && e.to_string().contains("a day"), "{e}");
         assert!(Trajectory::new(vec![(5.0, [0.0; 3], 0.0), (5.0 + MAX_DURATION_S, [0.0; 3], 0.0)]).is_ok());
     }
 

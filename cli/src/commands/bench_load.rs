@@ -31,8 +31,8 @@ use hdrhistogram::Histogram;
 use serde::Serialize;
 use vademecum_engine::scene::Scene;
 
-use super::bench_load_chaos::{Bridges, Chaos};
-use super::bench_load_client::{Drive, client, connect};
+use super::bench_load_chaos::{Bridges, Chaos, ChaosAccount};
+use super::bench_load_client::{ClientAccount, Drive, client, connect};
 use super::bench_session::{EchoServer, NullCounts, bench_path, echo_once, hist, null_loop_until};
 use crate::cli::BenchLoadArgs;
 use crate::commands::build::ensure_bundles;
@@ -379,9 +379,6 @@ fn check_arguments(a: &BenchLoadArgs) -> anyhow::Result<()> {
 
 pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
     check_arguments(&a)?;
-    let chaos_sessions = if a.chaos_every.is_some() { a.chaos_clients } else { 0 };
-    // the device sessions are the last --haptic ones
-    let first_haptic = a.sessions - a.haptic;
     let scene = Scene::builtin(&a.builtin)?;
     let tearing = scene.spec.effects.tearing;
     if a.builtin != "organ" && !tearing {
@@ -406,97 +403,271 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
     let root = dir.parent().map(PathBuf::from).unwrap_or_else(|| PathBuf::from("/"));
     let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let server = Server::start(&a, &root)?;
-    let period = Duration::from_secs_f64(1.0 / a.rate);
+    let plan = Plan {
+        chaos_sessions: if a.chaos_every.is_some() { a.chaos_clients } else { 0 },
+        // the device sessions are the last --haptic ones
+        first_haptic: a.sessions - a.haptic,
+        period: Duration::from_secs_f64(1.0 / a.rate),
+        tearing,
+        size,
+        addr: format!("http://{}", server.addr),
+    };
     let rt = tokio::runtime::Runtime::new().context("cannot start the async runtime")?;
-    let report = rt.block_on(async {
-        let c = vademecum_client::Client::connect(format!("http://{}", server.addr)).await?;
-        let (idle_rss, _) = server.rss();
-        let mut sessions = Vec::new();
-        for k in 0..a.sessions {
-            let scene = vademecum_client::SceneSpec::Builtin(a.builtin.clone());
-            let label = format!("load{k}");
-            let s = if k >= first_haptic {
-                let channel = format!("load-{}-h{k}", std::process::id());
-                c.create_haptic_session(scene, &name, &label, &channel).await
+    let report = rt.block_on(load(&a, &plan, &server, &name))?;
+    drop(server);
+    print_report(&report)?;
+    if let Some(path) = &a.json {
+        std::fs::write(path, serde_json::to_string_pretty(&report)?).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// How a run's sessions are driven, from its arguments and scene.
+struct Plan {
+    /// The first sessions, each driven by a chaos client (a process killed now and then).
+    chaos_sessions: usize,
+    /// The sessions from this one on are device sessions, driven by bridges.
+    first_haptic: usize,
+    /// Between two tool states of a client.
+    period: Duration,
+    /// A tearing scene (a grasper pulls) or the organ (a probe presses).
+    tearing: bool,
+    /// The organ's size (m): its bounding box's diagonal.
+    size: f64,
+    /// The server's address.
+    addr: String,
+}
+
+/// The load itself: creates the sessions on `server` (bundle folder `name`), drives them for
+/// `--seconds` beside the null loop, the echo and the hog, and gathers the figures.
+async fn load(a: &BenchLoadArgs, plan: &Plan, server: &Server, name: &str) -> anyhow::Result<Report> {
+    let (idle_rss, _) = server.rss();
+    let sessions = create_sessions(a, plan, name).await?;
+    // the echo, in this process
+    let echo_server = Arc::new(EchoServer::start().await?);
+    let stop = Arc::new(AtomicBool::new(false));
+    let cpu0 = server.cpu();
+    let kinds0 = server.cpu_by_thread_kind();
+    let wall = Instant::now();
+    let ids: Vec<String> = sessions.iter().map(|s| s.id().to_string()).collect();
+    let script_dir = tempfile::tempdir().context("cannot make a folder for the bridges' script")?;
+    let bridges = start_bridges(a, plan, script_dir.path())?;
+    let chaos = match plan.chaos_sessions {
+        0 => None,
+        k => Some(Chaos::start(&plan.addr, &ids[..k], a.rate)?),
+    };
+    let (clients, viewers) = spawn_drivers(a, plan, &sessions, &stop)?;
+    let echo = tokio::spawn(echo_client(echo_server.clone(), plan.period, stop.clone()));
+    let null_counts = Arc::new(NullCounts::default());
+    let null = {
+        let (stop, counts) = (stop.clone(), null_counts.clone());
+        std::thread::spawn(move || null_loop_until(&stop, &counts))
+    };
+    let mut run = UnderLoad {
+        wall,
+        chaos,
+        bridges,
+        windows: Vec::new(),
+        hog_seconds: 0.0,
+    };
+    run.drive(a, plan, server, &sessions, &null_counts).await?;
+    let cpu = match (cpu0, server.cpu()) {
+        (Some(a0), Some(a1)) => (a1 - a0).as_secs_f64() / wall.elapsed().as_secs_f64(),
+        _ => f64::NAN,
+    };
+    let (rss, peak) = server.rss();
+    let secs = wall.elapsed().as_secs_f64();
+    let cpu_by_thread: std::collections::BTreeMap<String, f64> = server
+        .cpu_by_thread_kind()
+        .into_iter()
+        .map(|(k, t)| {
+            let before = kinds0.get(&k).copied().unwrap_or(Duration::ZERO);
+            (k, t.saturating_sub(before).as_secs_f64() / secs)
+        })
+        .filter(|(_, c)| *c > 0.0)
+        .collect();
+    stop.store(true, Ordering::Relaxed);
+    let chaos = run.chaos.map(Chaos::finish);
+    let bridge_kills = run.bridges.as_ref().map_or(0, |b| b.kills);
+    // the device sessions' figures while their bridges still run
+    let mut haptic_stats = Vec::new();
+    for s in &sessions[plan.first_haptic..] {
+        haptic_stats.push(s.stats().await?);
+    }
+    if let Some(b) = run.bridges {
+        b.finish();
+    }
+    let clients = Accounts::of(clients, viewers, chaos.as_ref()).await?;
+    let echo = echo.await??;
+    let (null_p, null_misses, null_ticks) = null.join().map_err(|_| anyhow::anyhow!("the null loop panicked"))?;
+    if let Ok(echo_server) = Arc::try_unwrap(echo_server) {
+        echo_server.stop().await;
+    }
+    let closed = Closed::of(sessions).await?;
+    Ok(Report {
+        sessions: a.sessions,
+        clients_per_session: a.clients_per_session,
+        viewers_per_session: a.viewers,
+        seconds: a.seconds,
+        rate_hz: a.rate,
+        tick_workers: a.tick_workers,
+        frame_workers: a.frame_workers,
+        server_wake_latency: server.wake_latency.clone(),
+        null_loop_lateness_us: null_p,
+        null_loop_misses: null_misses,
+        null_loop_ticks: null_ticks,
+        session_ticks: closed.ticks,
+        session_misses: closed.misses,
+        session_miss_rate_worst: closed.worst_rate,
+        session_tick_work_p99_us_worst: closed.worst_work,
+        round_trip_us: Percentiles::of(&clients.rtt),
+        echo_round_trip_us: Percentiles::of(&echo),
+        states_sent: clients.sent,
+        states_answered: clients.answered,
+        states_refused: clients.refused,
+        states_lost: clients.sent.saturating_sub(clients.answered + clients.refused + clients.in_flight),
+        answers_in_contact: clients.contact,
+        answers_torn: clients.torn,
+        frames_received: clients.frames,
+        server_cpu_cores: cpu,
+        server_cpu_cores_by_thread: cpu_by_thread,
+        server_rss_mib: rss,
+        server_peak_rss_mib: peak,
+        server_idle_rss_mib: idle_rss,
+        session_memory_mib: closed.memory as f64 / a.sessions as f64 / 1048576.0,
+        states_in_flight_at_kill: clients.in_flight,
+        windows: run.windows,
+        haptic: (a.haptic > 0).then(|| HapticReport::of(&haptic_stats, a, bridge_kills)),
+        hog_threads: a.hog,
+        hog_seconds: run.hog_seconds,
+        fidelity_fallbacks: closed.fallbacks,
+        reduced_tick_pct: 100.0 * closed.reduced_ticks as f64 / closed.ticks.max(1) as f64,
+        chaos: chaos.map(|c| ChaosReport {
+            clients: plan.chaos_sessions,
+            every_s: a.chaos_every.unwrap_or(0.0),
+            kills: c.kills,
+            states_sent: c.sent,
+            states_answered: c.answered,
+            states_refused: c.refused,
+            states_in_flight_at_kill: c.in_flight_at_kill,
+        }),
+    })
+}
+
+/// Creates the run's `--sessions` sessions of the built-in scene (bundle folder `name`), the
+/// last `--haptic` of them device sessions on channels of their own.
+async fn create_sessions(a: &BenchLoadArgs, plan: &Plan, name: &str) -> anyhow::Result<Vec<vademecum_client::Session>> {
+    let c = vademecum_client::Client::connect(plan.addr.clone()).await?;
+    let mut sessions = Vec::new();
+    for k in 0..a.sessions {
+        let scene = vademecum_client::SceneSpec::Builtin(a.builtin.clone());
+        let label = format!("load{k}");
+        let s = if k >= plan.first_haptic {
+            c.create_haptic_session(scene, name, &label, &haptic_channel(k)).await
+        } else {
+            c.create_session(scene, name, &label).await
+        }
+        .with_context(|| format!("session {k} of {}", a.sessions))?;
+        sessions.push(s);
+    }
+    Ok(sessions)
+}
+
+/// The shared-memory channel of device session `k` (unique to this process).
+fn haptic_channel(k: usize) -> String {
+    format!("load-{}-h{k}", std::process::id())
+}
+
+/// Starts a bridge per device session (`--haptic`), each playing the bench's hand path from a
+/// script written into `script_dir`.
+fn start_bridges(a: &BenchLoadArgs, plan: &Plan, script_dir: &std::path::Path) -> anyhow::Result<Option<Bridges>> {
+    if a.haptic == 0 {
+        return Ok(None);
+    }
+    let script = script_dir.join("hand.csv");
+    let keys = (0..=((a.seconds + 10.0) * 100.0) as u64)
+        .map(|j| (j as f64 * 0.01, bench_path(10 * j), 0.0))
+        .collect();
+    vademecum_bridge::trajectory::Trajectory::new(keys)
+        .map_err(|e| anyhow::anyhow!("the bridges' hand script: {e}"))?
+        .write(&script)
+        .context("cannot write the bridges' hand script")?;
+    let channels: Vec<String> = (plan.first_haptic..a.sessions).map(haptic_channel).collect();
+    Ok(Some(Bridges::start(
+        a.bridge.as_deref(),
+        &channels,
+        &script,
+        a.seconds + 10.0,
+        a.bridge_answer_wake,
+    )?))
+}
+
+/// The gRPC clients (`--clients-per-session` for each session with neither a chaos client nor
+/// a bridge; a probe, or a grasper on a tearing scene) and the viewers (`--viewers` each).
+#[allow(clippy::type_complexity)]
+fn spawn_drivers(
+    a: &BenchLoadArgs,
+    plan: &Plan,
+    sessions: &[vademecum_client::Session],
+    stop: &Arc<AtomicBool>,
+) -> anyhow::Result<(Vec<tokio::task::JoinHandle<ClientAccount>>, Vec<tokio::task::JoinHandle<u64>>)> {
+    let mut clients = Vec::new();
+    let mut viewers = Vec::new();
+    for (k, s) in sessions.iter().enumerate() {
+        // a chaos session's client is a process of its own
+        for _ in 0..a.clients_per_session * usize::from(k >= plan.chaos_sessions && k < plan.first_haptic) {
+            let quiet: super::bench_load_client::Progress = Box::new(|_| {});
+            let drive = if plan.tearing {
+                Drive::grasp(s.info(), plan.size).context("a tearing session without a grasp site")?
             } else {
-                c.create_session(scene, &name, &label).await
-            }
-            .with_context(|| format!("session {k} of {}", a.sessions))?;
-            sessions.push(s);
+                Drive::Probe
+            };
+            clients.push(tokio::spawn(client(
+                plan.addr.clone(),
+                s.id().to_string(),
+                drive,
+                plan.period,
+                stop.clone(),
+                quiet,
+            )));
         }
-        // the echo, in this process
-        let echo_server = Arc::new(EchoServer::start().await?);
-        let stop = Arc::new(AtomicBool::new(false));
-        let cpu0 = server.cpu();
-        let kinds0 = server.cpu_by_thread_kind();
-        let wall = Instant::now();
-        let mut clients = Vec::new();
-        let mut viewers = Vec::new();
-        let addr = format!("http://{}", server.addr);
-        let ids: Vec<String> = sessions.iter().map(|s| s.id().to_string()).collect();
-        let script_dir = tempfile::tempdir().context("cannot make a folder for the bridges' script")?;
-        let mut bridges = match a.haptic {
-            0 => None,
-            _ => {
-                let script = script_dir.path().join("hand.csv");
-                let keys = (0..=((a.seconds + 10.0) * 100.0) as u64)
-                    .map(|j| (j as f64 * 0.01, bench_path(10 * j), 0.0))
-                    .collect();
-                vademecum_bridge::trajectory::Trajectory::new(keys)
-                    .map_err(|e| anyhow::anyhow!("the bridges' hand script: {e}"))?
-                    .write(&script)
-                    .context("cannot write the bridges' hand script")?;
-                let channels: Vec<String> = (first_haptic..a.sessions)
-                    .map(|k| format!("load-{}-h{k}", std::process::id()))
-                    .collect();
-                Some(Bridges::start(
-                    a.bridge.as_deref(),
-                    &channels,
-                    &script,
-                    a.seconds + 10.0,
-                    a.bridge_answer_wake,
-                )?)
-            }
-        };
+        for _ in 0..a.viewers {
+            viewers.push(tokio::spawn(viewer(plan.addr.clone(), s.id().to_string(), stop.clone())));
+        }
+    }
+    Ok((clients, viewers))
+}
+
+/// The run while under load: the chaos and the bridges it kills, the windows it samples.
+struct UnderLoad {
+    wall: Instant,
+    chaos: Option<Chaos>,
+    bridges: Option<Bridges>,
+    windows: Vec<Window>,
+    /// How long the hog ran (s).
+    hog_seconds: f64,
+}
+
+impl UnderLoad {
+    /// Holds the load for `--seconds`: runs the CPU hog for `--hog-seconds`, kills a chaos
+    /// client every `--chaos-every` and one bridge halfway, and samples every session and the
+    /// null loop each `--window`.
+    async fn drive(
+        &mut self,
+        a: &BenchLoadArgs,
+        plan: &Plan,
+        server: &Server,
+        sessions: &[vademecum_client::Session],
+        null_counts: &NullCounts,
+    ) -> anyhow::Result<()> {
+        let wall = self.wall;
         let mut bridge_kill = a.chaos_every.map(|_| wall + Duration::from_secs_f64(a.seconds / 2.0));
-        let mut chaos = match chaos_sessions {
-            0 => None,
-            k => Some(Chaos::start(&addr, &ids[..k], a.rate)?),
-        };
-        for (k, s) in sessions.iter().enumerate() {
-            // a chaos session's client is a process of its own
-            for _ in 0..a.clients_per_session * usize::from(k >= chaos_sessions && k < first_haptic) {
-                let quiet: super::bench_load_client::Progress = Box::new(|_| {});
-                let drive = if tearing {
-                    Drive::grasp(s.info(), size).context("a tearing session without a grasp site")?
-                } else {
-                    Drive::Probe
-                };
-                clients.push(tokio::spawn(client(
-                    addr.clone(),
-                    s.id().to_string(),
-                    drive,
-                    period,
-                    stop.clone(),
-                    quiet,
-                )));
-            }
-            for _ in 0..a.viewers {
-                viewers.push(tokio::spawn(viewer(addr.clone(), s.id().to_string(), stop.clone())));
-            }
-        }
-        let echo = tokio::spawn(echo_client(echo_server.clone(), period, stop.clone()));
-        let null_counts = Arc::new(NullCounts::default());
-        let null = {
-            let (stop, counts) = (stop.clone(), null_counts.clone());
-            std::thread::spawn(move || null_loop_until(&stop, &counts))
-        };
         let progress = indicatif::ProgressBar::new(a.seconds.ceil() as u64).with_message("under load");
         let end = wall + Duration::from_secs_f64(a.seconds);
         let window = Duration::from_secs_f64(a.window);
-        let (mut next_window, mut windows, mut kills) = (wall + window, Vec::new(), 0);
+        let (mut next_window, mut kills) = (wall + window, 0);
         let mut next_kill = a.chaos_every.map(|e| wall + window + Duration::from_secs_f64(e));
-        let mut before = sample(&sessions, &null_counts).await?;
+        let mut before = sample(sessions, null_counts).await?;
         // the CPU hog, beside the server, for --hog-seconds of the load
         let hog_stop = Arc::new(AtomicBool::new(false));
         let hogs: Vec<_> = (0..a.hog)
@@ -514,14 +685,14 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
             }
             tokio::time::sleep(Duration::from_millis(250).min(end.saturating_duration_since(Instant::now()))).await;
             progress.set_position(wall.elapsed().as_secs());
-            if let (Some(c), Some(t)) = (&mut chaos, next_kill)
+            if let (Some(c), Some(t)) = (&mut self.chaos, next_kill)
                 && Instant::now() >= t
             {
                 c.kill_one()?;
                 kills += 1;
                 next_kill = a.chaos_every.map(|e| t + Duration::from_secs_f64(e));
             }
-            if let (Some(b), Some(t)) = (&mut bridges, bridge_kill)
+            if let (Some(b), Some(t)) = (&mut self.bridges, bridge_kill)
                 && Instant::now() >= t
             {
                 b.kill_one()?;
@@ -529,143 +700,115 @@ pub fn run(a: BenchLoadArgs) -> anyhow::Result<ExitCode> {
                 kills += 1;
             }
             if Instant::now() >= next_window || Instant::now() >= end {
-                let now = sample(&sessions, &null_counts).await?;
+                let now = sample(sessions, null_counts).await?;
                 let groups = Groups {
-                    chaos: chaos_sessions,
+                    chaos: plan.chaos_sessions,
                     haptic: a.haptic,
                 };
-                windows.push(now.window_since(&before, wall.elapsed().as_secs_f64(), server.rss().0, groups, kills));
+                self.windows
+                    .push(now.window_since(&before, wall.elapsed().as_secs_f64(), server.rss().0, groups, kills));
                 (before, kills) = (now, 0);
                 next_window += window;
             }
         }
         progress.finish_and_clear();
         hog_stop.store(true, Ordering::Relaxed);
-        let hog_seconds = hog_ran.unwrap_or_else(|| wall.elapsed().as_secs_f64());
+        self.hog_seconds = hog_ran.unwrap_or_else(|| wall.elapsed().as_secs_f64());
         for h in hogs {
             let _ = h.join();
         }
-        let cpu = match (cpu0, server.cpu()) {
-            (Some(a0), Some(a1)) => (a1 - a0).as_secs_f64() / wall.elapsed().as_secs_f64(),
-            _ => f64::NAN,
+        Ok(())
+    }
+}
+
+/// Every client's account of a run, the chaos clients' included, and the viewers' frames.
+struct Accounts {
+    sent: u64,
+    answered: u64,
+    refused: u64,
+    contact: u64,
+    torn: u64,
+    /// States sent by killed clients and not answered when they died.
+    in_flight: u64,
+    rtt: Histogram<u64>,
+    frames: u64,
+}
+
+impl Accounts {
+    /// Waits for the clients and the viewers to end (after the run's stop) and adds them up.
+    async fn of(
+        clients: Vec<tokio::task::JoinHandle<ClientAccount>>,
+        viewers: Vec<tokio::task::JoinHandle<u64>>,
+        chaos: Option<&ChaosAccount>,
+    ) -> anyhow::Result<Self> {
+        let mut me = Self {
+            sent: 0,
+            answered: 0,
+            refused: 0,
+            contact: 0,
+            torn: 0,
+            in_flight: chaos.map_or(0, |c| c.in_flight_at_kill),
+            rtt: hist(),
+            frames: 0,
         };
-        let (rss, peak) = server.rss();
-        let secs = wall.elapsed().as_secs_f64();
-        let cpu_by_thread: std::collections::BTreeMap<String, f64> = server
-            .cpu_by_thread_kind()
-            .into_iter()
-            .map(|(k, t)| {
-                let before = kinds0.get(&k).copied().unwrap_or(Duration::ZERO);
-                (k, t.saturating_sub(before).as_secs_f64() / secs)
-            })
-            .filter(|(_, c)| *c > 0.0)
-            .collect();
-        stop.store(true, Ordering::Relaxed);
-        let chaos = chaos.map(Chaos::finish);
-        let bridge_kills = bridges.as_ref().map_or(0, |b| b.kills);
-        // the device sessions' figures while their bridges still run
-        let mut haptic_stats = Vec::new();
-        for s in &sessions[first_haptic..] {
-            haptic_stats.push(s.stats().await?);
-        }
-        if let Some(b) = bridges {
-            b.finish();
-        }
-        let mut rtt = hist();
-        let (mut sent, mut answered, mut refused, mut contact, mut torn) = (0, 0, 0, 0, 0);
         for c in clients {
             let acc = c.await?;
-            sent += acc.sent;
-            answered += acc.answered;
-            refused += acc.refused;
-            contact += acc.contact;
-            torn += acc.torn;
+            me.sent += acc.sent;
+            me.answered += acc.answered;
+            me.refused += acc.refused;
+            me.contact += acc.contact;
+            me.torn += acc.torn;
             if let Some(h) = acc.rtt {
-                let _ = rtt.add(&h);
+                let _ = me.rtt.add(&h);
             }
         }
-        if let Some(c) = &chaos {
-            sent += c.sent;
-            answered += c.answered;
-            refused += c.refused;
+        if let Some(c) = chaos {
+            me.sent += c.sent;
+            me.answered += c.answered;
+            me.refused += c.refused;
         }
-        let in_flight = chaos.map_or(0, |c| c.in_flight_at_kill);
-        let mut frames = 0;
         for v in viewers {
-            frames += v.await?;
+            me.frames += v.await?;
         }
-        let echo = echo.await??;
-        let (null_p, null_misses, null_ticks) = null.join().map_err(|_| anyhow::anyhow!("the null loop panicked"))?;
-        if let Ok(echo_server) = Arc::try_unwrap(echo_server) {
-            echo_server.stop().await;
-        }
-        let (mut ticks, mut misses, mut worst_rate, mut worst_work) = (0, 0, 0.0f64, 0.0f64);
-        let (mut memory, mut fallbacks, mut reduced_ticks) = (0, 0, 0);
+        Ok(me)
+    }
+}
+
+/// What the sessions said of themselves when closed: ticks, misses, memory, fallbacks.
+struct Closed {
+    ticks: u64,
+    misses: u64,
+    worst_rate: f64,
+    worst_work: f64,
+    memory: u64,
+    fallbacks: u64,
+    reduced_ticks: u64,
+}
+
+impl Closed {
+    /// Closes every session and adds up its statistics.
+    async fn of(sessions: Vec<vademecum_client::Session>) -> anyhow::Result<Self> {
+        let mut me = Self {
+            ticks: 0,
+            misses: 0,
+            worst_rate: 0.0,
+            worst_work: 0.0,
+            memory: 0,
+            fallbacks: 0,
+            reduced_ticks: 0,
+        };
         for s in sessions {
             let st = s.close().await?;
-            memory += st.memory_bytes;
-            fallbacks += st.fidelity_fallbacks;
-            reduced_ticks += st.reduced_ticks;
-            ticks += st.ticks;
-            misses += st.deadline_misses;
-            worst_rate = worst_rate.max(st.deadline_misses as f64 / st.ticks.max(1) as f64);
-            worst_work = worst_work.max(st.tick_work_p99_us);
+            me.memory += st.memory_bytes;
+            me.fallbacks += st.fidelity_fallbacks;
+            me.reduced_ticks += st.reduced_ticks;
+            me.ticks += st.ticks;
+            me.misses += st.deadline_misses;
+            me.worst_rate = me.worst_rate.max(st.deadline_misses as f64 / st.ticks.max(1) as f64);
+            me.worst_work = me.worst_work.max(st.tick_work_p99_us);
         }
-        anyhow::Ok(Report {
-            sessions: a.sessions,
-            clients_per_session: a.clients_per_session,
-            viewers_per_session: a.viewers,
-            seconds: a.seconds,
-            rate_hz: a.rate,
-            tick_workers: a.tick_workers,
-            frame_workers: a.frame_workers,
-            server_wake_latency: server.wake_latency.clone(),
-            null_loop_lateness_us: null_p,
-            null_loop_misses: null_misses,
-            null_loop_ticks: null_ticks,
-            session_ticks: ticks,
-            session_misses: misses,
-            session_miss_rate_worst: worst_rate,
-            session_tick_work_p99_us_worst: worst_work,
-            round_trip_us: Percentiles::of(&rtt),
-            echo_round_trip_us: Percentiles::of(&echo),
-            states_sent: sent,
-            states_answered: answered,
-            states_refused: refused,
-            states_lost: sent.saturating_sub(answered + refused + in_flight),
-            answers_in_contact: contact,
-            answers_torn: torn,
-            frames_received: frames,
-            server_cpu_cores: cpu,
-            server_cpu_cores_by_thread: cpu_by_thread,
-            server_rss_mib: rss,
-            server_peak_rss_mib: peak,
-            server_idle_rss_mib: idle_rss,
-            session_memory_mib: memory as f64 / a.sessions as f64 / 1048576.0,
-            states_in_flight_at_kill: in_flight,
-            windows,
-            haptic: (a.haptic > 0).then(|| HapticReport::of(&haptic_stats, &a, bridge_kills)),
-            hog_threads: a.hog,
-            hog_seconds,
-            fidelity_fallbacks: fallbacks,
-            reduced_tick_pct: 100.0 * reduced_ticks as f64 / ticks.max(1) as f64,
-            chaos: chaos.map(|c| ChaosReport {
-                clients: chaos_sessions,
-                every_s: a.chaos_every.unwrap_or(0.0),
-                kills: c.kills,
-                states_sent: c.sent,
-                states_answered: c.answered,
-                states_refused: c.refused,
-                states_in_flight_at_kill: c.in_flight_at_kill,
-            }),
-        })
-    })?;
-    drop(server);
-    print_report(&report)?;
-    if let Some(path) = &a.json {
-        std::fs::write(path, serde_json::to_string_pretty(&report)?).with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(me)
     }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// Which sessions a window reports apart: the first `chaos` (clients killed), the last

@@ -126,7 +126,7 @@ fn check_arguments(a: &ServeArgs) -> anyhow::Result<()> {
 /// fleet), and whether it holds the CPU's wake-up latency.
 fn print_banner(
     a: &ServeArgs,
-    wake_latency: &Option<Result<vademecum_bridge::timing::WakeLatencyRequest, String>>,
+    wake_latency: &Option<Result<vademecum_bridge::timing::WakeLatencyRequest, vademecum_bridge::timing::Refused>>,
     listener: &tokio::net::TcpListener,
     metrics: Option<&tokio::net::TcpListener>,
     web: Option<&tokio::net::TcpListener>,

@@ -70,9 +70,10 @@ use crate::fem::assembly::{MaterialMap, SymmetricMatrix};
 use crate::fem::linear_static::StaticProblem;
 use crate::mesh::Mesh;
 use crate::solve::Cholesky;
+use crate::xfem::XfemError;
 use crate::xfem::corotational::{CorotationalError, CorotationalXfem, FrameReport, Frames};
 use crate::xfem::enrichment::Enrichment;
-use crate::xfem::visual::{Embedding, VisualMesh};
+use crate::xfem::visual::{Embedding, VisualError, VisualMesh};
 use crate::xfem::visual_split::{self, VertexSide};
 
 use super::Contact;
@@ -296,6 +297,28 @@ pub fn pool_threads() -> usize {
     std::thread::available_parallelism().map_or(1, |n| n.get().saturating_sub(1).max(1))
 }
 
+/// Why a session's co-rotational deformation could not start or take a cut.
+#[derive(Debug, thiserror::Error)]
+pub enum DeformationError {
+    /// Its thread pool could not start.
+    #[error("cannot start the co-rotational pool: {0}")]
+    Pool(#[from] rayon::ThreadPoolBuildError),
+    /// Its factor thread could not start.
+    #[error("cannot start the factor thread: {0}")]
+    Thread(#[source] std::io::Error),
+    /// The model of the cut or its factor could not be made.
+    #[error(transparent)]
+    Model(#[from] XfemError),
+    /// The visual mesh (`split`: as split along the cut) cannot be embedded in the cells.
+    #[error("the {}visual mesh cannot be embedded: {source}", if *split { "split " } else { "" })]
+    Embedding {
+        /// Whether it is the mesh split along the cut.
+        split: bool,
+        /// Why not.
+        source: VisualError,
+    },
+}
+
 /// The visual mesh as split along the cut at one revision, and its embedding.
 #[derive(Debug, Clone)]
 pub struct VisualSurface {
@@ -370,7 +393,7 @@ pub struct CorotationalDeformation {
     state: Option<State>,
     pool: Arc<rayon::ThreadPool>,
     jobs: mpsc::SyncSender<FactorJob>,
-    factors: mpsc::Receiver<(Arc<CorotationalXfem>, Result<Cholesky, String>)>,
+    factors: mpsc::Receiver<(Arc<CorotationalXfem>, Result<Cholesky, XfemError>)>,
     busy: bool,
     frames: u64,
     corrections: triple_buffer::Input<Correction>,
@@ -407,14 +430,13 @@ impl CorotationalDeformation {
         materials: MaterialMap,
         problem: StaticProblem,
         visual: Option<VisualMesh>,
-    ) -> Result<(Self, Corrections), String> {
+    ) -> Result<(Self, Corrections), DeformationError> {
         let pool = Arc::new(
             rayon::ThreadPoolBuilder::new()
                 .num_threads(pool_threads())
                 .thread_name(|i| format!("corot-{i}"))
                 .start_handler(|_| super::lower_thread_priority())
-                .build()
-                .map_err(|e| format!("cannot start the co-rotational pool: {e}"))?,
+                .build()?,
         );
         let (jobs, job_rx) = mpsc::sync_channel::<FactorJob>(1);
         let (factor_tx, factors) = mpsc::channel();
@@ -424,13 +446,13 @@ impl CorotationalDeformation {
             .spawn(move || {
                 super::lower_thread_priority();
                 while let Ok((model, d, symbolic)) = job_rx.recv() {
-                    let f = factor_pool.install(|| model.factor_at(&d, symbolic)).map_err(|e| e.to_string());
+                    let f = factor_pool.install(|| model.factor_at(&d, symbolic));
                     if factor_tx.send((model, f)).is_err() {
                         break;
                     }
                 }
             })
-            .map_err(|e| format!("cannot start the factor thread: {e}"))?;
+            .map_err(DeformationError::Thread)?;
         let (corrections, output) = triple_buffer::triple_buffer(&Correction::default());
         let n = 3 * mesh.n_nodes();
         let surface = match &visual {
@@ -520,8 +542,8 @@ impl CorotationalDeformation {
         self.state.as_ref().map(|s| &*s.enrichment)
     }
 
-    fn unsplit_surface(mesh: &Mesh, visual: &VisualMesh, revision: u64, why: Option<String>) -> Result<VisualSurface, String> {
-        let embedding = Embedding::new(mesh, &visual.vertices).map_err(|e| format!("the visual mesh cannot be embedded: {e}"))?;
+    fn unsplit_surface(mesh: &Mesh, visual: &VisualMesh, revision: u64, why: Option<String>) -> Result<VisualSurface, DeformationError> {
+        let embedding = Embedding::new(mesh, &visual.vertices).map_err(|source| DeformationError::Embedding { split: false, source })?;
         Ok(VisualSurface {
             revision,
             side: vec![VertexSide::Own; visual.vertices.len()].into(),
@@ -534,7 +556,7 @@ impl CorotationalDeformation {
     /// The visual mesh split along the cut `enr`: along its plane when it is one; along its
     /// largest planar part when it is several (strokes meeting), the rest drawn unsplit, each
     /// vertex following the side it lies on; wholly unsplit when no part is planar.
-    fn split_surface(&self, revision: u64, enr: &Enrichment) -> Result<Option<VisualSurface>, String> {
+    fn split_surface(&self, revision: u64, enr: &Enrichment) -> Result<Option<VisualSurface>, DeformationError> {
         let Some(visual) = &self.visual else { return Ok(None) };
         let split_along = |plane: &crate::xfem::Plane, cut: &[(usize, crate::xfem::Plane)]| {
             let cells: Vec<usize> = cut.iter().map(|c| c.0).collect();
@@ -567,7 +589,7 @@ impl CorotationalDeformation {
             Some(s) => VisualSurface {
                 revision,
                 embedding: Embedding::new(&self.mesh, &s.surface.vertices)
-                    .map_err(|e| format!("the split visual mesh cannot be embedded: {e}"))?
+                    .map_err(|source| DeformationError::Embedding { split: true, source })?
                     .with_sides(&s.side),
                 mesh: Arc::new(s.surface),
                 side: s.side.into(),
@@ -580,11 +602,10 @@ impl CorotationalDeformation {
     }
 
     /// The model of the cut `enr` at `revision`, continuing from the current state.
-    fn rebuild(&mut self, revision: u64, enr: Arc<Enrichment>) -> Result<(), String> {
+    fn rebuild(&mut self, revision: u64, enr: Arc<Enrichment>) -> Result<(), DeformationError> {
         let mut model = self
             .pool
-            .install(|| CorotationalXfem::new(&self.mesh, &self.materials, &self.problem, &enr))
-            .map_err(|e| e.to_string())?;
+            .install(|| CorotationalXfem::new(&self.mesh, &self.materials, &self.problem, &enr))?;
         let d = match &self.state {
             Some(s) => model.carry_over(s.frames.d(), &s.enrichment, &enr),
             None => vec![0.0; model.n_dofs()],
@@ -602,10 +623,7 @@ impl CorotationalDeformation {
         }
         model.anchor_loose(&d, self.state.as_ref().map(|s| &**s.frames.model()));
         let model = Arc::new(model);
-        let rest = self
-            .pool
-            .install(|| model.factor_at(&vec![0.0; model.n_dofs()], None))
-            .map_err(|e| e.to_string())?;
+        let rest = self.pool.install(|| model.factor_at(&vec![0.0; model.n_dofs()], None))?;
         let surface = self.split_surface(revision, &enr)?;
         self.prescribed = model.prescribed().to_vec();
         self.held_pieces = held;
@@ -650,7 +668,7 @@ impl CorotationalDeformation {
                 Ok(()) => outcome.rebuilt = true,
                 Err(e) => {
                     tracing::warn!("the co-rotational model stays at cut revision {}: {e}", self.revision());
-                    self.failure = Some(e);
+                    self.failure = Some(e.to_string());
                     outcome.refused_cut = true;
                 }
             }
@@ -736,8 +754,8 @@ impl CorotationalDeformation {
     /// The embedding of `points` (e.g. the partial cut's vertices,
     /// [`super::cutting::PartialCut`]) in the organ's cells, each following the mean of the two
     /// sides of any cut near it: what [`Self::point_displacements`] evaluates.
-    pub fn embed_points(&self, points: &[[f64; 3]]) -> Result<Embedding, String> {
-        let e = Embedding::new(&self.mesh, points).map_err(|e| e.to_string())?;
+    pub fn embed_points(&self, points: &[[f64; 3]]) -> Result<Embedding, VisualError> {
+        let e = Embedding::new(&self.mesh, points)?;
         Ok(e.with_sides(&vec![VertexSide::Mean; points.len()]))
     }
 

@@ -837,7 +837,8 @@ fn cutting_effect(
     }
     let visual = scene.organ_visual(0).map_err(|e| fail(e.to_string()))?;
     let (deformation, corrections) =
-        corotational::CorotationalDeformation::new(0, model.mesh.clone(), model.materials, model.problem, visual).map_err(fail)?;
+        corotational::CorotationalDeformation::new(0, model.mesh.clone(), model.materials, model.problem, visual)
+            .map_err(|e| fail(e.to_string()))?;
     let cutting = Cutting::new(0, bundle.clone(), model.mesh, online, cut_force)
         .with_bare_error(bare_error)
         .with_corrections(corrections);

@@ -10,6 +10,7 @@
 pub mod schema;
 
 mod builtin_scenes;
+pub mod keys;
 pub mod locate;
 pub mod tearing;
 

@@ -230,7 +230,8 @@ pub fn corotational_samples(
     cut: Option<&std::sync::Arc<crate::xfem::Enrichment>>,
 ) -> Result<Vec<Sample>, String> {
     use crate::pipeline::corotational::{BLEND_TICKS, Blend, CorotationalDeformation, contact_compliance, corrected_force_error};
-    let (mut def, mut out) = CorotationalDeformation::new(0, mesh.clone(), materials.clone(), problem.clone(), None)?;
+    let (mut def, mut out) =
+        CorotationalDeformation::new(0, mesh.clone(), materials.clone(), problem.clone(), None).map_err(|e| e.to_string())?;
     let uncut;
     let enr = match cut {
         Some(e) => {

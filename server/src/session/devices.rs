@@ -93,7 +93,7 @@ impl DeviceWorkers {
         }
         let thread = self.pool.place(job, None)?;
         let realtime = self.pool.realtime_of(&thread).unwrap_or(RealtimeStatus {
-            fifo: Err("unknown worker".into()),
+            fifo: Err(vademecum_bridge::timing::Refused::Unreported("unknown worker")),
             cpu: Ok(None),
         });
         Ok((thread, realtime))

@@ -65,7 +65,7 @@ pub use devices::{DeviceWorkers, DeviceWorkersConfig};
 pub use frames::{Frame, FrameWorkers, FrameWorkersConfig, SurfaceGeometry};
 pub use memory::SessionMemory;
 pub use scheduler::{PlaceError, SchedulerConfig, TickScheduler};
-pub use script::{builtin_grasp, builtin_incisions, builtin_palpation, palpation_reach, tool_at};
+pub use script::{BuiltinPathError, builtin_grasp, builtin_incisions, builtin_palpation, palpation_reach, tool_at};
 pub use stats::{BridgeSnapshot, StatsSnapshot, TickStats};
 pub use tick::MAX_COMMANDS_PER_TICK;
 pub use vademecum_bridge::trajectory::Trajectory;
@@ -314,6 +314,44 @@ fn tear_view(
     }
 }
 
+/// What a session keeps of its pipeline before its tick loop takes it: what it reports (its
+/// effects, their memory, its workspace, grasp sites and tools) and what its frames draw
+/// (the cut's status, the damage pictures, the co-rotational deformation).
+struct PipelineParts {
+    effects: Vec<&'static str>,
+    effects_memory: Vec<(&'static str, usize)>,
+    tear_pictures: Option<vademecum_engine::pipeline::TearPictures>,
+    tear_offline: Vec<Arc<vademecum_engine::damage::online::TearOffline>>,
+    cut: Option<Arc<vademecum_engine::pipeline::cutting::CutStatus>>,
+    corotational: Option<vademecum_engine::pipeline::corotational::CorotationalDeformation>,
+    workspace: Bounds,
+    grasp_sites: Vec<GraspSite>,
+    tool_kinds: Vec<ToolKind>,
+}
+
+impl PipelineParts {
+    /// Takes them from `pipeline` (the deformation set `deterministic` as the session is).
+    fn take(pipeline: &mut Pipeline, deterministic: bool) -> Self {
+        Self {
+            effects: pipeline.effect_names(),
+            effects_memory: pipeline.memory_bytes(),
+            tear_pictures: pipeline.take_tear_pictures(),
+            tear_offline: pipeline.tear_offline().to_vec(),
+            cut: pipeline.cut_status(),
+            corotational: pipeline.take_corotational().map(|mut c| {
+                c.set_deterministic(deterministic);
+                c
+            }),
+            workspace: pipeline.workspace(),
+            grasp_sites: pipeline.grasp_sites().to_vec(),
+            tool_kinds: [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
+                .into_iter()
+                .filter(|&k| pipeline.accepts(k))
+                .collect(),
+        }
+    }
+}
+
 impl Session {
     /// Starts a session on `scene` with one loaded bundle per organ.
     pub fn start(id: String, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, config: SessionConfig) -> Result<Self, SessionError> {
@@ -341,21 +379,17 @@ impl Session {
     ) -> Result<Self, SessionError> {
         let mut pipeline = Pipeline::for_scene(&scene, &bundles)?;
         pipeline.set_deterministic(config.deterministic);
-        let effects = pipeline.effect_names();
-        let effects_memory = pipeline.memory_bytes();
-        let tear_pictures = pipeline.take_tear_pictures();
-        let tear_offline = pipeline.tear_offline().to_vec();
-        let cut = pipeline.cut_status();
-        let corotational = pipeline.take_corotational().map(|mut c| {
-            c.set_deterministic(config.deterministic);
-            c
-        });
-        let workspace = pipeline.workspace();
-        let grasp_sites = pipeline.grasp_sites().to_vec();
-        let tool_kinds = [ToolKind::Probe, ToolKind::Scalpel, ToolKind::Grasper]
-            .into_iter()
-            .filter(|&k| pipeline.accepts(k))
-            .collect();
+        let PipelineParts {
+            effects,
+            effects_memory,
+            tear_pictures,
+            tear_offline,
+            cut,
+            corotational,
+            workspace,
+            grasp_sites,
+            tool_kinds,
+        } = PipelineParts::take(&mut pipeline, config.deterministic);
         let geometry = Arc::new(SurfaceGeometry::of(&scene, &bundles));
         let (commands, rx) = mpsc::sync_channel(config.queue.max(1));
         let stats = Arc::new(TickStats::default());
@@ -376,16 +410,7 @@ impl Session {
             to: router.register(s.answers).expect("a new router takes streams"),
             trajectory: s.trajectory,
         });
-        let (answers_done_tx, answers_done) = mpsc::sync_channel(1);
-        let dispatcher = answers::Dispatcher {
-            ring: ring.clone(),
-            router: router.clone(),
-            done: answers_done_tx,
-        };
-        match &config.answering {
-            Some(workers) => workers.place(dispatcher)?,
-            None => dispatcher.spawn(format!("answers-{id}")),
-        }
+        let answers_done = Self::start_answers(&id, &config, &ring, &router)?;
         let (latest_in, latest_out) = triple_buffer::triple_buffer(&tick::Latest::default());
         let (frames, _) = watch::channel(Arc::new(Frame::rest(&geometry)));
         let stop = Arc::new(AtomicBool::new(false));
@@ -441,32 +466,12 @@ impl Session {
             done: frames_done_tx,
         };
         let mut threads = Vec::with_capacity(2);
-        let mut frame_log = None;
-        let frame_thread = match &config.framing {
-            _ if config.deterministic => {
-                let (t, lockstep, log) = frames::spawn_lockstep(&id, frame_job, config.frame_rate_hz, config.period);
-                job.tick.lockstep = Some(lockstep);
-                frame_log = Some(log);
-                let thread = t.thread().clone();
-                threads.push(t);
-                thread
-            }
-            Some(workers) if !own_frame_thread => match workers.place(frame_job) {
-                Ok(thread) => thread,
-                Err(e) => {
-                    job.end(); // closes its answers: the dispatcher ends
-                    let _ = answers_done.recv();
-                    return Err(e.into());
-                }
-            },
-            _ => {
-                let t = std::thread::Builder::new()
-                    .name(format!("frames-{id}"))
-                    .spawn(move || workers::run_alone(frame_job))
-                    .expect("the OS can start a thread");
-                let thread = t.thread().clone();
-                threads.push(t);
-                thread
+        let (frame_thread, frame_log) = match Self::place_frames(&id, frame_job, &config, own_frame_thread, &mut job, &mut threads) {
+            Ok(placed) => placed,
+            Err(e) => {
+                job.end(); // closes its answers: the dispatcher ends
+                let _ = answers_done.recv();
+                return Err(e);
             }
         };
         let abandon = |threads: &mut Vec<JoinHandle<()>>| {
@@ -477,47 +482,12 @@ impl Session {
             let _ = answers_done.recv();
             threads.drain(..).for_each(|t| drop(t.join()));
         };
-        let (tick_thread, realtime) = match (&config.ticking, &config.haptic, config.on_tick_thread, &config.devices) {
-            (_, Some(h), None, Some(devices)) if h.wait == WaitStrategy::Event => {
-                // opened here, not on the worker: opening a channel takes milliseconds
-                let mut job = job;
-                match HapticPeer::open(&h.channel, WaitStrategy::Event, h.spin_window, config.period) {
-                    Ok(peer) => job.tick.peer = Some(peer),
-                    Err(source) => {
-                        job.end();
-                        abandon(&mut threads);
-                        return Err(SessionError::Haptic {
-                            channel: h.channel.name().to_string(),
-                            source,
-                        });
-                    }
-                }
-                match devices.place(job) {
-                    Ok((thread, realtime)) => (thread, Some(realtime)),
-                    Err(e) => {
-                        abandon(&mut threads);
-                        return Err(e.into());
-                    }
-                }
+        let (tick_thread, realtime) = match Self::place_tick(&id, job, &config, &mut threads) {
+            Ok(placed) => placed,
+            Err(e) => {
+                abandon(&mut threads);
+                return Err(e);
             }
-            (Some(workers), None, None, _) => match workers.place(job) {
-                Ok(thread) => (thread, None),
-                Err(e) => {
-                    abandon(&mut threads);
-                    return Err(e.into());
-                }
-            },
-            _ => match Self::spawn_tick_thread(&id, job, &config) {
-                Ok((thread, realtime)) => {
-                    let t = thread.thread().clone();
-                    threads.push(thread);
-                    (t, realtime)
-                }
-                Err(e) => {
-                    abandon(&mut threads);
-                    return Err(e);
-                }
-            },
         };
         Ok(Self {
             id,
@@ -548,6 +518,96 @@ impl Session {
             memory,
             frame_log: std::sync::Mutex::new(frame_log),
         })
+    }
+
+    /// Starts the answer dispatcher of a session on an answer worker, or a thread of its own:
+    /// it takes the tick's answers from `ring` to the streams of `router`; returns what it
+    /// signals when it has delivered the last answer and closed the streams.
+    fn start_answers(
+        id: &str,
+        config: &SessionConfig,
+        ring: &Arc<answers::AnswerRing>,
+        router: &Arc<answers::Router>,
+    ) -> Result<Receiver<()>, SessionError> {
+        let (done, answers_done) = mpsc::sync_channel(1);
+        let dispatcher = answers::Dispatcher {
+            ring: ring.clone(),
+            router: router.clone(),
+            done,
+        };
+        match &config.answering {
+            Some(workers) => workers.place(dispatcher)?,
+            None => dispatcher.spawn(format!("answers-{id}")),
+        }
+        Ok(answers_done)
+    }
+
+    /// Places the frame thread of a session: a lockstep thread of its own for a deterministic
+    /// one (the tick `job` waits for it; its frames logged, returned), a frame worker's, or a
+    /// thread of its own (`own`: a co-rotational deformation's frames are too heavy to share a
+    /// worker). When a worker refuses, the caller ends the tick `job`.
+    fn place_frames(
+        id: &str,
+        frame_job: frames::FrameJob,
+        config: &SessionConfig,
+        own: bool,
+        job: &mut scheduler::Job,
+        threads: &mut Vec<JoinHandle<()>>,
+    ) -> Result<(std::thread::Thread, Option<Receiver<Arc<Frame>>>), SessionError> {
+        match &config.framing {
+            _ if config.deterministic => {
+                let (t, lockstep, log) = frames::spawn_lockstep(id, frame_job, config.frame_rate_hz, config.period);
+                job.tick.lockstep = Some(lockstep);
+                let thread = t.thread().clone();
+                threads.push(t);
+                Ok((thread, Some(log)))
+            }
+            Some(workers) if !own => Ok((workers.place(frame_job)?, None)),
+            _ => {
+                let t = std::thread::Builder::new()
+                    .name(format!("frames-{id}"))
+                    .spawn(move || workers::run_alone(frame_job))
+                    .expect("the OS can start a thread");
+                let thread = t.thread().clone();
+                threads.push(t);
+                Ok((thread, None))
+            }
+        }
+    }
+
+    /// Places the tick loop of a session: a device worker's for a haptic session that waits on
+    /// events (its channel opened here: opening takes milliseconds), a tick worker's, or a
+    /// thread of its own ([`Self::spawn_tick_thread`]); with what the OS granted a device
+    /// session's thread. On failure the job has ended; the caller abandons the frame thread.
+    fn place_tick(
+        id: &str,
+        mut job: scheduler::Job,
+        config: &SessionConfig,
+        threads: &mut Vec<JoinHandle<()>>,
+    ) -> Result<(std::thread::Thread, Option<RealtimeStatus>), SessionError> {
+        match (&config.ticking, &config.haptic, config.on_tick_thread, &config.devices) {
+            (_, Some(h), None, Some(devices)) if h.wait == WaitStrategy::Event => {
+                match HapticPeer::open(&h.channel, WaitStrategy::Event, h.spin_window, config.period) {
+                    Ok(peer) => job.tick.peer = Some(peer),
+                    Err(source) => {
+                        job.end();
+                        return Err(SessionError::Haptic {
+                            channel: h.channel.name().to_string(),
+                            source,
+                        });
+                    }
+                }
+                let (thread, realtime) = devices.place(job)?;
+                Ok((thread, Some(realtime)))
+            }
+            (Some(workers), None, None, _) => Ok((workers.place(job)?, None)),
+            _ => {
+                let (thread, realtime) = Self::spawn_tick_thread(id, job, config)?;
+                let t = thread.thread().clone();
+                threads.push(thread);
+                Ok((t, realtime))
+            }
+        }
     }
 
     /// Every frame of a deterministic session ([`SessionConfig::deterministic`]), in order, for

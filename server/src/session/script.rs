@@ -2,9 +2,39 @@
 //! (or, with a blade, a scalpel's) tool state, the built-in palpation of a scene's organ and
 //! the built-in incisions along a cutting scene's pre-planned cuts.
 
-use vademecum_bridge::trajectory::{BladeKey, Trajectory};
+use vademecum_bridge::trajectory::{BladeKey, KeyframeError, Trajectory};
 use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::pipeline::{ToolInput, ToolKind};
+
+/// Why a built-in path cannot be drawn on a scene.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BuiltinPathError {
+    /// A pre-planned cut (numbered from 1) with fewer than two blade positions.
+    #[error("cut {0} has fewer than two blade positions")]
+    CutTooShort(usize),
+    /// A pre-planned cut whose blade does not sweep a surface (a zero edge, or an edge along
+    /// the cut's direction).
+    #[error("cut {0}: its blade does not sweep a surface")]
+    NoSweep(usize),
+    /// An organ without a surface.
+    #[error("the organ has no surface to cut")]
+    NoSurface,
+    /// A tearing scene whose load has no direction.
+    #[error("the scene's load has no direction to pull along")]
+    NoDirection,
+    /// A bundle without a load node.
+    #[error("the bundle has no load node to palpate")]
+    NoLoadNode,
+    /// An accessible surface without a triangle.
+    #[error("the accessible surface has no triangle to palpate")]
+    NoAccessibleTriangle,
+    /// No accessible triangle around the middle of the accessible surface (no normal there).
+    #[error("the middle of the accessible surface has no accessible triangle around it")]
+    NoNormal,
+    /// The keyframes drawn do not make a trajectory.
+    #[error(transparent)]
+    Keyframes(#[from] KeyframeError),
+}
 
 /// The tool state of `trajectory` at `t` seconds after its first keyframe: a probe's, or a
 /// scalpel's if the trajectory has a blade.
@@ -34,7 +64,12 @@ pub fn tool_at(trajectory: &Trajectory, t: f64) -> ToolInput {
 /// every position in `seconds_per_cut`, and leaves the same way. "Above" is along the outward
 /// normal of `b`'s surface nearest the edge's middle; the blade plane contains the edge and the
 /// direction of the cut.
-pub fn builtin_incisions(b: &LoadedBundle, cuts: &[&[[f64; 3]]], lift_m: f64, seconds_per_cut: f64) -> Result<Trajectory, String> {
+pub fn builtin_incisions(
+    b: &LoadedBundle,
+    cuts: &[&[[f64; 3]]],
+    lift_m: f64,
+    seconds_per_cut: f64,
+) -> Result<Trajectory, BuiltinPathError> {
     use nalgebra::{UnitQuaternion, Vector3};
     let surface = vademecum_engine::contact::Surface::new(&b.nodes, b.surface.clone());
     let mut keys = Vec::new();
@@ -43,7 +78,7 @@ pub fn builtin_incisions(b: &LoadedBundle, cuts: &[&[[f64; 3]]], lift_m: f64, se
     for (c, points) in cuts.iter().enumerate() {
         let n = points.len() / 2;
         if n < 2 {
-            return Err(format!("cut {} has fewer than two blade positions", c + 1));
+            return Err(BuiltinPathError::CutTooShort(c + 1));
         }
         let pos = |k: usize| (Vector3::from(points[2 * k + 1]), Vector3::from(points[2 * k]));
         let (tip0, end0) = pos(0);
@@ -52,15 +87,13 @@ pub fn builtin_incisions(b: &LoadedBundle, cuts: &[&[[f64; 3]]], lift_m: f64, se
         let along = tip1 - tip0;
         let normal = edge.cross(&along);
         if edge.norm() == 0.0 || normal.norm() <= 1e-12 * edge.norm() * along.norm() {
-            return Err(format!("cut {}: its blade does not sweep a surface", c + 1));
+            return Err(BuiltinPathError::NoSweep(c + 1));
         }
         let q = UnitQuaternion::rotation_between(&Vector3::y(), &normal.normalize())
             .unwrap_or_else(|| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
         let orientation = [q.w, q.i, q.j, q.k];
         let middle = (tip0 + end0) * 0.5;
-        let at = surface
-            .nearest(middle.into())
-            .ok_or_else(|| "the organ has no surface to cut".to_string())?;
+        let at = surface.nearest(middle.into()).ok_or(BuiltinPathError::NoSurface)?;
         let up = Vector3::from(surface.normal_at(&at)) * lift_m;
         let mut key = |t: f64, tip: Vector3<f64>, end: Vector3<f64>| {
             keys.push((t, tip.into(), 0.0));
@@ -80,20 +113,20 @@ pub fn builtin_incisions(b: &LoadedBundle, cuts: &[&[[f64; 3]]], lift_m: f64, se
         key(t, tip + up, end + up);
         t += 0.25;
     }
-    Trajectory::new(keys)?.with_blades(blades)
+    Ok(Trajectory::new(keys)?.with_blades(blades)?)
 }
 
 /// The built-in grasp of a tearing scene: the jaws, open, come to `centre` (the grasp: the
 /// nodes the scene's load acts on) in 0.3 s, close in 0.2 s, pull along `direction` (the
 /// load's) by `pull_m` in `seconds`, hold 0.5 s, open in 0.2 s and wait 0.5 s.
-pub fn builtin_grasp(centre: [f64; 3], direction: [f64; 3], pull_m: f64, seconds: f64) -> Result<Trajectory, String> {
+pub fn builtin_grasp(centre: [f64; 3], direction: [f64; 3], pull_m: f64, seconds: f64) -> Result<Trajectory, BuiltinPathError> {
     let len = direction.iter().map(|x| x * x).sum::<f64>().sqrt();
     if !(len > 0.0 && len.is_finite()) {
-        return Err("the scene's load has no direction to pull along".into());
+        return Err(BuiltinPathError::NoDirection);
     }
     let at = |d: f64| [0, 1, 2].map(|k| centre[k] + d * direction[k] / len);
     let t1 = 0.5 + seconds;
-    Trajectory::new(vec![
+    Ok(Trajectory::new(vec![
         (0.0, at(0.0), 0.0),
         (0.3, at(0.0), 0.0),
         (0.5, at(0.0), 1.0),
@@ -101,25 +134,25 @@ pub fn builtin_grasp(centre: [f64; 3], direction: [f64; 3], pull_m: f64, seconds
         (t1 + 0.5, at(pull_m), 1.0),
         (t1 + 0.7, at(pull_m), 0.0),
         (t1 + 1.2, at(pull_m), 0.0),
-    ])
+    ])?)
 }
 
 /// The built-in palpation of an organ: a probe of radius `radius_m` comes down on the
 /// middle of the accessible surface along its normal, presses `depth_m` deep, holds,
 /// slides `slide_m` along the surface, and lifts off — five seconds in all
 /// ([`palpation_frame`] says where).
-pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m: f64) -> Result<Trajectory, String> {
+pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m: f64) -> Result<Trajectory, BuiltinPathError> {
     let (p, n, t) = palpation_frame(b)?;
     let at = |along_n: f64, along_t: f64| -> [f64; 3] { [0, 1, 2].map(|k| p[k] + along_n * n[k] + along_t * t[k]) };
     let (up, down) = (radius_m + 0.003, radius_m - depth_m);
-    Trajectory::new(vec![
+    Ok(Trajectory::new(vec![
         (0.0, at(up, 0.0), 0.0),
         (1.0, at(down, 0.0), 0.0),
         (1.5, at(down, 0.0), 0.0),
         (3.5, at(down, slide_m), 0.0),
         (4.5, at(up, slide_m), 0.0),
         (5.0, at(up, slide_m), 0.0),
-    ])
+    ])?)
 }
 
 /// Where the built-in palpation presses: the "middle" of the accessible surface — the load
@@ -129,11 +162,11 @@ pub fn builtin_palpation(b: &LoadedBundle, radius_m: f64, depth_m: f64, slide_m:
 /// outward normal there (the area-weighted
 /// mean of the accessible triangles around it) and the tangent the slide follows (the axis
 /// least aligned with the normal, made orthogonal to it): `(point, normal, tangent)`.
-pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]), String> {
+pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]), BuiltinPathError> {
     let v = &b.vademecum;
     let loads = v.load_nodes();
     if loads.is_empty() {
-        return Err("the bundle has no load node to palpate".into());
+        return Err(BuiltinPathError::NoLoadNode);
     }
     let mut c = [0.0; 3];
     for &n in loads {
@@ -187,13 +220,13 @@ pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]
                 .iter()
                 .filter(open)
                 .min_by(|a, bb| dc(a).total_cmp(&dc(bb)))
-                .ok_or("the accessible surface has no triangle to palpate")?;
+                .ok_or(BuiltinPathError::NoAccessibleTriangle)?;
             (centroid(t), cross(t))
         }
     };
     let len = normal.iter().map(|x| x * x).sum::<f64>().sqrt();
     if len.is_nan() || len <= 0.0 {
-        return Err("the middle of the accessible surface has no accessible triangle around it".into());
+        return Err(BuiltinPathError::NoNormal);
     }
     let n = normal.map(|x| x / len);
     // a tangent: the axis least aligned with n, made orthogonal to it
@@ -209,7 +242,7 @@ pub fn palpation_frame(b: &LoadedBundle) -> Result<([f64; 3], [f64; 3], [f64; 3]
 /// answer comes from the lattice's paths (m): where the paths of the positions around its
 /// slide (`slide_m` from the middle, [`palpation_frame`]) end
 /// ([`vademecum_engine::rom::palpation::AnmLattice::reach_at`]); `None` without a lattice.
-pub fn palpation_reach(b: &LoadedBundle, slide_m: f64) -> Result<Option<f64>, String> {
+pub fn palpation_reach(b: &LoadedBundle, slide_m: f64) -> Result<Option<f64>, BuiltinPathError> {
     let Some(lattice) = &b.anm else {
         return Ok(None);
     };

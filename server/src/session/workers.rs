@@ -240,8 +240,8 @@ impl<J: Placed> Pool<J> {
                 let _ = granted_tx.send(timing::request_realtime(fifo, cpu));
                 body(&rx, &published);
             })?;
-            let realtime = granted_rx.recv().unwrap_or_else(|_| RealtimeStatus {
-                fifo: Err("the worker ended at once".into()),
+            let realtime = granted_rx.recv().unwrap_or(RealtimeStatus {
+                fifo: Err(timing::Refused::Unreported("the worker ended at once")),
                 cpu: Ok(None),
             });
             workers.push(Worker {

@@ -235,11 +235,7 @@ fn a_bridge_plays_a_scalpel_that_cuts_the_patch_over_shared_memory() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("patch_cut.toml");
     let toml = String::from_utf8(vademecum(dir.path(), &["scene", "show", "patch_cut"]).stdout).unwrap();
-    let line = toml
-        .lines()
-        .find(|l| l.starts_with("cut_force"))
-        .expect("patch_cut has a cut_force");
-    std::fs::write(&scene, toml.replace(line, "cut_force = 0.1")).unwrap();
+    std::fs::write(&scene, util::with_keys(&toml, &[("tools[0].cut_force", "0.1")])).unwrap();
     let ch = channel("scalpel");
     let record = dir.path().join("run");
     // its own bundle folder: the shared one holds the built-in patch_cut's bundle, which other

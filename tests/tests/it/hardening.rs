@@ -48,14 +48,12 @@ fn inline_scenes_cannot_reach_files_outside_the_mesh_root_and_learn_nothing_of_t
             .unwrap_err();
         assert_ne!(e.kind(), ErrorKind::PermissionDenied, "{e}");
         // the same for a visual mesh (co-rotational cutting)
-        let corot = vademecum_engine::scene::builtin("patch_cut")
-            .unwrap()
-            .replace("[fidelity]\n", "[fidelity]\ncutting = \"corotational_xfem\"\n");
+        let corot = util::with_keys(
+            vademecum_engine::scene::builtin("patch_cut").unwrap(),
+            &[("fidelity.cutting", "\"corotational_xfem\"")],
+        );
         for file in ["/etc/x.obj", "../../../../etc/x.obj"] {
-            let text = corot.replace(
-                "[[organs.materials]]",
-                &format!("[organs.visual]\nfile = \"{file}\"\n\n[[organs.materials]]"),
-            );
+            let text = util::with_keys(&corot, &[("organs[0].visual", &format!("{{ file = \"{file}\" }}"))]);
             let e = client.create_session(SceneSpec::Toml(text), "patch", "x").await.unwrap_err();
             assert_eq!(e.kind(), ErrorKind::PermissionDenied, "{file}: {e}");
             assert!(e.to_string().contains("visual.file") && !e.to_string().contains("etc"), "{e}");
@@ -178,11 +176,10 @@ fn a_huge_inline_scene_is_refused_before_it_costs_anything() {
     let rt = util::runtime();
     rt.block_on(async {
         let client = Client::connect(server.url.clone()).await.unwrap();
-        let text = vademecum_engine::scene::Scene::builtin("cantilever")
-            .unwrap()
-            .source
-            .replace("divisions = [40, 4, 4]", "divisions = [2000, 200, 40]");
-        assert!(text.contains("[2000, 200, 40]"));
+        let text = util::with_keys(
+            &vademecum_engine::scene::Scene::builtin("cantilever").unwrap().source,
+            &[("organs[0].mesh.divisions", "[2000, 200, 40]")],
+        );
         let e = client.create_session(SceneSpec::Toml(text), "organ", "huge").await.err().unwrap();
         assert_eq!(e.kind(), ErrorKind::ResourceExhausted, "{e}");
         assert!(e.to_string().contains("16000000 cells"), "{e}");
@@ -209,10 +206,8 @@ fn unbounded_client_input_is_never_echoed_back() {
         assert_eq!(e.kind(), ErrorKind::NotFound, "{}", &e.to_string()[..200.min(e.to_string().len())]);
         assert!(e.to_string().len() < 400, "{} bytes", e.to_string().len());
         // a scene with a 100 KB string value
-        let text = vademecum_engine::scene::builtin("organ").unwrap().replace(
-            "name = \"organ\"",
-            &format!("name = \"organ\"\nbogus = \"{}\"", "y".repeat(100_000)),
-        );
+        let bogus = format!("\"{}\"", "y".repeat(100_000));
+        let text = util::with_keys(vademecum_engine::scene::builtin("organ").unwrap(), &[("scene.bogus", &bogus)]);
         let e = client.create_session(SceneSpec::Toml(text), "organ", "x").await.unwrap_err();
         assert_eq!(e.kind(), ErrorKind::InvalidArgument, "{}", &e.to_string()[..200]);
         assert!(e.to_string().len() < 2000, "{} bytes", e.to_string().len());

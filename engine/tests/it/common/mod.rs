@@ -42,49 +42,10 @@ pub fn shared_scene(file: &str, shared: &std::path::Path) -> Scene {
     Scene::from_toml(&text, &path).unwrap()
 }
 
-/// The scene `text` with each `(key, value)` of `edits` set, the key a dotted path from the
-/// root with array indices (`organs[0].mesh.divisions`, `fidelity.tearing.grasp_sites`,
-/// `tools[0].max_force`; `tools[0]` replaces the whole element). The table holding the key
-/// must exist (a test never edits a scene it misreads); the key itself may be new. Comments
-/// and layout are not kept.
+/// The scene `text` with each `(key, value)` of `edits` set
+/// ([`vademecum_engine::scene::keys::with_keys`]: a path that leads nowhere fails the test).
 pub fn with_keys(text: &str, edits: &[(&str, toml::Value)]) -> String {
-    let mut root: toml::Table = toml::from_str(text).expect("the scene is TOML");
-    for (path, value) in edits {
-        let mut segments: Vec<&str> = path.split('.').collect();
-        let last = segments.pop().expect("a key");
-        let mut table = &mut root;
-        for seg in segments {
-            let (name, index) = match seg.split_once('[') {
-                Some((n, i)) => (n, Some(i.trim_end_matches(']').parse::<usize>().expect("an index"))),
-                None => (seg, None),
-            };
-            let next = table
-                .get_mut(name)
-                .unwrap_or_else(|| panic!("the scene has no `{name}` on the way to `{path}`"));
-            let next = match index {
-                Some(i) => next
-                    .as_array_mut()
-                    .and_then(|a| a.get_mut(i))
-                    .unwrap_or_else(|| panic!("the scene has no `{name}[{i}]` on the way to `{path}`")),
-                None => next,
-            };
-            table = next.as_table_mut().unwrap_or_else(|| panic!("`{seg}` in `{path}` is no table"));
-        }
-        match last.split_once('[') {
-            // an element of an array of tables, replaced whole
-            Some((name, i)) => {
-                let i: usize = i.trim_end_matches(']').parse().expect("an index");
-                let slot = table
-                    .get_mut(name)
-                    .and_then(|a| a.as_array_mut())
-                    .and_then(|a| a.get_mut(i))
-                    .unwrap_or_else(|| panic!("the scene has no `{last}` to replace"));
-                *slot = value.clone();
-            }
-            None => {
-                table.insert(last.to_string(), value.clone());
-            }
-        }
-    }
-    toml::to_string(&root).expect("a table serialises")
+    let values: Vec<String> = edits.iter().map(|(_, v)| v.to_string()).collect();
+    let edits: Vec<(&str, &str)> = edits.iter().zip(&values).map(|((k, _), v)| (*k, v.as_str())).collect();
+    vademecum_engine::scene::keys::with_keys(text, &edits).unwrap_or_else(|e| panic!("{e}"))
 }

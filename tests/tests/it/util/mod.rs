@@ -21,6 +21,12 @@ pub fn vademecum_bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_vademecum-under-test"))
 }
 
+/// The scene `text` with keys set by path ([`vademecum_engine::scene::keys::with_keys`]): a
+/// path that leads nowhere fails the test (a text replacement would silently do nothing).
+pub fn with_keys(text: &str, edits: &[(&str, &str)]) -> String {
+    vademecum_engine::scene::keys::with_keys(text, edits).unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// Runs `vademecum args…` in `dir` and returns its output, failing the test on error.
 pub fn vademecum(dir: &Path, args: &[&str]) -> std::process::Output {
     let o = Command::new(vademecum_bin())
