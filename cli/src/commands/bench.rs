@@ -102,23 +102,34 @@ pub fn run_fe(a: BenchFeArgs) -> anyhow::Result<ExitCode> {
             threads,
         });
     }
-    let mut out = std::io::stdout().lock();
-    if a.json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&rows)?)?;
-    } else {
-        writeln!(
-            out,
-            "| cell | nodes | dofs | nnz (lower) | assembly (s) | analysis (s) | factorization (s) | solve (s) |"
-        )?;
-        writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|")?;
-        for r in &rows {
-            writeln!(
-                out,
-                "| {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.4} |",
-                r.cell, r.nodes, r.dofs, r.nonzeros_lower, r.assembly_s, r.analysis_s, r.factorization_s, r.solve_s
-            )?;
-        }
-        writeln!(out, "median of {} run(s), {} hardware thread(s)", a.repeat, threads)?;
+    print_rows(
+        a.json,
+        &rows,
+        &[
+            "cell",
+            "nodes",
+            "dofs",
+            "nnz (lower)",
+            "assembly (s)",
+            "analysis (s)",
+            "factorization (s)",
+            "solve (s)",
+        ],
+        |r| {
+            vec![
+                r.cell.to_string(),
+                r.nodes.to_string(),
+                r.dofs.to_string(),
+                r.nonzeros_lower.to_string(),
+                format!("{:.3}", r.assembly_s),
+                format!("{:.3}", r.analysis_s),
+                format!("{:.3}", r.factorization_s),
+                format!("{:.4}", r.solve_s),
+            ]
+        },
+    )?;
+    if !a.json {
+        println!("median of {} run(s), {} hardware thread(s)", a.repeat, threads);
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -132,7 +143,8 @@ pub(crate) fn print_rows<T: Serialize>(json: bool, rows: &[T], header: &[&str], 
         return Ok(());
     }
     writeln!(out, "| {} |", header.join(" | "))?;
-    writeln!(out, "|{}", "---:|".repeat(header.len()))?;
+    // the first column names the row: left-aligned; the figures right-aligned
+    writeln!(out, "|---|{}", "---:|".repeat(header.len().saturating_sub(1)))?;
     for r in rows {
         writeln!(out, "| {} |", row(r).join(" | "))?;
     }

@@ -8,7 +8,6 @@
 //!    5. N concurrent sessions, each playing the built-in palpation, with a thread each and
 //!    on the tick workers (one per CPU): deadline misses per N.
 
-use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -193,23 +192,30 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
             rows.push(row(format!("{n} concurrent sessions, {how}: tick lateness"), late, misses));
         }
     }
-    let mut out = std::io::stdout().lock();
-    if a.json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&rows)?)?;
-    } else {
-        writeln!(
-            out,
-            "| what | samples | p50 (µs) | p99 (µs) | p99.9 (µs) | max (µs) | deadline misses |"
-        )?;
-        writeln!(out, "|---|---:|---:|---:|---:|---:|---:|")?;
-        for r in &rows {
-            writeln!(
-                out,
-                "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} |",
-                r.what, r.samples, r.p50_us, r.p99_us, r.p999_us, r.max_us, r.misses
-            )?;
-        }
-    }
+    super::bench::print_rows(
+        a.json,
+        &rows,
+        &[
+            "what",
+            "samples",
+            "p50 (µs)",
+            "p99 (µs)",
+            "p99.9 (µs)",
+            "max (µs)",
+            "deadline misses",
+        ],
+        |r| {
+            vec![
+                r.what.clone(),
+                r.samples.to_string(),
+                format!("{:.1}", r.p50_us),
+                format!("{:.1}", r.p99_us),
+                format!("{:.1}", r.p999_us),
+                format!("{:.1}", r.max_us),
+                r.misses.to_string(),
+            ]
+        },
+    )?;
     Ok(ExitCode::SUCCESS)
 }
 
