@@ -70,13 +70,15 @@ pub fn tool_response(a: &Answer) -> pb::ToolResponse {
 }
 
 /// The scene of a create request.
-pub fn scene_source(r: &pb::CreateSessionRequest) -> Result<SceneSource, String> {
+pub fn scene_source(r: &pb::CreateSessionRequest) -> Result<SceneSource, crate::error::ServerError> {
     use pb::create_session_request::Scene as S;
     match &r.scene {
         Some(S::SceneToml(t)) => Ok(SceneSource::Inline(t.clone())),
         Some(S::ScenePath(p)) => Ok(SceneSource::Path(p.clone())),
         Some(S::Builtin(b)) => Ok(SceneSource::Builtin(b.clone())),
-        None => Err("set one of scene_toml, scene_path or builtin".into()),
+        None => Err(crate::error::ServerError::Invalid(
+            "set one of scene_toml, scene_path or builtin".into(),
+        )),
     }
 }
 

@@ -15,16 +15,23 @@ use super::{BundleError, MANIFEST, read_manifest, read_regular, sha256_hex};
 /// Largest manifest hashed (bytes), as [`read_manifest`] reads.
 const MAX_MANIFEST_BYTES: u64 = 1 << 20;
 
+/// A bundle digest that is not `sha256:<64 lower-case hex digits>` (the digest is quoted
+/// clipped to 80 characters).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DigestError {
+    /// It does not start with `sha256:`.
+    #[error("bundle digest '{0}' does not start with 'sha256:'")]
+    NoPrefix(String),
+    /// What follows is not 64 lower-case hex digits.
+    #[error("bundle digest '{0}' is not sha256: and 64 lower-case hex digits")]
+    NotHex(String),
+}
+
 /// The hex SHA-256 of a digest written `sha256:<64 hex digits>` (lower case).
-pub fn parse_digest(digest: &str) -> Result<&str, String> {
-    let hex = digest
-        .strip_prefix("sha256:")
-        .ok_or_else(|| format!("bundle digest '{}' does not start with 'sha256:'", clip(digest)))?;
+pub fn parse_digest(digest: &str) -> Result<&str, DigestError> {
+    let hex = digest.strip_prefix("sha256:").ok_or_else(|| DigestError::NoPrefix(clip(digest)))?;
     if hex.len() != 64 || !hex.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
-        return Err(format!(
-            "bundle digest '{}' is not sha256: and 64 lower-case hex digits",
-            clip(digest)
-        ));
+        return Err(DigestError::NotHex(clip(digest)));
     }
     Ok(hex)
 }
@@ -107,9 +114,9 @@ pub fn into_place(incoming: &Path, target: &Path, hex: &str) -> Result<(), Bundl
 /// The bundle of digest `digest` in `store`, checked to be that bundle: its manifest hashes
 /// to the digest (its arrays are checked against the manifest when loaded).
 pub fn open(store: &Path, digest: &str) -> Result<PathBuf, BundleError> {
-    let hex = parse_digest(digest).map_err(|message| BundleError::Malformed {
+    let hex = parse_digest(digest).map_err(|e| BundleError::Malformed {
         path: store.to_path_buf(),
-        message,
+        message: e.to_string(),
     })?;
     let dir = path(store, hex);
     if !dir.join(MANIFEST).is_file() {

@@ -824,7 +824,7 @@ fn cutting_effect(
     let model = scene.organ_model(0).map_err(|e| fail(e.to_string()))?;
     let fx = &scene.spec.fidelity.xfem;
     let (reduced, params) = session_cut_model(scene, &model, bundle).map_err(|e| fail(e.to_string()))?;
-    let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(fail)?;
+    let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(|e| fail(e.to_string()))?;
     let bare_error = match fx.discontinuous {
         Discontinuous::Bare => bundle.cut_bare_force_error().map_err(|e| fail(e.to_string()))?,
         Discontinuous::LocalFields => None,

@@ -58,12 +58,17 @@ pub struct OnlineCut {
     cells: Vec<([f64; 3], f64)>,
 }
 
+/// A scalpel's threshold that is not a positive force.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("the scalpel's cut_force must be a positive force (N), not {0}")]
+pub struct BadCutForce(pub f64);
+
 impl OnlineCut {
     /// A scalpel with threshold `cut_force` (N, positive) on `model`, the reduced model of
     /// `mesh`.
-    pub fn new(mesh: &Mesh, model: ReducedCut, cut_force: f64, params: &XfemParams) -> Result<Self, String> {
+    pub fn new(mesh: &Mesh, model: ReducedCut, cut_force: f64, params: &XfemParams) -> Result<Self, BadCutForce> {
         if !(cut_force.is_finite() && cut_force > 0.0) {
-            return Err(format!("the scalpel's cut_force must be a positive force (N), not {cut_force}"));
+            return Err(BadCutForce(cut_force));
         }
         let npc = mesh.kind.nodes_per_cell();
         let mut x = vec![[0.0; 3]; npc];

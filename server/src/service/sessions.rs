@@ -47,7 +47,7 @@ impl SessionsService {
 
     /// Creates the session on this server.
     async fn create_here(&self, owner: Caller, r: pb::CreateSessionRequest) -> Result<pb::SessionInfo, Status> {
-        let source = convert::scene_source(&r).map_err(ServerError::Invalid)?;
+        let source = convert::scene_source(&r)?;
         let registry = self.registry.clone();
         // reading scenes, meshes and bundles is blocking work: keep it off the runtime
         let entry = tokio::task::spawn_blocking(move || {
