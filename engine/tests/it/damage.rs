@@ -516,3 +516,56 @@ fn a_force_past_the_saturation_of_the_seeds_law_ends_on_the_floor_and_says_so() 
     let s = TearModel::new(mesh, pts, &vec![true; n], vec![0.0; n], vec![0.0; n]);
     assert!(reference::carrying_limit(&s).contains("prescribed displacement"));
 }
+
+/// What the fat of `gallbladder_fat` needs to tear (its first point past D = 0.8) in the
+/// full-order model, by how it is pulled and by scheme: the scene's 1/3 N a step along z; the
+/// nodes under the jaws pulled up 0.5 mm a step and held in x and y (as a session's grasper
+/// holds them); the same pulled up only. The force of a displacement-driven pull is its
+/// reaction, the mean over the step (the step's work over its motion). Prints the table
+/// docs/tearing.md quotes.
+#[test]
+fn the_gallbladder_tears_sooner_at_equilibrium_and_later_when_the_jaws_hold_the_fat() {
+    use crate::common;
+    use vademecum_engine::scene::{Scene, tearing};
+    const PULL_M: f64 = 0.0005;
+    let base = Scene::builtin("gallbladder_fat").unwrap().source;
+    let grasp = "region = { sphere = { center = [-0.03302, -0.00284, -0.00012], radius = 0.003 } }";
+    let pulled = |held: &str| -> Vec<(&str, toml::Value)> {
+        let load: toml::Value = toml::from_str(&format!("kind = \"displacement\"\nname = \"grasp\"\n{grasp}\n{held}z = {PULL_M}")).unwrap();
+        let schedule: toml::Value = toml::from_str::<toml::Table>("s = [{ steps = 60, scale = 1.0 }]").unwrap()["s"].clone();
+        vec![("organs[0].loads[0]", load), ("fidelity.tearing.schedule", schedule)]
+    };
+    // (how, edits, force of step k (1-based) of a run)
+    let cases: [(&str, Vec<(&str, toml::Value)>, bool); 3] = [
+        ("1/3 N a step along z (the scene)", vec![], false),
+        ("jaws held, pulled up 0.5 mm a step", pulled("x = 0.0\ny = 0.0\n"), true),
+        ("jaws free in x and y, pulled up 0.5 mm a step", pulled(""), true),
+    ];
+    let mut torn = Vec::new();
+    for (how, edits, displaced) in cases {
+        let scene = Scene::from_toml(&common::with_keys(&base, &edits), "<builtin:gallbladder_fat>").unwrap();
+        let (model, _) = tearing::tear_model(&scene, 0).unwrap();
+        for scheme in [Scheme::Explicit(Tangent::Secant), Scheme::Newton] {
+            let run = reference::run(&model, RunSettings::seed(scheme), |_, _| {}).unwrap();
+            let k = run.steps.iter().position(|s| s.max_damage >= 0.8).expect("the fat tears");
+            let force = if displaced {
+                let (a, b) = (&run.steps[k - 1], &run.steps[k]);
+                (b.work - a.work) / (b.load_factor - a.load_factor) / PULL_M
+            } else {
+                k as f64 / 3.0
+            };
+            eprintln!("{how}, {}: torn at step {k}, {force:.2} N", scheme.label());
+            torn.push((k, force));
+        }
+    }
+    let [(k_explicit, f_explicit), (k_newton, f_newton), _, (_, f_held), _, (_, f_free)] = torn[..] else {
+        unreachable!()
+    };
+    // forward Euler on the damage lags the equilibrium path: the seed's scheme tears later
+    assert!(k_newton < k_explicit && f_newton < 0.8 * f_explicit, "{torn:?}");
+    // before the peak the control does not matter: a free pull up tears under the force the
+    // scene's load tears at (within a step of each, 1/3 N and 0.5 mm)
+    assert!((f_free - f_newton).abs() < 0.1 * f_newton, "{torn:?}");
+    // jaws that hold the fat sideways spread the strain: more force to tear it
+    assert!(f_held > 1.2 * f_free, "{torn:?}");
+}
