@@ -383,3 +383,26 @@ fn a_change_of_grasp_site_allocates_nothing() {
     assert_eq!(grasps, 3, "each site taken in turn");
     assert_eq!(COUNT.with(|n| n.get()), 0, "a change of grasp site allocated");
 }
+
+#[test]
+fn solving_several_contacts_together_allocates_nothing() {
+    use vademecum_engine::pgd::coupled::coupled_forces;
+    let scene = Scene::builtin("organ").unwrap();
+    let built = offline::build_organ(&scene, 0, &BuildOptions::for_scene(&scene, true), &mut |_| {}).unwrap();
+    let v = &built.vademecum;
+    let loads = v.load_nodes();
+    let points: Vec<([usize; 3], [f64; 3])> = (0..4).map(|k| ([loads[k * loads.len() / 4]; 3], [1.0, 0.0, 0.0])).collect();
+    let penetrations = [[0.0, 0.0, -0.002]; 4];
+    let mut forces = [[0.0; 3]; 4];
+    COUNT.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    let mut solved = 0;
+    for k in 0..1000 {
+        let n = 1 + k % 4;
+        solved += usize::from(coupled_forces(v, &points[..n], &penetrations[..n], &mut forces[..n]).is_ok());
+    }
+    COUNTING.with(|c| c.set(false));
+    let n = COUNT.with(|n| n.get());
+    assert_eq!(n, 0, "{n} allocations in 1000 solves");
+    assert_eq!(solved, 1000, "every set of distinct load nodes solves");
+}

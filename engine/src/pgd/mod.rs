@@ -28,6 +28,7 @@
 //! - [`compress`]: recompression of the modes by QR + SVD (an orthonormal basis, fewer modes
 //!   at equal error).
 //! - [`vademecum`]: the online evaluator (Eq. 2.6 at a load state, local compliances).
+//! - [`coupled`]: several tools in contact at once (the forces solved together).
 //!
 //! An organ's whole build (modes from the greedy PGD or from sharded snapshots, and every
 //! other method's stage) is [`crate::offline`]'s; the bundle it writes is [`crate::bundle`]'s.
@@ -35,6 +36,7 @@
 pub mod brute;
 pub mod build;
 pub mod compress;
+pub mod coupled;
 pub mod vademecum;
 
 pub use build::{LoadVector, PgdInfo, PgdParams, SeparatedSolution};

@@ -356,6 +356,66 @@ impl Vademecum {
         Some(c)
     }
 
+    /// The compliance between two surface points (m/N), each given by up to three nodes and
+    /// barycentric weights: the patch-averaged displacement at `obs` per unit force spread over
+    /// `load`'s patch, `C(obs ← load) = Σ_a Σ_b w_a w_b C(a ← b)` — the block between two
+    /// tools in contact, so that pressing with one moves the tissue under the other. Each node
+    /// pair takes its exact local block where the build computed one (neighbouring load
+    /// nodes: the singular part, which the modes capture worst) and `Σ_k F̄_k(a) G_k(b)` from
+    /// the modes otherwise (far apart, the response is smooth and the modes hold it).
+    /// `C(s ← s)` is [`Self::compliance`] where every pair has a block; by reciprocity
+    /// `C(b ← a) = C(a ← b)ᵀ`. `None` if a node with non-zero weight is not loadable or the
+    /// input is not finite.
+    pub fn cross_compliance(&self, obs: ([usize; 3], [f64; 3]), load: ([usize; 3], [f64; 3])) -> Option<[[f64; 3]; 3]> {
+        let params = |(nodes, weights): ([usize; 3], [f64; 3])| -> Option<[usize; 3]> {
+            let mut js = [0usize; 3];
+            for a in 0..3 {
+                if !weights[a].is_finite() {
+                    return None;
+                }
+                if weights[a] != 0.0 {
+                    let p = *self.param_of_node.get(nodes[a])?;
+                    if p == NOT_LOADABLE {
+                        return None;
+                    }
+                    js[a] = p as usize;
+                }
+            }
+            Some(js)
+        };
+        let (ja, jb) = (params(obs)?, params(load)?);
+        let m = self.modes;
+        let mut c = [[0.0; 3]; 3];
+        for a in 0..3 {
+            for b in 0..3 {
+                let w = obs.1[a] * load.1[b];
+                if w == 0.0 {
+                    continue;
+                }
+                match self.local.as_ref().and_then(|l| l.block(ja[a], jb[b])) {
+                    Some(blk) => {
+                        for i in 0..3 {
+                            for d in 0..3 {
+                                c[i][d] += w * blk[i][d];
+                            }
+                        }
+                    }
+                    None => {
+                        for k in 0..m {
+                            let (fa, gb) = ((ja[a] * m + k) * 3, (jb[b] * m + k) * 3);
+                            for i in 0..3 {
+                                for d in 0..3 {
+                                    c[i][d] += w * self.fl[fa + i] * self.gl[gb + d];
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Some(c)
+    }
+
     /// The contact force (N) that displaces a surface point by `penetration` (m):
     /// `f = C⁻¹ δ`. Returns zero for a non-finite input or an ill-conditioned compliance:
     /// `|det C| ≤ 10⁻¹⁰ ‖C‖_F³` (relative, so independent of units and tissue stiffness; for

@@ -11,6 +11,7 @@ mod cantilever;
 mod contact;
 mod corotational_session;
 mod corotational_xfem;
+mod coupled_contact;
 mod cut_estimate;
 mod cut_target;
 mod cutting_session;
