@@ -483,3 +483,57 @@ fn organ_pressed_straight_in_along_the_normal_never_loses_force() {
         "pressed along the normal, the force fell by {fall} N in a step"
     );
 }
+
+/// Straight presses that are not along the normal (issue 44's open part, docs/contact.md):
+/// straight down (−z) at six points of the organ to 16 radii, and in from +y through the lobe;
+/// prints, per press, the largest fall of the force between two 10 µm steps while the tip is
+/// inside and below the force limit, and the falls summed. A measurement, not a check: run with
+/// `cargo test -p vademecum-engine --test it oblique_presses -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn oblique_presses_where_the_force_falls() {
+    let scene = Scene::builtin("organ").unwrap();
+    let b = bundle(&scene);
+    let r = probe_radius(&scene);
+    let truth = Truth::new(&b);
+    let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+    let mut presses: Vec<(String, [f64; 3], [f64; 3], f64)> = press_points(&b, 6)
+        .into_iter()
+        .map(|(p, _)| (format!("down at {p:?}"), [p[0], p[1], p[2] + 2.0 * r], [0.0, 0.0, -1.0], 16.0 * r))
+        .collect();
+    presses.push(("from +y".into(), [0.0, 0.08, 0.01], [0.0, -1.0, 0.0], 0.12));
+    let step = 1e-5;
+    for (name, start, dir, length) in presses {
+        pipe.reset();
+        let steps = (length / step).ceil() as usize;
+        let mut last: Option<(f64, f64, [f64; 3])> = None;
+        let (mut worst, mut at, mut cum, mut jump) = (0.0f64, 0.0, 0.0f64, 0.0);
+        for i in 0..=steps {
+            let t = length * i as f64 / steps as f64;
+            let tip = [0, 1, 2].map(|k| start[k] + t * dir[k]);
+            let s = tick(&mut pipe, tip);
+            let f = norm(s.force_n);
+            let inside = truth.inside(tip);
+            let proxy = s.contact.map(|c| c.proxy_m).unwrap_or([0.0; 3]);
+            if let Some((before, _, p0)) = last
+                && inside
+                && !s.events.has(Events::FORCE_SATURATED)
+                && s.contact.is_some()
+            {
+                let fall = before - f;
+                if fall > 0.0 {
+                    cum += fall;
+                }
+                if fall > worst {
+                    worst = fall;
+                    at = t;
+                    jump = norm([0, 1, 2].map(|k| proxy[k] - p0[k]));
+                }
+            }
+            last = Some((f, t, proxy));
+        }
+        eprintln!(
+            "{name}: largest fall {worst:.4} N at {at:.5} m along the press (the proxy moved {jump:.1e} m in that step), falls summed {cum:.2} N"
+        );
+    }
+}
