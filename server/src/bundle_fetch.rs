@@ -44,7 +44,8 @@ impl Default for FetchLimits {
 }
 
 /// Why a bundle could not be fetched. Its message names the source's URL (the operator's,
-/// not a client's input) and never a path of the server's.
+/// not a client's input); a store error may name a folder of the server's, which a client sees
+/// by its last component only (`error::for_client`).
 #[derive(Debug, thiserror::Error)]
 pub enum FetchError {
     /// The fetch ran past its deadline ([`FetchLimits::deadline`]).

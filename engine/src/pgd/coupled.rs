@@ -56,6 +56,9 @@ pub fn coupled_forces(
     if k > MAX_CONTACTS {
         return Err(CoupledError::TooMany(k));
     }
+    if k == 0 {
+        return Ok(());
+    }
     let n = 3 * k;
     let mut a = [[0.0; N]; N];
     let mut b = [0.0; N];

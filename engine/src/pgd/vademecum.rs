@@ -284,19 +284,7 @@ impl Vademecum {
     /// `Σ_a Σ_b w_a w_b C(a ← b)` — exact at nodes, at most 9 blocks; otherwise it comes from
     /// the modes (about 18 multiply-adds per mode).
     pub fn compliance(&self, nodes: [usize; 3], weights: [f64; 3]) -> Option<[[f64; 3]; 3]> {
-        if weights.iter().any(|w| !w.is_finite()) {
-            return None;
-        }
-        let mut js = [0usize; 3];
-        for a in 0..3 {
-            if weights[a] != 0.0 {
-                let p = *self.param_of_node.get(nodes[a])?;
-                if p == NOT_LOADABLE {
-                    return None;
-                }
-                js[a] = p as usize;
-            }
-        }
+        let js = self.load_indices(nodes, weights)?;
         if let Some(local) = &self.local {
             // C(s) = Σ_a Σ_b w_a w_b C(a ← b): exact at nodes, bilinear inside the triangle.
             let mut c = [[0.0; 3]; 3];
@@ -327,6 +315,25 @@ impl Vademecum {
             }
         }
         self.modal_compliance(js, weights)
+    }
+
+    /// The load-node index of each node of a surface point with non-zero weight (0 for the
+    /// others); `None` if a weight is not finite or such a node is not loadable.
+    fn load_indices(&self, nodes: [usize; 3], weights: [f64; 3]) -> Option<[usize; 3]> {
+        if weights.iter().any(|w| !w.is_finite()) {
+            return None;
+        }
+        let mut js = [0usize; 3];
+        for a in 0..3 {
+            if weights[a] != 0.0 {
+                let p = *self.param_of_node.get(nodes[a])?;
+                if p == NOT_LOADABLE {
+                    return None;
+                }
+                js[a] = p as usize;
+            }
+        }
+        Some(js)
     }
 
     /// The compliance from the modes alone (what [`Vademecum::compliance`] falls back to when
@@ -367,23 +374,7 @@ impl Vademecum {
     /// `C(b ← a) = C(a ← b)ᵀ`. `None` if a node with non-zero weight is not loadable or the
     /// input is not finite.
     pub fn cross_compliance(&self, obs: ([usize; 3], [f64; 3]), load: ([usize; 3], [f64; 3])) -> Option<[[f64; 3]; 3]> {
-        let params = |(nodes, weights): ([usize; 3], [f64; 3])| -> Option<[usize; 3]> {
-            let mut js = [0usize; 3];
-            for a in 0..3 {
-                if !weights[a].is_finite() {
-                    return None;
-                }
-                if weights[a] != 0.0 {
-                    let p = *self.param_of_node.get(nodes[a])?;
-                    if p == NOT_LOADABLE {
-                        return None;
-                    }
-                    js[a] = p as usize;
-                }
-            }
-            Some(js)
-        };
-        let (ja, jb) = (params(obs)?, params(load)?);
+        let (ja, jb) = (self.load_indices(obs.0, obs.1)?, self.load_indices(load.0, load.1)?);
         let m = self.modes;
         let mut c = [[0.0; 3]; 3];
         for a in 0..3 {

@@ -535,7 +535,7 @@ fn the_gallbladder_tears_sooner_at_equilibrium_and_later_when_the_jaws_hold_the_
         let schedule: toml::Value = toml::from_str::<toml::Table>("s = [{ steps = 60, scale = 1.0 }]").unwrap()["s"].clone();
         vec![("organs[0].loads[0]", load), ("fidelity.tearing.schedule", schedule)]
     };
-    // (how, edits, force of step k (1-based) of a run)
+    // (how, the scene's keys it sets, whether the pull is a prescribed displacement)
     let cases: [(&str, Vec<(&str, toml::Value)>, bool); 3] = [
         ("1/3 N a step along z (the scene)", vec![], false),
         ("jaws held, pulled up 0.5 mm a step", pulled("x = 0.0\ny = 0.0\n"), true),
