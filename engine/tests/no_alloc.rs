@@ -384,6 +384,47 @@ fn a_change_of_grasp_site_allocates_nothing() {
     assert_eq!(COUNT.with(|n| n.get()), 0, "a change of grasp site allocated");
 }
 
+/// Two probes in one session (issue 46), ticked together over the palpation path: the
+/// second probe follows the first at a fixed offset, so they press one organ together (the
+/// coupled solve), apart, and one in free air, with rejected samples between.
+#[test]
+fn a_two_probe_tick_allocates_nothing() {
+    let text = format!(
+        "{}\n[[tools]]\nkind = \"probe\"\nname = \"left\"\nradius = 0.004\n",
+        vademecum_engine::scene::builtin("organ").unwrap()
+    );
+    let scene = Scene::from_toml(&text, "organ.toml").unwrap();
+    let mut p = pipeline(&scene);
+    let first = path([0.0, 0.0, 0.01], 0.16, 0.04, 4000);
+    let pairs: Vec<[ToolInput; 2]> = first
+        .iter()
+        .enumerate()
+        .map(|(i, a)| {
+            let offset = [0.02 * (i as f64 * 0.01).cos(), 0.02, 0.0];
+            [
+                *a,
+                ToolInput {
+                    tool: 1,
+                    position_m: [0, 1, 2].map(|k| a.position_m[k] + offset[k]),
+                    ..*a
+                },
+            ]
+        })
+        .collect();
+    let mut states = [Default::default(); 2];
+    let mut both = 0;
+    COUNT.with(|n| n.set(0));
+    COUNTING.with(|c| c.set(true));
+    for pair in &pairs {
+        p.tick_tools(pair, &mut states);
+        both += usize::from(states.iter().all(|s| s.events.has(Events::CONTACT)));
+    }
+    COUNTING.with(|c| c.set(false));
+    let n = COUNT.with(|n| n.get());
+    assert_eq!(n, 0, "{n} allocations in {} two-probe ticks", pairs.len());
+    assert!(both > 100, "the probes pressed together in only {both} ticks");
+}
+
 #[test]
 fn solving_several_contacts_together_allocates_nothing() {
     use vademecum_engine::pgd::coupled::coupled_forces;

@@ -21,6 +21,8 @@ fn pb_vec3(v: [f64; 3]) -> pb::Vec3 {
 /// sample from a device never ends a stream.
 pub fn tool_input(t: &pb::ToolState) -> ToolInput {
     ToolInput {
+        // one tool at a time: the session's single proxy
+        tool: 0,
         kind: match pb::ToolKind::try_from(t.kind) {
             Ok(pb::ToolKind::Scalpel) => ToolKind::Scalpel,
             Ok(pb::ToolKind::Grasper) => ToolKind::Grasper,

@@ -84,6 +84,20 @@ impl LoadedBundle {
             .filter(|&k| k < self.vademecum.modes())
     }
 
+    /// The displacement-field error the build measured for the vademecum's own modes (the
+    /// last point of `manifest.info.error_curve` at or below its mode count): the relative
+    /// error of what the modes carry, such as the compliance between two distant contacts.
+    /// `None` when the report has no curve.
+    pub fn modes_error(&self) -> Option<f64> {
+        let curve = self.manifest.info.get("error_curve")?.as_array()?;
+        curve
+            .iter()
+            .filter_map(|p| Some((p.get(0)?.as_u64()? as usize, p.get(1)?.as_f64()?)))
+            .filter(|&(k, e)| k <= self.vademecum.modes() && e.is_finite() && e >= 0.0)
+            .max_by_key(|&(k, _)| k)
+            .map(|(_, e)| e)
+    }
+
     /// The sliver rule the build chose for a cutting session (`info.cut.sliver`, set by
     /// `build --target-error`: [`CutReport::sliver`](crate::offline::CutReport::sliver)); `None` for a bundle that does not say
     /// (the scene's `fidelity.xfem.sliver` applies). An error for a value no sliver rule has.

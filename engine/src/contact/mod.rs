@@ -74,6 +74,9 @@ impl Touch {
 pub struct Proxy {
     /// The proxy's point and its signed distance from the tip last tick.
     last: Option<(SurfacePoint, f64)>,
+    /// The tip and radius of the last update: the same again changes nothing (a session that
+    /// ticks one tool state several times answers it as a client replaying it once would).
+    input: Option<([f64; 3], f64)>,
 }
 
 /// The box of a surface's nodes.
@@ -116,6 +119,7 @@ impl Proxy {
     /// Lets go (a new session, a tool change).
     pub fn release(&mut self) {
         self.last = None;
+        self.input = None;
     }
 
     /// The touch of a tip whose centre is outside the organ: the surface point nearest to it
@@ -136,8 +140,29 @@ impl Proxy {
     }
 
     /// Moves the proxy for a tip of radius `radius` at `tip` (see the module docs) and
-    /// returns the contact, if any. Allocates nothing.
+    /// returns the contact, if any. The same tip and radius as the last update give the same
+    /// contact, bit for bit (Newton's method restarted from its own solution would move the
+    /// last bits). Allocates nothing.
     pub fn update(&mut self, surface: &Surface, bounds: &Bounds, tip: [f64; 3], radius: f64) -> Option<Touch> {
+        if self.input == Some((tip, radius)) {
+            return self.last.map(|(at, d)| Self::touch(surface, at, d, radius));
+        }
+        self.input = Some((tip, radius));
+        self.follow(surface, bounds, tip, radius)
+    }
+
+    /// The contact of a proxy at `at`, `d` from a tip of radius `radius`.
+    fn touch(surface: &Surface, at: SurfacePoint, d: f64, radius: f64) -> Touch {
+        Touch {
+            at,
+            nodes: surface.triangles()[at.triangle],
+            normal: surface.normal_at(&at),
+            depth: radius - d,
+        }
+    }
+
+    /// [`Proxy::update`] for a new tip or radius.
+    fn follow(&mut self, surface: &Surface, bounds: &Bounds, tip: [f64; 3], radius: f64) -> Option<Touch> {
         if !(tip.iter().all(|x| x.is_finite()) && radius.is_finite() && radius > 0.0) || surface.is_empty() || !bounds.contains(tip, radius)
         {
             self.last = None;
@@ -196,12 +221,7 @@ impl Proxy {
             return None;
         }
         self.last = Some((at, d));
-        Some(Touch {
-            at,
-            nodes: surface.triangles()[at.triangle],
-            normal: surface.normal_at(&at),
-            depth: radius - d,
-        })
+        Some(Self::touch(surface, at, d, radius))
     }
 }
 

@@ -62,6 +62,11 @@ pub enum ToolKind {
 /// What the tick reads from the tool (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ToolInput {
+    /// Which of the scene's tools this is: its index in the scene's `[[tools]]` list. Each
+    /// index keeps its own contact from tick to tick, so several tools touch the organs at
+    /// once ([`Pipeline::tick_tools`]); a session driven by one tool at a time uses 0 for all
+    /// of them, as before tools had names.
+    pub tool: usize,
     /// Tool kind.
     pub kind: ToolKind,
     /// Tip position in the organ's reference frame (m).
@@ -79,9 +84,10 @@ pub struct ToolInput {
 }
 
 impl Default for ToolInput {
-    /// A probe at the origin, at rest, open, with the identity orientation.
+    /// Tool 0, a probe at the origin, at rest, open, with the identity orientation.
     fn default() -> Self {
         Self {
+            tool: 0,
             kind: ToolKind::Probe,
             position_m: [0.0; 3],
             velocity_m_s: [0.0; 3],
@@ -281,6 +287,16 @@ pub trait Effect: Send {
     /// Advances the effect by one tick for tool input `tool`, reading and updating `state`.
     /// Must not allocate, block or log.
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState);
+    /// Advances the effect by one tick for several tools at once, `tools[i]` reading and
+    /// updating `states[i]` (equal lengths, at most [`MAX_TOOLS`], distinct
+    /// [`ToolInput::tool`]). The default runs [`Effect::tick`] for each tool in turn: right for
+    /// an effect whose tools do not feel each other; palpation overrides it to solve the
+    /// contacts of every tool on an organ together. Must not allocate, block or log.
+    fn tick_tools(&mut self, tools: &[ToolInput], states: &mut [TickState]) {
+        for (tool, state) in tools.iter().zip(states.iter_mut()) {
+            self.tick(tool, state);
+        }
+    }
     /// Bytes of the state this effect holds for its session ([`crate::memory`]): its own
     /// buffers, not the bundles it shares with other sessions.
     fn memory_bytes(&self) -> usize;
@@ -377,7 +393,15 @@ pub struct Pipeline {
     corotational: Option<corotational::CorotationalDeformation>,
     /// The fidelity the effects run at.
     fidelity: Fidelity,
+    /// How many tools the scene names (tool indices below it are accepted).
+    tools: usize,
+    /// Each of the scene's tools: its kind and force limit (N).
+    tool_limits: Vec<(ToolKind, f64)>,
 }
+
+/// Most tools a scene names and a tick moves together (the contacts of as many tools are
+/// solved together: [`crate::pgd::coupled::MAX_CONTACTS`]).
+pub const MAX_TOOLS: usize = crate::pgd::coupled::MAX_CONTACTS;
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
 /// positions are rejected as out of range (a device or client in the wrong units or frame).
@@ -456,7 +480,11 @@ impl Pipeline {
         };
         // a tearing scene without a probe palpates nothing: the grasper is its only tool
         let mut effects: Vec<Box<dyn Effect>> = match radius {
-            Some(r) => vec![Box::new(Palpation::new(bundles.to_vec(), r, large))],
+            Some(r) => vec![Box::new(Palpation::for_tools(
+                bundles.to_vec(),
+                tip_radii(&scene.spec.tools, r),
+                large,
+            ))],
             None => Vec::new(),
         };
         let (mut tear_pictures, mut tear_offline, mut grasp_sites) = (None, Vec::new(), Vec::new());
@@ -506,6 +534,8 @@ impl Pipeline {
             grasp_sites,
             corotational,
             fidelity: Fidelity::Full,
+            tools: scene.spec.tools.len().max(1),
+            tool_limits: scene.spec.tools.iter().map(tool_limit).collect(),
         })
     }
 
@@ -613,28 +643,87 @@ impl Pipeline {
         }
     }
 
-    /// One tick: every effect in order. A non-finite or out-of-range tool state (see
-    /// [`ToolInput::is_valid`]; a position outside [`Pipeline::workspace`]), or a tool kind
-    /// the scene does not simulate, gives zero force and the `REJECTED_INPUT` event, and
+    /// Whether the tick can take `tool`: a valid state ([`ToolInput::is_valid`]) of a kind
+    /// the scene simulates, of one of its tools, inside [`Pipeline::workspace`], and for a
+    /// scalpel a blade that is one (see [`Pipeline::tick`]).
+    fn takes(&self, tool: &ToolInput) -> bool {
+        tool.is_valid()
+            && self.accepts(tool.kind)
+            && tool.tool < self.tools
+            && self.workspace.contains(tool.position_m, 0.0)
+            && (tool.kind != ToolKind::Scalpel || self.blade_ok(tool))
+    }
+
+    /// One tick of one tool: every effect in order. A non-finite or out-of-range tool state (see
+    /// [`ToolInput::is_valid`]; a position outside [`Pipeline::workspace`]), a tool kind
+    /// the scene does not simulate or a tool index past the scene's tools gives zero force and
+    /// the `REJECTED_INPUT` event, and
     /// no effect sees it (the contact carried from the last tick is kept). A force larger
     /// than the tool's `max_force` (probe or scalpel) is scaled down to it (direction kept) and flagged
     /// `FORCE_SATURATED`; a non-finite one becomes zero. A scalpel state whose blade is not
     /// one (zero length, longer than [`MAX_BLADE_EDGE`] blade lengths, no plane) is rejected
     /// the same way.
     pub fn tick(&mut self, tool: &ToolInput) -> TickState {
-        let mut state = TickState::default();
-        if !tool.is_valid()
-            || !self.accepts(tool.kind)
-            || !self.workspace.contains(tool.position_m, 0.0)
-            || (tool.kind == ToolKind::Scalpel && !self.blade_ok(tool))
-        {
-            state.events.0 |= Events::REJECTED_INPUT;
-            return state;
+        let mut state = [TickState::default()];
+        self.tick_tools(std::slice::from_ref(tool), &mut state);
+        state[0]
+    }
+
+    /// One tick of several tools at once (two hands): `states[i]` answers `tools[i]`. Each
+    /// tool is checked as [`Pipeline::tick`] checks one (a rejected state gets zero force and
+    /// `REJECTED_INPUT`, and the others go on); the effects then see every accepted tool
+    /// together, so the contacts of tools pressing one organ are solved together
+    /// ([`Palpation`]): pressing with one moves the tissue under the other. Each force is
+    /// limited by its own tool's `max_force`. At most [`MAX_TOOLS`] tools, each index once
+    /// (a second state of the same tool in one tick is rejected). Allocates nothing.
+    pub fn tick_tools(&mut self, tools: &[ToolInput], states: &mut [TickState]) {
+        assert_eq!(tools.len(), states.len(), "one state per tool");
+        let mut taken = [ToolInput::default(); MAX_TOOLS];
+        let mut answers = [TickState::default(); MAX_TOOLS];
+        let mut origin = [0usize; MAX_TOOLS];
+        let mut n = 0;
+        for (i, tool) in tools.iter().enumerate() {
+            states[i] = TickState::default();
+            let repeated = taken[..n].iter().any(|t| t.tool == tool.tool);
+            if n == MAX_TOOLS || repeated || !self.takes(tool) {
+                states[i].events.0 |= Events::REJECTED_INPUT;
+                continue;
+            }
+            taken[n] = *tool;
+            answers[n].tool_m = Some(tool.position_m);
+            origin[n] = i;
+            n += 1;
         }
-        state.tool_m = Some(tool.position_m);
+        if n == 0 {
+            return;
+        }
         for e in &mut self.effects {
-            e.tick(tool, &mut state);
+            e.tick_tools(&taken[..n], &mut answers[..n]);
         }
+        for (j, mut state) in answers[..n].iter().copied().enumerate() {
+            self.finish(&taken[j], &mut state);
+            states[origin[j]] = state;
+        }
+    }
+
+    /// The force limit of `tool` (N): its own `max_force` where the scene names it at its
+    /// index with its kind, else the limit of the first tool of its kind.
+    fn limit(&self, tool: &ToolInput) -> f64 {
+        if let Some(&(kind, limit)) = self.tool_limits.get(tool.tool)
+            && kind == tool.kind
+        {
+            return limit;
+        }
+        match tool.kind {
+            ToolKind::Scalpel => self.scalpel_max_force_n,
+            ToolKind::Grasper => self.grasper_max_force_n.unwrap_or(self.max_force_n),
+            _ => self.max_force_n,
+        }
+    }
+
+    /// The end of one tool's tick: the fidelity event, a non-finite force to zero, the force
+    /// limited to the tool's ([`Pipeline::tick`]).
+    fn finish(&self, tool: &ToolInput, state: &mut TickState) {
         if self.fidelity == Fidelity::Reduced {
             state.events.0 |= Events::REDUCED_FIDELITY;
         }
@@ -642,11 +731,7 @@ impl Pipeline {
             state.force_n = [0.0; 3];
         }
         let norm = state.force_n.iter().map(|x| x * x).sum::<f64>().sqrt();
-        let limit = match tool.kind {
-            ToolKind::Scalpel => self.scalpel_max_force_n,
-            ToolKind::Grasper => self.grasper_max_force_n.unwrap_or(self.max_force_n),
-            _ => self.max_force_n,
-        };
+        let limit = self.limit(tool);
         if norm > limit {
             let scale = limit / norm;
             state.force_n = state.force_n.map(|x| x * scale);
@@ -659,8 +744,32 @@ impl Pipeline {
             }
             state.events.0 |= Events::FORCE_SATURATED;
         }
-        state
     }
+}
+
+/// Each tool's contact radius (m), by its index in the scene: a probe's own tip radius, for
+/// every other tool `radius` (the first probe's, or a scalpel's tip in a scene without
+/// probe). One entry for a scene without tools.
+fn tip_radii(tools: &[ToolSpec], radius: f64) -> Vec<f64> {
+    let radii: Vec<f64> = tools
+        .iter()
+        .take(MAX_TOOLS)
+        .map(|t| match t {
+            ToolSpec::Probe { radius, .. } => *radius,
+            _ => radius,
+        })
+        .collect();
+    if radii.is_empty() { vec![radius] } else { radii }
+}
+
+/// A scene tool's kind and force limit (N), at most [`GLOBAL_FORCE_LIMIT_N`].
+fn tool_limit(t: &ToolSpec) -> (ToolKind, f64) {
+    let (kind, limit) = match t {
+        ToolSpec::Probe { max_force, .. } => (ToolKind::Probe, *max_force),
+        ToolSpec::Scalpel { max_force, .. } => (ToolKind::Scalpel, *max_force),
+        ToolSpec::Grasper { max_force, .. } => (ToolKind::Grasper, *max_force),
+    };
+    (kind, limit.clamp(0.0, GLOBAL_FORCE_LIMIT_N))
 }
 
 /// The tearing effect of `scene`'s tearable organ: its model from the scene, the offline

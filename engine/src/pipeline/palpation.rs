@@ -14,6 +14,17 @@
 //!   the organ gets at any loadable node (`max_a 1/λ_min(C(a))`). At λ = 1 this is the
 //!   accessible law and at λ = 0 a wall, so the force is continuous everywhere on the surface.
 //!
+//! # Several tools on one organ
+//! Each tool keeps its own proxy on every organ. When several tools touch the same organ in
+//! one tick, their forces on the tissue are solved together ([`crate::pgd::coupled`]): with
+//! `s_L,i` the loadable point of tool i and `λ_i` its share,
+//! `Σ_j C(s_L,i ← s_L,j) g_j = δ_i` and `f_i = λ_i g_i + (1 − λ_i) k_w δ_i` — pressing with
+//! one tool moves the tissue under the other (a tool wholly on the support, `λ = 0`, takes no
+//! part). For one tool this is the law above. A probe only pushes: a contact whose solution
+//! would pull the tissue out (the others' press drew the surface away from under it) lets
+//! go, and the rest are solved again. Where the contacts are not independent (two tools on
+//! one spot: the system is singular) each tool's force is its own, as if alone.
+//!
 //! The force on the tool is the reaction `−f`. With large deformations
 //! (`effects.deformation = "large"`) the tissue's part is scaled by the organ's ANM-POD lattice
 //! ([`crate::rom::palpation`]): the ratio of the nonlinear to the linear force at this depth,
@@ -32,7 +43,13 @@
 //! ([`AnmLattice::interpolation_rates`]), plus the
 //! path's own error and, past the paths, the nonlinear correction growing at the rate it grew
 //! along them. The support's share is
-//! the model's wall and carries no error.
+//! the model's wall and carries no error. With several tools on an organ, the compliances
+//! between their contacts come from the modes (the exact local blocks only join neighbouring
+//! nodes), whose field the build measured to a relative error ε
+//! ([`LoadedBundle::modes_error`]): a block `C(i ← j)` is then off by up to about
+//! `ε ‖C(s_L,j)‖` (the error relative to the field under the load at j), which moves tool
+//! i's force by `ε λ_i ‖C(s_L,i)⁻¹‖ Σ_{j≠i} ‖C(s_L,j)‖ |g_j|` to first order — added to each
+//! estimate; a bundle without that measure gives no estimate.
 //! `vademecum study` checks the estimate against full Newton at nodes off the lattice.
 //!
 //! [`Stiffening::error`]: crate::rom::palpation::Stiffening::error
@@ -40,10 +57,11 @@
 
 use std::sync::Arc;
 
-use super::{Contact, Effect, Events, Fidelity, TickState, ToolInput};
+use super::{Contact, Effect, Events, Fidelity, MAX_TOOLS, TickState, ToolInput, ToolKind};
 use crate::bundle::LoadedBundle;
 use crate::contact::{Bounds, Proxy, Surface, Touch};
 use crate::pgd::Vademecum;
+use crate::pgd::coupled::coupled_forces;
 
 /// One organ as the probe sees it.
 #[derive(Debug, Clone)]
@@ -51,7 +69,11 @@ struct Organ {
     bundle: Arc<LoadedBundle>,
     surface: Surface,
     bounds: Bounds,
-    proxy: Proxy,
+    /// One proxy per tool ([`ToolInput::tool`]).
+    proxies: Vec<Proxy>,
+    /// The modes' measured field error ([`LoadedBundle::modes_error`]), for the coupling's
+    /// share of the error estimate.
+    modes_error: Option<f64>,
     /// The support stiffness `k_w` (N/m).
     wall_stiffness: f64,
     /// The lattice's interpolation rates for its four-position blend and for its nearest
@@ -63,7 +85,8 @@ struct Organ {
 #[derive(Debug, Clone)]
 pub struct Palpation {
     organs: Vec<Organ>,
-    radius_m: f64,
+    /// Each tool's tip radius (m), by [`ToolInput::tool`].
+    radii_m: Vec<f64>,
     large: bool,
     scratch: Vec<f64>,
     /// Lattice positions blended: [`NEIGHBOURS`], or 1 at the reduced fidelity.
@@ -92,7 +115,7 @@ pub fn support_stiffness(v: &Vademecum) -> f64 {
 }
 
 impl Organ {
-    fn new(bundle: Arc<LoadedBundle>, large: bool) -> Self {
+    fn new(bundle: Arc<LoadedBundle>, large: bool, tools: usize) -> Self {
         let surface = Surface::new(&bundle.nodes, bundle.surface.clone());
         let bounds = Bounds::of(&bundle.nodes, &bundle.surface);
         let wall_stiffness = support_stiffness(&bundle.vademecum);
@@ -101,19 +124,19 @@ impl Organ {
             _ => [Vec::new(), Vec::new()],
         };
         Self {
+            modes_error: bundle.modes_error(),
             bundle,
             surface,
             bounds,
-            proxy: Proxy::default(),
+            proxies: vec![Proxy::default(); tools],
             wall_stiffness,
             rates,
         }
     }
 
-    /// The force on the tissue at the touch (before any large-deformation scaling) and the
-    /// loadable part of it: `(λ, s_L weights, force of the loadable part, force of the
-    /// support part)`.
-    fn forces(&self, t: &Touch) -> (f64, [f64; 3], [f64; 3], [f64; 3]) {
+    /// The force on the tissue at the touch as if the tool were alone (before any
+    /// large-deformation scaling), split into its loadable and support parts.
+    fn forces(&self, t: &Touch) -> Share {
         let v = &self.bundle.vademecum;
         let delta = t.penetration();
         let w = t.at.weights;
@@ -127,21 +150,133 @@ impl Organ {
         }
         let wall = delta.map(|d| (1.0 - lambda) * self.wall_stiffness * d);
         if lambda <= 0.0 {
-            return (0.0, wl, [0.0; 3], wall);
+            return Share {
+                lambda: 0.0,
+                weights: wl,
+                tissue: [0.0; 3],
+                wall,
+                coupling: 0.0,
+            };
         }
         let wl = wl.map(|x| x / lambda);
         let tissue = match v.compliance(t.nodes, wl) {
             Some(c) => Vademecum::contact_force(&c, delta).map(|f| lambda * f),
             None => [0.0; 3],
         };
-        (lambda, wl, tissue, wall)
+        Share {
+            lambda,
+            weights: wl,
+            tissue,
+            wall,
+            coupling: 0.0,
+        }
+    }
+}
+
+/// One tool's force on the tissue at its touch (before any large-deformation scaling).
+#[derive(Debug, Clone, Copy, Default)]
+struct Share {
+    /// The share λ of the contact on the loadable surface.
+    lambda: f64,
+    /// The weights of the loadable point s_L in the touched triangle.
+    weights: [f64; 3],
+    /// The loadable part of the force (N).
+    tissue: [f64; 3],
+    /// The support's part of the force (N).
+    wall: [f64; 3],
+    /// What an error of the compliances between the tools' contacts can move the loadable
+    /// part by, per unit relative error (N): `λ_i ‖C(s_L,i)⁻¹‖ Σ_{j≠i} ‖C(s_L,j)‖ |g_j|`;
+    /// zero for a tool alone.
+    coupling: f64,
+}
+
+/// The tools of one tick that touch the organ, and their forces solved together (module docs):
+/// `shares[i]` of the tool `touches[i]` is replaced by the coupled one for every tool with a
+/// loadable share on `organ`. A probe only pushes: where the solution would pull the tissue
+/// out at a contact (`g_i · n_i > 0`: the others' press drew the surface away from under
+/// it), the most pulling contact lets go — its tissue force is zero — and the rest are
+/// solved again (an active set: at most one pass per tool). Nothing changes when fewer than
+/// two tools touch, or the system is singular.
+fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &mut [Share]) {
+    let mut members = [0usize; MAX_TOOLS];
+    let mut points = [([0usize; 3], [0.0; 3]); MAX_TOOLS];
+    let mut penetrations = [[0.0; 3]; MAX_TOOLS];
+    let mut normals = [[0.0; 3]; MAX_TOOLS];
+    let mut k = 0;
+    for (i, t) in touches.iter().enumerate() {
+        if let Some((on, touch)) = t
+            && *on == organ
+            && shares[i].lambda > 0.0
+        {
+            members[k] = i;
+            points[k] = (touch.nodes, shares[i].weights);
+            penetrations[k] = touch.penetration();
+            normals[k] = touch.normal;
+            k += 1;
+        }
+    }
+    if k < 2 {
+        return;
+    }
+    let v = &o.bundle.vademecum;
+    let mut g = [[0.0; 3]; MAX_TOOLS];
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    // the active contacts first, in `members[..active]`, the released ones after
+    let mut active = k;
+    loop {
+        if coupled_forces(v, &points[..active], &penetrations[..active], &mut g[..active]).is_err() {
+            return;
+        }
+        let pulling = (0..active)
+            .map(|a| (a, dot(&g[a], &normals[a]) / dot(&g[a], &g[a]).sqrt().max(f64::MIN_POSITIVE)))
+            .filter(|&(_, c)| c > 0.0)
+            .max_by(|x, y| x.1.total_cmp(&y.1));
+        match pulling {
+            Some((a, _)) if active > 1 => {
+                active -= 1;
+                members.swap(a, active);
+                points.swap(a, active);
+                penetrations.swap(a, active);
+                normals.swap(a, active);
+            }
+            _ => break,
+        }
+    }
+    // ‖C(s_L,i)‖ and ‖C(s_L,i)⁻¹‖ (Frobenius, bounding the spectral norms)
+    let mut norms = [(0.0, 0.0); MAX_TOOLS];
+    for (n, p) in norms.iter_mut().zip(&points[..active]) {
+        if let Some(c) = v.compliance(p.0, p.1) {
+            let m = nalgebra::Matrix3::from_fn(|r, d| c[r][d]);
+            *n = (m.norm(), m.try_inverse().map_or(f64::INFINITY, |inv| inv.norm()));
+        }
+    }
+    let size = |f: &[f64; 3]| dot(f, f).sqrt();
+    for (a, &i) in members[..k].iter().enumerate() {
+        let s = &mut shares[i];
+        if a >= active {
+            // released: the surface left it
+            s.tissue = [0.0; 3];
+            s.coupling = 0.0;
+            continue;
+        }
+        let others: f64 = (0..active).filter(|&b| b != a).map(|b| norms[b].0 * size(&g[b])).sum();
+        s.coupling = s.lambda * norms[a].1 * others;
+        s.tissue = g[a].map(|x| s.lambda * x);
     }
 }
 
 impl Palpation {
-    /// Prepares the contact surfaces of `bundles` for a tip of radius `radius_m` (m); with
-    /// `large`, every bundle must carry a large-deformation lattice (checked by the pipeline).
+    /// Prepares the contact surfaces of `bundles` for one tool with a tip of radius
+    /// `radius_m` (m); with `large`, every bundle must carry a large-deformation lattice
+    /// (checked by the pipeline).
     pub fn new(bundles: Vec<Arc<LoadedBundle>>, radius_m: f64, large: bool) -> Self {
+        Self::for_tools(bundles, vec![radius_m], large)
+    }
+
+    /// [`Palpation::new`] for several tools, `radii_m[t]` the tip radius of tool `t`
+    /// ([`ToolInput::tool`]; at most [`MAX_TOOLS`], at least one), each with its own proxy.
+    pub fn for_tools(bundles: Vec<Arc<LoadedBundle>>, radii_m: Vec<f64>, large: bool) -> Self {
+        assert!((1..=MAX_TOOLS).contains(&radii_m.len()), "one to {MAX_TOOLS} tools");
         let scratch = vec![
             0.0;
             bundles
@@ -151,13 +286,87 @@ impl Palpation {
                 .max()
                 .unwrap_or(0)
         ];
+        let tools = radii_m.len();
         Self {
-            organs: bundles.into_iter().map(|b| Organ::new(b, large)).collect(),
-            radius_m,
+            organs: bundles.into_iter().map(|b| Organ::new(b, large, tools)).collect(),
+            radii_m,
             large,
             scratch,
             neighbours: NEIGHBOURS,
         }
+    }
+}
+
+impl Palpation {
+    /// Moves `tool`'s proxy on every organ: the deepest contact, if any, and its organ.
+    fn touch(&mut self, tool: &ToolInput) -> Option<(usize, Touch)> {
+        let radius = *self.radii_m.get(tool.tool)?;
+        let mut best: Option<(usize, Touch)> = None;
+        for (i, o) in self.organs.iter_mut().enumerate() {
+            let proxy = o.proxies.get_mut(tool.tool)?;
+            if let Some(t) = proxy.update(&o.surface, &o.bounds, tool.contact_point(), radius)
+                && best.is_none_or(|(_, b)| t.depth > b.depth)
+            {
+                best = Some((i, t));
+            }
+        }
+        best
+    }
+
+    /// Writes one tool's contact into its tick state: the large-deformation scaling of the
+    /// tissue's part, the force on the tool, the error estimate (module docs), the contact.
+    fn render(&mut self, organ: usize, touch: &Touch, share: Share, state: &mut TickState) {
+        let o = &self.organs[organ];
+        let Share {
+            lambda,
+            weights: wl,
+            mut tissue,
+            wall,
+            coupling,
+        } = share;
+        // the loadable point s_L, where the tissue takes its part of the load
+        let nodes = &o.bundle.nodes;
+        let mut point = [0.0; 3];
+        for (a, &w) in touch.nodes.iter().zip(&wl) {
+            for k in 0..3 {
+                point[k] += w * nodes[*a][k];
+            }
+        }
+        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let mut scale = 1.0;
+        let mut error = LINEAR_RELATIVE_ERROR * norm(tissue);
+        if self.large
+            && lambda > 0.0
+            && let Some(lattice) = &o.bundle.anm
+        {
+            let s = lattice.stiffness_ratio(point, touch.depth, self.neighbours, &mut self.scratch);
+            let rates = &o.rates[usize::from(self.neighbours == 1)];
+            error = norm(tissue) * s.error(rates) + LINEAR_RELATIVE_ERROR * s.ratio * norm(tissue);
+            scale = s.ratio;
+            tissue = tissue.map(|x| x * s.ratio);
+            if s.extrapolated {
+                state.events.0 |= Events::BEYOND_RANGE;
+            }
+        }
+        state.force_error_n = match o.modes_error {
+            _ if coupling == 0.0 => Some(error),
+            Some(e) => Some(error + e * scale * coupling),
+            None => None,
+        };
+        let f = [0, 1, 2].map(|k| tissue[k] + wall[k]);
+        state.force_n = [state.force_n[0] - f[0], state.force_n[1] - f[1], state.force_n[2] - f[2]];
+        state.contact = Some(Contact {
+            organ,
+            nodes: touch.nodes,
+            weights: wl,
+            point_m: if lambda > 0.0 { point } else { touch.at.point },
+            proxy_m: touch.at.point,
+            depth_m: touch.depth,
+            tissue_force_n: tissue,
+            loadable: lambda,
+            imposed_m: touch.penetration(),
+        });
+        state.events.0 |= Events::CONTACT;
     }
 }
 
@@ -179,67 +388,44 @@ impl Effect for Palpation {
     }
 
     fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
-        if tool.kind == super::ToolKind::Grasper {
+        self.tick_tools(std::slice::from_ref(tool), std::slice::from_mut(state));
+    }
+
+    /// Every tool's proxy moves on every organ (the deepest contact wins), then the forces of
+    /// the tools touching one organ are solved together (module docs).
+    fn tick_tools(&mut self, tools: &[ToolInput], states: &mut [TickState]) {
+        let mut touches: [Option<(usize, Touch)>; MAX_TOOLS] = [None; MAX_TOOLS];
+        for (i, tool) in tools.iter().enumerate() {
             // the grasper's effect is tearing's; it does not palpate
-            return;
-        }
-        let mut best: Option<(usize, Touch)> = None;
-        for (i, o) in self.organs.iter_mut().enumerate() {
-            if let Some(t) = o.proxy.update(&o.surface, &o.bounds, tool.contact_point(), self.radius_m)
-                && best.is_none_or(|(_, b)| t.depth > b.depth)
-            {
-                best = Some((i, t));
+            if tool.kind != ToolKind::Grasper {
+                touches[i] = self.touch(tool);
             }
         }
-        let Some((organ, touch)) = best else {
-            // no contact: no force, in the full model too
-            state.force_error_n = Some(0.0);
-            return;
-        };
-        let o = &self.organs[organ];
-        let (lambda, wl, mut tissue, wall) = o.forces(&touch);
-        // the loadable point s_L, where the tissue takes its part of the load
-        let nodes = &o.bundle.nodes;
-        let mut point = [0.0; 3];
-        for (a, &w) in touch.nodes.iter().zip(&wl) {
-            for k in 0..3 {
-                point[k] += w * nodes[*a][k];
+        let touches = &touches[..tools.len()];
+        let mut shares = [Share::default(); MAX_TOOLS];
+        for (share, t) in shares.iter_mut().zip(touches) {
+            if let Some((organ, touch)) = t {
+                *share = self.organs[*organ].forces(touch);
             }
         }
-        let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        let mut error = LINEAR_RELATIVE_ERROR * norm(tissue);
-        if self.large
-            && lambda > 0.0
-            && let Some(lattice) = &o.bundle.anm
-        {
-            let s = lattice.stiffness_ratio(point, touch.depth, self.neighbours, &mut self.scratch);
-            let rates = &o.rates[usize::from(self.neighbours == 1)];
-            error = norm(tissue) * s.error(rates) + LINEAR_RELATIVE_ERROR * s.ratio * norm(tissue);
-            tissue = tissue.map(|x| x * s.ratio);
-            if s.extrapolated {
-                state.events.0 |= Events::BEYOND_RANGE;
+        for (organ, o) in self.organs.iter().enumerate() {
+            couple(o, organ, touches, &mut shares);
+        }
+        for (i, state) in states.iter_mut().enumerate() {
+            if tools[i].kind == ToolKind::Grasper {
+                continue;
+            }
+            match touches[i] {
+                Some((organ, touch)) => self.render(organ, &touch, shares[i], state),
+                // no contact: no force, in the full model too
+                None => state.force_error_n = Some(0.0),
             }
         }
-        state.force_error_n = Some(error);
-        let f = [0, 1, 2].map(|k| tissue[k] + wall[k]);
-        state.force_n = [state.force_n[0] - f[0], state.force_n[1] - f[1], state.force_n[2] - f[2]];
-        state.contact = Some(Contact {
-            organ,
-            nodes: touch.nodes,
-            weights: wl,
-            point_m: if lambda > 0.0 { point } else { touch.at.point },
-            proxy_m: touch.at.point,
-            depth_m: touch.depth,
-            tissue_force_n: tissue,
-            loadable: lambda,
-            imposed_m: touch.penetration(),
-        });
-        state.events.0 |= Events::CONTACT;
     }
 
     fn reset(&mut self) {
-        for o in &mut self.organs {
-            o.proxy.release();
+        for p in self.organs.iter_mut().flat_map(|o| o.proxies.iter_mut()) {
+            p.release();
         }
     }
 

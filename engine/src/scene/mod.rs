@@ -283,9 +283,20 @@ impl Scene {
         Ok(())
     }
 
-    /// The tools: unique names, positive dimensions and forces within the global limit.
+    /// The tools: at most [`crate::pipeline::MAX_TOOLS`], unique names, positive dimensions
+    /// and forces within the global limit.
     fn validate_tools(&self) -> Result<(), SceneError> {
         let s = &self.spec;
+        if s.tools.len() > crate::pipeline::MAX_TOOLS {
+            return Err(self.error_at(
+                &[Seg::Key("tools")],
+                format!(
+                    "the scene names {} tools; a session moves at most {} at once",
+                    s.tools.len(),
+                    crate::pipeline::MAX_TOOLS
+                ),
+            ));
+        }
         let mut seen = Vec::new();
         for (t, tool) in s.tools.iter().enumerate() {
             let at = [Seg::Key("tools"), Seg::Index(t)];

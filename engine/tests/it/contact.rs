@@ -39,25 +39,11 @@ fn norm(f: [f64; 3]) -> f64 {
 /// Surface points spread over the accessible surface: `count` loadable nodes evenly picked,
 /// each with its smooth outward normal.
 fn press_points(b: &LoadedBundle, count: usize) -> Vec<([f64; 3], [f64; 3])> {
-    let surface = Surface::new(&b.nodes, b.surface.clone());
     let loads = b.vademecum.load_nodes();
     (0..count)
         .map(|i| {
             let node = loads[(i * loads.len()) / count + loads.len() / (2 * count)];
-            let (t, a) = b
-                .surface
-                .iter()
-                .enumerate()
-                .find_map(|(t, tri)| tri.iter().position(|&n| n == node).map(|a| (t, a)))
-                .unwrap();
-            let mut weights = [0.0; 3];
-            weights[a] = 1.0;
-            let at = SurfacePoint {
-                triangle: t,
-                weights,
-                point: b.nodes[node],
-            };
-            (b.nodes[node], surface.normal_at(&at))
+            (b.nodes[node], common::node_normal(b, node))
         })
         .collect()
 }

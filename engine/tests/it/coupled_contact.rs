@@ -28,6 +28,23 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
     (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
 }
 
+/// The load node nearest the middle of the loadable surface, and the load node nearest to it
+/// 15–25 mm away (close enough to feel a press there).
+fn middle_and_near(b: &LoadedBundle) -> (usize, usize) {
+    let loads = b.vademecum.load_nodes();
+    let centroid = [0, 1, 2].map(|k| loads.iter().map(|&n| b.nodes[n][k]).sum::<f64>() / loads.len() as f64);
+    let a = *loads
+        .iter()
+        .min_by(|&&p, &&q| dist(b.nodes[p], centroid).total_cmp(&dist(b.nodes[q], centroid)))
+        .unwrap();
+    let near = *loads
+        .iter()
+        .filter(|&&n| (0.015..0.025).contains(&dist(b.nodes[n], b.nodes[a])))
+        .min_by(|&&p, &&q| dist(b.nodes[p], b.nodes[a]).total_cmp(&dist(b.nodes[q], b.nodes[a])))
+        .expect("a load node 15–25 mm from the middle");
+    (a, near)
+}
+
 /// The full-order compliance between load nodes `nodes`: the patch-averaged displacement at
 /// each per unit force spread over each one's patch (the vademecum's load states), by direct
 /// solves of the organ's finite-element model with its supports and no other load.
@@ -76,16 +93,7 @@ fn two_tools_pressing_one_organ_feel_each_other_as_the_full_model_says() {
     let loads = v.load_nodes();
     // tool A at the middle load node; tool B at a load node 15–25 mm away (close enough to
     // feel A), and tool C far away (at the farthest load node)
-    let centroid = [0, 1, 2].map(|k| loads.iter().map(|&n| b.nodes[n][k]).sum::<f64>() / loads.len() as f64);
-    let a = *loads
-        .iter()
-        .min_by(|&&p, &&q| dist(b.nodes[p], centroid).total_cmp(&dist(b.nodes[q], centroid)))
-        .unwrap();
-    let near = *loads
-        .iter()
-        .filter(|&&n| (0.015..0.025).contains(&dist(b.nodes[n], b.nodes[a])))
-        .min_by(|&&p, &&q| dist(b.nodes[p], b.nodes[a]).total_cmp(&dist(b.nodes[q], b.nodes[a])))
-        .expect("a load node 15–25 mm from the middle");
+    let (a, near) = middle_and_near(&b);
     let far = *loads
         .iter()
         .max_by(|&&p, &&q| dist(b.nodes[p], b.nodes[a]).total_cmp(&dist(b.nodes[q], b.nodes[a])))
@@ -138,4 +146,145 @@ fn two_tools_pressing_one_organ_feel_each_other_as_the_full_model_says() {
         coupled_forces(v, &[at(a), at(a)], &[[0.0, 0.0, -0.002]; 2], &mut two),
         Err(CoupledError::Singular)
     );
+}
+
+/// The full model's forces for probes that only push (the contact problem of the two
+/// points, solved by trying every set of active contacts): on the active set the
+/// penetrations are imposed and every force pushes (`f_i · n_i ≤ 0`); every other contact's
+/// point was drawn farther in than its probe reaches (`u_i · n_i ≤ δ_i · n_i`) and takes no
+/// force.
+fn unilateral(c: &[Vec<[[f64; 3]; 3]>], delta: &[[f64; 3]], normals: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let k = delta.len();
+    let d3 = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    for set in (1u32..1 << k).rev() {
+        let active: Vec<usize> = (0..k).filter(|i| set & (1 << i) != 0).collect();
+        let sub: Vec<Vec<[[f64; 3]; 3]>> = active.iter().map(|&i| active.iter().map(|&j| c[i][j]).collect()).collect();
+        let d: Vec<[f64; 3]> = active.iter().map(|&i| delta[i]).collect();
+        let g = solve_dense(&sub, &d);
+        let mut f = vec![[0.0; 3]; k];
+        for (&i, gi) in active.iter().zip(&g) {
+            f[i] = *gi;
+        }
+        let pushes = active.iter().all(|&i| d3(f[i], normals[i]) <= 0.0);
+        let open = (0..k).filter(|i| set & (1 << i) == 0).all(|i| {
+            let u = (0..k).fold([0.0; 3], |u, j| {
+                let cu = (0..3).map(|r| (0..3).map(|s| c[i][j][r][s] * f[j][s]).sum::<f64>());
+                let cu: Vec<f64> = cu.collect();
+                [u[0] + cu[0], u[1] + cu[1], u[2] + cu[2]]
+            });
+            d3(u, normals[i]) <= d3(delta[i], normals[i])
+        });
+        if pushes && open {
+            return f;
+        }
+    }
+    panic!("no set of active contacts solves the contact problem")
+}
+
+/// The organ scene with a second probe, `left` (tool 1), beside the scene's own (tool 0).
+fn two_probe_scene() -> Scene {
+    let text = format!(
+        "{}\n[[tools]]\nkind = \"probe\"\nname = \"left\"\nradius = 0.004\n",
+        vademecum_engine::scene::builtin("organ").unwrap()
+    );
+    Scene::from_toml(&text, "two_probes.toml").unwrap()
+}
+
+/// Two probes of one session (issue 46, "forces couple"), ticked together by the pipeline:
+/// each tool's force is the full-order model's for the two contacts together, within the
+/// vademecum's error, and the error estimate of each answer covers it; the probe held still
+/// feels the other's press (its force falls as the other draws the surface down), and lets
+/// go when the other would make it pull; a tool alone is the single-tool law; a tool the
+/// scene does not name, or the same tool twice in a tick, is rejected.
+#[test]
+fn two_probes_of_one_session_press_together_as_the_full_model_says() {
+    use vademecum_engine::pipeline::{Events, Pipeline, TickState, ToolInput};
+    let scene = two_probe_scene();
+    let b = bundle(&scene);
+    let v = &b.vademecum;
+    let (a, near) = middle_and_near(&b);
+    let r = 0.004;
+    // a tip on the node's normal line, `depth` into the surface
+    let tip = |node: usize, depth: f64, tool: usize| {
+        let n = crate::common::node_normal(&b, node);
+        ToolInput {
+            tool,
+            position_m: [0, 1, 2].map(|k| b.nodes[node][k] + (r - depth) * n[k]),
+            ..ToolInput::default()
+        }
+    };
+    let full = full_order_compliance(&scene, v, &[a, near]);
+    let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+    let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    // B held 1.5 mm in, A pressed 1 and 2 mm in: both push, and B's push weakens as A draws
+    // the surface under it down
+    let alone_b = pipe.tick(&tip(near, 1.5e-3, 1));
+    let mut before = norm(alone_b.force_n);
+    for depth_a in [1e-3, 2e-3, 3e-3, 4e-3] {
+        let tools = [tip(a, depth_a, 0), tip(near, 1.5e-3, 1)];
+        let mut states = [TickState::default(); 2];
+        pipe.tick_tools(&tools, &mut states);
+        let delta: Vec<[f64; 3]> = states.iter().map(|s| s.contact.expect("both in contact").imposed_m).collect();
+        for s in &states {
+            let c = s.contact.unwrap();
+            assert!(c.weights.iter().any(|&w| w > 1.0 - 1e-6), "the proxy stays on its node: {c:?}");
+        }
+        let normals = [crate::common::node_normal(&b, a), crate::common::node_normal(&b, near)];
+        let want = unilateral(&full, &delta, &normals);
+        // the vademecum's error is relative to the field each load makes: to the larger of
+        // the forces each tool would need alone
+        let fa = (0..2)
+            .map(|i| norm(solve_dense(&[vec![full[i][i]]], &delta[i..=i])[0]))
+            .fold(0.0, f64::max);
+        for (t, (s, w)) in states.iter().zip(&want).enumerate() {
+            // the force on the tool is the reaction to the force on the tissue
+            let got = s.force_n.map(|x| -x);
+            let e = dist(got, *w);
+            let estimate = s.force_error_n.expect("an estimate");
+            let n = normals[t];
+            eprintln!(
+                "A {:.0} mm in: tool {t} full {w:?} N (f·n/|f| {:.2}), pipeline {got:?} N, error {e:.2e} N, estimate {estimate:.2e} N",
+                depth_a * 1e3,
+                (w[0] * n[0] + w[1] * n[1] + w[2] * n[2]) / norm(*w).max(1e-300)
+            );
+            assert!(
+                e < 2e-3 * fa,
+                "tool {t}: {got:?} against the full model's {w:?} N ({:.1e} of the larger force alone)",
+                e / fa
+            );
+            assert!(estimate >= e, "tool {t}: estimate {estimate:.2e} N below the error {e:.2e} N");
+            assert!(
+                got.iter().zip(&n).map(|(f, n)| f * n).sum::<f64>() <= 0.0,
+                "tool {t} pushes: {got:?}"
+            );
+        }
+        // B, held still, feels A's press: its force falls as A goes in, to nothing where
+        // A draws the surface away from under it
+        let now = norm(states[1].force_n);
+        assert!(now < before - 0.1 || now == 0.0, "B's force went from {before} to {now} N");
+        before = now;
+    }
+    // B barely touching (0.1 mm) while A presses 2 mm: alone B's tissue would have to be
+    // pulled up to stay on it, and a probe cannot pull: B lets go, and A's force is its own
+    pipe.reset();
+    let a_alone = pipe.tick(&tip(a, 2e-3, 0));
+    let mut states = [TickState::default(); 2];
+    pipe.tick_tools(&[tip(a, 2e-3, 0), tip(near, 1e-4, 1)], &mut states);
+    assert_eq!(states[1].force_n, [0.0; 3], "{:?}", states[1]);
+    assert!(
+        dist(states[0].force_n, a_alone.force_n) <= 1e-12 * norm(a_alone.force_n),
+        "{states:?} {a_alone:?}"
+    );
+    // A alone: the single-tool law at its node
+    pipe.reset();
+    let one = pipe.tick(&tip(a, 2e-3, 0));
+    let single = Vademecum::contact_force(&v.compliance(at(a).0, at(a).1).unwrap(), one.contact.unwrap().imposed_m);
+    assert!(dist(one.force_n.map(|x| -x), single) <= 1e-9 * norm(single), "{one:?} {single:?}");
+    // a third tool the scene does not name, and tool 0 twice in one tick, are refused
+    let mut states = [TickState::default(); 3];
+    pipe.tick_tools(&[tip(a, 2e-3, 0), tip(a, 2e-3, 0), tip(near, 1e-3, 2)], &mut states);
+    assert!(states[0].events.has(Events::CONTACT), "{:?}", states[0]);
+    for s in &states[1..] {
+        assert!(s.events.has(Events::REJECTED_INPUT) && s.force_n == [0.0; 3], "{s:?}");
+    }
 }

@@ -485,6 +485,8 @@ pub(super) fn phased_deadline(epoch: Instant, now: Instant, period: Duration, fr
 /// The engine's tool state for a haptic sample.
 fn tool_input(s: &HapticState) -> ToolInput {
     ToolInput {
+        // one tool at a time: the session's single proxy
+        tool: 0,
         kind: match s.tool {
             TOOL_SCALPEL => ToolKind::Scalpel,
             TOOL_GRASPER => ToolKind::Grasper,

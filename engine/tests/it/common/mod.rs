@@ -49,3 +49,22 @@ pub fn with_keys(text: &str, edits: &[(&str, toml::Value)]) -> String {
     let edits: Vec<(&str, &str)> = edits.iter().zip(&values).map(|((k, _), v)| (*k, v.as_str())).collect();
     vademecum_engine::scene::keys::with_keys(text, &edits).unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// The smooth outward normal of the organ's contact surface at surface node `node`.
+pub fn node_normal(b: &vademecum_engine::bundle::LoadedBundle, node: usize) -> [f64; 3] {
+    use vademecum_engine::contact::{Surface, SurfacePoint};
+    let surface = Surface::new(&b.nodes, b.surface.clone());
+    let (t, a) = b
+        .surface
+        .iter()
+        .enumerate()
+        .find_map(|(t, tri)| tri.iter().position(|&n| n == node).map(|a| (t, a)))
+        .expect("a surface node");
+    let mut weights = [0.0; 3];
+    weights[a] = 1.0;
+    surface.normal_at(&SurfacePoint {
+        triangle: t,
+        weights,
+        point: b.nodes[node],
+    })
+}
