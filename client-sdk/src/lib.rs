@@ -540,6 +540,17 @@ pub fn tool_at(seq: u64, position_m: [f64; 3]) -> pb::ToolState {
     }
 }
 
+/// `state` moving the scene's tool named `tool` (`SessionInfo.tools`): a session moves its
+/// named tools together — two hands, one stream each or both on one — and the contacts of
+/// tools pressing one organ are solved together, so that pressing with one moves the tissue
+/// under the other. Unnamed states move the session's one tool at a time.
+pub fn named(tool: &str, state: pb::ToolState) -> pb::ToolState {
+    pb::ToolState {
+        tool: tool.into(),
+        ..state
+    }
+}
+
 /// A grasper tool state at `position_m` (m) with its jaws at `closure` (0 open, 1 closed) and
 /// sequence number `seq`. The jaws take hold when they close (closure ≥ 0.5) within the
 /// grasper's `jaw_width_m` of one of its `grasp_sites` (`SessionInfo.tools`); the tissue then

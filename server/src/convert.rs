@@ -16,12 +16,71 @@ fn pb_vec3(v: [f64; 3]) -> pb::Vec3 {
     pb::Vec3 { x: v[0], y: v[1], z: v[2] }
 }
 
-/// A tool state as the tick reads it. Values are not checked here: the pipeline answers a
-/// non-finite or out-of-range state with zero force and the REJECTED_INPUT event, so a bad
-/// sample from a device never ends a stream.
-pub fn tool_input(t: &pb::ToolState) -> ToolInput {
+/// Why a tool state's `tool` cannot be moved (the stream ends with INVALID_ARGUMENT).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ToolNameError {
+    /// The scene has no tool of that name.
+    #[error("the session's scene has no tool named '{name}' (its tools: {known})")]
+    Unknown {
+        /// The name asked for (capped).
+        name: String,
+        /// The scene's tool names.
+        known: String,
+    },
+    /// The named tool is of another kind than the state says.
+    #[error("tool '{name}' is a {is:?}, but the tool state says {says:?}")]
+    OtherKind {
+        /// The tool's name.
+        name: String,
+        /// Its kind in the scene.
+        is: ToolKind,
+        /// The state's kind.
+        says: ToolKind,
+    },
+}
+
+/// The engine's kind of a scene tool.
+fn spec_kind(t: &ToolSpec) -> ToolKind {
+    match t {
+        ToolSpec::Probe { .. } => ToolKind::Probe,
+        ToolSpec::Scalpel { .. } => ToolKind::Scalpel,
+        ToolSpec::Grasper { .. } => ToolKind::Grasper,
+    }
+}
+
+/// A tool state as the tick reads it, its `tool` name resolved among the scene's `tools`
+/// (its index; an empty name is tool 0, the session's one tool at a time, whatever its kind;
+/// a named tool with an unspecified kind takes the tool's). Values are not checked here: the
+/// pipeline answers a non-finite or out-of-range state with zero force and the
+/// REJECTED_INPUT event, so a bad sample from a device never ends a stream.
+pub fn tool_input(t: &pb::ToolState, tools: &[ToolSpec]) -> Result<ToolInput, ToolNameError> {
+    let mut input = tool_state(t);
+    if t.tool.is_empty() {
+        return Ok(input);
+    }
+    let Some(index) = tools.iter().position(|s| s.name() == t.tool) else {
+        return Err(ToolNameError::Unknown {
+            name: crate::error::clip(&t.tool),
+            known: tools.iter().map(|s| format!("'{}'", s.name())).collect::<Vec<_>>().join(", "),
+        });
+    };
+    let is = spec_kind(&tools[index]);
+    if t.kind == pb::ToolKind::Unspecified as i32 {
+        input.kind = is;
+    } else if input.kind != is {
+        return Err(ToolNameError::OtherKind {
+            name: crate::error::clip(&t.tool),
+            is,
+            says: input.kind,
+        });
+    }
+    input.tool = index;
+    Ok(input)
+}
+
+/// A tool state's values, for tool 0.
+fn tool_state(t: &pb::ToolState) -> ToolInput {
     ToolInput {
-        // one tool at a time: the session's single proxy
         tool: 0,
         kind: match pb::ToolKind::try_from(t.kind) {
             Ok(pb::ToolKind::Scalpel) => ToolKind::Scalpel,
@@ -157,6 +216,16 @@ pub fn frame(f: &Frame, seq: u64) -> pb::Frame {
         force_n: Some(pb_vec3(f.force_n)),
         contact: f.contact.as_ref().map(pb_contact),
         tool_m: f.tool_m.map(pb_vec3),
+        tools: f
+            .tools
+            .iter()
+            .map(|t| pb::ToolView {
+                name: t.name.clone(),
+                tool_m: t.tool_m.map(pb_vec3),
+                force_n: Some(pb_vec3(t.force_n)),
+                contact: t.contact.as_ref().map(pb_contact),
+            })
+            .collect(),
         message: 0,
     }
 }
@@ -310,6 +379,7 @@ mod tests {
         };
         SurfaceGeometry {
             organs: vec![organ("a"), organ("b")],
+            tools: vec!["probe".into()],
         }
     }
 

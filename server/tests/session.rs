@@ -154,6 +154,7 @@ fn every_tool_state_is_answered_in_order_with_the_pipelines_force() {
             client_time_us: 7 * i as u64,
             received: Instant::now(),
             reply: rx.id(),
+            named: false,
         };
         session.submit(cmd).expect("queue has room");
         if i >= 100 {
@@ -193,6 +194,7 @@ fn tool_states_are_answered_on_arrival_not_at_the_next_deadline() {
                 client_time_us: 7 * i as u64,
                 received: Instant::now(),
                 reply: rx.id(),
+                named: false,
             })
             .expect("queue has room");
         let a = recv(&mut rx);
@@ -255,6 +257,7 @@ fn bad_tool_states_get_zero_force_and_are_counted() {
                 client_time_us: 0,
                 received: Instant::now(),
                 reply: rx.id(),
+                named: false,
             })
             .unwrap();
         let a = recv(&mut rx);
@@ -269,6 +272,7 @@ fn bad_tool_states_get_zero_force_and_are_counted() {
             client_time_us: 0,
             received: Instant::now(),
             reply: rx.id(),
+            named: false,
         })
         .unwrap();
     assert_eq!(recv(&mut rx).seq, 9);
@@ -359,6 +363,7 @@ fn watch_while_interacting(sessions: &[Session]) -> Vec<(usize, bool)> {
                 client_time_us: 0,
                 received: Instant::now(),
                 reply: rx[k].id(),
+                named: false,
             });
             while rx[k].try_recv().is_ok() {}
         }
@@ -417,6 +422,7 @@ fn happenings_of_ticks_that_answer_no_one_come_with_the_next_answer() {
                 client_time_us: 0,
                 received: Instant::now(),
                 reply: rx.id(),
+                named: false,
             })
             .unwrap();
         seq += 1;
@@ -476,6 +482,7 @@ fn client_turn(
             client_time_us: 0,
             received: Instant::now(),
             reply: answers.id(),
+            named: false,
         });
     }
     let mut answered = 0;
@@ -783,6 +790,7 @@ fn sessions_on_tick_workers_answer_their_own_streams_in_order() {
                 client_time_us: 7 * i as u64,
                 received: Instant::now(),
                 reply: streams[k].id(),
+                named: false,
             })
             .expect("queue has room");
         }
@@ -849,6 +857,7 @@ fn a_session_that_would_overload_the_tick_workers_is_refused_saying_the_load() {
             client_time_us: 0,
             received: Instant::now(),
             reply: rx.id(),
+            named: false,
         })
         .unwrap();
         recv(&mut rx);

@@ -141,6 +141,7 @@ pub fn run(a: BenchSessionArgs) -> anyhow::Result<ExitCode> {
                 client_time_us: 0,
                 received: Instant::now(),
                 reply: answers.id(),
+                named: false,
             });
             while answers.try_recv().is_ok() {}
             i += 1;

@@ -94,10 +94,11 @@ fn refused_kind(entry: &Entry, m: &pb::ToolState) -> Status {
 }
 
 /// Submits a tool state to the session's tick thread. `Err(Some(status))` ends the stream
-/// with that status (a tool kind the scene does not simulate, a full queue); `Err(None)`
+/// with that status (a tool kind the scene does not simulate, a tool name it does not have,
+/// a full queue); `Err(None)`
 /// ends it quietly (the session has stopped).
 fn submit(entry: &Entry, m: &pb::ToolState, reply: StreamId) -> Result<(), Option<Status>> {
-    let input = convert::tool_input(m);
+    let input = convert::tool_input(m, &entry.session.scene().spec.tools).map_err(|e| Some(Status::invalid_argument(e.to_string())))?;
     if !entry.session.accepts(input.kind) {
         return Err(Some(refused_kind(entry, m)));
     }
@@ -109,6 +110,7 @@ fn submit(entry: &Entry, m: &pb::ToolState, reply: StreamId) -> Result<(), Optio
             client_time_us: m.client_time_us,
             received: Instant::now(),
             reply,
+            named: !m.tool.is_empty(),
         })
         .map_err(|e| match e {
             SubmitError::Busy => Some(Status::resource_exhausted(e.to_string())),

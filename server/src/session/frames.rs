@@ -50,6 +50,8 @@ pub struct OrganSurface {
 pub struct SurfaceGeometry {
     /// One per organ, in scene order.
     pub organs: Vec<OrganSurface>,
+    /// The scene's tool names, in scene order (what [`ToolFrame::name`] says).
+    pub tools: Vec<String>,
 }
 
 impl SurfaceGeometry {
@@ -80,7 +82,10 @@ impl SurfaceGeometry {
                 }
             })
             .collect();
-        Self { organs }
+        Self {
+            organs,
+            tools: scene.spec.tools.iter().map(|t| t.name().to_string()).collect(),
+        }
     }
 }
 
@@ -99,6 +104,9 @@ pub struct Frame {
     pub contact: Option<Contact>,
     /// Where the tool was at that tick (`None`: no tool state yet, or it was rejected).
     pub tool_m: Option<[f64; 3]>,
+    /// Every tool that has moved, in a session that moves named tools (empty otherwise):
+    /// the displacements are the field under all of them together.
+    pub tools: Vec<ToolFrame>,
     /// Per organ, the displacement (m) of its surface nodes, 3 per node, in
     /// [`OrganSurface::nodes`] order.
     pub displacements_m: Vec<Vec<f32>>,
@@ -112,6 +120,19 @@ pub struct Frame {
     /// The surface the blade swept in the cells it entered and has not cut yet, displaced
     /// (co-rotational cutting; `None`: there is none).
     pub partial: Option<PartialFrame>,
+}
+
+/// One tool in a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ToolFrame {
+    /// Its name in the scene.
+    pub name: String,
+    /// Where it was (m; `None`: its state was rejected).
+    pub tool_m: Option<[f64; 3]>,
+    /// The force on it (N).
+    pub force_n: [f64; 3],
+    /// Its contact, if any.
+    pub contact: Option<Contact>,
 }
 
 /// The partial cut of a co-rotational cutting organ in one frame
@@ -186,6 +207,7 @@ impl Frame {
             force_n: [0.0; 3],
             contact: None,
             tool_m: None,
+            tools: Vec::new(),
             displacements_m: g.organs.iter().map(|o| vec![0.0; 3 * o.nodes.len()]).collect(),
             cuts: vec![None; g.organs.len()],
             damage: vec![None; g.organs.len()],
@@ -502,23 +524,40 @@ impl FrameProducer {
         frame.force_n = l.state.force_n;
         frame.contact = l.state.contact;
         frame.tool_m = l.state.tool_m;
+        frame.tools = self.tool_frames(&l);
+        // the deformable tissue's part of each tool's load (the rest goes into the support),
+        // superposed per organ: the answered tool's last, so that `s.coeffs` holds its own
         let mut loaded = None;
-        if let Some(c) = l.state.contact {
+        let mut touched = vec![false; self.bundles.len()];
+        let mut contacts: Vec<(Contact, bool)> = if frame.tools.is_empty() {
+            l.state.contact.map(|c| (c, true)).into_iter().collect()
+        } else {
+            frame
+                .tools
+                .iter()
+                .filter_map(|t| t.contact)
+                .map(|c| (c, Some(c) == l.state.contact))
+                .collect()
+        };
+        contacts.sort_by_key(|&(_, own)| own);
+        for (c, own) in contacts {
             let v = &self.bundles[c.organ].vademecum;
-            // the deformable tissue's part of the load (the rest goes into the support)
-            if v.coefficients(c.nodes, c.weights, c.tissue_force_n, &mut s.coeffs[c.organ]) {
-                for (a, b) in s.c32[c.organ].iter_mut().zip(&s.coeffs[c.organ]) {
-                    *a = *b as f32;
-                }
-                // under load, the prefix of the modes that meets the fallback's field error
-                let prefix = if self.stats.reduced.load(Ordering::Relaxed) {
-                    self.fallback_modes[c.organ]
-                } else {
-                    0
-                };
-                self.fields[c.organ].eval_prefix(&s.c32[c.organ], prefix, &mut frame.displacements_m[c.organ]);
+            if !v.coefficients(c.nodes, c.weights, c.tissue_force_n, &mut s.coeffs[c.organ]) {
+                continue;
+            }
+            let first = !std::mem::replace(&mut touched[c.organ], true);
+            for (a, b) in s.c32[c.organ].iter_mut().zip(&s.coeffs[c.organ]) {
+                *a = if first { *b as f32 } else { *a + *b as f32 };
+            }
+            if own {
                 loaded = Some(c);
             }
+        }
+        // under load, the prefix of the modes that meets the fallback's field error
+        let reduced = self.stats.reduced.load(Ordering::Relaxed);
+        for (o, _) in touched.iter().enumerate().filter(|(_, t)| **t) {
+            let prefix = if reduced { self.fallback_modes[o] } else { 0 };
+            self.fields[o].eval_prefix(&s.c32[o], prefix, &mut frame.displacements_m[o]);
         }
         if let Some(p) = self.cut.as_ref().and_then(|s| s.picture()) {
             self.draw_cut(&p, loaded, &s.coeffs, &mut s.cut_coeffs, &mut s.uncut, &mut frame);
@@ -530,6 +569,24 @@ impl FrameProducer {
             }
         }
         frame
+    }
+
+    /// Every tool of the latest tick that has moved, with its name (a session that moves
+    /// named tools; empty otherwise).
+    fn tool_frames(&self, l: &Latest) -> Vec<ToolFrame> {
+        l.tools
+            .iter()
+            .enumerate()
+            .filter_map(|(i, t)| {
+                let t = t.as_ref()?;
+                Some(ToolFrame {
+                    name: self.geometry.tools.get(i).cloned().unwrap_or_else(|| format!("tool{i}")),
+                    tool_m: t.tool_m,
+                    force_n: t.force_n,
+                    contact: t.contact,
+                })
+            })
+            .collect()
     }
 
     /// The frame of a co-rotational cutting session: the deformation's surface, cut walls

@@ -83,6 +83,9 @@ pub struct ToolCommand {
     pub received: Instant,
     /// The stream the answer goes to ([`Session::open_answers`]).
     pub reply: StreamId,
+    /// The state names its tool (`ToolState.tool`): the session moves named tools together
+    /// and its frames list every tool ([`Frame::tools`]).
+    pub named: bool,
 }
 
 /// The answer to one tool state.
@@ -431,6 +434,9 @@ impl Session {
             governor: fidelity::Governor::new(config.period, falls_back(&config, &scene)),
             lockstep: None,
             deterministic: config.deterministic,
+            held: Default::default(),
+            tool_states: Default::default(),
+            named: false,
         });
         let (done, tick_done) = mpsc::sync_channel(1);
         let tick_finished = Arc::new(AtomicBool::new(false));

@@ -6,7 +6,7 @@ use std::sync::mpsc::{Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use vademecum_bridge::peer::HapticPeer;
-use vademecum_engine::pipeline::{Events, Fidelity, Pipeline, TickState, ToolInput, ToolKind};
+use vademecum_engine::pipeline::{Events, Fidelity, MAX_TOOLS, Pipeline, TickState, ToolInput, ToolKind};
 use vademecum_proto::shm::{self, HapticState, TOOL_GRASPER, TOOL_PROBE, TOOL_SCALPEL};
 
 use super::answers::{AnswerRing, StreamId};
@@ -35,8 +35,12 @@ pub(super) struct Latest {
     pub tick: u64,
     /// Session time (µs).
     pub time_us: u64,
-    /// The tick's state.
+    /// The tick's state: of the tool it answered (or replayed).
     pub state: TickState,
+    /// Every tool's state at that tick, by its index in the scene, in a session that moves
+    /// named tools (`None`: the tool has not moved yet, or the session moves one tool at a
+    /// time).
+    pub tools: [Option<TickState>; MAX_TOOLS],
 }
 
 /// A trajectory the tick thread plays, and the stream its answers go to.
@@ -73,6 +77,13 @@ pub(super) struct TickLoop {
     /// A deterministic session ([`super::SessionConfig::deterministic`]): session time is
     /// the step's.
     pub deterministic: bool,
+    /// Each tool's latest valid state, by its index in the scene: every step moves all of
+    /// them together ([`Pipeline::tick_tools`]).
+    pub held: [Option<ToolInput>; MAX_TOOLS],
+    /// Each tool's state at the last step.
+    pub tool_states: [Option<TickState>; MAX_TOOLS],
+    /// A state named its tool ([`super::ToolCommand::named`]): frames list every tool.
+    pub named: bool,
 }
 
 /// A tick loop's clock and recordings: its next deadline, its period count, the current
@@ -112,11 +123,37 @@ impl TickLoop {
         t.saturating_duration_since(self.epoch).as_micros() as u64
     }
 
-    /// One pipeline tick: the tissue's next step, and its number.
+    /// One pipeline tick: the tissue's next step, and its number — `input` together with
+    /// every other tool at its latest state (the contacts of tools on one organ are solved
+    /// together); the state answers `input`.
     fn step(&mut self, input: &ToolInput) -> (u64, TickState) {
         let step = self.steps;
         self.steps += 1;
-        (step, self.pipeline.tick(input))
+        if input.tool >= MAX_TOOLS {
+            // no tool of the scene: rejected alone
+            return (step, self.pipeline.tick(input));
+        }
+        let mut set = [ToolInput::default(); MAX_TOOLS];
+        let (mut n, mut me) = (0, 0);
+        for (slot, held) in self.held.iter().enumerate() {
+            if slot == input.tool {
+                me = n;
+                set[n] = *input;
+                n += 1;
+            } else if let Some(h) = held {
+                set[n] = *h;
+                n += 1;
+            }
+        }
+        let mut states = [TickState::default(); MAX_TOOLS];
+        self.pipeline.tick_tools(&set[..n], &mut states[..n]);
+        for (t, st) in set[..n].iter().zip(&states) {
+            self.tool_states[t.tool] = Some(*st);
+        }
+        if input.is_valid() {
+            self.held[input.tool] = Some(*input);
+        }
+        (step, states[me])
     }
 
     /// One pipeline tick that answers someone: it carries the happenings owed by the ticks
@@ -167,6 +204,7 @@ impl TickLoop {
         while n < MAX_COMMANDS_PER_TICK {
             match self.commands.try_recv() {
                 Ok(Command::Tool(c)) => {
+                    self.named |= c.named;
                     let a = self.answer(&c.input, c.seq, c.client_time_us, c.received);
                     Histograms::record(
                         &mut local.response,
@@ -344,6 +382,7 @@ impl TickLoop {
                 tick: step,
                 time_us,
                 state,
+                tools: if self.named { self.tool_states } else { [None; MAX_TOOLS] },
             });
         }
         if let Some(frames) = &mut self.lockstep {
@@ -485,7 +524,7 @@ pub(super) fn phased_deadline(epoch: Instant, now: Instant, period: Duration, fr
 /// The engine's tool state for a haptic sample.
 fn tool_input(s: &HapticState) -> ToolInput {
     ToolInput {
-        // one tool at a time: the session's single proxy
+        // a bridge moves the session's one tool at a time
         tool: 0,
         kind: match s.tool {
             TOOL_SCALPEL => ToolKind::Scalpel,

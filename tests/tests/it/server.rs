@@ -580,3 +580,101 @@ fn an_acknowledged_viewer_never_has_more_than_its_window_in_flight() {
         assert!(e.message().contains("ack 1000"), "{}", e.message());
     });
 }
+
+/// Two hands (issue 46): the organ with a second probe, `left`, each probe moved by name from
+/// a client stream of its own. Every answer is the engine's own for the two tools ticked
+/// together (`Pipeline::tick_tools`, replayed here in the order the server saw the states);
+/// the probe held still feels the other's press; frames list both tools; a name the scene
+/// does not have ends the stream with INVALID_ARGUMENT.
+#[test]
+fn two_clients_each_move_one_probe_of_a_session_and_feel_each_other() {
+    use vademecum_client::named;
+    use vademecum_engine::pipeline::TickState;
+    let dir = util::bundles();
+    let text = format!(
+        "{}\n[[tools]]\nkind = \"probe\"\nname = \"left\"\nradius = 0.004\n",
+        vademecum_engine::scene::builtin("organ").unwrap()
+    );
+    std::fs::write(dir.join("two_probes.toml"), &text).unwrap();
+    util::vademecum(dir, &["build", "two_probes.toml", "--out", "two_probes"]);
+    let scene = Scene::from_toml(&text, "two_probes.toml").unwrap();
+    let b = Arc::new(bundle::load_bundle(&dir.join("two_probes/lobe.bundle")).unwrap());
+    let mut engine = Pipeline::for_scene(&scene, &[b]).unwrap();
+    let server = util::Server::start(&[], &[]);
+    let rt = util::runtime();
+    rt.block_on(async {
+        let client = Client::connect(server.url.clone()).await.unwrap();
+        let session = client
+            .create_session(SceneSpec::Toml(text.clone()), "two_probes", "two hands")
+            .await
+            .unwrap();
+        let names: Vec<&str> = session.info().tools.iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names, ["probe", "left"]);
+        let (mut right, mut left) = (session.interact().await.unwrap(), session.interact().await.unwrap());
+        // the left probe rests 1.5 mm into the top 15 mm from the middle; the right one
+        // presses in at the middle, deeper and deeper
+        let at_left = [0.015, 0.0, 0.025 + 0.004 - 0.0015];
+        let input = |tool: usize, p: [f64; 3]| ToolInput {
+            tool,
+            position_m: p,
+            ..ToolInput::default()
+        };
+        let mut held: [Option<ToolInput>; 2] = [None, None];
+        // the engine's answer to `moved`, with the other tool at its last state (slot order)
+        let mut replay = |moved: ToolInput, held: &mut [Option<ToolInput>; 2]| -> TickState {
+            held[moved.tool] = Some(moved);
+            let set: Vec<ToolInput> = held.iter().flatten().copied().collect();
+            let mut states = vec![TickState::default(); set.len()];
+            engine.tick_tools(&set, &mut states);
+            states[set.iter().position(|t| t.tool == moved.tool).unwrap()]
+        };
+        let mut seq = 0;
+        left.send(named("left", tool_at(seq, at_left))).await.unwrap();
+        let alone = left.next().await.unwrap().unwrap().force_n.unwrap();
+        let want = replay(input(1, at_left), &mut held);
+        assert_eq!([alone.x, alone.y, alone.z], want.force_n);
+        let mut felt = vec![alone.z];
+        for depth in [0.5e-3, 1.0e-3, 1.5e-3, 2.0e-3] {
+            seq += 1;
+            let at_right = [0.0, 0.0, 0.025 + 0.004 - depth];
+            right.send(named("probe", tool_at(seq, at_right))).await.unwrap();
+            let r = right.next().await.unwrap().unwrap();
+            let want = replay(input(0, at_right), &mut held);
+            let f = r.force_n.unwrap();
+            assert_eq!([f.x, f.y, f.z], want.force_n, "right probe {depth} m in");
+            assert_eq!(r.force_error_n, want.force_error_n);
+            left.send(named("left", tool_at(seq, at_left))).await.unwrap();
+            let l = left.next().await.unwrap().unwrap();
+            let want = replay(input(1, at_left), &mut held);
+            let f = l.force_n.unwrap();
+            assert_eq!([f.x, f.y, f.z], want.force_n, "left probe with the right {depth} m in");
+            felt.push(f.z);
+        }
+        // held still, the left probe's push eases as the right one goes in (to nothing, when
+        // the surface under it is drawn away)
+        assert!(
+            felt.windows(2).all(|w| w[1] <= w[0]) && felt[4] < felt[0] - 0.1,
+            "left probe's force {felt:?} N"
+        );
+        let mut frames = session.watch(30.0).await.unwrap();
+        assert!(frames.message().await.unwrap().unwrap().geometry.is_some());
+        let f = loop {
+            let f = frames.message().await.unwrap().unwrap();
+            if !f.heartbeat {
+                break f;
+            }
+        };
+        let shown: Vec<&str> = f.tools.iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(shown, ["probe", "left"], "{:?}", f.tools);
+        assert!(f.tools[0].contact.is_some(), "the right probe presses");
+        // a tool the scene does not name
+        let mut stray = session.interact().await.unwrap();
+        stray.send(named("third", tool_at(0, at_left))).await.unwrap();
+        let e = stray.next().await.unwrap_err();
+        assert_eq!(e.kind(), ErrorKind::InvalidArgument, "{e}");
+        assert!(e.to_string().contains("no tool named 'third'"), "{e}");
+        right.finish();
+        left.finish();
+        session.close().await.unwrap();
+    });
+}
