@@ -48,13 +48,7 @@ fn pressing(size: Size) -> Result<(Pipeline, ToolInput, Arc<LoadedBundle>, f64),
     let scene = organ_scene(size)?;
     let b = organ_bundle(&scene, size)?;
     let pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).map_err(diagnostic)?;
-    let loads = b.vademecum.load_nodes();
-    // the highest load node: the middle of the upper surface
-    let top = loads
-        .iter()
-        .copied()
-        .max_by(|&a, &c| b.nodes[a][2].total_cmp(&b.nodes[c][2]))
-        .ok_or_else(|| Outcome::Broken("the vademecum has no load nodes".into()))?;
+    let top = top_load_node(&b)?;
     let r = offline::probe_radius(&scene);
     let p = b.nodes[top];
     let tool = ToolInput {
@@ -62,6 +56,16 @@ fn pressing(size: Size) -> Result<(Pipeline, ToolInput, Arc<LoadedBundle>, f64),
         ..ToolInput::default()
     };
     Ok((pipe, tool, b, r))
+}
+
+/// The highest load node: the middle of the organ's upper surface.
+fn top_load_node(b: &LoadedBundle) -> Result<usize, Outcome> {
+    b.vademecum
+        .load_nodes()
+        .iter()
+        .copied()
+        .max_by(|&a, &c| b.nodes[a][2].total_cmp(&b.nodes[c][2]))
+        .ok_or_else(|| Outcome::Broken("the vademecum has no load nodes".into()))
 }
 
 fn norm(f: [f64; 3]) -> f64 {
@@ -265,6 +269,103 @@ fn outside_accessible(size: Size) -> Outcome {
     })
 }
 
+/// The pressing organ's pipeline with a second probe (`left`, tool 1) beside its own, and the
+/// pressing state.
+fn two_probes(size: Size) -> Result<(Pipeline, ToolInput, Arc<LoadedBundle>), Outcome> {
+    let (_, tool, b, _) = pressing(size)?;
+    let scene = organ_scene(size)?;
+    let text = format!(
+        "{}\n[[tools]]\nkind = \"probe\"\nname = \"left\"\nradius = {}\n",
+        scene.source,
+        offline::probe_radius(&scene)
+    );
+    let two = Scene::from_toml(&text, "<hard case: two probes>").map_err(diagnostic)?;
+    // the build reads the first probe only: the organ's bundle serves
+    let pipe = Pipeline::for_scene(&two, std::slice::from_ref(&b)).map_err(diagnostic)?;
+    Ok((pipe, tool, b))
+}
+
+/// Two probes pressing 2 mm in at the same spot: the contacts are not independent (a
+/// singular system); the shallower lets go and the deeper takes the load, so the pair feels
+/// what one probe would.
+fn same_spot(size: Size) -> Outcome {
+    outcome(|| {
+        let (mut pipe, tool, _) = two_probes(size)?;
+        let alone = pipe.tick(&tool);
+        pipe.reset();
+        let mut states = [TickState::default(); 2];
+        pipe.tick_tools(&[tool, ToolInput { tool: 1, ..tool }], &mut states);
+        if !states.iter().all(|s| bounded(&pipe, s)) {
+            return Ok(Outcome::Broken(format!("{:?} {:?} N", states[0].force_n, states[1].force_n)));
+        }
+        let total = [0, 1, 2].map(|k| states[0].force_n[k] + states[1].force_n[k]);
+        let error =
+            relative(norm(total), norm(alone.force_n)).max(norm([0, 1, 2].map(|k| total[k] - alone.force_n[k])) / norm(alone.force_n));
+        Ok(Outcome::answer(
+            format!(
+                "{:.3} N and {:.3} N (one probe alone: {:.3} N)",
+                norm(states[0].force_n),
+                norm(states[1].force_n),
+                norm(alone.force_n)
+            ),
+            error,
+        ))
+    })
+}
+
+/// Two probes 9 mm apart (their 4 mm tips do not overlap), each pressing 2 mm in at a load
+/// node — each on the other's triangle or load patch, where the compliances between them are the exact local
+/// blocks: both answers finite and bounded, neither pulling, together at least what one probe
+/// alone needs and at most twice it.
+fn on_the_others_patch(size: Size) -> Outcome {
+    outcome(|| {
+        let (mut pipe, tool, b) = two_probes(size)?;
+        let alone = pipe.tick(&tool);
+        pipe.reset();
+        // the load node nearest to 9 mm (sideways) from the pressed point, pressed as deep
+        let p = tool.position_m;
+        let sideways = |n: usize| ((b.nodes[n][0] - p[0]).powi(2) + (b.nodes[n][1] - p[1]).powi(2)).sqrt();
+        let near = b
+            .vademecum
+            .load_nodes()
+            .iter()
+            .copied()
+            .min_by(|&x, &y| (sideways(x) - 0.009).abs().total_cmp(&(sideways(y) - 0.009).abs()))
+            .ok_or_else(|| Outcome::Broken("no load nodes".into()))?;
+        let (pressed, q) = (top_load_node(&b)?, b.nodes[near]);
+        let above = p[2] - b.nodes[pressed][2];
+        let beside = ToolInput {
+            tool: 1,
+            position_m: [q[0], q[1], q[2] + above],
+            ..tool
+        };
+        let mut states = [TickState::default(); 2];
+        pipe.tick_tools(&[tool, beside], &mut states);
+        if !states.iter().all(|s| bounded(&pipe, s)) {
+            return Ok(Outcome::Broken(format!("{:?} {:?} N", states[0].force_n, states[1].force_n)));
+        }
+        // the force on a tool pressing down points up
+        if states.iter().any(|s| s.force_n[2] < 0.0) {
+            return Ok(Outcome::Broken(format!(
+                "a probe pulls: {:?} {:?} N",
+                states[0].force_n, states[1].force_n
+            )));
+        }
+        let (one, total) = (
+            norm(alone.force_n),
+            norm([0, 1, 2].map(|k| states[0].force_n[k] + states[1].force_n[k])),
+        );
+        if !(one * (1.0 - 1e-9)..=2.0 * one).contains(&total) {
+            return Ok(Outcome::Broken(format!("together {total:.3} N, one alone {one:.3} N")));
+        }
+        Ok(Outcome::bounded(format!(
+            "{:.3} N and {:.3} N, together {total:.3} N (one probe alone: {one:.3} N)",
+            norm(states[0].force_n),
+            norm(states[1].force_n)
+        )))
+    })
+}
+
 pub(super) fn cases() -> Vec<Case> {
     vec![
         Case {
@@ -284,6 +385,18 @@ pub(super) fn cases() -> Vec<Case> {
             method: "palpation pipeline (PGD)",
             expect: Expect::FINITE,
             run: edges,
+        },
+        Case {
+            name: "two probes on one spot",
+            method: "coupled palpation (PGD)",
+            expect: Expect::within(1e-9),
+            run: same_spot,
+        },
+        Case {
+            name: "a probe on the other probe's load patch",
+            method: "coupled palpation (PGD)",
+            expect: Expect::FINITE,
+            run: on_the_others_patch,
         },
         Case {
             name: "pressed outside the accessible region",

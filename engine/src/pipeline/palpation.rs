@@ -23,7 +23,8 @@
 //! part). For one tool this is the law above. A probe only pushes: a contact whose solution
 //! would pull the tissue out (the others' press drew the surface away from under it) lets
 //! go, and the rest are solved again. Where the contacts are not independent (two tools on
-//! one spot: the system is singular) each tool's force is its own, as if alone.
+//! one spot: the system is singular) the shallower lets go and the deeper takes the load —
+//! the limit of two tools coming together, where the split grows until one would pull.
 //!
 //! The force on the tool is the reaction `−f`. With large deformations
 //! (`effects.deformation = "large"`) the tissue's part is scaled by the organ's ANM-POD lattice
@@ -61,7 +62,7 @@ use super::{Contact, Effect, Events, Fidelity, MAX_TOOLS, TickState, ToolInput, 
 use crate::bundle::LoadedBundle;
 use crate::contact::{Bounds, Proxy, Surface, Touch};
 use crate::pgd::Vademecum;
-use crate::pgd::coupled::coupled_forces;
+use crate::pgd::coupled::{CoupledError, coupled_forces};
 
 /// One organ as the probe sees it.
 #[derive(Debug, Clone)]
@@ -195,8 +196,8 @@ struct Share {
 /// loadable share on `organ`. A probe only pushes: where the solution would pull the tissue
 /// out at a contact (`g_i · n_i > 0`: the others' press drew the surface away from under
 /// it), the most pulling contact lets go — its tissue force is zero — and the rest are
-/// solved again (an active set: at most one pass per tool). Nothing changes when fewer than
-/// two tools touch, or the system is singular.
+/// solved again (an active set: at most one pass per tool). Two tools on one spot (a
+/// singular system): the shallower lets go. Nothing changes when fewer than two tools touch.
 fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &mut [Share]) {
     let mut members = [0usize; MAX_TOOLS];
     let mut points = [([0usize; 3], [0.0; 3]); MAX_TOOLS];
@@ -224,14 +225,19 @@ fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &
     // the active contacts first, in `members[..active]`, the released ones after
     let mut active = k;
     loop {
-        if coupled_forces(v, &points[..active], &penetrations[..active], &mut g[..active]).is_err() {
-            return;
-        }
-        let pulling = (0..active)
-            .map(|a| (a, dot(&g[a], &normals[a]) / dot(&g[a], &g[a]).sqrt().max(f64::MIN_POSITIVE)))
-            .filter(|&(_, c)| c > 0.0)
-            .max_by(|x, y| x.1.total_cmp(&y.1));
-        match pulling {
+        let drop = match coupled_forces(v, &points[..active], &penetrations[..active], &mut g[..active]) {
+            Ok(()) => (0..active)
+                .map(|a| (a, dot(&g[a], &normals[a]) / dot(&g[a], &g[a]).sqrt().max(f64::MIN_POSITIVE)))
+                .filter(|&(_, c)| c > 0.0)
+                .max_by(|x, y| x.1.total_cmp(&y.1)),
+            // two tools on one spot: the shallower lets go, the deeper takes the load — the
+            // limit of two tools coming together, where the split grows until one would pull
+            Err(CoupledError::Singular) => (0..active)
+                .map(|a| (a, -dot(&penetrations[a], &penetrations[a])))
+                .max_by(|x, y| x.1.total_cmp(&y.1)),
+            Err(_) => return,
+        };
+        match drop {
             Some((a, _)) if active > 1 => {
                 active -= 1;
                 members.swap(a, active);
