@@ -117,6 +117,9 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
     let (tick, touched, press_points) = press_ticks(&mut palpation, b, &tris, &mut rng, radius, a.contacts, &mut acc);
     // tracking: from one press point to the next in 20 steps, pressed all the way
     let tracking = tracking_ticks(&mut palpation, &press_points, a.contacts, &mut acc);
+    // two probes (two hands) tracking pressed slides together, their contacts solved together
+    let mut two = Palpation::for_tools(vec![bundle.clone()], vec![radius, radius], false);
+    let (two_probes, coupled) = two_probe_ticks(&mut two, &press_points, a.contacts, &mut acc);
     // fields
     let mut coeffs = vec![0.0; v.modes()];
     let mut surface_nodes: Vec<usize> = b.surface.iter().flatten().copied().collect();
@@ -169,6 +172,10 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
             tick,
         ),
         stat("probe tick, proxy tracking a pressed slide + force", tracking),
+        stat(
+            &format!("two probes' tick, both tracking pressed slides, forces solved together ({coupled} ticks with both in contact)"),
+            two_probes,
+        ),
         stat(
             &format!("displacement field, whole mesh ({} nodes, f64, mode-major)", v.n_nodes()),
             tf,
@@ -399,6 +406,42 @@ fn tracking_ticks(palpation: &mut Palpation, press_points: &[[f64; 3]], contacts
         }
     }
     tracking
+}
+
+/// Ticks of two probes at once (`Effect::tick_tools`): one along the press points, the other
+/// along them backwards, both pressed; the times, and how many ticks had both in contact.
+fn two_probe_ticks(palpation: &mut Palpation, press_points: &[[f64; 3]], contacts: usize, acc: &mut f64) -> (Vec<f64>, usize) {
+    let mut times = Vec::with_capacity(contacts);
+    let mut both = 0;
+    palpation.reset();
+    let back: Vec<[f64; 3]> = press_points.iter().rev().copied().collect();
+    'path: for (pair, other) in press_points.windows(2).zip(back.windows(2)) {
+        for i in 0..20 {
+            let s = i as f64 / 20.0;
+            let at = |p: &[[f64; 3]]| [0, 1, 2].map(|k| p[0][k] + s * (p[1][k] - p[0][k]));
+            let tools = [
+                ToolInput {
+                    position_m: at(pair),
+                    ..ToolInput::default()
+                },
+                ToolInput {
+                    tool: 1,
+                    position_m: at(other),
+                    ..ToolInput::default()
+                },
+            ];
+            let mut states = [TickState::default(); 2];
+            let t = Instant::now();
+            palpation.tick_tools(black_box(&tools), &mut states);
+            times.push(t.elapsed().as_secs_f64() * 1e6);
+            both += usize::from(states.iter().all(|s| s.contact.is_some()));
+            *acc += black_box(states[0].force_n)[2] + states[1].force_n[2];
+            if times.len() == contacts {
+                break 'path;
+            }
+        }
+    }
+    (times, both)
 }
 
 /// The percentile table of `stats` (Markdown, µs).
