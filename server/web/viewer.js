@@ -25,6 +25,7 @@ const state = {
   force: [], // [local time s, |F| N]
   umaxScale: 1e-3,
   toolRadius: {}, // session id → its first tool's radius (m), for drawing it
+  toolRadii: {}, // session id → { tool name → radius (m) }, for sessions that move named tools
   yaw: 0.6,
   pitch: 0.5,
 };
@@ -157,8 +158,9 @@ async function listSessions() {
   ul.textContent = '';
   for (const s of subs(list, 1)) {
     const id = str(s, 1);
-    const tool = subs(s, 9)[0];
-    if (tool) state.toolRadius[id] = dbl(tool, 3);
+    const tools = subs(s, 9);
+    if (tools[0]) state.toolRadius[id] = dbl(tools[0], 3);
+    state.toolRadii[id] = Object.fromEntries(tools.map((t) => [str(t, 1), dbl(t, 3)]));
     const li = document.createElement('li');
     li.dataset.id = id;
     const label = str(s, 3);
@@ -225,6 +227,18 @@ function onFrame(bytes) {
     })),
     contact: contact ? { organ: uint(contact, 1), at: vec3(sub(contact, 4)) } : null,
     tool: tool ? vec3(tool) : null,
+    // every tool of a session that moves named tools (two hands), each with its own force
+    tools: subs(m, 21).map((t) => {
+      const c = sub(t, 4);
+      const f = vec3(sub(t, 3));
+      return {
+        name: str(t, 1),
+        tool: sub(t, 2) ? vec3(sub(t, 2)) : null,
+        force: f,
+        magnitude: Math.hypot(...f),
+        contact: c ? { organ: uint(c, 1), at: vec3(sub(c, 4)) } : null,
+      };
+    }),
   };
 }
 
@@ -341,17 +355,24 @@ function draw() {
     ctx.fillStyle = t.wall ? `rgb(${Math.round(200 * shade)},40,40)` : colour(t.m / state.umaxScale, shade, t.hurt);
     ctx.fill();
   }
-  if (frame && (frame.tool || frame.contact)) drawTool(ctx, view, project, scale, frame);
+  const id = state.watching ? state.watching.id : null;
+  if (frame && frame.tools && frame.tools.length) {
+    for (const t of frame.tools) {
+      if (t.tool || t.contact) drawTool(ctx, view, project, scale, t, ((state.toolRadii[id] || {})[t.name]) || 0, t.name);
+    }
+  } else if (frame && (frame.tool || frame.contact)) {
+    drawTool(ctx, view, project, scale, frame, state.toolRadius[id] || 0, null);
+  }
   drawScaleBar(ctx, w, h, dpr);
 }
 
-/** The tool where it is (a probe's tip drawn at its radius; where it touches when the frame
+/** A tool where it is (a probe's tip drawn at its `radius`; where it touches when the frame
  *  does not say), and the force on it from there (the tissue's reaction: what the haptic
- *  device renders; a tenth of the organ's size per newton). */
-function drawTool(ctx, view, project, scale, frame) {
+ *  device renders; a tenth of the organ's size per newton), with its `name` beside it when
+ *  the session moves several. */
+function drawTool(ctx, view, project, scale, frame, radius, name) {
   const at = frame.tool || frame.contact.at;
   const p = project(view(...at));
-  const radius = state.watching ? state.toolRadius[state.watching.id] || 0 : 0;
   const arrow = camera.radius * 0.2;
   const tip = project(view(at[0] + frame.force[0] * arrow, at[1] + frame.force[1] * arrow, at[2] + frame.force[2] * arrow));
   ctx.strokeStyle = '#f4f4f4'; ctx.fillStyle = '#f4f4f4'; ctx.lineWidth = 3;
@@ -359,6 +380,11 @@ function drawTool(ctx, view, project, scale, frame) {
   if (frame.magnitude > 0) {
     ctx.beginPath(); ctx.moveTo(...p); ctx.lineTo(...tip); ctx.stroke();
     ctx.beginPath(); ctx.arc(tip[0], tip[1], 4, 0, 2 * Math.PI); ctx.fill();
+  }
+  if (name) {
+    ctx.font = `${13 * (window.devicePixelRatio || 1)}px system-ui`;
+    ctx.textAlign = 'left';
+    ctx.fillText(`${name} ${frame.magnitude.toFixed(2)} N`, p[0] + Math.max(6, radius * scale) + 4, p[1] - 4);
   }
 }
 
@@ -400,6 +426,9 @@ function updateReadouts() {
   if (f) {
     $('time').textContent = `${f.time.toFixed(2)} s`;
     $('force').textContent = `${f.magnitude.toFixed(3)} N`;
+    // two hands: every tool's force by name
+    $('tools').textContent = f.tools && f.tools.length
+      ? f.tools.map((t) => `${t.name} ${t.magnitude.toFixed(3)} N`).join(' · ') : '–';
     $('umax').textContent = `${(1e3 * (state.umaxShown || 0)).toFixed(3)} mm`;
     $('damage').textContent = state.damageShown
       ? `${state.damageShown[0].toFixed(2)} (torn at ${state.damageShown[1].toFixed(2)}; red)` : '–';

@@ -64,6 +64,8 @@ with sync_playwright() as p:
         force = max(force, float(page.inner_text("#force").split()[0]))
         time.sleep(0.05)
     out["force_n"] = force
+    # every tool's force by name, in a session that moves named tools ("–" otherwise)
+    out["tools"] = page.inner_text("#tools")
     # the organ drawn at rest would be the same shape: pause and measure the picture shown
     page.click("#pause")
     time.sleep(0.2)

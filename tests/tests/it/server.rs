@@ -590,13 +590,8 @@ fn an_acknowledged_viewer_never_has_more_than_its_window_in_flight() {
 fn two_clients_each_move_one_probe_of_a_session_and_feel_each_other() {
     use vademecum_client::named;
     use vademecum_engine::pipeline::TickState;
+    let text = util::two_probes().to_string();
     let dir = util::bundles();
-    let text = format!(
-        "{}\n[[tools]]\nkind = \"probe\"\nname = \"left\"\nradius = 0.004\n",
-        vademecum_engine::scene::builtin("organ").unwrap()
-    );
-    std::fs::write(dir.join("two_probes.toml"), &text).unwrap();
-    util::vademecum(dir, &["build", "two_probes.toml", "--out", "two_probes"]);
     let scene = Scene::from_toml(&text, "two_probes.toml").unwrap();
     let b = Arc::new(bundle::load_bundle(&dir.join("two_probes/lobe.bundle")).unwrap());
     let mut engine = Pipeline::for_scene(&scene, &[b]).unwrap();

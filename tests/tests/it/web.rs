@@ -302,6 +302,34 @@ fn an_instructor_opens_the_page_and_watches_a_pressed_session_in_chromium() {
     }
 }
 
+/// Two hands: a session of the organ with two probes, both moved by name over one stream
+/// (the right one pressing the middle, the left one resting beside it): the page draws both
+/// tools and lists each one's force by name.
+#[test]
+fn the_page_shows_both_hands_of_a_two_probe_session() {
+    if !browser() {
+        return;
+    }
+    let text = util::two_probes().to_string();
+    let server = util::Server::start(&["--web", "127.0.0.1:0"], &[("VADEMECUM_TOKENS", TOKEN)]);
+    let (seen, _) = watched_in_chromium(
+        &server,
+        SceneSpec::Toml(text),
+        "two_probes",
+        "two-hands",
+        |_, i| {
+            if i % 2 == 0 {
+                vademecum_client::named("probe", tool_at(i, press(i)))
+            } else {
+                vademecum_client::named("left", tool_at(i, [0.015, 0.0, 0.0275]))
+            }
+        },
+        "web-viewer-two-hands.png",
+    );
+    let tools = seen["tools"].as_str().unwrap();
+    assert!(tools.contains("probe ") && tools.contains("left "), "the page lists {tools}");
+}
+
 /// The OpenHELP liver at h = 20 mm (2,151 surface nodes), from ../shared/data.
 #[test]
 fn the_page_keeps_the_30_hz_pace_on_the_liver_surface() {

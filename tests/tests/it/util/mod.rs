@@ -58,6 +58,22 @@ pub fn bundles() -> &'static Path {
     .path()
 }
 
+/// The built-in organ with a second probe, `left`, beside its own (two hands): its scene text,
+/// its bundle built once per test run as `two_probes/lobe.bundle` under [`bundles`].
+pub fn two_probes() -> &'static str {
+    static TEXT: OnceLock<String> = OnceLock::new();
+    TEXT.get_or_init(|| {
+        let text = format!(
+            "{}\n[[tools]]\nkind = \"probe\"\nname = \"left\"\nradius = 0.004\n",
+            vademecum_engine::scene::builtin("organ").unwrap()
+        );
+        let dir = bundles();
+        std::fs::write(dir.join("two_probes.toml"), &text).unwrap();
+        vademecum(dir, &["build", "two_probes.toml", "--out", "two_probes"]);
+        text
+    })
+}
+
 /// A `vademecum serve` process, killed when dropped.
 pub struct Server {
     child: Child,
