@@ -288,3 +288,71 @@ fn two_probes_of_one_session_press_together_as_the_full_model_says() {
         assert!(s.events.has(Events::REJECTED_INPUT) && s.force_n == [0.0; 3], "{s:?}");
     }
 }
+
+/// The per-answer error estimate of two probes pressing together covers the true error
+/// against the full model (its contact problem for pushing probes) in at least 95 % of
+/// sampled states: every pair of 12 load nodes spread over the organ's top (66 pairs), each
+/// probe pressed 0.5–3 mm in along its normal; the states it misses are printed.
+#[test]
+fn the_error_estimate_of_two_probes_covers_the_full_models_error() {
+    use vademecum_engine::pipeline::{Pipeline, TickState, ToolInput};
+    use vademecum_engine::rng::Rng;
+    let scene = two_probe_scene();
+    let b = bundle(&scene);
+    let v = &b.vademecum;
+    let loads = v.load_nodes();
+    let nodes: Vec<usize> = (0..12).map(|i| loads[(i * loads.len()) / 12 + loads.len() / 24]).collect();
+    let full = full_order_compliance(&scene, v, &nodes);
+    let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+    let mut rng = Rng(0x5eed_0046);
+    let r = 0.004;
+    let (mut covered, mut samples, mut worst, mut largest) = (0, 0, 0.0f64, 0.0f64);
+    let norm = |f: [f64; 3]| f.iter().map(|x| x * x).sum::<f64>().sqrt();
+    for i in 0..nodes.len() {
+        for j in i + 1..nodes.len() {
+            let pair = [nodes[i], nodes[j]];
+            let normals = pair.map(|n| crate::common::node_normal(&b, n));
+            let depths = [0.0005 + 0.0025 * rng.unit(), 0.0005 + 0.0025 * rng.unit()];
+            let tools: Vec<ToolInput> = (0..2)
+                .map(|t| ToolInput {
+                    tool: t,
+                    position_m: [0, 1, 2].map(|k| b.nodes[pair[t]][k] + (r - depths[t]) * normals[t][k]),
+                    ..ToolInput::default()
+                })
+                .collect();
+            pipe.reset();
+            let mut states = [TickState::default(); 2];
+            pipe.tick_tools(&tools, &mut states);
+            let delta: Vec<[f64; 3]> = states.iter().map(|s| s.contact.expect("in contact").imposed_m).collect();
+            let sub = vec![vec![full[i][i], full[i][j]], vec![full[j][i], full[j][j]]];
+            let want = unilateral(&sub, &delta, &normals);
+            let alone = (0..2)
+                .map(|t| norm(solve_dense(&[vec![sub[t][t]]], &delta[t..=t])[0]))
+                .fold(0.0, f64::max);
+            for (s, w) in states.iter().zip(&want) {
+                let e = dist(s.force_n.map(|x| -x), *w);
+                let estimate = s.force_error_n.expect("an estimate");
+                samples += 1;
+                covered += usize::from(estimate >= e);
+                if e > 0.0 {
+                    worst = worst.max(e / estimate.max(f64::MIN_POSITIVE));
+                }
+                largest = largest.max(e / alone);
+                if e > 1e-3 * alone || estimate < e {
+                    eprintln!(
+                        "nodes {pair:?} {:.1} mm apart, depths {depths:?}: got {:?}, full {w:?}, error {e:.2e} N, estimate {estimate:.2e} N, alone {alone:.3} N",
+                        1e3 * dist(b.nodes[pair[0]], b.nodes[pair[1]]),
+                        s.force_n.map(|x| -x)
+                    );
+                }
+            }
+        }
+    }
+    eprintln!(
+        "the estimate covers the error in {covered} of {samples} answers (largest error / estimate {worst:.2}); largest error {largest:.1e} of the larger force alone"
+    );
+    assert!(covered * 100 >= 95 * samples, "covered {covered} of {samples}");
+    // the modes hold the field to 1e-3 over all load states, not every pair's block: measured
+    // 2.0e-2 at one pair 14 mm apart, at most 2.5e-3 at the others (BENCHMARKS.md)
+    assert!(largest < 3e-2, "an error of {largest:.1e} of the larger force alone");
+}
