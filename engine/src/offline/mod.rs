@@ -395,14 +395,28 @@ pub fn load_vectors(patches: &[(Vec<usize>, Vec<f64>)], dofs: &DofMap) -> Vec<bu
         .collect()
 }
 
-/// Neighbours of each load node among the load nodes: itself and every load node sharing a
-/// surface triangle with it (sorted).
-fn load_neighbours(model: &OrganModel, loads: &[usize]) -> Vec<Vec<usize>> {
+/// How far apart (in load radii) two load nodes may be and still get an exact compliance
+/// block between them: two tools' tips of radius r are at least 2r apart, and up to about
+/// 5r the modes carry the block between them worst (measured on the built-in organ: 2 % at
+/// 14 mm with r = 4 mm, at most 0.25 % beyond 20 mm; BENCHMARKS.md, "Two tools on one organ").
+pub const COUPLING_REACH_RADII: f64 = 5.0;
+
+/// Neighbours of each load node among the load nodes: itself, every load node sharing a
+/// surface triangle with it, and every load node within `reach` (m) of it (sorted).
+fn load_neighbours(model: &OrganModel, loads: &[usize], reach: f64) -> Vec<Vec<usize>> {
     let mut index = vec![usize::MAX; model.mesh.n_nodes()];
     for (j, &n) in loads.iter().enumerate() {
         index[n] = j;
     }
-    let mut nbrs: Vec<Vec<usize>> = (0..loads.len()).map(|j| vec![j]).collect();
+    let nodes = &model.mesh.nodes;
+    let near = |a: usize, b: usize| (0..3).map(|k| (nodes[a][k] - nodes[b][k]).powi(2)).sum::<f64>() <= reach * reach;
+    let mut nbrs: Vec<Vec<usize>> = (0..loads.len())
+        .map(|j| {
+            (0..loads.len())
+                .filter(|&b| b == j || (reach > 0.0 && near(loads[j], loads[b])))
+                .collect()
+        })
+        .collect();
     for t in model.boundary.triangles() {
         for &a in &t {
             for &b in &t {
@@ -623,6 +637,7 @@ pub fn build_organ_from(
         snapshots,
         &candidate,
         greedy_as_built,
+        COUPLING_REACH_RADII * opts.load_radius,
         on,
     );
     let ExactPass {
@@ -787,7 +802,8 @@ struct ExactPass {
 }
 
 /// One blocked pass over all load states (solved with `chol`, or the `snapshots` given): the
-/// exact local compliances of the organ's `patches` between neighbouring load nodes, and the
+/// exact local compliances of the organ's `patches` between neighbouring load nodes (and those
+/// within `reach`, m), and the
 /// error of every prefix of `candidate`'s modes (and of `greedy`'s, the modes as the greedy
 /// PGD built them, when given) against the exact responses.
 fn exact_pass(
@@ -800,11 +816,12 @@ fn exact_pass(
     snapshots: Option<&[f64]>,
     candidate: &SeparatedSolution,
     greedy: Option<&SeparatedSolution>,
+    reach: f64,
     on: &mut dyn FnMut(BuildStage),
 ) -> ExactPass {
     let n_free = dofs.n_free();
     let total = load_eqs.len();
-    let nbrs = load_neighbours(model, loads);
+    let nbrs = load_neighbours(model, loads, reach);
     let mut local = LocalCompliance {
         ptr: vec![0],
         nbr: Vec::new(),

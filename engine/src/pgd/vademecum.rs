@@ -41,9 +41,11 @@ pub struct LocalCompliance {
 }
 
 impl LocalCompliance {
+    /// The block `C(obs ← load)`, if the build computed it (each row's neighbours are sorted:
+    /// checked by [`Vademecum::with_local`]).
     fn block(&self, obs: usize, load: usize) -> Option<&[[f64; 3]; 3]> {
         let (s, e) = (self.ptr[load], self.ptr[load + 1]);
-        self.nbr[s..e].iter().position(|&b| b == obs).map(|k| &self.c[s + k])
+        self.nbr[s..e].binary_search(&obs).ok().map(|k| &self.c[s + k])
     }
 }
 
@@ -96,7 +98,8 @@ pub enum VademecumError {
     /// A mode holds a non-finite value.
     #[error("the modes contain non-finite values")]
     NonFinite,
-    /// The local compliance's arrays do not fit together.
+    /// The local compliance's arrays do not fit together (or a row's neighbours are not in
+    /// increasing order).
     #[error("local compliance arrays are inconsistent")]
     LocalInconsistent,
     /// The local compliance names a missing load node or holds a non-finite value.
@@ -228,6 +231,7 @@ impl Vademecum {
             || local.ptr.windows(2).any(|w| w[1] < w[0])
             || local.ptr[nl] != local.nbr.len()
             || local.nbr.len() != local.c.len()
+            || (0..nl).any(|j| local.nbr[local.ptr[j]..local.ptr[j + 1]].windows(2).any(|w| w[1] <= w[0]))
         {
             return Err(VademecumError::LocalInconsistent);
         }

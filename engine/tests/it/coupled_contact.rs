@@ -124,9 +124,12 @@ fn two_tools_pressing_one_organ_feel_each_other_as_the_full_model_says() {
                     b.nodes[a],
                     1e3 * dist(b.nodes[a], b.nodes[other])
                 );
-                // the cross blocks of nodes that are not neighbours come from the modes, whose
-                // field the build holds to 1e-3 (measured: 8.5e-4 at 19 mm, 2e-5 at 81 mm)
-                assert!(e < 2e-3, "tool {t}: {g:?} against the full model's {w:?} N ({e:.2e} of |f_A|)");
+                // within five probe radii the blocks are exact (measured 3e-15 at 19 mm);
+                // farther, the modes carry them, whose field the build holds to 1e-3
+                // (measured 2e-5 at 81 mm)
+                let near = dist(b.nodes[a], b.nodes[other]) <= vademecum_engine::offline::COUPLING_REACH_RADII * 0.004;
+                let tolerance = if near { 1e-12 } else { 2e-3 };
+                assert!(e < tolerance, "tool {t}: {g:?} against the full model's {w:?} N ({e:.2e} of |f_A|)");
             }
             // B's force is not zero: held still, it feels A's press
             assert!(want[1].iter().any(|x| x.abs() > 1e-6 * fa), "{want:?}");
