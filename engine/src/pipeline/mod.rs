@@ -399,9 +399,11 @@ pub struct Pipeline {
     tool_limits: Vec<(ToolKind, f64)>,
 }
 
-/// Most tools a scene names and a tick moves together (the contacts of as many tools are
-/// solved together: [`crate::pgd::coupled::MAX_CONTACTS`]).
-pub const MAX_TOOLS: usize = crate::pgd::coupled::MAX_CONTACTS;
+/// Most tools a scene names and a tick moves together ([`crate::scene::schema::MAX_TOOLS`]).
+pub use crate::scene::schema::MAX_TOOLS;
+
+// the contacts of every tool on one organ are solved together
+const _: () = assert!(MAX_TOOLS <= crate::pgd::coupled::MAX_CONTACTS);
 
 /// How far outside the organs' bounding box a tool position is still accepted (m); farther
 /// positions are rejected as out of range (a device or client in the wrong units or frame).

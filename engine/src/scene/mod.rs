@@ -283,17 +283,17 @@ impl Scene {
         Ok(())
     }
 
-    /// The tools: at most [`crate::pipeline::MAX_TOOLS`], unique names, positive dimensions
+    /// The tools: at most [`schema::MAX_TOOLS`], unique names, positive dimensions
     /// and forces within the global limit.
     fn validate_tools(&self) -> Result<(), SceneError> {
         let s = &self.spec;
-        if s.tools.len() > crate::pipeline::MAX_TOOLS {
+        if s.tools.len() > schema::MAX_TOOLS {
             return Err(self.error_at(
                 &[Seg::Key("tools")],
                 format!(
                     "the scene names {} tools; a session moves at most {} at once",
                     s.tools.len(),
-                    crate::pipeline::MAX_TOOLS
+                    schema::MAX_TOOLS
                 ),
             ));
         }

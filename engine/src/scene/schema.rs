@@ -390,6 +390,10 @@ pub enum LoadSpec {
     },
 }
 
+/// Most tools a scene names (`[[tools]]`): a session moves them together, and the contacts
+/// of as many tools on one organ are solved together.
+pub const MAX_TOOLS: usize = 4;
+
 /// The largest force any tool may render (N), whatever the scene says: about ten times what
 /// a desktop haptic device can display, a bound on what a client can ever receive.
 pub const GLOBAL_FORCE_LIMIT_N: f64 = 100.0;

@@ -216,6 +216,19 @@ fn inconsistent_scene_settings_name_the_key_and_line() {
     let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
     assert!(e.to_string().contains("scalpel"), "{e}");
     assert_eq!(e.key.as_deref(), Some("effects.cutting"));
+    // at most four tools (a session moves them together), each name once
+    let tools = |n: usize| {
+        (0..n)
+            .map(|i| format!("\n[[tools]]\nkind = \"probe\"\nname = \"p{i}\"\nradius = 0.004\n"))
+            .collect::<String>()
+    };
+    Scene::from_toml(&(GOOD_SCENE.to_string() + &tools(4)), "s.toml").unwrap();
+    let e = Scene::from_toml(&(GOOD_SCENE.to_string() + &tools(5)), "s.toml").unwrap_err();
+    assert!(e.to_string().contains("5 tools") && e.to_string().contains("at most 4"), "{e}");
+    assert_eq!(e.key.as_deref(), Some("tools"));
+    let twice = GOOD_SCENE.to_string() + &tools(2).replace("p1", "p0");
+    let e = Scene::from_toml(&twice, "s.toml").unwrap_err();
+    assert!(e.to_string().contains("'p0' is used twice"), "{e}");
     let bad = GOOD_SCENE.replace("builtin = \"block\"", "builtin = \"block\"\nfile = \"x.msh\"");
     let e = Scene::from_toml(&bad, "s.toml").unwrap_err();
     assert!(e.to_string().contains("not both"), "{e}");
