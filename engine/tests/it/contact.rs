@@ -494,6 +494,7 @@ fn oblique_presses_where_the_force_falls() {
         let steps = (length / step).ceil() as usize;
         let mut last: Option<(f64, f64, [f64; 3])> = None;
         let (mut worst, mut at, mut cum, mut jump) = (0.0f64, 0.0, 0.0f64, 0.0);
+        let (mut dcum, mut dlast, mut dfirst) = (0.0f64, 0.0f64, None::<f64>);
         for i in 0..=steps {
             let t = length * i as f64 / steps as f64;
             let tip = [0, 1, 2].map(|k| start[k] + t * dir[k]);
@@ -501,6 +502,14 @@ fn oblique_presses_where_the_force_falls() {
             let f = norm(s.force_n);
             let inside = truth.inside(tip);
             let proxy = s.contact.map(|c| c.proxy_m).unwrap_or([0.0; 3]);
+            let depth = s.contact.map(|c| c.depth_m).unwrap_or(0.0);
+            if s.contact.is_some() && dfirst.is_none() {
+                dfirst = Some(t);
+            }
+            if s.contact.is_some() && inside && depth < dlast {
+                dcum += dlast - depth;
+            }
+            dlast = depth;
             if let Some((before, _, p0)) = last
                 && inside
                 && !s.events.has(Events::FORCE_SATURATED)
@@ -519,7 +528,7 @@ fn oblique_presses_where_the_force_falls() {
             last = Some((f, t, proxy));
         }
         eprintln!(
-            "{name}: largest fall {worst:.4} N at {at:.5} m along the press (the proxy moved {jump:.1e} m in that step), falls summed {cum:.2} N"
+            "{name}: largest fall {worst:.4} N at {at:.5} m along the press (the proxy moved {jump:.1e} m in that step), falls summed {cum:.2} N; depth falls summed {dcum:.2e} m; touched at {dfirst:?}"
         );
     }
 }
