@@ -40,6 +40,12 @@ struct Args {
     /// Haptic channel of the session: its id, or the channel name it was created with.
     #[arg(long, value_name = "CHANNEL")]
     session: String,
+    /// The scene's tool this bridge moves, in a session whose scene names several (two
+    /// devices, two hands: a bridge each): the bridge opens the tool's own channel,
+    /// `CHANNEL.NAME` (`SessionInfo.tools[].haptic_channel`). Without it: the session's one
+    /// tool.
+    #[arg(long, value_name = "NAME")]
+    tool_name: Option<String>,
     /// Device driver: `sim` (simulated stylus following --script, pushed back by the force),
     /// `replay` (recorded samples from --script, played as recorded), `null` (a fixed
     /// position).
@@ -300,6 +306,10 @@ fn run(a: Args) -> anyhow::Result<ExitCode> {
         );
     }
     let channel = HapticChannel::new(&a.session)?;
+    let channel = match &a.tool_name {
+        Some(tool) => channel.for_tool(tool)?,
+        None => channel,
+    };
     let profile = profile_of(&a)?;
     let mut device = open_device(&a)?;
     if let Some(p) = &a.record
@@ -489,6 +499,8 @@ mod tests {
         let p = profile_of(&a).unwrap();
         assert_eq!((p.workspace.min_m, p.workspace.max_m), ([-20.0; 3], [20.0; 3]));
         assert_eq!(Args::try_parse_from(["b", "--session", "x"]).unwrap().origin, [0.0; 3]);
+        let a = Args::try_parse_from(["b", "--session", "x", "--tool-name", "left"]).unwrap();
+        assert_eq!(a.tool_name.as_deref(), Some("left"));
         for bad in ["1,2", "1,2,3,4", "1,x,3", "1,NaN,3"] {
             let e = Args::try_parse_from(["b", "--session", "x", "--origin", bad]).unwrap_err();
             assert!(

@@ -237,6 +237,13 @@ impl HapticChannel {
         &self.name
     }
 
+    /// The channel of the scene's tool `tool` in a session on this channel whose scene names
+    /// several tools: `<channel>.<tool>` (one bridge per tool: `vademecum-bridge --session
+    /// <channel> --tool-name <tool>`). A scene with one tool is driven on the channel itself.
+    pub fn for_tool(&self, tool: &str) -> Result<Self, ChannelNameError> {
+        Self::new(&format!("{}.{tool}", self.name))
+    }
+
     /// The iceoryx2 service name of one of the channel's services (`state`, `command`,
     /// `report`).
     pub fn service_name(&self, service: &str) -> String {

@@ -256,7 +256,29 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
         tick_rate_hz: 1.0 / s.config().period.as_secs_f64(),
         stats: Some(session_stats(e)),
         haptic_channel: s.config().haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
-        tools: s.scene().spec.tools.iter().map(|t| tool_info(t, s.grasp_sites())).collect(),
+        tools: {
+            let channels = match &s.config().haptic {
+                Some(h) => crate::session::tool_channels(&h.channel, s.scene()).unwrap_or_default(),
+                None => Vec::new(),
+            };
+            let channel = |k: usize| {
+                channels
+                    .iter()
+                    .find(|(t, _)| *t == k)
+                    .map(|(_, c)| c.name().to_string())
+                    .unwrap_or_default()
+            };
+            s.scene()
+                .spec
+                .tools
+                .iter()
+                .enumerate()
+                .map(|(k, t)| pb::ToolInfo {
+                    haptic_channel: channel(k),
+                    ..tool_info(t, s.grasp_sites())
+                })
+                .collect()
+        },
         organ_info: s
             .geometry()
             .organs
@@ -316,6 +338,7 @@ fn tool_info(t: &ToolSpec, grasp: &[GraspSite]) -> pb::ToolInfo {
         cut_force_n,
         jaw_width_m,
         grasp_sites,
+        haptic_channel: String::new(),
     }
 }
 

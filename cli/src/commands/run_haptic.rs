@@ -17,7 +17,7 @@ use vademecum_proto::shm::{self, HapticChannel};
 
 use crate::cli::RunArgs;
 use vademecum_server::session::stats::Percentiles;
-use vademecum_server::session::{BridgeSnapshot, HapticConfig, Session, SessionConfig};
+use vademecum_server::session::{BridgeSnapshot, HapticConfig, Session, SessionConfig, tool_channels};
 
 #[derive(Debug, Serialize)]
 struct Summary {
@@ -77,9 +77,20 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
     };
     let session = Session::start("run".into(), scene.clone(), bundles, config)?;
     let rt = session.realtime().map(|r| r.to_string()).unwrap_or_default();
+    let channels = match tool_channels(&channel, &scene)?.as_slice() {
+        [_] => format!("haptic channel '{}'", channel.name()),
+        several => format!(
+            "haptic channels {} (a bridge per tool: `vademecum-bridge --session {} --tool-name NAME`)",
+            several
+                .iter()
+                .map(|(k, c)| format!("'{}' ({})", c.name(), scene.spec.tools[*k].name()))
+                .collect::<Vec<_>>()
+                .join(", "),
+            channel.name()
+        ),
+    };
     eprintln!(
-        "vademecum: haptic channel '{}' open ({} wait, tick thread: {rt}); hand script for `vademecum-bridge --device sim`: {}",
-        channel.name(),
+        "vademecum: {channels} open ({} wait, tick thread: {rt}); hand script for `vademecum-bridge --device sim`: {}",
         wait,
         record.join("trajectory.csv").display()
     );

@@ -30,7 +30,9 @@ use std::sync::mpsc::Receiver;
 use std::thread::Thread;
 use std::time::Instant;
 
+use vademecum_bridge::peer::HapticPeer;
 use vademecum_bridge::timing::RealtimeStatus;
+use vademecum_engine::pipeline::MAX_TOOLS;
 
 use super::scheduler::Job;
 use super::workers::{PlaceError, Placed, Poll, Pool, PoolConfig, Waiter, WorkerShared, run_jobs};
@@ -105,34 +107,51 @@ fn run_device_worker(inbox: &Receiver<Job>, shared: &WorkerShared) {
     // no tick of the haptic path takes a fault on a stack page seen for the first time
     vademecum_bridge::timing::prefault_stack();
     let mut bridges = Bridges {
-        fds: Vec::with_capacity(MAX_DEVICES_PER_WORKER),
+        fds: Vec::with_capacity(MAX_DEVICES_PER_WORKER * MAX_TOOLS),
     };
     run_jobs(inbox, shared, &mut bridges);
 }
 
-/// What a device worker waits on: each session's bridge wake event, in the order of its
-/// session list.
+/// What a device worker waits on: the wake events of each session's bridges (one per tool
+/// channel), [`MAX_TOOLS`] slots per session in the order of its session list (unused slots
+/// hold −1, which poll(2) ignores).
 struct Bridges {
     fds: Vec<libc::pollfd>,
 }
 
 impl Waiter<Job> for Bridges {
     fn taken(&mut self, job: &Job) {
-        self.fds.push(libc::pollfd {
-            // checked by `place`; a negative descriptor is ignored by poll(2)
-            fd: job.tick.peer.as_ref().and_then(|p| p.wake_fd()).unwrap_or(-1),
+        let fd = |p: Option<&HapticPeer>| libc::pollfd {
+            // the first is checked by `place`; a negative descriptor is ignored by poll(2)
+            fd: p.and_then(|p| p.wake_fd()).unwrap_or(-1),
             events: libc::POLLIN,
             revents: 0,
-        });
+        };
+        self.fds.push(fd(job.tick.peer.as_ref()));
+        for slot in 1..MAX_TOOLS {
+            self.fds.push(fd(job.tick.others.get(slot - 1).map(|(_, p)| p)));
+        }
     }
 
     fn turn(&mut self, k: usize, job: &mut Job) -> Poll {
-        let woken = std::mem::take(&mut self.fds[k].revents) != 0;
+        let mut woken = 0u32;
+        for (slot, f) in self.fds[k * MAX_TOOLS..(k + 1) * MAX_TOOLS].iter_mut().enumerate() {
+            if std::mem::take(&mut f.revents) != 0 {
+                woken |= 1 << slot;
+            }
+        }
         job.tick.poll_device(&mut job.clock, woken)
     }
 
     fn removed(&mut self, k: usize) {
-        self.fds.swap_remove(k);
+        // the last session's slots take the place of session k's
+        let last = self.fds.len() - MAX_TOOLS;
+        if k * MAX_TOOLS != last {
+            for slot in 0..MAX_TOOLS {
+                self.fds[k * MAX_TOOLS + slot] = self.fds[last + slot];
+            }
+        }
+        self.fds.truncate(last);
     }
 
     fn wait(&mut self, until: Instant) {

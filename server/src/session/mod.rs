@@ -57,7 +57,7 @@ use vademecum_engine::contact::Bounds;
 use vademecum_engine::pipeline::{GraspSite, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::Fallback;
-use vademecum_proto::shm::{HapticChannel, OpenError};
+use vademecum_proto::shm::{ChannelNameError, HapticChannel, OpenError};
 use workers::Placed;
 
 pub use answers::{AnswerStream, AnswerWorkers, StreamId};
@@ -143,6 +143,40 @@ impl HapticConfig {
     }
 }
 
+/// The haptic channel of each of the scene's tools, with the tool's index in the scene: a
+/// scene with one tool is driven on `base` itself, one with several has a channel per tool,
+/// `<base>.<tool name>` ([`HapticChannel::for_tool`]) — a bridge per tool, two devices for two
+/// hands.
+pub fn tool_channels(base: &HapticChannel, scene: &Scene) -> Result<Vec<(usize, HapticChannel)>, ChannelNameError> {
+    match scene.spec.tools.as_slice() {
+        [] | [_] => Ok(vec![(0, base.clone())]),
+        tools => tools.iter().enumerate().map(|(k, t)| Ok((k, base.for_tool(t.name())?))).collect(),
+    }
+}
+
+/// Opens the haptic channels of `channels` (their peers: the first's, which paces the tick
+/// loop, and the other tools').
+fn open_channels(
+    channels: &[(usize, HapticChannel)],
+    wait: WaitStrategy,
+    window: Duration,
+    period: Duration,
+) -> Result<(HapticPeer, Vec<(usize, HapticPeer)>), SessionError> {
+    let open = |c: &HapticChannel| {
+        HapticPeer::open(c, wait, window, period).map_err(|source| SessionError::Haptic {
+            channel: c.name().to_string(),
+            source,
+        })
+    };
+    let ((_, first), rest) = channels.split_first().expect("a haptic session has a channel");
+    let peer = open(first)?;
+    let others = rest
+        .iter()
+        .map(|(tool, c)| Ok((*tool, open(c)?)))
+        .collect::<Result<_, SessionError>>()?;
+    Ok((peer, others))
+}
+
 /// Why a session did not start.
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
@@ -152,6 +186,11 @@ pub enum SessionError {
     /// No tick worker could take the session.
     #[error(transparent)]
     Ticking(#[from] PlaceError),
+    /// A tool's name cannot name its haptic channel ([`tool_channels`]).
+    #[error(
+        "the scene's tools need a haptic channel each: {0} (name the tools with letters, digits, '-' and '_', or use a shorter channel name)"
+    )]
+    ToolChannel(#[from] ChannelNameError),
     /// The haptic channel could not be opened.
     #[error("haptic channel '{channel}': {source}")]
     Haptic {
@@ -382,6 +421,10 @@ impl Session {
     ) -> Result<Self, SessionError> {
         let mut pipeline = Pipeline::for_scene(&scene, &bundles)?;
         pipeline.set_deterministic(config.deterministic);
+        let channels = match &config.haptic {
+            Some(h) => tool_channels(&h.channel, &scene)?,
+            None => Vec::new(),
+        };
         let PipelineParts {
             effects,
             effects_memory,
@@ -431,12 +474,14 @@ impl Session {
             owed: 0,
             steps: 0,
             peer: None,
+            others: Vec::new(),
             governor: fidelity::Governor::new(config.period, falls_back(&config, &scene)),
             lockstep: None,
             deterministic: config.deterministic,
             held: Default::default(),
             tool_states: Default::default(),
-            named: false,
+            // a channel per tool: frames list every tool
+            named: channels.len() > 1,
         });
         let (done, tick_done) = mpsc::sync_channel(1);
         let tick_finished = Arc::new(AtomicBool::new(false));
@@ -488,7 +533,7 @@ impl Session {
             let _ = answers_done.recv();
             threads.drain(..).for_each(|t| drop(t.join()));
         };
-        let (tick_thread, realtime) = match Self::place_tick(&id, job, &config, &mut threads) {
+        let (tick_thread, realtime) = match Self::place_tick(&id, job, &config, &channels, &mut threads) {
             Ok(placed) => placed,
             Err(e) => {
                 abandon(&mut threads);
@@ -589,18 +634,19 @@ impl Session {
         id: &str,
         mut job: scheduler::Job,
         config: &SessionConfig,
+        channels: &[(usize, HapticChannel)],
         threads: &mut Vec<JoinHandle<()>>,
     ) -> Result<(std::thread::Thread, Option<RealtimeStatus>), SessionError> {
         match (&config.ticking, &config.haptic, config.on_tick_thread, &config.devices) {
             (_, Some(h), None, Some(devices)) if h.wait == WaitStrategy::Event => {
-                match HapticPeer::open(&h.channel, WaitStrategy::Event, h.spin_window, config.period) {
-                    Ok(peer) => job.tick.peer = Some(peer),
-                    Err(source) => {
+                match open_channels(channels, WaitStrategy::Event, h.spin_window, config.period) {
+                    Ok((peer, others)) => {
+                        job.tick.peer = Some(peer);
+                        job.tick.others = others;
+                    }
+                    Err(e) => {
                         job.end();
-                        return Err(SessionError::Haptic {
-                            channel: h.channel.name().to_string(),
-                            source,
-                        });
+                        return Err(e);
                     }
                 }
                 let (thread, realtime) = devices.place(job)?;
@@ -608,7 +654,7 @@ impl Session {
             }
             (Some(workers), None, None, _) => Ok((workers.place(job)?, None)),
             _ => {
-                let (thread, realtime) = Self::spawn_tick_thread(id, job, config)?;
+                let (thread, realtime) = Self::spawn_tick_thread(id, job, config, channels.to_vec())?;
                 let t = thread.thread().clone();
                 threads.push(thread);
                 Ok((t, realtime))
@@ -631,10 +677,11 @@ impl Session {
         id: &str,
         job: scheduler::Job,
         config: &SessionConfig,
+        channels: Vec<(usize, HapticChannel)>,
     ) -> Result<(JoinHandle<()>, Option<RealtimeStatus>), SessionError> {
         let haptic = config.haptic.clone();
         let on_tick_thread = config.on_tick_thread;
-        let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<Option<RealtimeStatus>, OpenError>>(1);
+        let (opened_tx, opened_rx) = mpsc::sync_channel::<Result<Option<RealtimeStatus>, SessionError>>(1);
         let thread = std::thread::Builder::new()
             .name(format!("tick-{id}"))
             .spawn(move || {
@@ -646,8 +693,9 @@ impl Session {
                     return workers::run_alone(job);
                 };
                 let mut job = job;
-                match HapticPeer::open(&h.channel, h.wait, h.spin_window, job.tick.period) {
-                    Ok(p) => {
+                match open_channels(&channels, h.wait, h.spin_window, job.tick.period) {
+                    Ok((p, others)) => {
+                        job.tick.others = others;
                         let mut peer = p.with_phase_source(h.phase);
                         let fifo = h.fifo_priority.filter(|_| h.wait != WaitStrategy::Spin);
                         let _ = opened_tx.send(Ok(Some(vademecum_bridge::timing::request_realtime(fifo, h.cpu))));
@@ -663,12 +711,9 @@ impl Session {
             .expect("the OS can start a thread");
         match opened_rx.recv() {
             Ok(Ok(rt)) => Ok((thread, rt)),
-            Ok(Err(source)) => {
+            Ok(Err(e)) => {
                 let _ = thread.join();
-                Err(SessionError::Haptic {
-                    channel: config.haptic.as_ref().map(|h| h.channel.name().to_string()).unwrap_or_default(),
-                    source,
-                })
+                Err(e)
             }
             Err(_) => panic!("the tick thread ended before opening its haptic channel"),
         }

@@ -67,8 +67,14 @@ pub(super) struct TickLoop {
     /// period at rest). Answers and frames carry the number of the step they show.
     pub steps: u64,
     /// The haptic channel of a session a device worker ticks (opened by whoever starts the
-    /// loop; it goes back to the session's owner with the loop, and is closed there).
+    /// loop; it goes back to the session's owner with the loop, and is closed there): the
+    /// first tool's, which paces the loop.
     pub peer: Option<HapticPeer>,
+    /// The other tools' haptic channels, with each tool's index in the scene (a scene with
+    /// several tools has a channel per tool, [`super::tool_channels`]): a state that arrives
+    /// on one is answered at the loop's next turn — at once on a device worker, which wakes
+    /// on every channel; at the first tool's next state or deadline on a thread of its own.
+    pub others: Vec<(usize, HapticPeer)>,
     /// Falls back to the reduced fidelity under load ([`super::fidelity`]).
     pub governor: super::fidelity::Governor,
     /// The frames a deterministic session makes while its tick waits
@@ -180,9 +186,9 @@ impl TickLoop {
         }
     }
 
-    /// Answers a state from the haptic channel at once.
-    fn answer_haptic(&mut self, peer: &mut HapticPeer, s: &HapticState, local: &mut Histograms) -> (ToolInput, TickState) {
-        let input = tool_input(s);
+    /// Answers a state from the haptic channel of tool `tool` at once.
+    fn answer_haptic(&mut self, peer: &mut HapticPeer, tool: usize, s: &HapticState, local: &mut Histograms) -> (ToolInput, TickState) {
+        let input = tool_input(s, tool);
         let (_, state) = self.tick_answered(&input);
         if state.events.has(Events::REJECTED_INPUT) {
             self.stats.rejected.fetch_add(1, Ordering::Relaxed);
@@ -255,7 +261,7 @@ impl TickLoop {
             clock.this.work_ns += start.elapsed().as_nanos() as u64;
         }
         let now = Instant::now();
-        if now >= clock.next && !self.deadline(clock, now, None, None) {
+        if now >= clock.next && !self.deadline(clock, now, None, None, &[None; MAX_TOOLS]) {
             return Poll::Ended;
         }
         if n == MAX_COMMANDS_PER_TICK {
@@ -275,29 +281,43 @@ impl TickLoop {
         clock.cpu_of_thread = true;
         while !self.stop.load(Ordering::Relaxed) {
             let arrived = peer.wait_for_state(clock.next);
-            if !self.deadline(clock, Instant::now(), Some(&mut *peer), arrived.as_ref()) {
+            // the other tools' bridges have no wake-up of their own here: their notifications
+            // are taken with their states
+            let others = self.take_others(u32::MAX);
+            if !self.deadline(clock, Instant::now(), Some(&mut *peer), arrived.as_ref(), &others) {
                 break;
             }
         }
         keep_bridge_report(&self.stats, peer);
     }
 
+    /// The states that arrived on the other tools' channels (bit `i + 1` of `woken`: the wake
+    /// event of `others[i]` fired, to be consumed).
+    fn take_others(&mut self, woken: u32) -> [Option<HapticState>; MAX_TOOLS] {
+        let mut arrived = [None; MAX_TOOLS];
+        for (i, (_, p)) in self.others.iter_mut().enumerate() {
+            arrived[i] = p.try_state(woken & (1 << (i + 1)) != 0);
+        }
+        arrived
+    }
+
     /// A device worker's turn ([`super::devices`]) for a haptic session: answers the
-    /// bridge's state if one arrived (`woken`: its wake event fired, to be consumed) — at
-    /// once, a tick of its own as on a thread of its own —, or runs the deadline tick when it
-    /// is due; says when the next deadline is. Never blocks: the worker waits on the events
-    /// of all its sessions at once.
-    pub fn poll_device(&mut self, clock: &mut Clock, woken: bool) -> Poll {
+    /// bridges' states that arrived (bit 0 of `woken`: the first tool's wake event fired, bit
+    /// `i + 1`: that of `others[i]`, to be consumed) — at once, a tick each as on a thread of
+    /// its own —, or runs the deadline tick when it is due; says when the next deadline is.
+    /// Never blocks: the worker waits on the events of all its sessions at once.
+    pub fn poll_device(&mut self, clock: &mut Clock, woken: u32) -> Poll {
         if self.stop.load(Ordering::Relaxed) {
             return Poll::Ended;
         }
         let Some(mut peer) = self.peer.take() else {
             return Poll::Ended;
         };
-        let arrived = peer.try_state(woken);
+        let arrived = peer.try_state(woken & 1 != 0);
+        let others = self.take_others(woken);
         let now = Instant::now();
-        let due = arrived.is_some() || now >= clock.next;
-        let go_on = !due || self.deadline(clock, now, Some(&mut peer), arrived.as_ref());
+        let due = arrived.is_some() || others.iter().any(Option::is_some) || now >= clock.next;
+        let go_on = !due || self.deadline(clock, now, Some(&mut peer), arrived.as_ref(), &others);
         self.peer = Some(peer);
         if go_on { Poll::At(clock.next) } else { Poll::Ended }
     }
@@ -307,7 +327,14 @@ impl TickLoop {
     /// the script, answers the queued tool states, replays the last tool state when the
     /// period answered none, hands the period's state to the frame thread and its histograms
     /// to the readers. `false` when the loop has ended (script over, every sender gone).
-    fn deadline(&mut self, clock: &mut Clock, start: Instant, mut peer: Option<&mut HapticPeer>, arrived: Option<&HapticState>) -> bool {
+    fn deadline(
+        &mut self,
+        clock: &mut Clock,
+        start: Instant,
+        mut peer: Option<&mut HapticPeer>,
+        arrived: Option<&HapticState>,
+        others: &[Option<HapticState>; MAX_TOOLS],
+    ) -> bool {
         let period = self.period;
         let next = clock.next;
         let mut late_ns = 0;
@@ -322,11 +349,26 @@ impl TickLoop {
         }
         let mut answered = false;
         if let (Some(p), Some(s)) = (peer.as_deref_mut(), arrived) {
-            let (input, st) = self.answer_haptic(p, s, &mut clock.local);
+            // the first channel is the scene's first tool's
+            let (input, st) = self.answer_haptic(p, 0, s, &mut clock.local);
             clock.this.state = Some(st);
             if input.is_valid() {
                 clock.this.last_input = Some(input);
             }
+        }
+        if others.iter().any(Option::is_some) {
+            // moved out and back: no allocation
+            let mut channels = std::mem::take(&mut self.others);
+            for ((tool, p), s) in channels.iter_mut().zip(others) {
+                if let Some(s) = s {
+                    let (input, st) = self.answer_haptic(p, *tool, s, &mut clock.local);
+                    clock.this.state = Some(st);
+                    if input.is_valid() {
+                        clock.this.last_input = Some(input);
+                    }
+                }
+            }
+            self.others = channels;
         }
         if let Some(script) = self.script.take() {
             let t = clock.tick as f64 * period.as_secs_f64();
@@ -397,7 +439,8 @@ impl TickLoop {
             self.stats.publish(&mut clock.local);
             if let Some(p) = peer.as_deref_mut() {
                 keep_bridge_report(&self.stats, p);
-                self.stats.haptic_skipped.store(p.skipped(), Ordering::Relaxed);
+                let others: u64 = self.others.iter().map(|(_, o)| o.skipped()).sum();
+                self.stats.haptic_skipped.store(p.skipped() + others, Ordering::Relaxed);
             }
             let cpu = if clock.cpu_of_thread {
                 // a haptic session's own thread: its CPU time, waiting for the bridge included
@@ -521,11 +564,11 @@ pub(super) fn phased_deadline(epoch: Instant, now: Instant, period: Duration, fr
     epoch + Duration::from_nanos(u64::try_from(m * p + offset).unwrap_or(u64::MAX))
 }
 
-/// The engine's tool state for a haptic sample.
-fn tool_input(s: &HapticState) -> ToolInput {
+/// The engine's tool state for a haptic sample on the channel of tool `tool` (the scene's
+/// index; 0 for a scene with one tool).
+fn tool_input(s: &HapticState, tool: usize) -> ToolInput {
     ToolInput {
-        // a bridge moves the session's one tool at a time
-        tool: 0,
+        tool,
         kind: match s.tool {
             TOOL_SCALPEL => ToolKind::Scalpel,
             TOOL_GRASPER => ToolKind::Grasper,

@@ -348,3 +348,167 @@ fn a_grpc_session_opens_a_haptic_channel_named_after_its_id_and_exports_the_brid
         assert!(text.contains(name), "{name} missing from:\n{text}");
     }
 }
+
+/// Two devices, two hands (issue 46): a scene with two probes has a haptic channel per tool,
+/// `CHANNEL.NAME`; a bridge on each (`--tool-name`) moves its own probe of the one session —
+/// here a `vademecum run --haptic` session, whose tick thread waits on the first tool's
+/// bridge. See [`two_bridges_feel_each_other`].
+#[test]
+fn two_bridges_each_move_one_probe_of_a_session_and_feel_each_other() {
+    util::two_probes();
+    let dir = tempfile::tempdir().unwrap();
+    let ch = channel("hands");
+    let _server = HapticRun::start_with("two_probes", &ch, &dir.path().join("run"), &["two_probes.toml", "--duration", "30"]);
+    two_bridges_feel_each_other(&ch, &[]);
+}
+
+/// The same two hands on a device worker (`serve --device-workers 1`), which wakes on either
+/// bridge's event; `SessionInfo.tools` names each tool's channel.
+#[test]
+fn two_bridges_drive_a_device_worker_session_through_a_channel_per_tool() {
+    use vademecum_client::{Client, SceneSpec};
+    let text = util::two_probes().to_string();
+    let server = util::Server::start(&["--device-workers", "1"], &[]);
+    let rt = util::runtime();
+    let client = rt.block_on(Client::connect(server.url.clone())).unwrap();
+    let session = rt
+        .block_on(client.create_haptic_session(SceneSpec::Toml(text), "two_probes", "two hands", ""))
+        .unwrap();
+    let id = session.info().session_id.clone();
+    let channels: Vec<(&str, &str)> = session
+        .info()
+        .tools
+        .iter()
+        .map(|t| (t.name.as_str(), t.haptic_channel.as_str()))
+        .collect();
+    assert_eq!(
+        channels,
+        [("probe", format!("{id}.probe").as_str()), ("left", format!("{id}.left").as_str())]
+    );
+    two_bridges_feel_each_other(&id, &["--wait", "sleep", "--answer-wake", "event"]);
+    // ticked on the device worker, not on a thread of its own
+    let threads = server.threads();
+    assert!(threads.iter().any(|t| t == "device-worker-0"), "{threads:?}");
+    assert!(!threads.iter().any(|t| t.starts_with("tick-s")), "{threads:?}");
+}
+
+/// Two bridges on the session of `ch` (a two-probe scene: `util::two_probes`), replaying
+/// hand scripts: the left probe rests in the tissue while the right one, in free air at
+/// first, presses in beside it. The force the left device renders falls as the right presses
+/// — the two contacts are solved together — and, with both still, each bridge's force is the
+/// engine's for the two tools ticked together.
+fn two_bridges_feel_each_other(ch: &str, bridge_args: &[&str]) {
+    use vademecum_engine::bundle;
+    use vademecum_engine::pipeline::{Pipeline, TickState, ToolInput};
+    use vademecum_engine::scene::Scene;
+    let scene = Scene::from_toml(util::two_probes(), "two_probes.toml").unwrap();
+    let b = std::sync::Arc::new(bundle::load_bundle(&util::bundles().join("two_probes/lobe.bundle")).unwrap());
+    let dir = tempfile::tempdir().unwrap();
+    // the left probe rests 1.5 mm in, 15 mm from the middle, all along; the right one waits
+    // 5 mm above the middle for 1.5 s, goes 2 mm in over 0.5 s, and holds there
+    let at_left = [0.015, 0.0, 0.025 + 0.004 - 0.0015];
+    let above = [0.0, 0.0, 0.025 + 0.004 + 0.005];
+    let pressed = [0.0, 0.0, 0.025 + 0.004 - 0.002];
+    let script = |at: &dyn Fn(f64) -> [f64; 3]| {
+        let mut csv = String::from("t_s,x_m,y_m,z_m\n");
+        for i in 0..=4000 {
+            let t = i as f64 * 1e-3;
+            let p = at(t);
+            csv.push_str(&format!("{t},{},{},{}\n", p[0], p[1], p[2]));
+        }
+        csv
+    };
+    let left_script = dir.path().join("left.csv");
+    std::fs::write(&left_script, script(&|_| at_left)).unwrap();
+    let right_script = dir.path().join("right.csv");
+    std::fs::write(
+        &right_script,
+        script(&|t| {
+            let u = ((t - 1.5) / 0.5).clamp(0.0, 1.0);
+            [0, 1, 2].map(|k| above[k] + u * (pressed[k] - above[k]))
+        }),
+    )
+    .unwrap();
+    let bridge = |tool: &str, script: &Path| {
+        let trace = dir.path().join(format!("{tool}.trace.csv"));
+        let child = Command::new(bridge_bin())
+            .args([
+                "--session",
+                ch,
+                "--tool-name",
+                tool,
+                "--device",
+                "replay",
+                "--no-realtime",
+                "--json",
+            ])
+            .args(bridge_args)
+            .arg("--script")
+            .arg(script)
+            .arg("--record")
+            .arg(&trace)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        (child, trace)
+    };
+    let (left, left_trace) = bridge("left", &left_script);
+    let (right, right_trace) = bridge("probe", &right_script);
+    for child in [left, right] {
+        let out = child.wait_with_output().unwrap();
+        assert!(out.status.success(), "{:?}", out.status);
+        let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(s["end"], "end of script", "{s}");
+    }
+    // the engine, both probes ticked together (the right probe's index is 0, the left's 1)
+    let mut engine = Pipeline::for_scene(&scene, &[b]).unwrap();
+    let mut tick = |set: &[ToolInput]| -> Vec<TickState> {
+        let mut states = vec![TickState::default(); set.len()];
+        engine.tick_tools(set, &mut states);
+        states
+    };
+    let probe = |tool: usize, position_m: [f64; 3]| ToolInput {
+        tool,
+        position_m,
+        ..ToolInput::default()
+    };
+    let alone = tick(&[probe(0, above), probe(1, at_left)])[1].force_n;
+    let both = tick(&[probe(0, pressed), probe(1, at_left)]);
+    let close = |a: [f64; 3], b: [f64; 3]| norm([0, 1, 2].map(|k| a[k] - b[k])) <= 1e-9 * (1.0 + norm(b));
+    let (left, right) = (read_trace(&left_trace), read_trace(&right_trace));
+    let fresh = |rows: &[util::TraceRow], from: f64, to: f64| -> Vec<[f64; 3]> {
+        let t0 = rows[0].tick;
+        rows.iter()
+            .filter(|r| r.fresh && ((r.tick - t0) as f64 * 1e-3) >= from && ((r.tick - t0) as f64 * 1e-3) < to)
+            .map(|r| r.received_n)
+            .collect()
+    };
+    // before the right probe comes down: the left one's force is its own alone
+    let before = fresh(&left, 0.3, 1.3);
+    assert!(before.len() > 300, "{} fresh forces", before.len());
+    assert!(before.iter().all(|f| close(*f, alone)), "{:?} vs {alone:?}", &before[..3]);
+    // both still, the right 2 mm in: each device's force is the engine's for the two together
+    let after_left = fresh(&left, 2.6, 3.8);
+    let after_right = fresh(&right, 2.6, 3.8);
+    assert!(after_left.len() > 300 && after_right.len() > 300);
+    assert!(
+        after_left.iter().all(|f| close(*f, both[1].force_n)),
+        "{:?} vs {:?}",
+        &after_left[..3],
+        both[1].force_n
+    );
+    assert!(
+        after_right.iter().all(|f| close(*f, both[0].force_n)),
+        "{:?} vs {:?}",
+        &after_right[..3],
+        both[0].force_n
+    );
+    // the left device felt the right's press, held still
+    assert!(
+        both[1].force_n[2] < alone[2] - 0.1,
+        "left {:?} N alone, {:?} N beside the press",
+        alone,
+        both[1].force_n
+    );
+}
