@@ -1109,6 +1109,11 @@ pub struct BenchHapticArgs {
     /// trace with the server's wait times).
     #[arg(long, value_name = "DIR")]
     pub trace: Option<PathBuf>,
+    /// A fourth phase: two hands — the organ with a second probe (its bundle built beside the
+    /// organ's when missing), a bridge on each tool's channel, both palpating; each bridge's
+    /// figures beside the null loop's.
+    #[arg(long)]
+    pub two_hands: bool,
     /// Print the results as JSON.
     #[arg(long)]
     pub json: bool,

@@ -2,7 +2,7 @@
 //! loop measured in the same run, idle or with a CPU hog, so the OS floor and our overhead
 //! are told apart.
 //!
-//! Three phases of `--seconds` each, all driven by the device bridge's own loop
+//! Three phases of `--seconds` each (five with `--two-hands`), all driven by the device bridge's own loop
 //! ([`vademecum_bridge::bridge_loop`]) with the same wait strategy:
 //!
 //! 1. **null** — the same timing loop with no IPC and no work (a fixed device, a link that
@@ -11,7 +11,10 @@
 //!    waits for each state like a session does ([`vademecum_bridge::peer`]) and answers at once
 //!    with zero force;
 //! 3. **full tick** — the bridge's simulated stylus palpating the built-in organ against a
-//!    real session (contact search, force from the vademecum, answer).
+//!    real session (contact search, force from the vademecum, answer);
+//! 4. **two hands** (`--two-hands`) — two bridges, each on its tool's channel of one session
+//!    on the organ with a second probe, on a session thread of its own and then on a device
+//!    worker: each bridge's figures.
 //!
 //! For each: device read → force written (our IPC and work), deadline → force written (the
 //! OS floor plus ours: the figure compared with the null loop), deadline misses, and the CPU
@@ -49,7 +52,7 @@ use vademecum_proto::shm::{self, HapticChannel};
 use crate::cli::BenchHapticArgs;
 use crate::commands::build::ensure_bundles;
 use vademecum_server::session::stats::Percentiles;
-use vademecum_server::session::{HapticConfig, Session, SessionConfig, builtin_palpation};
+use vademecum_server::session::{DeviceWorkers, DeviceWorkersConfig, HapticConfig, Session, SessionConfig, builtin_palpation};
 
 #[derive(Debug, Serialize)]
 struct Phase {
@@ -120,6 +123,22 @@ where
     D: vademecum_bridge::device::Device,
     L: Link,
 {
+    spawn_bridge(params, fifo, cpu, make)?
+        .join()
+        .map_err(|_| anyhow::anyhow!("the bridge thread panicked"))?
+}
+
+/// [`bridge_thread`], not waited for.
+fn spawn_bridge<D, L>(
+    params: BridgeParams,
+    fifo: Option<i32>,
+    cpu: Option<usize>,
+    make: impl FnOnce() -> anyhow::Result<(D, L)> + Send + 'static,
+) -> anyhow::Result<std::thread::JoinHandle<anyhow::Result<(BridgeOutcome, String)>>>
+where
+    D: vademecum_bridge::device::Device,
+    L: Link,
+{
     std::thread::Builder::new()
         .name("bench-bridge".into())
         .spawn(move || -> anyhow::Result<(BridgeOutcome, String)> {
@@ -130,9 +149,7 @@ where
             let rt = format!("{rt}, {}", out.safeguards());
             Ok((out, rt))
         })
-        .context("cannot start the bridge thread")?
-        .join()
-        .map_err(|_| anyhow::anyhow!("the bridge thread panicked"))?
+        .context("cannot start the bridge thread")
 }
 
 /// Busy floating-point work until `stop`.
@@ -207,6 +224,19 @@ struct Setup {
     scene: Arc<Scene>,
     bundles: Vec<Arc<vademecum_engine::bundle::LoadedBundle>>,
     hand: Trajectory,
+    /// `--two-hands`: the organ with a second probe, `left`, its bundles, and the left hand's
+    /// path (the right's, 15 mm aside).
+    two_hands: Option<(Arc<Scene>, Vec<Arc<vademecum_engine::bundle::LoadedBundle>>, Trajectory)>,
+}
+
+/// The built-in organ with a second probe, `left`, like the first (two hands).
+fn two_probe_organ() -> anyhow::Result<Scene> {
+    let text = format!(
+        "{}\n[[tools]]\nkind = \"probe\"\nname = \"left\"\nradius = {}\n",
+        vademecum_engine::scene::builtin("organ").context("the built-in organ")?,
+        vademecum_engine::offline::probe_radius(&Scene::builtin("organ")?)
+    );
+    Ok(Scene::from_toml(&text, "organ_two_hands.toml")?)
 }
 
 pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
@@ -232,10 +262,21 @@ pub fn run(a: BenchHapticArgs) -> anyhow::Result<ExitCode> {
             keys.push((t + 5.0 * r as f64, s.position_m, s.closure));
         }
     }
+    let two_hands = match a.two_hands {
+        false => None,
+        true => {
+            let scene = two_probe_organ()?;
+            let bundles = ensure_bundles(&scene, &dir.join("two_hands"))?;
+            // the left hand palpates 15 mm aside of the right, along the same path
+            let aside: Vec<(f64, [f64; 3], f64)> = keys.iter().map(|&(t, p, c)| (t, [p[0] + 0.015, p[1], p[2]], c)).collect();
+            Some((Arc::new(scene), bundles, Trajectory::new(aside).map_err(anyhow::Error::msg)?))
+        }
+    };
     let setup = Setup {
         scene,
         bundles,
         hand: Trajectory::new(keys).map_err(anyhow::Error::msg)?,
+        two_hands,
     };
     if let Some(d) = &a.trace {
         std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
@@ -394,6 +435,7 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
     )?;
     let cpu0 = session.stats().tick_cpu_ns.load(Ordering::Relaxed);
     let hand = setup.hand.clone();
+    let traced_hands = traced.clone();
     let (full, _) = bridge_thread(traced, fifo, bridge_cpu, move || {
         Ok((SimStylus::new(hand, HandModel::default()), ShmLink::open(&channel)?))
     })?;
@@ -401,6 +443,68 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
     let _ = session.close();
     write_trace("full_tick", &full)?;
     phases.push(phase("full tick", &full, tick_cpu, &params));
+
+    if let Some((scene, bundles, left_hand)) = &setup.two_hands {
+        // on a session thread of its own (waiting on the first tool's bridge), then on a device
+        // worker (woken by either bridge)
+        for (on_worker, names) in [
+            (false, ["two hands: first tool", "two hands: second tool"]),
+            (
+                true,
+                ["two hands, device worker: first tool", "two hands, device worker: second tool"],
+            ),
+        ] {
+            bar(if on_worker {
+                "two hands on a device worker (two bridges, a session with two probes)"
+            } else {
+                "two hands (two bridges, a session with two probes)"
+            });
+            let channel = HapticChannel::new(&format!("bench-hands-{}-{k}-{}", std::process::id(), u8::from(on_worker)))?;
+            let mut haptic = HapticConfig::new(channel.clone());
+            haptic.wait = if on_worker { WaitStrategy::Event } else { a.peer_wait };
+            haptic.spin_window = params.window;
+            haptic.fifo_priority = fifo.map(|p| p - 10);
+            haptic.cpu = peer_cpu;
+            haptic.phase = a.peer_phase;
+            let devices = match on_worker {
+                false => None,
+                true => Some(Arc::new(DeviceWorkers::new(DeviceWorkersConfig {
+                    workers: 1,
+                    fifo_priority: fifo.map(|p| p - 10),
+                    on_start: None,
+                })?)),
+            };
+            let session = Session::start(
+                "bench-hands".into(),
+                scene.clone(),
+                bundles.clone(),
+                SessionConfig {
+                    haptic: Some(haptic),
+                    devices,
+                    ..SessionConfig::default()
+                },
+            )?;
+            let cpu0 = session.stats().tick_cpu_ns.load(Ordering::Relaxed);
+            let hand = |path: &Trajectory, tool: &str| -> anyhow::Result<_> {
+                let (path, ch) = (path.clone(), channel.for_tool(tool)?);
+                spawn_bridge(traced_hands.clone(), fifo, bridge_cpu, move || {
+                    Ok((SimStylus::new(path, HandModel::default()), ShmLink::open(&ch)?))
+                })
+            };
+            let (right, left) = (hand(&setup.hand, "probe")?, hand(left_hand, "left")?);
+            let join = |h: std::thread::JoinHandle<anyhow::Result<(BridgeOutcome, String)>>| {
+                h.join().map_err(|_| anyhow::anyhow!("a bridge thread panicked"))?
+            };
+            let ((right, _), (left, _)) = (join(right)?, join(left)?);
+            let tick_cpu = Duration::from_nanos(session.stats().tick_cpu_ns.load(Ordering::Relaxed).saturating_sub(cpu0));
+            let _ = session.close();
+            let file = if on_worker { "two_hands_worker" } else { "two_hands" };
+            write_trace(&format!("{file}_first"), &right)?;
+            write_trace(&format!("{file}_second"), &left)?;
+            phases.push(phase(names[0], &right, tick_cpu, &params));
+            phases.push(phase(names[1], &left, Duration::ZERO, &params));
+        }
+    }
 
     Ok(Report {
         wait: a.wait.to_string(),
