@@ -2,7 +2,7 @@
 //! loop measured in the same run, idle or with a CPU hog, so the OS floor and our overhead
 //! are told apart.
 //!
-//! Three phases of `--seconds` each (five with `--two-hands`), all driven by the device bridge's own loop
+//! Three phases of `--seconds` each (four with `--two-hands`), all driven by the device bridge's own loop
 //! ([`vademecum_bridge::bridge_loop`]) with the same wait strategy:
 //!
 //! 1. **null** — the same timing loop with no IPC and no work (a fixed device, a link that
@@ -13,8 +13,8 @@
 //! 3. **full tick** — the bridge's simulated stylus palpating the built-in organ against a
 //!    real session (contact search, force from the vademecum, answer);
 //! 4. **two hands** (`--two-hands`) — two bridges, each on its tool's channel of one session
-//!    on the organ with a second probe, on a session thread of its own and then on a device
-//!    worker: each bridge's figures.
+//!    on the organ with a second probe (which waits on both bridges' events on a device
+//!    worker of its own): each bridge's figures.
 //!
 //! For each: device read → force written (our IPC and work), deadline → force written (the
 //! OS floor plus ours: the figure compared with the null loop), deadline misses, and the CPU
@@ -52,7 +52,7 @@ use vademecum_proto::shm::{self, HapticChannel};
 use crate::cli::BenchHapticArgs;
 use crate::commands::build::ensure_bundles;
 use vademecum_server::session::stats::Percentiles;
-use vademecum_server::session::{DeviceWorkers, DeviceWorkersConfig, HapticConfig, Session, SessionConfig, builtin_palpation};
+use vademecum_server::session::{HapticConfig, Session, SessionConfig, builtin_palpation};
 
 #[derive(Debug, Serialize)]
 struct Phase {
@@ -435,7 +435,14 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
     )?;
     let cpu0 = session.stats().tick_cpu_ns.load(Ordering::Relaxed);
     let hand = setup.hand.clone();
-    let traced_hands = traced.clone();
+    // two bridges share the machine's cores with the session: each blocks on the server's
+    // `answered` event instead of polling for its answer, as docs/haptic.md advises when
+    // bridges share a host's cores (two polling bridges at a higher real-time priority than
+    // the session starve it on two cores)
+    let traced_hands = BridgeParams {
+        answer_wake: bridge_loop::AnswerWake::Event,
+        ..traced.clone()
+    };
     let (full, _) = bridge_thread(traced, fifo, bridge_cpu, move || {
         Ok((SimStylus::new(hand, HandModel::default()), ShmLink::open(&channel)?))
     })?;
@@ -445,65 +452,40 @@ fn run_once(a: &BenchHapticArgs, k: usize, setup: &Setup) -> anyhow::Result<Repo
     phases.push(phase("full tick", &full, tick_cpu, &params));
 
     if let Some((scene, bundles, left_hand)) = &setup.two_hands {
-        // on a session thread of its own (waiting on the first tool's bridge), then on a device
-        // worker (woken by either bridge)
-        for (on_worker, names) in [
-            (false, ["two hands: first tool", "two hands: second tool"]),
-            (
-                true,
-                ["two hands, device worker: first tool", "two hands, device worker: second tool"],
-            ),
-        ] {
-            bar(if on_worker {
-                "two hands on a device worker (two bridges, a session with two probes)"
-            } else {
-                "two hands (two bridges, a session with two probes)"
-            });
-            let channel = HapticChannel::new(&format!("bench-hands-{}-{k}-{}", std::process::id(), u8::from(on_worker)))?;
-            let mut haptic = HapticConfig::new(channel.clone());
-            haptic.wait = if on_worker { WaitStrategy::Event } else { a.peer_wait };
-            haptic.spin_window = params.window;
-            haptic.fifo_priority = fifo.map(|p| p - 10);
-            haptic.cpu = peer_cpu;
-            haptic.phase = a.peer_phase;
-            let devices = match on_worker {
-                false => None,
-                true => Some(Arc::new(DeviceWorkers::new(DeviceWorkersConfig {
-                    workers: 1,
-                    fifo_priority: fifo.map(|p| p - 10),
-                    on_start: None,
-                })?)),
-            };
-            let session = Session::start(
-                "bench-hands".into(),
-                scene.clone(),
-                bundles.clone(),
-                SessionConfig {
-                    haptic: Some(haptic),
-                    devices,
-                    ..SessionConfig::default()
-                },
-            )?;
-            let cpu0 = session.stats().tick_cpu_ns.load(Ordering::Relaxed);
-            let hand = |path: &Trajectory, tool: &str| -> anyhow::Result<_> {
-                let (path, ch) = (path.clone(), channel.for_tool(tool)?);
-                spawn_bridge(traced_hands.clone(), fifo, bridge_cpu, move || {
-                    Ok((SimStylus::new(path, HandModel::default()), ShmLink::open(&ch)?))
-                })
-            };
-            let (right, left) = (hand(&setup.hand, "probe")?, hand(left_hand, "left")?);
-            let join = |h: std::thread::JoinHandle<anyhow::Result<(BridgeOutcome, String)>>| {
-                h.join().map_err(|_| anyhow::anyhow!("a bridge thread panicked"))?
-            };
-            let ((right, _), (left, _)) = (join(right)?, join(left)?);
-            let tick_cpu = Duration::from_nanos(session.stats().tick_cpu_ns.load(Ordering::Relaxed).saturating_sub(cpu0));
-            let _ = session.close();
-            let file = if on_worker { "two_hands_worker" } else { "two_hands" };
-            write_trace(&format!("{file}_first"), &right)?;
-            write_trace(&format!("{file}_second"), &left)?;
-            phases.push(phase(names[0], &right, tick_cpu, &params));
-            phases.push(phase(names[1], &left, Duration::ZERO, &params));
-        }
+        // the session waits on both bridges' events (a device worker of its own)
+        bar("two hands (two bridges, a session with two probes)");
+        let channel = HapticChannel::new(&format!("bench-hands-{}-{k}", std::process::id()))?;
+        let mut haptic = HapticConfig::new(channel.clone());
+        haptic.spin_window = params.window;
+        haptic.fifo_priority = fifo.map(|p| p - 10);
+        haptic.cpu = peer_cpu;
+        let session = Session::start(
+            "bench-hands".into(),
+            scene.clone(),
+            bundles.clone(),
+            SessionConfig {
+                haptic: Some(haptic),
+                ..SessionConfig::default()
+            },
+        )?;
+        let cpu0 = session.stats().tick_cpu_ns.load(Ordering::Relaxed);
+        let hand = |path: &Trajectory, tool: &str| -> anyhow::Result<_> {
+            let (path, ch) = (path.clone(), channel.for_tool(tool)?);
+            spawn_bridge(traced_hands.clone(), fifo, bridge_cpu, move || {
+                Ok((SimStylus::new(path, HandModel::default()), ShmLink::open(&ch)?))
+            })
+        };
+        let (right, left) = (hand(&setup.hand, "probe")?, hand(left_hand, "left")?);
+        let join = |h: std::thread::JoinHandle<anyhow::Result<(BridgeOutcome, String)>>| {
+            h.join().map_err(|_| anyhow::anyhow!("a bridge thread panicked"))?
+        };
+        let ((right, _), (left, _)) = (join(right)?, join(left)?);
+        let tick_cpu = Duration::from_nanos(session.stats().tick_cpu_ns.load(Ordering::Relaxed).saturating_sub(cpu0));
+        let _ = session.close();
+        write_trace("two_hands_first", &right)?;
+        write_trace("two_hands_second", &left)?;
+        phases.push(phase("two hands: first tool", &right, tick_cpu, &params));
+        phases.push(phase("two hands: second tool", &left, Duration::ZERO, &params));
     }
 
     Ok(Report {

@@ -69,7 +69,13 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
         haptic.wait = w;
     }
     haptic.spin_window = Duration::from_micros(a.haptic_spin_us);
-    let wait = haptic.wait;
+    // several hands: the session waits on every bridge's event (a device worker of its own)
+    let several = tool_channels(&channel, &scene)?.len() > 1;
+    let wait = if several {
+        vademecum_bridge::timing::WaitStrategy::Event
+    } else {
+        haptic.wait
+    };
     let config = SessionConfig {
         frame_rate_hz: a.frame_rate,
         haptic: Some(haptic),

@@ -314,6 +314,10 @@ pub struct Session {
     memory: SessionMemory,
     /// Every frame of a deterministic session, for its recorder ([`Self::take_frame_log`]).
     frame_log: std::sync::Mutex<Option<Receiver<Arc<Frame>>>>,
+    /// A device worker of its own: a haptic session with a channel per tool and no device
+    /// workers given waits on all its bridges' events there, so that every hand is answered
+    /// in its own tick. Last: dropped after the loop it ticked has come back.
+    _own_devices: Option<Arc<DeviceWorkers>>,
 }
 
 /// What the tick thread receives.
@@ -533,7 +537,7 @@ impl Session {
             let _ = answers_done.recv();
             threads.drain(..).for_each(|t| drop(t.join()));
         };
-        let (tick_thread, realtime) = match Self::place_tick(&id, job, &config, &channels, &mut threads) {
+        let (tick_thread, realtime, own_devices) = match Self::place_tick(&id, job, &config, &channels, &mut threads) {
             Ok(placed) => placed,
             Err(e) => {
                 abandon(&mut threads);
@@ -568,6 +572,7 @@ impl Session {
             cut,
             memory,
             frame_log: std::sync::Mutex::new(frame_log),
+            _own_devices: own_devices,
         })
     }
 
@@ -636,9 +641,27 @@ impl Session {
         config: &SessionConfig,
         channels: &[(usize, HapticChannel)],
         threads: &mut Vec<JoinHandle<()>>,
-    ) -> Result<(std::thread::Thread, Option<RealtimeStatus>), SessionError> {
-        match (&config.ticking, &config.haptic, config.on_tick_thread, &config.devices) {
-            (_, Some(h), None, Some(devices)) if h.wait == WaitStrategy::Event => {
+    ) -> Result<(std::thread::Thread, Option<RealtimeStatus>, Option<Arc<DeviceWorkers>>), SessionError> {
+        // several hands and no device workers: one of its own (the event wait on every bridge)
+        let own = match (&config.haptic, config.on_tick_thread, &config.devices) {
+            (Some(h), None, None) if channels.len() > 1 => match DeviceWorkers::new(DeviceWorkersConfig {
+                workers: 1,
+                fifo_priority: h.fifo_priority,
+                on_start: None,
+            }) {
+                Ok(w) => Some(Arc::new(w)),
+                Err(_) => {
+                    // no thread could be started
+                    job.end();
+                    return Err(SessionError::Ticking(PlaceError::Stopped));
+                }
+            },
+            _ => None,
+        };
+        let devices = own.as_ref().or(config.devices.as_ref());
+        let wait = |h: &HapticConfig| if own.is_some() { WaitStrategy::Event } else { h.wait };
+        match (&config.ticking, &config.haptic, config.on_tick_thread, devices) {
+            (_, Some(h), None, Some(devices)) if wait(h) == WaitStrategy::Event => {
                 match open_channels(channels, WaitStrategy::Event, h.spin_window, config.period) {
                     Ok((peer, others)) => {
                         job.tick.peer = Some(peer);
@@ -650,14 +673,14 @@ impl Session {
                     }
                 }
                 let (thread, realtime) = devices.place(job)?;
-                Ok((thread, Some(realtime)))
+                Ok((thread, Some(realtime), own))
             }
-            (Some(workers), None, None, _) => Ok((workers.place(job)?, None)),
+            (Some(workers), None, None, _) => Ok((workers.place(job)?, None, None)),
             _ => {
                 let (thread, realtime) = Self::spawn_tick_thread(id, job, config, channels.to_vec())?;
                 let t = thread.thread().clone();
                 threads.push(thread);
-                Ok((t, realtime))
+                Ok((t, realtime, None))
             }
         }
     }

@@ -73,7 +73,9 @@ pub(super) struct TickLoop {
     /// The other tools' haptic channels, with each tool's index in the scene (a scene with
     /// several tools has a channel per tool, [`super::tool_channels`]): a state that arrives
     /// on one is answered at the loop's next turn — at once on a device worker, which wakes
-    /// on every channel; at the first tool's next state or deadline on a thread of its own.
+    /// on every channel (where such a session ticks: a server's, or one of its own); at the
+    /// first tool's next state or deadline on a thread of its own (only with an
+    /// `on_tick_thread` hook).
     pub others: Vec<(usize, HapticPeer)>,
     /// Falls back to the reduced fidelity under load ([`super::fidelity`]).
     pub governor: super::fidelity::Governor,

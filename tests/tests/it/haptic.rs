@@ -351,15 +351,19 @@ fn a_grpc_session_opens_a_haptic_channel_named_after_its_id_and_exports_the_brid
 
 /// Two devices, two hands (issue 46): a scene with two probes has a haptic channel per tool,
 /// `CHANNEL.NAME`; a bridge on each (`--tool-name`) moves its own probe of the one session —
-/// here a `vademecum run --haptic` session, whose tick thread waits on the first tool's
-/// bridge. See [`two_bridges_feel_each_other`].
+/// here a `vademecum run --haptic` session, which waits on both bridges' events on a device
+/// worker of its own. See [`two_bridges_feel_each_other`].
 #[test]
 fn two_bridges_each_move_one_probe_of_a_session_and_feel_each_other() {
     util::two_probes();
     let dir = tempfile::tempdir().unwrap();
     let ch = channel("hands");
-    let _server = HapticRun::start_with("two_probes", &ch, &dir.path().join("run"), &["two_probes.toml", "--duration", "30"]);
+    let server = HapticRun::start_with("two_probes", &ch, &dir.path().join("run"), &["two_probes.toml", "--duration", "30"]);
     two_bridges_feel_each_other(&ch, &[]);
+    // every hand answered in its own tick: the session waits on both bridges' events, on a
+    // device worker of its own
+    let threads = util::threads_of(&server.child);
+    assert!(threads.iter().any(|t| t == "device-worker-0"), "{threads:?}");
 }
 
 /// The same two hands on a device worker (`serve --device-workers 1`), which wakes on either

@@ -145,14 +145,7 @@ impl Server {
 
     /// The names of the server's threads (Linux: `/proc/PID/task/*/comm`, 15 characters).
     pub fn threads(&self) -> Vec<String> {
-        let dir = format!("/proc/{}/task", self.child.id());
-        std::fs::read_dir(dir)
-            .map(|d| {
-                d.filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("comm")).ok())
-                    .map(|n| n.trim().to_string())
-                    .collect()
-            })
-            .unwrap_or_default()
+        threads_of(&self.child)
     }
 
     /// Kills the process now.
@@ -192,6 +185,18 @@ pub fn channel(test: &str) -> String {
 pub struct HapticRun {
     /// The process.
     pub child: Child,
+}
+
+/// The names of a process's threads (`/proc/PID/task/*/comm`).
+pub fn threads_of(child: &Child) -> Vec<String> {
+    let dir = format!("/proc/{}/task", child.id());
+    std::fs::read_dir(dir)
+        .map(|d| {
+            d.filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("comm")).ok())
+                .map(|n| n.trim().to_string())
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 impl HapticRun {
