@@ -556,21 +556,28 @@ impl Registry {
         if let Some(name) = haptic {
             let name = if name.is_empty() { id.as_str() } else { name };
             let channel = HapticChannel::new(name).map_err(|e| ServerError::Invalid(e.to_string()))?;
+            // the channel and, for a scene with several tools, each tool's (`CHANNEL.NAME`)
+            let names = channel_names(&channel, &scene)?;
             {
                 let mut owners = self.shared.channels.lock().unwrap_or_else(|p| p.into_inner());
-                let first = owners.entry(channel.name().to_string()).or_insert_with(|| owner.clone());
-                if *first != owner {
+                if let Some(taken) = names.iter().find(|n| owners.get(*n).is_some_and(|o| *o != owner)) {
                     return Err(ServerError::Denied(format!(
                         "haptic channel '{}' belongs to another client of this server (a channel stays with the client that first opened it, so that a device bridge attached to it never drives another client's session): pick another name",
-                        clip(name)
+                        clip(taken)
                     )));
                 }
+                for n in &names {
+                    owners.entry(n.clone()).or_insert_with(|| owner.clone());
+                }
             }
-            if self
-                .sessions()
-                .values()
-                .any(|e| e.session.config().haptic.as_ref().is_some_and(|h| h.channel == channel))
-            {
+            if self.sessions().values().any(|e| {
+                e.session
+                    .config()
+                    .haptic
+                    .as_ref()
+                    .and_then(|h| channel_names(&h.channel, e.session.scene()).ok())
+                    .is_some_and(|theirs| theirs.iter().any(|n| names.contains(n)))
+            }) {
                 return Err(ServerError::Precondition(format!(
                     "haptic channel '{name}' is in use by another session of this server; close it or pick another name"
                 )));
@@ -647,4 +654,13 @@ impl Registry {
             e.closed.send_replace(true);
         }
     }
+}
+
+/// The haptic channel names a session on `channel` answers or reserves: the channel itself and,
+/// for a scene with several tools, each tool's ([`crate::session::tool_channels`]).
+fn channel_names(channel: &HapticChannel, scene: &Scene) -> Result<Vec<String>, ServerError> {
+    let mut names = vec![channel.name().to_string()];
+    let tools = crate::session::tool_channels(channel, scene).map_err(|e| ServerError::Invalid(e.to_string()))?;
+    names.extend(tools.into_iter().map(|(_, c)| c.name().to_string()).filter(|n| n != channel.name()));
+    Ok(names)
 }

@@ -165,6 +165,23 @@ fn a_haptic_channel_stays_with_the_client_that_opened_it() {
             .close()
             .await
             .unwrap();
+        // two hands: the lab's session on a scene with two probes holds each tool's channel too
+        // (`CHANNEL.probe`, `CHANNEL.left`), so the lab's left-hand bridge never drives a tenant
+        let hands = format!("lab-hands-{}", std::process::id());
+        let two = || SceneSpec::Toml(util::two_probes().to_string());
+        lab.create_haptic_session(two(), "two_probes", "lab", &hands)
+            .await
+            .unwrap()
+            .close()
+            .await
+            .unwrap();
+        let e = tenant
+            .create_haptic_session(organ(), "organ", "tenant", &format!("{hands}.left"))
+            .await
+            .err()
+            .unwrap();
+        assert_eq!(e.kind(), ErrorKind::PermissionDenied, "{e}");
+        assert!(e.to_string().contains(&format!("'{hands}.left' belongs to another client")), "{e}");
     });
 }
 
