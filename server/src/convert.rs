@@ -261,13 +261,8 @@ pub fn session_info(e: &Entry) -> pb::SessionInfo {
                 Some(h) => crate::session::tool_channels(&h.channel, s.scene()).unwrap_or_default(),
                 None => Vec::new(),
             };
-            let channel = |k: usize| {
-                channels
-                    .iter()
-                    .find(|(t, _)| *t == k)
-                    .map(|(_, c)| c.name().to_string())
-                    .unwrap_or_default()
-            };
+            // in the scene's tool order
+            let channel = |k: usize| channels.get(k).map(|(_, c)| c.name().to_string()).unwrap_or_default();
             s.scene()
                 .spec
                 .tools

@@ -70,8 +70,8 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
     }
     haptic.spin_window = Duration::from_micros(a.haptic_spin_us);
     // several hands: the session waits on every bridge's event (a device worker of its own)
-    let several = tool_channels(&channel, &scene)?.len() > 1;
-    let wait = if several {
+    let tools = tool_channels(&channel, &scene)?;
+    let wait = if tools.len() > 1 {
         vademecum_bridge::timing::WaitStrategy::Event
     } else {
         haptic.wait
@@ -83,7 +83,7 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
     };
     let session = Session::start("run".into(), scene.clone(), bundles, config)?;
     let rt = session.realtime().map(|r| r.to_string()).unwrap_or_default();
-    let channels = match tool_channels(&channel, &scene)?.as_slice() {
+    let channels = match tools.as_slice() {
         [_] => format!("haptic channel '{}'", channel.name()),
         several => format!(
             "haptic channels {} (a bridge per tool: `vademecum-bridge --session {} --tool-name NAME`)",

@@ -146,11 +146,7 @@ impl Waiter<Job> for Bridges {
     fn removed(&mut self, k: usize) {
         // the last session's slots take the place of session k's
         let last = self.fds.len() - MAX_TOOLS;
-        if k * MAX_TOOLS != last {
-            for slot in 0..MAX_TOOLS {
-                self.fds[k * MAX_TOOLS + slot] = self.fds[last + slot];
-            }
-        }
+        self.fds.copy_within(last.., k * MAX_TOOLS);
         self.fds.truncate(last);
     }
 

@@ -659,9 +659,8 @@ impl Session {
             _ => None,
         };
         let devices = own.as_ref().or(config.devices.as_ref());
-        let wait = |h: &HapticConfig| if own.is_some() { WaitStrategy::Event } else { h.wait };
         match (&config.ticking, &config.haptic, config.on_tick_thread, devices) {
-            (_, Some(h), None, Some(devices)) if wait(h) == WaitStrategy::Event => {
+            (_, Some(h), None, Some(devices)) if own.is_some() || h.wait == WaitStrategy::Event => {
                 match open_channels(channels, WaitStrategy::Event, h.spin_window, config.period) {
                     Ok((peer, others)) => {
                         job.tick.peer = Some(peer);

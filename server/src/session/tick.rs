@@ -188,8 +188,9 @@ impl TickLoop {
         }
     }
 
-    /// Answers a state from the haptic channel of tool `tool` at once.
-    fn answer_haptic(&mut self, peer: &mut HapticPeer, tool: usize, s: &HapticState, local: &mut Histograms) -> (ToolInput, TickState) {
+    /// Answers a state from the haptic channel of tool `tool` at once; it is the period's
+    /// latest state (and, when valid, its input).
+    fn answer_haptic(&mut self, peer: &mut HapticPeer, tool: usize, s: &HapticState, clock: &mut Clock) {
         let input = tool_input(s, tool);
         let (_, state) = self.tick_answered(&input);
         if state.events.has(Events::REJECTED_INPUT) {
@@ -199,9 +200,12 @@ impl TickLoop {
         if peer.answer(s, state.force_n, depth, state.events.0).is_err() {
             self.stats.haptic_errors.fetch_add(1, Ordering::Relaxed);
         }
-        Histograms::record(&mut local.haptic, shm::monotonic_ns().saturating_sub(s.t_read_ns));
+        Histograms::record(&mut clock.local.haptic, shm::monotonic_ns().saturating_sub(s.t_read_ns));
         self.stats.haptic_answered.fetch_add(1, Ordering::Relaxed);
-        (input, state)
+        clock.this.state = Some(state);
+        if input.is_valid() {
+            clock.this.last_input = Some(input);
+        }
     }
 
     /// Answers the queued tool states, in arrival order, at most [`MAX_COMMANDS_PER_TICK`]:
@@ -352,22 +356,14 @@ impl TickLoop {
         let mut answered = false;
         if let (Some(p), Some(s)) = (peer.as_deref_mut(), arrived) {
             // the first channel is the scene's first tool's
-            let (input, st) = self.answer_haptic(p, 0, s, &mut clock.local);
-            clock.this.state = Some(st);
-            if input.is_valid() {
-                clock.this.last_input = Some(input);
-            }
+            self.answer_haptic(p, 0, s, clock);
         }
         if others.iter().any(Option::is_some) {
             // moved out and back: no allocation
             let mut channels = std::mem::take(&mut self.others);
             for ((tool, p), s) in channels.iter_mut().zip(others) {
                 if let Some(s) = s {
-                    let (input, st) = self.answer_haptic(p, *tool, s, &mut clock.local);
-                    clock.this.state = Some(st);
-                    if input.is_valid() {
-                        clock.this.last_input = Some(input);
-                    }
+                    self.answer_haptic(p, *tool, s, clock);
                 }
             }
             self.others = channels;
