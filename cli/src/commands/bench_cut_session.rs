@@ -67,7 +67,7 @@ pub(super) fn run(scene: &Scene, built: &Built, n: usize, stages: &crate::progre
     let dir = tempfile::tempdir()?;
     offline::write_bundle(dir.path(), scene, built)?;
     let bundle: Arc<LoadedBundle> = Arc::new(bundle::load_bundle(dir.path())?);
-    let cuts = scene.organ_cuts(0)?;
+    let cuts = scene.organ_cuts(scene.cut_organ().context("the scene cuts no organ")?)?;
     let points: Vec<&[[f64; 3]]> = cuts.iter().map(|c| c.points()).collect();
     let (blade, _) = scene.spec.scalpel().context("the scene has no scalpel")?;
     let incisions = vademecum_server::session::builtin_incisions(&bundle, &points, 0.5 * blade, 2.0).map_err(anyhow::Error::msg)?;

@@ -186,10 +186,10 @@ fn settings(scene_sliver: f64, modes: usize) -> Vec<(usize, RitzBasis, Discontin
 }
 
 /// Sweeps cutting on organ 0 of `scene` (see the [module docs](self)) with the modes of its
-/// vademecum `v`; writes `cut.csv` and `cut_error_vs_tick.svg` to `out`. `None` for a scene
-/// without cutting.
+/// vademecum `v`; writes `cut.csv` and `cut_error_vs_tick.svg` to `out`. `None` unless organ 0
+/// is the scene's cut organ ([`Scene::cut_organ`]).
 pub(super) fn sweep(scene: &Scene, v: &Vademecum, key: &str, out: &Path) -> anyhow::Result<Option<CutSweep>> {
-    if !scene.spec.effects.cutting {
+    if scene.cut_organ() != Some(0) {
         return Ok(None);
     }
     let record_path = out.join("cut.json");

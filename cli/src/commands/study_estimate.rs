@@ -100,7 +100,9 @@ pub(super) fn check(
             })?);
         }
     }
-    if scene.spec.effects.cutting {
+    // the study measures organ 0 (`study::run`): its cut when it is the cut organ
+    let cut_here = scene.cut_organ() == Some(0);
+    if cut_here {
         samples.extend(
             estimate::cut_samples(scene, &model, bundle, CUT_POINTS, |done, total| {
                 bar.set_message(format!(
@@ -110,7 +112,7 @@ pub(super) fn check(
             .map_err(anyhow::Error::msg)?,
         );
     }
-    if scene.spec.effects.cutting && scene.spec.fidelity.cutting == vademecum_engine::scene::schema::CuttingModel::CorotationalXfem {
+    if cut_here && scene.spec.fidelity.cutting == vademecum_engine::scene::schema::CuttingModel::CorotationalXfem {
         bar.set_message("error estimate: a co-rotational press, each tick against the deformation's own compliance");
         if let Some(contact) = press(&model, bundle, |_| true) {
             samples.extend(

@@ -290,9 +290,12 @@ pub struct CutReport {
     pub seconds: f64,
 }
 
-/// The pre-planned cuts of organ 0, the organ the cutting stage calibrates against.
+/// The pre-planned cuts of the cut organ ([`Scene::cut_organ`]), the organ the cutting stage
+/// calibrates against.
 fn scene_cuts(scene: &Scene) -> Result<Vec<crate::geometry::cut::Cut>, BuildError> {
-    scene.organ_cuts(0).map_err(|e| BuildError::Cutting(e.to_string()))
+    scene
+        .organ_cuts(scene.cut_organ().unwrap_or(0))
+        .map_err(|e| BuildError::Cutting(e.to_string()))
 }
 
 /// Everything a build produced.
@@ -701,7 +704,7 @@ pub fn build_organ_from(
         tear_sites: Vec::new(),
     };
     let anm = lattice_stage(&model, opts, &mut report, on)?;
-    let cut_basis = if scene.spec.effects.cutting && index == 0 {
+    let cut_basis = if scene.cut_organ() == Some(index) {
         let (cut, basis) = cut_stage(scene, &model, &vademecum, opts, on)?;
         report.cut = Some(cut);
         basis

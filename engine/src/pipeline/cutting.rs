@@ -53,8 +53,11 @@
 //! blend has still to move and what the correction's solve left
 //! ([`super::corotational::corrected_force_error`]).
 //!
-//! A cutting scene holds one organ in this version, linear (large deformations and cutting
-//! together are refused by the pipeline).
+//! A cutting scene cuts one organ, linear: its cut organ ([`crate::scene::Scene::cut_organ`],
+//! the first organ without a damage law), beside any others it palpates or tears (large
+//! deformations and cutting together are refused by the pipeline). The blade's criterion
+//! counts only the cut organ's reaction: a blade pressed on another organ pushes it and
+//! cuts nothing. With several tools each tool's contact on the cut organ feels the cut.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -346,40 +349,11 @@ impl Cutting {
         }
         true
     }
-}
 
-impl Drop for Cutting {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(w) = self.worker.take() {
-            let _ = w.join();
-        }
-    }
-}
-
-impl Effect for Cutting {
-    fn name(&self) -> &'static str {
-        "cutting"
-    }
-
-    /// The reduced cut model's view: the arrays its copies share once, and what each of the
-    /// three copies in flight holds (the tick's, one on its way, the cut thread's), and the
-    /// queue of blade states. Not counted: the cut thread's working model beyond its view
-    /// (the enrichment and, with local fields, the uncut stiffness's factorization).
-    fn memory_bytes(&self) -> usize {
-        memory_bytes(&self.view)
-    }
-
-    fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
-        if self.take_fresh() {
-            state.events.0 |= Events::CUT_ADVANCED;
-        }
-        // the co-rotational deformation's latest correction (co-rotational cutting)
-        let mut landed = false;
-        if let Some(out) = &mut self.corrections {
-            let nodes = state.contact.as_ref().filter(|c| c.organ == self.organ).map(|c| c.nodes);
-            landed = self.blend.land(*out.read(), nodes.as_ref());
-        }
+    /// One tool's part of a tick: the cut's compliance at its contact on the cut organ, and
+    /// for a scalpel the blade's force split, the criterion and the blade state handed to the
+    /// cut thread (module docs). `landed`: a co-rotational correction landed this tick.
+    fn tool_tick(&mut self, tool: &ToolInput, state: &mut TickState, landed: bool) {
         let rotated = self.blend.target().seq > 0;
         // the cut's compliance at the contact, and the rotation's
         if (self.view.enriched_unknowns() > 0 || rotated)
@@ -457,7 +431,10 @@ impl Effect for Cutting {
             return; // the pipeline refuses such states before any effect sees them
         };
         let split = blade.split(state.force_n);
-        let cutting = split.cuts(self.cut_force);
+        // only the cut organ's reaction can cut it: a blade pressing on another organ (the
+        // fat beside the duct) pushes it, and its force reaches the cut thread as none
+        let on_organ = state.contact.is_some_and(|c| c.organ == self.organ);
+        let cutting = on_organ && split.cuts(self.cut_force);
         if cutting && !self.stroke {
             state.events.0 |= Events::CUT_STARTED;
         }
@@ -474,8 +451,8 @@ impl Effect for Cutting {
             a: tool.position_m,
             b: tool.blade_end_m,
             orientation: tool.orientation,
-            force: state.force_n,
-            pushed: state.contact.map_or([0.0; 3], |c| c.imposed_m),
+            force: if on_organ { state.force_n } else { [0.0; 3] },
+            pushed: state.contact.filter(|_| on_organ).map_or([0.0; 3], |c| c.imposed_m),
         };
         if self.samples.force_push(sample).is_some() {
             self.status.overwritten.fetch_add(1, Ordering::Relaxed);
@@ -488,6 +465,62 @@ impl Effect for Cutting {
             // takes: it lands at the next tick, and the frames of this one draw it
             w.thread().unpark();
             self.wait_for_cut_thread();
+        }
+    }
+}
+
+impl Drop for Cutting {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(w) = self.worker.take() {
+            let _ = w.join();
+        }
+    }
+}
+
+impl Effect for Cutting {
+    fn name(&self) -> &'static str {
+        "cutting"
+    }
+
+    /// The reduced cut model's view: the arrays its copies share once, and what each of the
+    /// three copies in flight holds (the tick's, one on its way, the cut thread's), and the
+    /// queue of blade states. Not counted: the cut thread's working model beyond its view
+    /// (the enrichment and, with local fields, the uncut stiffness's factorization).
+    fn memory_bytes(&self) -> usize {
+        memory_bytes(&self.view)
+    }
+
+    fn tick(&mut self, tool: &ToolInput, state: &mut TickState) {
+        self.tick_tools(std::slice::from_ref(tool), std::slice::from_mut(state));
+    }
+
+    /// Several tools at once (two hands): the cut thread's latest model is swapped in and the
+    /// co-rotational correction lands once per tick (at the first contact on the cut organ),
+    /// then each tool's contact on the cut organ feels the cut and a scalpel's blade is
+    /// handed on ([`Cutting::tool_tick`]). `CUT_ADVANCED` goes to the scalpel's answer (to
+    /// every answer of a tick that moves no scalpel).
+    fn tick_tools(&mut self, tools: &[ToolInput], states: &mut [TickState]) {
+        let fresh = self.take_fresh();
+        // the co-rotational deformation's latest correction (co-rotational cutting)
+        let mut landed = false;
+        if let Some(out) = &mut self.corrections {
+            let organ = self.organ;
+            let nodes = states
+                .iter()
+                .find_map(|s| s.contact.as_ref().filter(|c| c.organ == organ).map(|c| c.nodes));
+            landed = self.blend.land(*out.read(), nodes.as_ref());
+        }
+        for (tool, state) in tools.iter().zip(states.iter_mut()) {
+            self.tool_tick(tool, state, landed);
+        }
+        if fresh {
+            let scalpel = tools.iter().any(|t| t.kind == ToolKind::Scalpel);
+            for (tool, state) in tools.iter().zip(states.iter_mut()) {
+                if !scalpel || tool.kind == ToolKind::Scalpel {
+                    state.events.0 |= Events::CUT_ADVANCED;
+                }
+            }
         }
     }
 

@@ -426,9 +426,12 @@ impl Pipeline {
     /// Assembles the effects `scene` names, over its organs' loaded bundles (one per organ,
     /// in scene order, shared read-only between sessions).
     ///
-    /// A cutting scene (`effects.cutting`, linear, one organ, a scalpel) also reads the
-    /// organ's mesh and prepares its reduced cutting model from the bundle's modes (seconds
-    /// on a large organ: call it off any async runtime), and starts the cut thread.
+    /// A cutting scene (`effects.cutting`, linear, a scalpel) also reads its cut organ's mesh
+    /// ([`Scene::cut_organ`]) and prepares its reduced cutting model from the bundle's modes
+    /// (seconds on a large organ: call it off any async runtime), and starts the cut thread.
+    /// Effects compose on different organs: a scene may tear one organ (its grasper) and cut
+    /// another (its scalpel) in one session, each tool acting on the organ it touches; large
+    /// deformations with cutting or tearing are refused ([`PipelineError::Unsupported`]).
     pub fn for_scene(scene: &Scene, bundles: &[Arc<LoadedBundle>]) -> Result<Self, PipelineError> {
         let fx = &scene.spec.effects;
         if bundles.len() != scene.spec.organs.len() {
@@ -451,9 +454,9 @@ impl Pipeline {
             if grasper.is_none() {
                 return Err(PipelineError::NoGrasper);
             }
-            if large || fx.cutting {
+            if large {
                 return Err(PipelineError::Unsupported(
-                    "tearing together with large deformations or cutting (one effect beside palpation)",
+                    "tearing together with large deformations (effects.tearing with deformation = \"large\")",
                 ));
             }
         }
@@ -465,9 +468,6 @@ impl Pipeline {
             }
             if scalpel.is_none() {
                 return Err(PipelineError::NoScalpel);
-            }
-            if bundles.len() != 1 {
-                return Err(PipelineError::Unsupported("cutting in a scene of more than one organ"));
             }
         } else if probe.is_none() && !fx.tearing {
             return Err(PipelineError::NoProbe);
@@ -500,10 +500,8 @@ impl Pipeline {
             effects.push(Box::new(t));
         }
         let (mut cut_status, mut corotational) = (None, None);
-        if fx.cutting
-            && let Some((_, cut_force)) = scalpel
-        {
-            let (c, deformation) = cutting_effect(scene, &bundles[0], cut_force)?;
+        if let (Some(organ), Some((_, cut_force))) = (scene.cut_organ(), scalpel) {
+            let (c, deformation) = cutting_effect(scene, organ, &bundles[organ], cut_force)?;
             cut_status = Some(c.status());
             corotational = deformation;
             effects.push(Box::new(c));
@@ -920,19 +918,20 @@ pub fn cut_model(
     Ok((reduced, params))
 }
 
-/// The cutting effect of organ 0 of `scene` (module [`cutting`]): its mesh and model from the
-/// scene, checked against the bundle, the reduced model on the bundle's modes; with
-/// co-rotational cutting, also the co-rotational deformation coupled to it
-/// ([`corotational`]).
+/// The cutting effect of organ `organ` of `scene`, its cut organ ([`Scene::cut_organ`];
+/// module [`cutting`]): its mesh and model from the scene, checked against the bundle, the
+/// reduced model on the bundle's modes; with co-rotational cutting, also the co-rotational
+/// deformation coupled to it ([`corotational`]).
 fn cutting_effect(
     scene: &Scene,
+    organ: usize,
     bundle: &Arc<LoadedBundle>,
     cut_force: f64,
 ) -> Result<(Cutting, Option<corotational::CorotationalDeformation>), PipelineError> {
     use crate::xfem::online::OnlineCut;
     use crate::xfem::reduced::Discontinuous;
-    let fail = |message: String| PipelineError::Cutting { organ: 0, message };
-    let model = scene.organ_model(0).map_err(|e| fail(e.to_string()))?;
+    let fail = |message: String| PipelineError::Cutting { organ, message };
+    let model = scene.organ_model(organ).map_err(|e| fail(e.to_string()))?;
     let fx = &scene.spec.fidelity.xfem;
     let (reduced, params) = session_cut_model(scene, &model, bundle).map_err(|e| fail(e.to_string()))?;
     let online = OnlineCut::new(&model.mesh, reduced, cut_force, &params).map_err(|e| fail(e.to_string()))?;
@@ -942,15 +941,15 @@ fn cutting_effect(
     };
     if scene.spec.fidelity.cutting != crate::scene::schema::CuttingModel::CorotationalXfem {
         return Ok((
-            Cutting::new(0, bundle.clone(), model.mesh, online, cut_force).with_bare_error(bare_error),
+            Cutting::new(organ, bundle.clone(), model.mesh, online, cut_force).with_bare_error(bare_error),
             None,
         ));
     }
-    let visual = scene.organ_visual(0).map_err(|e| fail(e.to_string()))?;
+    let visual = scene.organ_visual(organ).map_err(|e| fail(e.to_string()))?;
     let (deformation, corrections) =
-        corotational::CorotationalDeformation::new(0, model.mesh.clone(), model.materials, model.problem, visual)
+        corotational::CorotationalDeformation::new(organ, model.mesh.clone(), model.materials, model.problem, visual)
             .map_err(|e| fail(e.to_string()))?;
-    let cutting = Cutting::new(0, bundle.clone(), model.mesh, online, cut_force)
+    let cutting = Cutting::new(organ, bundle.clone(), model.mesh, online, cut_force)
         .with_bare_error(bare_error)
         .with_corrections(corrections);
     Ok((cutting, Some(deformation)))

@@ -294,6 +294,8 @@ pub struct Tearing {
     /// The load factors of the active site's pull patterns.
     s: [f64; 3],
     tick: u64,
+    /// The grasper's last state, replayed on a tick that moves only other tools.
+    last_grasper: Option<ToolInput>,
     picture: triple_buffer::Input<TearPicture>,
     /// Bytes of one picture (the buffer holds three).
     picture_bytes: usize,
@@ -378,6 +380,7 @@ impl Tearing {
                 phase: Phase::Free,
                 s: [0.0; 3],
                 tick: 0,
+                last_grasper: None,
                 picture: input,
                 picture_bytes,
             },
@@ -565,7 +568,30 @@ impl Effect for Tearing {
         }
     }
 
+    /// Several tools at once (two hands): the grasper's state drives the grasp — the first
+    /// grasper state of the tick (one grasper per tearing scene in this version) — and only
+    /// that state gets the tissue's reaction and the tearing events; the other tools (a probe,
+    /// a scalpel on another organ) pass untouched. A tick without a grasper state replays
+    /// the grasper's last one: a tool that sends nothing stays where it was, so a hold stays
+    /// held (no new load) and a fade goes on.
+    fn tick_tools(&mut self, tools: &[ToolInput], states: &mut [TickState]) {
+        match tools.iter().position(|t| t.kind == ToolKind::Grasper) {
+            Some(g) => {
+                self.last_grasper = Some(tools[g]);
+                self.tick(&tools[g], &mut states[g]);
+            }
+            None => {
+                let mut unseen = TickState::default();
+                match self.last_grasper {
+                    Some(last) => self.tick(&last, &mut unseen),
+                    None => self.tick += 1,
+                }
+            }
+        }
+    }
+
     fn reset(&mut self) {
+        self.last_grasper = None;
         // the tissue keeps its damage; the jaws start open
         if let Phase::Held { .. } = self.phase {
             self.phase = Phase::Fading { from: self.s, k: 0 };

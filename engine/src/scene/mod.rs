@@ -176,6 +176,12 @@ impl Scene {
                 "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\"",
             ));
         }
+        if s.effects.cutting && self.cut_organ().is_none() {
+            return Err(self.error_at(
+                &[Seg::Key("effects"), Seg::Key("cutting")],
+                "cutting is enabled but every organ has a damage law: cutting acts on the first organ without one (cutting and tearing are not composed on one organ in this version)",
+            ));
+        }
         if s.fidelity.cutting == schema::CuttingModel::CorotationalXfem && !s.effects.cutting {
             return Err(self.error_at(
                 &[Seg::Key("fidelity"), Seg::Key("cutting")],
@@ -340,6 +346,12 @@ impl Scene {
                     "a visual mesh is drawn by co-rotational cutting sessions: set effects.cutting = true and fidelity.cutting = \"corotational_xfem\", or remove [organs.visual]",
                 ));
             }
+            if self.cut_organ() != Some(i) {
+                return Err(self.error_at(
+                    &at,
+                    "a visual mesh is drawn for the cut organ only: the first organ without a damage law",
+                ));
+            }
             if !v.file.to_ascii_lowercase().ends_with(".obj") {
                 return Err(self.error_at(&at, format!("'{}': visual meshes are read from Wavefront .obj files", v.file)));
             }
@@ -495,6 +507,12 @@ impl Scene {
                 let at = [Seg::Key("organs"), Seg::Index(o), Seg::Key("cuts"), Seg::Index(c)];
                 if !s.effects.cutting {
                     return Err(self.error_at(&at, "the organ has cuts but cutting is off: set effects.cutting = true"));
+                }
+                if self.cut_organ() != Some(o) {
+                    return Err(self.error_at(
+                        &at,
+                        "only the cut organ has cuts: the first organ without a damage law (a tearable organ tears, it is not cut)",
+                    ));
                 }
                 let hyperelastic = organ.materials.iter().any(|m| m.model != schema::MaterialModel::Linear);
                 if hyperelastic && s.fidelity.solver != SolverKind::Meshless {
@@ -969,6 +987,19 @@ impl Scene {
             ));
         }
         Ok(Some(visual))
+    }
+
+    /// The organ a cutting scene cuts (`effects.cutting`): the first organ whose materials
+    /// have no damage law. A tearable organ tears (cutting and tearing are composed on
+    /// different organs in this version, never on one), so in a scene that tears one organ
+    /// and cuts another — the fat of Calot's triangle and the cystic duct — each effect knows
+    /// its organ. `None` when the scene does not cut, or every organ tears (scene validation
+    /// refuses that).
+    pub fn cut_organ(&self) -> Option<usize> {
+        if !self.spec.effects.cutting {
+            return None;
+        }
+        self.spec.organs.iter().position(|o| o.materials.iter().all(|m| m.damage.is_none()))
     }
 
     /// Organ `index`'s pre-planned cuts (validated when the scene was read).

@@ -8,6 +8,7 @@ mod anm_pod;
 mod assembly;
 mod bad_input;
 mod cantilever;
+mod composed_session;
 mod contact;
 mod corotational_session;
 mod corotational_xfem;

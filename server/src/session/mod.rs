@@ -475,7 +475,7 @@ impl Session {
             period: config.period,
             epoch,
             script,
-            owed: 0,
+            owed: [0; vademecum_engine::pipeline::MAX_TOOLS],
             steps: 0,
             peer: None,
             others: Vec::new(),

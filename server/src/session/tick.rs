@@ -59,9 +59,11 @@ pub(super) struct TickLoop {
     pub period: Duration,
     pub epoch: Instant,
     pub script: Option<ScriptRun>,
-    /// One-shot events ([`Events::ONE_SHOT`]) of ticks that answered no one, owed to the next
-    /// answer.
-    pub owed: u32,
+    /// One-shot events ([`Events::ONE_SHOT`]) of each tool (by index) from ticks that did not
+    /// answer it — periods that answered no one, and ticks that answered another tool —
+    /// owed to its next answer: a cut that lands while the grasper moves reaches the
+    /// scalpel's client, never the grasper's.
+    pub owed: [u32; MAX_TOOLS],
     /// The tissue's steps so far: one per answer (a pipeline tick) and one per period that
     /// answered none (a pipeline tick replaying the last tool state, or, before any tool, a
     /// period at rest). Answers and frames carry the number of the step they show.
@@ -134,7 +136,7 @@ impl TickLoop {
     /// One pipeline tick: the tissue's next step, and its number — `input` together with
     /// every other tool at its latest state (the contacts of tools on one organ are solved
     /// together); the state answers `input`.
-    fn step(&mut self, input: &ToolInput) -> (u64, TickState) {
+    fn step(&mut self, input: &ToolInput, answered: bool) -> (u64, TickState) {
         let step = self.steps;
         self.steps += 1;
         if input.tool >= MAX_TOOLS {
@@ -155,8 +157,11 @@ impl TickLoop {
         }
         let mut states = [TickState::default(); MAX_TOOLS];
         self.pipeline.tick_tools(&set[..n], &mut states[..n]);
-        for (t, st) in set[..n].iter().zip(&states) {
+        for (i, (t, st)) in set[..n].iter().zip(&states).enumerate() {
             self.tool_states[t.tool] = Some(*st);
+            if !(answered && i == me) {
+                self.owed[t.tool] |= st.events.0 & Events::ONE_SHOT;
+            }
         }
         if input.is_valid() {
             self.held[input.tool] = Some(*input);
@@ -164,11 +169,13 @@ impl TickLoop {
         (step, states[me])
     }
 
-    /// One pipeline tick that answers someone: it carries the happenings owed by the ticks
-    /// that answered no one.
+    /// One pipeline tick that answers someone: it carries the happenings owed to its tool by
+    /// the ticks that did not answer it.
     fn tick_answered(&mut self, input: &ToolInput) -> (u64, TickState) {
-        let (step, mut state) = self.step(input);
-        state.events.0 |= std::mem::take(&mut self.owed);
+        let (step, mut state) = self.step(input, true);
+        if let Some(owed) = self.owed.get_mut(input.tool) {
+            state.events.0 |= std::mem::take(owed);
+        }
         (step, state)
     }
 
@@ -400,9 +407,8 @@ impl TickLoop {
         let state = match (clock.this.state.take(), clock.this.last_input) {
             (Some(state), _) => Some(state),
             (None, Some(input)) => {
-                // time goes on for the tissue; what happened is owed to the next answer
-                let (_, st) = self.step(&input);
-                self.owed |= st.events.0 & Events::ONE_SHOT;
+                // time goes on for the tissue; what happened is owed to each tool's next answer
+                let (_, st) = self.step(&input, false);
                 Some(st)
             }
             (None, None) => {

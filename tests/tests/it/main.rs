@@ -5,6 +5,7 @@
 mod util;
 
 mod bundle_store;
+mod composed;
 mod cutting;
 mod devices;
 mod fleet;

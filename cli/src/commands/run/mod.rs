@@ -574,8 +574,8 @@ fn builtin_trajectory(
     radius: f64,
     depth: Option<f64>,
 ) -> anyhow::Result<(Trajectory, String)> {
-    if scene.spec.effects.cutting {
-        let cuts = scene.organ_cuts(0).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if let Some(o) = scene.cut_organ() {
+        let cuts = scene.organ_cuts(o).map_err(|e| anyhow::anyhow!("{e}"))?;
         if cuts.is_empty() {
             bail!(
                 "the scene cuts but plans no cut to script: give a scalpel trajectory with --script, or add [[organs.cuts]] blade positions"
@@ -585,7 +585,7 @@ fn builtin_trajectory(
         // a cutting scene has a scalpel (scene validation)
         let lift = 0.5 * scene.spec.scalpel().map_or(1e-3, |s| s.0);
         Ok((
-            vademecum_server::session::builtin_incisions(&bundles[0], &points, lift, INCISION_SECONDS)
+            vademecum_server::session::builtin_incisions(&bundles[o], &points, lift, INCISION_SECONDS)
                 .map_err(|e| anyhow::anyhow!("cannot script the built-in incisions: {e}"))?,
             format!(
                 "built-in incisions along the scene's {} pre-planned cut(s), {INCISION_SECONDS} s each",
@@ -732,7 +732,7 @@ fn record_cut(
     if shape.cells.is_empty() {
         return Ok(summary);
     }
-    let model = scene.organ_model(0)?;
+    let model = scene.organ_model(scene.cut_organ().unwrap_or(0))?;
     let name = model.name.clone();
     let params = scene.spec.fidelity.xfem.params();
     let enr = Enrichment::from_cut_cells(&model.mesh, &shape.cells, &params)?;
