@@ -588,8 +588,13 @@ fn builtin_trajectory(
             vademecum_server::session::builtin_incisions(&bundles[o], &points, lift, INCISION_SECONDS)
                 .map_err(|e| anyhow::anyhow!("cannot script the built-in incisions: {e}"))?,
             format!(
-                "built-in incisions along the scene's {} pre-planned cut(s), {INCISION_SECONDS} s each",
-                cuts.len()
+                "built-in incisions along the scene's {} pre-planned cut(s), {INCISION_SECONDS} s each{}",
+                cuts.len(),
+                if scene.spec.effects.tearing {
+                    " (the scalpel alone: a headless run moves one tool; the grasper's hand is driven over gRPC, docs/scene.md)"
+                } else {
+                    ""
+                }
             ),
         ))
     } else if scene.spec.effects.tearing {
