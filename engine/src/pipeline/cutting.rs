@@ -498,7 +498,7 @@ impl Effect for Cutting {
     /// Several tools at once (two hands): the cut thread's latest model is swapped in and the
     /// co-rotational correction lands once per tick (at the first contact on the cut organ),
     /// then each tool's contact on the cut organ feels the cut and a scalpel's blade is
-    /// handed on ([`Cutting::tool_tick`]). `CUT_ADVANCED` goes to the scalpel's answer (to
+    /// handed on (module docs). `CUT_ADVANCED` goes to the scalpel's answer (to
     /// every answer of a tick that moves no scalpel).
     fn tick_tools(&mut self, tools: &[ToolInput], states: &mut [TickState]) {
         let fresh = self.take_fresh();
