@@ -573,7 +573,8 @@ impl Effect for Tearing {
     /// that state gets the tissue's reaction and the tearing events; the other tools (a probe,
     /// a scalpel on another organ) pass untouched. A tick without a grasper state replays
     /// the grasper's last one: a tool that sends nothing stays where it was, so a hold stays
-    /// held (no new load) and a fade goes on.
+    /// held (the pull's control goes on towards the same offset, exactly as if the grasper
+    /// had sent its state again) and a fade goes on.
     fn tick_tools(&mut self, tools: &[ToolInput], states: &mut [TickState]) {
         match tools.iter().position(|t| t.kind == ToolKind::Grasper) {
             Some(g) => {
