@@ -175,12 +175,7 @@ fn cut_tick(scene: &Scene, built: &Built) -> Result<Option<CutTick>, String> {
     reduced
         .cut(
             &model.mesh,
-            &cut_cells(
-                &scene.organ_cuts(scene.cut_organ().unwrap_or(0)).map_err(|e| e.to_string())?,
-                model,
-                &params,
-            )
-            .map_err(|e| e.to_string())?,
+            &cut_cells(&scene.planned_cuts().map_err(|e| e.to_string())?, model, &params).map_err(|e| e.to_string())?,
         )
         .map_err(|e| e.to_string())?;
     let nodes = reduced.enrichment().len();

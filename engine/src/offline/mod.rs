@@ -293,9 +293,7 @@ pub struct CutReport {
 /// The pre-planned cuts of the cut organ ([`Scene::cut_organ`]), the organ the cutting stage
 /// calibrates against.
 fn scene_cuts(scene: &Scene) -> Result<Vec<crate::geometry::cut::Cut>, BuildError> {
-    scene
-        .organ_cuts(scene.cut_organ().unwrap_or(0))
-        .map_err(|e| BuildError::Cutting(e.to_string()))
+    scene.planned_cuts().map_err(|e| BuildError::Cutting(e.to_string()))
 }
 
 /// Everything a build produced.

@@ -1002,6 +1002,12 @@ impl Scene {
         self.spec.organs.iter().position(|o| o.materials.iter().all(|m| m.damage.is_none()))
     }
 
+    /// The cut organ's pre-planned cuts ([`Scene::cut_organ`]); none in a scene that does not
+    /// cut (scene validation refuses cuts anywhere else).
+    pub fn planned_cuts(&self) -> Result<Vec<Cut>, SceneError> {
+        self.cut_organ().map_or(Ok(Vec::new()), |o| self.organ_cuts(o))
+    }
+
     /// Organ `index`'s pre-planned cuts (validated when the scene was read).
     pub fn organ_cuts(&self, index: usize) -> Result<Vec<Cut>, SceneError> {
         self.spec.organs[index]

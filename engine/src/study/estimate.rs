@@ -302,7 +302,7 @@ pub fn cut_samples(
     use crate::xfem::reduced::Discontinuous;
     let disc = scene.spec.fidelity.xfem.discontinuous;
     let params = crate::pipeline::cut_params(scene, bundle.cut_sliver().map_err(|e| e.to_string())?);
-    let organ_cuts = scene.organ_cuts(scene.cut_organ().unwrap_or(0)).map_err(|e| e.to_string())?;
+    let organ_cuts = scene.planned_cuts().map_err(|e| e.to_string())?;
     let cells = crate::xfem::accuracy::cut_cells(&organ_cuts, model, &params).map_err(|e| e.to_string())?;
     let mut cuts = vec![(&cells[..], if disc == Discontinuous::Bare { CUT_BARE } else { CUT })];
     if disc == Discontinuous::Bare && cells.len() >= 2 {
