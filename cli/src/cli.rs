@@ -78,7 +78,13 @@ different), and frame n shows the tick at n / --frame-rate seconds.\n\n\
 The vademecum of each organ is taken from <BUNDLES>/<organ>.bundle and built there first \
 when it is missing or was built from another scene or mesh. Without --script, the probe \
 palpates the middle of the first organ's accessible surface: down 3 mm above it, --depth \
-into it over 1 s, hold, slide 15 mm over 2 s, lift (5 s in all).\n\n\
+into it over 1 s, hold, slide 15 mm over 2 s, lift (5 s in all); a cutting scene's scalpel \
+follows its pre-planned cuts, a tearing scene's grasper closes on its grasp and pulls.\n\n\
+Two hands: in a scene that cuts one organ and tears another, the scalpel's incisions and the \
+grasper's grasp play at once; --script TOOL=CSV moves the scene's tool of that name (repeat it, \
+a tool per script). Every hand moves in the same tick; forces.csv then has a row per hand \
+and tick, named in its tool column, and each hand's script is written as \
+trajectory_<tool>.csv.\n\n\
 Writes <RECORD>/forces.csv (tick, t_s, contact point, force on the tool in N, contact, \
 depth, events (the tick's events by name, joined by '|': contact, force_saturated, grasped, tearing, tissue_torn, reduced_fidelity, …), latency_us, force_error_n: the estimated error of the force against the full-order model, empty where the force has no estimate), trajectory.csv, <organ>.pvd + frames/*.vtu and summary.json. \
 Exit status 1 when force rows were dropped.")]
@@ -451,9 +457,12 @@ pub struct RunArgs {
     #[command(flatten)]
     pub source: SceneSource,
     /// Tool trajectory as CSV keyframes `t_s,x_m,y_m,z_m[,closure]` (SI units, times
-    /// increasing), interpolated linearly at every tick. Default: the built-in palpation.
-    #[arg(long, value_name = "CSV")]
-    pub script: Option<PathBuf>,
+    /// increasing), interpolated linearly at every tick. `TOOL=CSV` moves the scene's tool of
+    /// that name; repeat it for several hands at once (each names its tool). Default: the
+    /// built-in palpation, incisions or grasp — both hands at once in a scene that cuts and
+    /// tears.
+    #[arg(long, value_name = "[TOOL=]CSV")]
+    pub script: Vec<String>,
     /// Folder for forces.csv, frames and summary.json. Default: `out/<scene name>/run`.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,

@@ -40,7 +40,7 @@ pub enum ToolNameError {
 }
 
 /// The engine's kind of a scene tool.
-fn spec_kind(t: &ToolSpec) -> ToolKind {
+pub(crate) fn spec_kind(t: &ToolSpec) -> ToolKind {
     match t {
         ToolSpec::Probe { .. } => ToolKind::Probe,
         ToolSpec::Scalpel { .. } => ToolKind::Scalpel,

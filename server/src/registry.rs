@@ -592,7 +592,7 @@ impl Registry {
         }
         let session = Session::start(id.clone(), scene, bundles, session_cfg).map_err(|e| match e {
             SessionError::Haptic { .. } => ServerError::Precondition(e.to_string()),
-            SessionError::Pipeline(_) | SessionError::ToolChannel(_) => ServerError::Invalid(e.to_string()),
+            SessionError::Pipeline(_) | SessionError::ToolChannel(_) | SessionError::Hand { .. } => ServerError::Invalid(e.to_string()),
             SessionError::Ticking(_) => ServerError::Exhausted(e.to_string()),
         })?;
         let entry = Arc::new(Entry {

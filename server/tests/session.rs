@@ -530,10 +530,7 @@ fn tick_thread_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], ti
         scene.clone(),
         bundles.to_vec(),
         config,
-        Script {
-            trajectory: Trajectory::new(keys).unwrap(),
-            answers: tx,
-        },
+        Script::new(Trajectory::new(keys).unwrap(), tx),
     )
     .unwrap();
     let mut frames = session.subscribe_frames();
@@ -603,10 +600,7 @@ fn worker_allocations(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>], ticks: 
             ticking: Some(workers.clone()),
             ..SessionConfig::default()
         };
-        let script = Script {
-            trajectory: Trajectory::new(keys.clone()).unwrap(),
-            answers: tx,
-        };
+        let script = Script::new(Trajectory::new(keys.clone()).unwrap(), tx);
         let session = Session::start_scripted(format!("pooled{k}"), scene.clone(), bundles.to_vec(), config, script).unwrap();
         let answers = session.open_answers(64).unwrap();
         sessions.push((session, answers, script_answers));
@@ -702,10 +696,7 @@ fn device_worker_allocations_of(scene: &Arc<Scene>, bundles: &[Arc<LoadedBundle>
             devices: Some(workers.clone()),
             ..SessionConfig::default()
         };
-        let script = Script {
-            trajectory: Trajectory::new(keys.clone()).unwrap(),
-            answers: tx,
-        };
+        let script = Script::new(Trajectory::new(keys.clone()).unwrap(), tx);
         let session = Session::start_scripted(format!("device{k}"), scene.clone(), bundles.to_vec(), config, script).unwrap();
         // it ticks on the device worker (the session started before it may be over already:
         // a short script on a loaded machine)
@@ -967,10 +958,7 @@ fn a_session_whose_ticks_come_close_to_their_deadline_falls_back_and_says_so() {
             period: Duration::from_micros(20),
             ..SessionConfig::default()
         };
-        let script = Script {
-            trajectory: Trajectory::new(keys).unwrap(),
-            answers: tx,
-        };
+        let script = Script::new(Trajectory::new(keys).unwrap(), tx);
         let session = Session::start_scripted("fallback".into(), scene.clone(), bundles.clone(), config, script).unwrap();
         let (mut flagged, mut n) = (0usize, 0usize);
         let mut reduced_seen = false;
@@ -994,4 +982,72 @@ fn a_session_whose_ticks_come_close_to_their_deadline_falls_back_and_says_so() {
     assert!(flagged > n / 2, "{flagged} of {n} answers flagged");
     let (stats, flagged, _, _) = run("fallback = \"off\"");
     assert_eq!((stats.fallbacks, stats.reduced_ticks, flagged), (0, 0, 0), "{stats:?}");
+}
+
+/// A script of two hands (a headless run of a two-tool scene): both hands move in one
+/// pipeline tick a period — each hand's answer is the pipeline's for both tools at once, bit
+/// for bit, and both answers carry the same step, one step a period — and a script whose
+/// hands do not each name one tool of the scene is refused, saying which hand.
+#[test]
+fn a_script_of_two_hands_moves_both_in_one_step_a_period() {
+    use vademecum_server::session::Hand;
+    let (scene, bundles, _dir) = two_probe_slab();
+    // the right hand presses down into the slab's middle, the left one beside it
+    let press = |x: f64| Trajectory::new(vec![(0.0, [x, 0.02, 0.03], 0.0), (0.3, [x, 0.02, 0.021], 0.0)]).unwrap();
+    let hands = |tools: [Option<usize>; 2]| {
+        let mut rxs = Vec::new();
+        let hands = tools
+            .iter()
+            .zip([0.04, 0.025])
+            .map(|(&tool, x)| {
+                let (tx, rx) = tokio::sync::mpsc::channel(1000);
+                rxs.push(rx);
+                Hand {
+                    tool,
+                    trajectory: press(x),
+                    answers: tx,
+                }
+            })
+            .collect();
+        (Script { hands }, rxs)
+    };
+    let config = || SessionConfig {
+        deterministic: true,
+        ..SessionConfig::default()
+    };
+    let (script, mut rxs) = hands([Some(0), Some(1)]);
+    let session = Session::start_scripted("hands".into(), scene.clone(), bundles.clone(), config(), script).unwrap();
+    session.wait();
+    let mut direct = Pipeline::for_scene(&scene, &bundles).unwrap();
+    let (mut periods, mut touching) = (0, 0);
+    while let (Ok(right), Ok(left)) = (rxs[0].try_recv(), rxs[1].try_recv()) {
+        assert_eq!((right.seq, left.seq), (periods, periods), "a period's answers");
+        assert_eq!((right.tick, left.tick), (periods, periods), "one step a period, both hands in it");
+        let t = periods as f64 * 1e-3;
+        let inputs = [0, 1].map(|k| ToolInput {
+            tool: k,
+            ..vademecum_server::session::tool_at(&press([0.04, 0.025][k]), t)
+        });
+        let mut want = [vademecum_engine::pipeline::TickState::default(); 2];
+        direct.tick_tools(&inputs, &mut want);
+        assert_eq!(right.state.force_n, want[0].force_n, "the right hand at {t} s");
+        assert_eq!(left.state.force_n, want[1].force_n, "the left hand at {t} s");
+        touching += usize::from(right.state.contact.is_some() && left.state.contact.is_some());
+        periods += 1;
+    }
+    assert_eq!(periods, 301, "both hands answered every period of the 0.3 s script");
+    assert!(touching > 100, "both hands press the slab together ({touching} periods)");
+
+    for (tools, says) in [
+        ([Some(0), Some(0)], "scripted hand 2: 'probe' already has a hand"),
+        ([Some(0), Some(5)], "scripted hand 2: the scene has no tool 5"),
+        ([None, Some(1)], "scripted hand 1: a script of several hands names the tool of each"),
+    ] {
+        let (script, _rxs) = hands(tools);
+        match Session::start_scripted("bad".into(), scene.clone(), bundles.clone(), config(), script) {
+            Err(e @ SessionError::Hand { .. }) => assert!(e.to_string().contains(says), "{tools:?}: {e}"),
+            Err(e) => panic!("{tools:?}: refused for another reason: {e}"),
+            Ok(_) => panic!("{tools:?}: accepted"),
+        }
+    }
 }

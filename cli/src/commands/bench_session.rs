@@ -243,10 +243,7 @@ fn concurrent(
                 ticking: ticking.clone(),
                 ..SessionConfig::default()
             },
-            Script {
-                trajectory: traj.clone(),
-                answers: tx,
-            },
+            Script::new(traj.clone(), tx),
         )?);
     }
     let mut work = hist();

@@ -52,7 +52,16 @@ struct HapticCut {
     path_mm: f64,
 }
 
-pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, record: &Path) -> anyhow::Result<ExitCode> {
+/// Runs the session of `scene` for the bridges on `channel`; `hand_scripts` are the run's
+/// trajectories written for `vademecum-bridge --device sim --script` (one per hand).
+pub fn run(
+    a: &RunArgs,
+    channel: &str,
+    scene: Arc<Scene>,
+    bundles: Vec<Arc<LoadedBundle>>,
+    record: &Path,
+    hand_scripts: &[std::path::PathBuf],
+) -> anyhow::Result<ExitCode> {
     let channel = HapticChannel::new(channel)?;
     let duration = match a.duration {
         None => None,
@@ -98,7 +107,7 @@ pub fn run(a: &RunArgs, channel: &str, scene: Arc<Scene>, bundles: Vec<Arc<Loade
     eprintln!(
         "vademecum: {channels} open ({} wait, tick thread: {rt}); hand script for `vademecum-bridge --device sim`: {}",
         wait,
-        record.join("trajectory.csv").display()
+        hand_scripts.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
     );
     let clock = Instant::now();
     let mut connected = false;

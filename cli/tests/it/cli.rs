@@ -1637,3 +1637,94 @@ fn special_files_named_on_the_command_line_are_refused_at_once() {
         }
     }
 }
+
+/// The force, contact and events of a force log's rows of `tool` (every row: `None`), by
+/// tick: what the hand felt.
+fn felt(path: &Path, tool: Option<&str>) -> Vec<[String; 6]> {
+    forces_csv(path)
+        .iter()
+        .filter(|r| tool.is_none_or(|t| r["tool"] == t))
+        .map(|r| ["tick", "fx_n", "fy_n", "fz_n", "depth_m", "events"].map(|c| r[c].clone()))
+        .collect()
+}
+
+#[test]
+fn run_plays_both_hands_of_a_scene_that_cuts_and_tears_and_each_feels_what_it_would_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/effects/tear_and_cut.toml");
+    // no script: the scalpel's incisions and the grasper's grasp, at once
+    let o = vademecum(&["run", scene, "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let hands = s["hands"].as_array().expect("a hand per tool");
+    let tools: Vec<&str> = hands.iter().map(|h| h["tool"].as_str().unwrap()).collect();
+    assert_eq!(tools, ["scalpel", "grasper"], "{s}");
+    // the patch cut, the cube torn, in one session
+    assert!(s["cut"]["cut_cells"].as_u64().unwrap() >= 1, "{s}");
+    assert!(s["cut"]["advances"].as_u64().unwrap() >= 1, "{s}");
+    assert!(s["tear"]["torn_at_s"].as_f64().is_some(), "{s}");
+    assert_eq!(s["tear"]["torn_cells"], 1, "{s}");
+    let rec = dir.path().join("out/tear_and_cut/run");
+    for h in &tools {
+        assert!(rec.join(format!("trajectory_{h}.csv")).is_file(), "{h}'s script");
+    }
+    // every tool's force in forces.csv: a row per hand and tick, named
+    let rows = forces_csv(&rec.join("forces.csv"));
+    let ticks = s["ticks"].as_u64().unwrap() as usize;
+    assert_eq!(rows.len(), 2 * ticks);
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r["tool"], ["scalpel", "grasper"][k % 2]);
+        assert_eq!(r["tick"], (k / 2).to_string());
+        // the blade's columns are the scalpel's, the closure the grasper's
+        assert_eq!(r["cutting"].is_empty(), k % 2 == 1, "{r:?}");
+        assert_eq!(r["closure"].is_empty(), k % 2 == 0, "{r:?}");
+    }
+    // each hand alone, from the script the two-hand run wrote: what the hand felt with the
+    // other hand on the other organ is what it feels alone, bit for bit (the scalpel's
+    // shorter script holds its last keyframe in the two-hand run)
+    for h in tools {
+        let script = format!("{h}={}", rec.join(format!("trajectory_{h}.csv")).display());
+        let alone = dir.path().join(format!("alone_{h}"));
+        let o = vademecum(
+            &["run", scene, "--script", &script, "--record", alone.to_str().unwrap()],
+            dir.path(),
+        );
+        assert!(o.status.success(), "stderr: {}", stderr(&o));
+        let (both, alone) = (felt(&rec.join("forces.csv"), Some(h)), felt(&alone.join("forces.csv"), None));
+        assert!(alone.len() > 2000, "{h}: {} rows", alone.len());
+        assert_eq!(both[..alone.len()], alone[..], "{h}");
+    }
+}
+
+#[test]
+fn run_refuses_scripts_of_several_hands_that_do_not_each_name_one_tool() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/effects/tear_and_cut.toml");
+    let path = dir.path().join("hand.csv");
+    std::fs::write(&path, "t_s,x_m,y_m,z_m,closure\n0,9,1,1.2,0\n1,9,1,1.0,1\n").unwrap();
+    let hand = path.to_str().unwrap();
+    let cases = [
+        (vec![hand.to_string(), format!("grasper={hand}")], "each names its tool as TOOL=CSV"),
+        (
+            vec![format!("grasper={hand}"), format!("grasper={hand}")],
+            "tool 'grasper' already has a script",
+        ),
+        (
+            vec![format!("scalpel={hand}")],
+            "'scalpel' is a scalpel, but the trajectory has no blade",
+        ),
+    ];
+    for (scripts, says) in cases {
+        let mut args = vec!["run", scene];
+        for s in &scripts {
+            args.extend(["--script", s.as_str()]);
+        }
+        let o = vademecum(&args, dir.path());
+        let err = stderr(&o);
+        // bad input, as a bad scene file
+        assert_eq!(o.status.code(), Some(2), "{scripts:?}: {err}");
+        assert!(err.contains(says), "{scripts:?}: {err}");
+        // refused before anything was built
+        assert!(!dir.path().join("out").exists(), "{scripts:?}");
+    }
+}

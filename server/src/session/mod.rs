@@ -186,6 +186,14 @@ pub enum SessionError {
     /// No tick worker could take the session.
     #[error(transparent)]
     Ticking(#[from] PlaceError),
+    /// A scripted hand that cannot move the tool it names ([`Hand`]).
+    #[error("scripted hand {hand}: {why}")]
+    Hand {
+        /// The hand, numbered from 1.
+        hand: usize,
+        /// Why.
+        why: String,
+    },
     /// A tool's name cannot name its haptic channel ([`tool_channels`]).
     #[error(
         "the scene's tools need a haptic channel each: {0} (name the tools with letters, digits, '-' and '_', or use a shorter channel name)"
@@ -326,13 +334,45 @@ enum Command {
     Tool(ToolCommand),
 }
 
-/// A trajectory the tick thread plays itself (headless runs), answering into `answers`.
+/// What the tick thread plays itself (headless runs): one hand, or one per tool of the scene,
+/// each answering into its own `answers`.
 #[derive(Debug)]
 pub struct Script {
+    /// The hands, played in this order within each period (each answer is one pipeline
+    /// tick, as each channel of a two-device session is). The script ends with the
+    /// longest; a hand whose trajectory ended holds its last keyframe.
+    pub hands: Vec<Hand>,
+}
+
+/// One scripted hand: a trajectory and the tool it moves.
+#[derive(Debug)]
+pub struct Hand {
+    /// The scene tool it moves, by its index in `[[tools]]`; `None`: the session's one tool
+    /// at a time, a probe or, with a blade, a scalpel (a grasper in a scene whose only tool
+    /// is one) — as a client that names no tool.
+    pub tool: Option<usize>,
     /// The trajectory, sampled at every tick.
     pub trajectory: Trajectory,
     /// Where every tick's answer goes (sequence number = tick).
     pub answers: tokio::sync::mpsc::Sender<Answer>,
+}
+
+impl Script {
+    /// One hand, the session's one tool at a time.
+    pub fn new(trajectory: Trajectory, answers: tokio::sync::mpsc::Sender<Answer>) -> Self {
+        Self {
+            hands: vec![Hand {
+                tool: None,
+                trajectory,
+                answers,
+            }],
+        }
+    }
+
+    /// The script's length (s): its longest hand's.
+    pub fn duration_s(&self) -> f64 {
+        self.hands.iter().map(|h| h.trajectory.duration_s()).fold(0.0, f64::max)
+    }
 }
 
 /// Whether a session of `scene` with `config` falls back to its reduced fidelity under load:
@@ -398,6 +438,53 @@ impl PipelineParts {
     }
 }
 
+/// The tick thread's form of `script`: each hand's stream registered with `router` and the
+/// state it sends resolved — a named tool's kind is the scene's; a scalpel needs a blade in
+/// its trajectory, and a tool moves with one hand at most.
+fn script_run(script: Script, scene: &Scene, router: &answers::Router) -> Result<tick::ScriptRun, SessionError> {
+    let tools = &scene.spec.tools;
+    if script.hands.is_empty() {
+        return Err(SessionError::Hand {
+            hand: 0,
+            why: "a script needs a hand".into(),
+        });
+    }
+    let mut hands = Vec::with_capacity(script.hands.len());
+    for (i, h) in script.hands.into_iter().enumerate() {
+        let why = |why: String| SessionError::Hand { hand: i + 1, why };
+        let kind = match h.tool {
+            None => None,
+            Some(t) if t >= tools.len().min(vademecum_engine::pipeline::MAX_TOOLS) => {
+                return Err(why(format!("the scene has no tool {t} ({} tools)", tools.len())));
+            }
+            Some(t) => {
+                let kind = crate::convert::spec_kind(&tools[t]);
+                if kind == ToolKind::Scalpel && !h.trajectory.has_blade() {
+                    return Err(why(format!("'{}' is a scalpel, but its trajectory has no blade", tools[t].name())));
+                }
+                if hands.iter().any(|o: &tick::ScriptHand| o.tool == Some(t)) {
+                    return Err(why(format!("'{}' already has a hand", tools[t].name())));
+                }
+                Some(kind)
+            }
+        };
+        hands.push(tick::ScriptHand {
+            tool: h.tool,
+            kind,
+            to: router.register(h.answers).expect("a new router takes streams"),
+            trajectory: h.trajectory,
+        });
+    }
+    if hands.len() > 1 && hands.iter().any(|h| h.tool.is_none()) {
+        return Err(SessionError::Hand {
+            hand: hands.iter().position(|h| h.tool.is_none()).unwrap_or(0) + 1,
+            why: "a script of several hands names the tool of each".into(),
+        });
+    }
+    let duration_s = hands.iter().map(|h| h.trajectory.duration_s()).fold(0.0, f64::max);
+    Ok(tick::ScriptRun { hands, duration_s })
+}
+
 impl Session {
     /// Starts a session on `scene` with one loaded bundle per organ.
     pub fn start(id: String, scene: Arc<Scene>, bundles: Vec<Arc<LoadedBundle>>, config: SessionConfig) -> Result<Self, SessionError> {
@@ -456,10 +543,8 @@ impl Session {
             &geometry,
         );
         let router = Arc::new(answers::Router::new());
-        let script = script.map(|s| tick::ScriptRun {
-            to: router.register(s.answers).expect("a new router takes streams"),
-            trajectory: s.trajectory,
-        });
+        let named_hands = script.as_ref().is_some_and(|s| s.hands.iter().any(|h| h.tool.is_some()));
+        let script = script.map(|s| script_run(s, &scene, &router)).transpose()?;
         let answers_done = Self::start_answers(&id, &config, &ring, &router)?;
         let (latest_in, latest_out) = triple_buffer::triple_buffer(&tick::Latest::default());
         let (frames, _) = watch::channel(Arc::new(Frame::rest(&geometry)));
@@ -484,8 +569,8 @@ impl Session {
             deterministic: config.deterministic,
             held: Default::default(),
             tool_states: Default::default(),
-            // a channel per tool: frames list every tool
-            named: channels.len() > 1,
+            // a channel per tool, or a scripted hand per tool: frames list every tool
+            named: channels.len() > 1 || named_hands,
         });
         let (done, tick_done) = mpsc::sync_channel(1);
         let tick_finished = Arc::new(AtomicBool::new(false));

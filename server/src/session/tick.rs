@@ -43,8 +43,18 @@ pub(super) struct Latest {
     pub tools: [Option<TickState>; MAX_TOOLS],
 }
 
-/// A trajectory the tick thread plays, and the stream its answers go to.
+/// The hands the tick thread plays, and how long.
 pub(super) struct ScriptRun {
+    pub hands: Vec<ScriptHand>,
+    /// The longest hand's duration (s).
+    pub duration_s: f64,
+}
+
+/// A trajectory the tick thread plays, the tool it moves, and the stream its answers go to.
+pub(super) struct ScriptHand {
+    /// The scene tool (`None`: the one tool at a time) and its kind.
+    pub tool: Option<usize>,
+    pub kind: Option<ToolKind>,
     pub trajectory: Trajectory,
     pub to: StreamId,
 }
@@ -137,53 +147,80 @@ impl TickLoop {
     /// every other tool at its latest state (the contacts of tools on one organ are solved
     /// together); the state answers `input`.
     fn step(&mut self, input: &ToolInput, answered: bool) -> (u64, TickState) {
+        let mut state = [TickState::default()];
+        let step = self.step_tools(std::slice::from_ref(input), answered, &mut state);
+        (step, state[0])
+    }
+
+    /// One pipeline tick moving every tool of `inputs` (distinct tools: a script's hands) at
+    /// once, every other tool at its latest state; `states[i]` answers `inputs[i]`. Each
+    /// tool's one-shot events are owed to its next answer unless `answered` (this tick
+    /// answers `inputs`).
+    fn step_tools(&mut self, inputs: &[ToolInput], answered: bool, states: &mut [TickState]) -> u64 {
         let step = self.steps;
         self.steps += 1;
-        if input.tool >= MAX_TOOLS {
+        if let [input] = inputs
+            && input.tool >= MAX_TOOLS
+        {
             // no tool of the scene: rejected alone
-            return (step, self.pipeline.tick(input));
+            states[0] = self.pipeline.tick(input);
+            return step;
         }
         let mut set = [ToolInput::default(); MAX_TOOLS];
-        let (mut n, mut me) = (0, 0);
+        // where each of `inputs` is in the set
+        let mut mine = [usize::MAX; MAX_TOOLS];
+        let mut n = 0;
         for (slot, held) in self.held.iter().enumerate() {
-            if slot == input.tool {
-                me = n;
-                set[n] = *input;
+            if let Some(i) = inputs.iter().position(|t| t.tool == slot) {
+                mine[i] = n;
+                set[n] = inputs[i];
                 n += 1;
             } else if let Some(h) = held {
                 set[n] = *h;
                 n += 1;
             }
         }
-        let mut states = [TickState::default(); MAX_TOOLS];
-        self.pipeline.tick_tools(&set[..n], &mut states[..n]);
-        for (i, (t, st)) in set[..n].iter().zip(&states).enumerate() {
+        let mut all = [TickState::default(); MAX_TOOLS];
+        self.pipeline.tick_tools(&set[..n], &mut all[..n]);
+        for (t, st) in set[..n].iter().zip(&all) {
             self.tool_states[t.tool] = Some(*st);
-            if !(answered && i == me) {
+            if !(answered && inputs.iter().any(|i| i.tool == t.tool)) {
                 self.owed[t.tool] |= st.events.0 & Events::ONE_SHOT;
             }
         }
-        if input.is_valid() {
-            self.held[input.tool] = Some(*input);
+        for (i, input) in inputs.iter().enumerate() {
+            states[i] = all[mine[i]];
+            if input.is_valid() {
+                self.held[input.tool] = Some(*input);
+            }
         }
-        (step, states[me])
+        step
     }
 
     /// One pipeline tick that answers someone: it carries the happenings owed to its tool by
     /// the ticks that did not answer it.
     fn tick_answered(&mut self, input: &ToolInput) -> (u64, TickState) {
-        let (step, mut state) = self.step(input, true);
-        if let Some(owed) = self.owed.get_mut(input.tool) {
-            state.events.0 |= std::mem::take(owed);
+        let mut state = [TickState::default()];
+        let step = self.tools_answered(std::slice::from_ref(input), &mut state);
+        (step, state[0])
+    }
+
+    /// [`TickLoop::tick_answered`] for several tools moved at once ([`TickLoop::step_tools`]).
+    fn tools_answered(&mut self, inputs: &[ToolInput], states: &mut [TickState]) -> u64 {
+        let step = self.step_tools(inputs, true, states);
+        for (input, state) in inputs.iter().zip(states.iter_mut()) {
+            if let Some(owed) = self.owed.get_mut(input.tool) {
+                state.events.0 |= std::mem::take(owed);
+            }
+            if state.events.has(Events::REJECTED_INPUT) {
+                self.stats.rejected.fetch_add(1, Ordering::Relaxed);
+            }
         }
-        (step, state)
+        step
     }
 
     fn answer(&mut self, input: &ToolInput, seq: u64, client_time_us: u64, received: Instant) -> Answer {
         let (tick, state) = self.tick_answered(input);
-        if state.events.has(Events::REJECTED_INPUT) {
-            self.stats.rejected.fetch_add(1, Ordering::Relaxed);
-        }
         let now = Instant::now();
         Answer {
             seq,
@@ -200,9 +237,6 @@ impl TickLoop {
     fn answer_haptic(&mut self, peer: &mut HapticPeer, tool: usize, s: &HapticState, clock: &mut Clock) {
         let input = tool_input(s, tool);
         let (_, state) = self.tick_answered(&input);
-        if state.events.has(Events::REJECTED_INPUT) {
-            self.stats.rejected.fetch_add(1, Ordering::Relaxed);
-        }
         let depth = state.contact.map_or(0.0, |c| c.depth_m);
         if peer.answer(s, state.force_n, depth, state.events.0).is_err() {
             self.stats.haptic_errors.fetch_add(1, Ordering::Relaxed);
@@ -377,23 +411,49 @@ impl TickLoop {
         }
         if let Some(script) = self.script.take() {
             let t = clock.tick as f64 * period.as_secs_f64();
-            if t > script.trajectory.duration_s() + 0.5 * period.as_secs_f64() {
+            if t > script.duration_s + 0.5 * period.as_secs_f64() {
                 self.script = Some(script);
                 return false;
             }
-            let mut input = super::tool_at(&script.trajectory, t);
-            // a scene whose only tool is a grasper plays its trajectory (and closure) with it
-            if input.kind == ToolKind::Probe && !self.pipeline.accepts(ToolKind::Probe) && self.pipeline.accepts(ToolKind::Grasper) {
-                input.kind = ToolKind::Grasper;
+            // every hand moves in one pipeline tick: the tissue steps once a period, as
+            // with one hand
+            let mut inputs = [ToolInput::default(); MAX_TOOLS];
+            let n = script.hands.len().min(MAX_TOOLS);
+            for (input, hand) in inputs.iter_mut().zip(&script.hands) {
+                *input = super::tool_at(&hand.trajectory, t);
+                match (hand.tool, hand.kind) {
+                    (Some(tool), Some(kind)) => (input.tool, input.kind) = (tool, kind),
+                    // a scene whose only tool is a grasper plays its trajectory (and closure)
+                    // with it
+                    _ if input.kind == ToolKind::Probe
+                        && !self.pipeline.accepts(ToolKind::Probe)
+                        && self.pipeline.accepts(ToolKind::Grasper) =>
+                    {
+                        input.kind = ToolKind::Grasper
+                    }
+                    _ => {}
+                }
             }
-            let a = self.answer(&input, clock.tick, self.micros(start), start);
-            Histograms::record(&mut clock.local.response, (a.answered_us - a.received_us) * 1000);
-            // counted before it leaves, so a reader that has the answer sees it counted
-            self.stats.answered.fetch_add(1, Ordering::Relaxed);
-            self.answers.push(script.to, a);
+            let mut states = [TickState::default(); MAX_TOOLS];
+            let tick = self.tools_answered(&inputs[..n], &mut states[..n]);
+            let (received_us, answered_us) = (self.micros(start), self.micros(Instant::now()));
+            for (hand, state) in script.hands.iter().zip(&states[..n]) {
+                let a = Answer {
+                    seq: clock.tick,
+                    client_time_us: received_us,
+                    received_us,
+                    answered_us,
+                    tick,
+                    state: *state,
+                };
+                Histograms::record(&mut clock.local.response, (a.answered_us - a.received_us) * 1000);
+                // counted before it leaves, so a reader that has the answer sees it counted
+                self.stats.answered.fetch_add(1, Ordering::Relaxed);
+                self.answers.push(hand.to, a);
+                clock.this.state = Some(a.state);
+            }
             answered = true;
-            clock.this.state = Some(a.state);
-            clock.this.last_input = Some(input);
+            clock.this.last_input = Some(inputs[n - 1]);
             self.script = Some(script);
         }
         match self.answer_queued(&mut clock.this, &mut clock.local) {

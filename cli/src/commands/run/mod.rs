@@ -21,15 +21,17 @@ use serde::Serialize;
 use vademecum_engine::mesh::vtk;
 use vademecum_engine::pipeline::MAX_BLADE_EDGE;
 use vademecum_server::session::stats::Percentiles;
-use vademecum_server::session::{Answer, Script, Session, SessionConfig, Trajectory};
+use vademecum_server::session::{Answer, Hand, Script, Session, SessionConfig, Trajectory};
 
 use super::scene_input::load_scene;
 use crate::cli::RunArgs;
 use crate::commands::build::ensure_bundles;
 use frames::FrameRecorder;
+use hands::HandKind;
 
 mod forces;
 mod frames;
+mod hands;
 
 /// What `vademecum run` reports (also written as `summary.json`).
 #[derive(Debug, Serialize)]
@@ -38,6 +40,10 @@ struct Summary {
     organs: Vec<String>,
     effects: Vec<&'static str>,
     trajectory: String,
+    /// Each hand of a run of several (one per tool, each with its own force log); empty for
+    /// a run of one, whose figures are the run's.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    hands: Vec<HandSummary>,
     duration_s: f64,
     ticks: u64,
     tick_rate_hz: f64,
@@ -50,8 +56,11 @@ struct Summary {
     reduced_ticks: u64,
     tick_work_us: Percentiles,
     tick_lateness_us: Percentiles,
+    /// The largest force on a tool (N; with several hands, the largest of theirs) and when.
     peak_force_n: f64,
     peak_force_time_s: f64,
+    /// Answers in contact (with several hands, summed over them: each hand is answered
+    /// every tick).
     contact_ticks: u64,
     rejected_inputs: u64,
     dropped_answers: u64,
@@ -75,7 +84,23 @@ impl Summary {
     fn print(&self, out: &mut impl Write) -> std::io::Result<()> {
         let s = self;
         writeln!(out, "scene '{}': {} ({})", s.scene, s.organs.join(", "), s.effects.join(" → "))?;
-        writeln!(out, "  trajectory     {} — {:.1} s", s.trajectory, s.duration_s)?;
+        if s.hands.is_empty() {
+            writeln!(out, "  trajectory     {} — {:.1} s", s.trajectory, s.duration_s)?;
+        } else {
+            writeln!(out, "  hands          {}, at once — {:.1} s", s.hands.len(), s.duration_s)?;
+            for h in &s.hands {
+                writeln!(out, "  '{}'  {}", h.tool, h.trajectory)?;
+                writeln!(
+                    out,
+                    "  {:w$}  peak {:.3} N at {:.3} s; in contact {} ticks",
+                    "",
+                    h.peak_force_n,
+                    h.peak_force_time_s,
+                    h.contact_ticks,
+                    w = h.tool.chars().count() + 2
+                )?;
+            }
+        }
         writeln!(
             out,
             "  ticks          {} at {:.0} Hz; {} deadline misses ({:.2} %)",
@@ -105,11 +130,13 @@ impl Summary {
             "  tick lateness  {} (the OS wake-up floor; see BENCHMARKS.md)",
             p(&s.tick_lateness_us)
         )?;
-        writeln!(
-            out,
-            "  force          peak {:.3} N at {:.3} s; in contact {} of {} ticks",
-            s.peak_force_n, s.peak_force_time_s, s.contact_ticks, s.ticks
-        )?;
+        if s.hands.is_empty() {
+            writeln!(
+                out,
+                "  force          peak {:.3} N at {:.3} s; in contact {} of {} ticks",
+                s.peak_force_n, s.peak_force_time_s, s.contact_ticks, s.ticks
+            )?;
+        }
         let parts: Vec<String> = s
             .memory
             .parts
@@ -201,13 +228,25 @@ impl Summary {
         }
         writeln!(
             out,
-            "  recorded       {} (forces.csv, {} frames per organ in *.pvd{})",
+            "  recorded       {} (forces.csv{}, {} frames per organ in *.pvd{})",
             s.record.display(),
+            if s.hands.is_empty() { "" } else { " with a row per hand and tick" },
             s.frames,
             if s.cut.is_some() { "; blade_force.svg" } else { "" }
         )?;
         Ok(())
     }
+}
+
+/// One hand of a run of several: its tool and trajectory, and what its rows of the force log
+/// saw.
+#[derive(Debug, Serialize)]
+struct HandSummary {
+    tool: String,
+    trajectory: String,
+    peak_force_n: f64,
+    peak_force_time_s: f64,
+    contact_ticks: u64,
 }
 
 /// What the frame thread's co-rotational deformation did, and how the force followed it.
@@ -331,29 +370,44 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let bundle_dir = a.bundles.clone().unwrap_or_else(|| base.clone());
     let record = a.record.clone().unwrap_or_else(|| base.join("run"));
     // a bad trajectory file fails before any build
-    let scripted = a.script.as_ref().map(|p| Trajectory::read(p)).transpose()?;
+    let scripted = hands::scripted(&scene, &a.script)?;
     let cutting = scene.spec.effects.cutting;
     if cutting {
-        check_blade(&scene, scripted.as_ref())?;
+        match scripted.as_slice() {
+            [] => check_blade(&scene, None)?,
+            several => {
+                for h in several.iter().filter(|h| h.kind(&scene, cutting, false) == HandKind::Scalpel) {
+                    check_blade(&scene, Some(&h.trajectory))?;
+                }
+            }
+        }
     }
     let tearing = scene.spec.effects.tearing;
-    let radius = if cutting || tearing || scripted.is_some() {
+    let radius = if cutting || tearing || !scripted.is_empty() {
         0.0
     } else {
         offline_probe_radius(&scene)?
     };
     let bundles = ensure_bundles(&scene, &bundle_dir)?;
-    let (trajectory, source) = match (scripted, &a.script) {
-        (Some(t), Some(p)) => (t, p.display().to_string()),
-        _ => builtin_trajectory(&scene, &bundles, radius, a.depth)?,
+    let hands = if scripted.is_empty() {
+        hands::builtin(&scene, &bundles, radius, a.depth)?
+    } else {
+        scripted
     };
+    let several = hands.len() > 1;
+    let duration_s = hands::duration_s(&hands);
     let frames_dir = record.join("frames");
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("cannot create {}", frames_dir.display()))?;
-    trajectory
-        .write(&record.join("trajectory.csv"))
-        .with_context(|| format!("cannot write {}", record.join("trajectory.csv").display()))?;
+    let mut hand_scripts = Vec::with_capacity(hands.len());
+    for h in &hands {
+        let file = h.file(&record, "trajectory", "csv", several);
+        h.trajectory
+            .write(&file)
+            .with_context(|| format!("cannot write {}", file.display()))?;
+        hand_scripts.push(file);
+    }
     if let Some(channel) = &a.haptic {
-        return super::run_haptic::run(&a, channel, scene, bundles, &record);
+        return super::run_haptic::run(&a, channel, scene, bundles, &record, &hand_scripts);
     }
 
     // a lab operator's headless run gives the same recording on any load
@@ -363,31 +417,53 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         ..SessionConfig::default()
     };
     let period_s = config.period.as_secs_f64();
-    let (tx, rx) = tokio::sync::mpsc::channel::<Answer>(8192);
-    let session = Session::start_scripted(
-        "run".into(),
-        scene.clone(),
-        bundles.clone(),
-        config,
-        Script {
-            trajectory: trajectory.clone(),
+    let mut script = Script { hands: Vec::new() };
+    let mut logged = Vec::with_capacity(hands.len());
+    for h in &hands {
+        let (tx, rx) = tokio::sync::mpsc::channel::<Answer>(8192);
+        let kind = h.kind(&scene, cutting, tearing);
+        logged.push(forces::LoggedHand {
+            answers: rx,
+            tool: h.name.clone(),
+            cutting: kind == HandKind::Scalpel && cutting,
+            jaws: (kind == HandKind::Grasper && tearing).then(|| h.trajectory.clone()),
+        });
+        script.hands.push(Hand {
+            tool: h.tool,
+            trajectory: h.trajectory.clone(),
             answers: tx,
-        },
-    )?;
+        });
+    }
     // the force log, written by its own thread as answers arrive
+    let writer = forces::spawn(record.join("forces.csv"), logged, period_s);
+    let session = Session::start_scripted("run".into(), scene.clone(), bundles.clone(), config, script)?;
     let cut_status = session.cut_status().cloned();
     let cutting = cut_status.is_some();
-    let jaws = tearing.then(|| trajectory.clone());
-    let writer = forces::spawn(record.join("forces.csv"), rx, period_s, cutting, jaws);
     // frames: every frame of the session's log, one surface .vtu per organ
     let geometry = session.geometry().clone();
     let effects = session.effects().to_vec();
     let mut frames = FrameRecorder::new(&geometry, frames_dir);
-    record_frames(&session, &mut frames, &scene.spec.scene.name, trajectory.duration_s(), a.frame_rate)?;
+    record_frames(&session, &mut frames, &scene.spec.scene.name, duration_s, a.frame_rate)?;
     let session_stats = session.stats().clone();
     let memory = session.memory();
     let stats = session.wait();
-    let forces = writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    let logs = writer.join().map_err(|_| anyhow::anyhow!("the force writer panicked"))??;
+    let mut hand_summaries = Vec::with_capacity(hands.len());
+    let mut forces = forces::ForceLog::default();
+    for (h, log) in hands.iter().zip(logs) {
+        hand_summaries.push(HandSummary {
+            tool: h.name.clone(),
+            trajectory: h.source.clone(),
+            peak_force_n: log.peak_n,
+            peak_force_time_s: log.peak_t_s,
+            contact_ticks: log.contact_ticks,
+        });
+        if several {
+            forces.merge(log, h.kind(&scene, cutting, tearing));
+        } else {
+            forces = log;
+        }
+    }
     let mut tear = forces.tear;
     if let Some((max_damage, torn_cells, dissipated_j)) = frames.last_damage {
         (tear.max_damage, tear.torn_cells, tear.dissipated_j) = (max_damage, torn_cells, dissipated_j);
@@ -408,7 +484,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
             forces.cut_counts,
             &record,
             &mut frames.steps[0],
-            trajectory.duration_s(),
+            duration_s,
         )?),
         None => None,
     };
@@ -425,8 +501,9 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
         scene: scene.spec.scene.name.clone(),
         organs: geometry.organs.iter().map(|o| o.name.clone()).collect(),
         effects,
-        trajectory: source,
-        duration_s: trajectory.duration_s(),
+        trajectory: hands.iter().map(|h| h.source.as_str()).collect::<Vec<_>>().join("; "),
+        hands: if several { hand_summaries } else { Vec::new() },
+        duration_s,
         ticks: stats.ticks,
         tick_rate_hz: 1.0 / period_s,
         deadline_misses: stats.misses,
@@ -540,7 +617,7 @@ fn check_blade(scene: &vademecum_engine::scene::Scene, scripted: Option<&Traject
         let longest = match scripted {
             Some(t) => t.longest_blade().map(|(t, e)| (format!("at t = {t:.3} s of the script"), e)),
             None => scene
-                .organ_cuts(0)
+                .planned_cuts()
                 .map_err(|e| anyhow::anyhow!("{e}"))?
                 .iter()
                 .enumerate()
@@ -565,38 +642,17 @@ fn check_blade(scene: &vademecum_engine::scene::Scene, scripted: Option<&Traject
     Ok(())
 }
 
-/// The built-in trajectory of a scene without a script, and what it is: incisions along the
-/// scene's pre-planned cuts (cutting), a grasp and pull (tearing), or a palpation `radius` off
-/// the surface to `depth` (`None`: the default, or the lattice's reach).
+/// The built-in trajectory of a scene without a script (one hand), and what it is: incisions
+/// along the scene's pre-planned cuts (cutting), a grasp and pull (tearing), or a palpation
+/// `radius` off the surface to `depth` (`None`: the default, or the lattice's reach).
 fn builtin_trajectory(
     scene: &vademecum_engine::scene::Scene,
     bundles: &[Arc<vademecum_engine::bundle::LoadedBundle>],
     radius: f64,
     depth: Option<f64>,
 ) -> anyhow::Result<(Trajectory, String)> {
-    if let Some(o) = scene.cut_organ() {
-        let cuts = scene.organ_cuts(o).map_err(|e| anyhow::anyhow!("{e}"))?;
-        if cuts.is_empty() {
-            bail!(
-                "the scene cuts but plans no cut to script: give a scalpel trajectory with --script, or add [[organs.cuts]] blade positions"
-            );
-        }
-        let points: Vec<&[[f64; 3]]> = cuts.iter().map(|c| c.points()).collect();
-        // a cutting scene has a scalpel (scene validation)
-        let lift = 0.5 * scene.spec.scalpel().map_or(1e-3, |s| s.0);
-        Ok((
-            vademecum_server::session::builtin_incisions(&bundles[o], &points, lift, INCISION_SECONDS)
-                .map_err(|e| anyhow::anyhow!("cannot script the built-in incisions: {e}"))?,
-            format!(
-                "built-in incisions along the scene's {} pre-planned cut(s), {INCISION_SECONDS} s each{}",
-                cuts.len(),
-                if scene.spec.effects.tearing {
-                    " (the scalpel alone: a headless run moves one tool; the grasper's hand is driven over gRPC, docs/scene.md)"
-                } else {
-                    ""
-                }
-            ),
-        ))
+    if scene.cut_organ().is_some() {
+        builtin_incisions(scene, bundles)
     } else if scene.spec.effects.tearing {
         builtin_grasp(scene)
     } else {
@@ -612,6 +668,31 @@ fn builtin_trajectory(
             ),
         ))
     }
+}
+
+/// The built-in incisions of a cutting scene (its trajectory and description): the scalpel
+/// along each of the cut organ's pre-planned cuts in turn, [`INCISION_SECONDS`] each.
+fn builtin_incisions(
+    scene: &vademecum_engine::scene::Scene,
+    bundles: &[Arc<vademecum_engine::bundle::LoadedBundle>],
+) -> anyhow::Result<(Trajectory, String)> {
+    let o = scene.cut_organ().ok_or_else(|| anyhow::anyhow!("the scene does not cut"))?;
+    let cuts = scene.organ_cuts(o).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if cuts.is_empty() {
+        bail!("the scene cuts but plans no cut to script: give a scalpel trajectory with --script, or add [[organs.cuts]] blade positions");
+    }
+    let points: Vec<&[[f64; 3]]> = cuts.iter().map(|c| c.points()).collect();
+    // a cutting scene has a scalpel (scene validation)
+    let lift = 0.5 * scene.spec.scalpel().map_or(1e-3, |s| s.0);
+    Ok((
+        vademecum_server::session::builtin_incisions(&bundles[o], &points, lift, INCISION_SECONDS)
+            .map_err(|e| anyhow::anyhow!("cannot script the built-in incisions: {e}"))?,
+        format!(
+            "built-in incisions of '{}' along its {} pre-planned cut(s), {INCISION_SECONDS} s each",
+            scene.spec.organs[o].name,
+            cuts.len()
+        ),
+    ))
 }
 
 /// The force on the blade at one scalpel tick, for the plot.

@@ -1,0 +1,142 @@
+//! The hands a headless run plays: one trajectory for the session's one tool at a time, or one
+//! per named tool of the scene — `--script TOOL=CSV`, repeated, or, for a scene that cuts and
+//! tears, the built-in incisions in the scalpel's hand and the built-in grasp in the
+//! grasper's, at once.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::bail;
+use vademecum_engine::bundle::LoadedBundle;
+use vademecum_engine::scene::Scene;
+use vademecum_engine::scene::schema::ToolSpec;
+use vademecum_server::session::Trajectory;
+
+/// A hand the run plays.
+pub(super) struct PlayedHand {
+    /// The scene tool it moves (`None`: the session's one tool at a time).
+    pub tool: Option<usize>,
+    /// The tool's name (empty for the one tool at a time).
+    pub name: String,
+    pub trajectory: Trajectory,
+    /// Where the trajectory came from, for the summary.
+    pub source: String,
+}
+
+/// What a hand moves, as the force log needs it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum HandKind {
+    Probe,
+    Scalpel,
+    Grasper,
+}
+
+impl PlayedHand {
+    /// What the hand moves in a session that cuts (`cutting`) and tears (`tearing`): its
+    /// named tool's kind; the one tool at a time is the scalpel when the session cuts, the
+    /// grasper when it only tears, else the probe.
+    pub fn kind(&self, scene: &Scene, cutting: bool, tearing: bool) -> HandKind {
+        match self.tool.map(|t| &scene.spec.tools[t]) {
+            Some(ToolSpec::Scalpel { .. }) => HandKind::Scalpel,
+            Some(ToolSpec::Grasper { .. }) => HandKind::Grasper,
+            Some(ToolSpec::Probe { .. }) => HandKind::Probe,
+            None if cutting => HandKind::Scalpel,
+            None if tearing => HandKind::Grasper,
+            None => HandKind::Probe,
+        }
+    }
+
+    /// A file of the run for this hand (its trajectory): `<stem>.<ext>` for a run of one
+    /// hand, `<stem>_<tool>.<ext>` for each of several.
+    pub fn file(&self, record: &Path, stem: &str, ext: &str, several: bool) -> PathBuf {
+        if several {
+            record.join(format!("{stem}_{}.{ext}", self.name))
+        } else {
+            record.join(format!("{stem}.{ext}"))
+        }
+    }
+}
+
+/// The hands of `--script` arguments: `CSV` (the one tool at a time) or `TOOL=CSV` (the
+/// scene's tool of that name); several need a tool each, a tool takes one. Every file is
+/// read (and a bad one refused) before anything is built.
+pub(super) fn scripted(scene: &Scene, scripts: &[String]) -> anyhow::Result<Vec<PlayedHand>> {
+    let tools = &scene.spec.tools;
+    let mut hands: Vec<PlayedHand> = Vec::with_capacity(scripts.len());
+    for arg in scripts {
+        let named = arg
+            .split_once('=')
+            .and_then(|(name, path)| tools.iter().position(|t| t.name() == name).map(|i| (i, path)));
+        let (tool, path) = match named {
+            Some((i, path)) => (Some(i), PathBuf::from(path)),
+            None => (None, PathBuf::from(arg)),
+        };
+        if scripts.len() > 1 && tool.is_none() {
+            bail!(
+                "--script {arg}: with several scripts each names its tool as TOOL=CSV (the scene's tools: {})",
+                tools.iter().map(|t| format!("'{}'", t.name())).collect::<Vec<_>>().join(", ")
+            );
+        }
+        if let Some(i) = tool
+            && hands.iter().any(|h| h.tool == Some(i))
+        {
+            bail!("--script {arg}: tool '{}' already has a script", tools[i].name());
+        }
+        let trajectory = Trajectory::read(&path)?;
+        if let Some(i) = tool
+            && matches!(tools[i], ToolSpec::Scalpel { .. })
+            && !trajectory.has_blade()
+        {
+            bail!(
+                "--script {arg}: '{}' is a scalpel, but the trajectory has no blade: add the columns bx_m,by_m,bz_m,qw,qx,qy,qz (see `vademecum run --help`)",
+                tools[i].name()
+            );
+        }
+        hands.push(PlayedHand {
+            tool,
+            name: tool.map_or(String::new(), |i| tools[i].name().to_string()),
+            trajectory,
+            source: path.display().to_string(),
+        });
+    }
+    Ok(hands)
+}
+
+/// The built-in hands of a scene without a script: for a scene that cuts one organ and tears
+/// another, the scalpel's incisions and the grasper's grasp at once (two hands); otherwise
+/// the one built-in trajectory of [`super::builtin_trajectory`].
+pub(super) fn builtin(scene: &Scene, bundles: &[Arc<LoadedBundle>], radius: f64, depth: Option<f64>) -> anyhow::Result<Vec<PlayedHand>> {
+    let tools = &scene.spec.tools;
+    let scalpel = tools.iter().position(|t| matches!(t, ToolSpec::Scalpel { .. }));
+    let grasper = tools.iter().position(|t| matches!(t, ToolSpec::Grasper { .. }));
+    if let (true, Some(s), Some(g)) = (scene.spec.effects.cutting && scene.spec.effects.tearing, scalpel, grasper) {
+        let (cut, cut_source) = super::builtin_incisions(scene, bundles)?;
+        let (grasp, grasp_source) = super::builtin_grasp(scene)?;
+        return Ok(vec![
+            PlayedHand {
+                tool: Some(s),
+                name: tools[s].name().to_string(),
+                trajectory: cut,
+                source: cut_source,
+            },
+            PlayedHand {
+                tool: Some(g),
+                name: tools[g].name().to_string(),
+                trajectory: grasp,
+                source: grasp_source,
+            },
+        ]);
+    }
+    let (trajectory, source) = super::builtin_trajectory(scene, bundles, radius, depth)?;
+    Ok(vec![PlayedHand {
+        tool: None,
+        name: String::new(),
+        trajectory,
+        source,
+    }])
+}
+
+/// The run's length (s): its longest hand's.
+pub(super) fn duration_s(hands: &[PlayedHand]) -> f64 {
+    hands.iter().map(|h| h.trajectory.duration_s()).fold(0.0, f64::max)
+}
