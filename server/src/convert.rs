@@ -342,6 +342,7 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
     use std::sync::atomic::Ordering::Relaxed;
     let st = e.session.stats().snapshot();
     let b = st.bridge.unwrap_or_default();
+    let tools = &e.session.scene().spec.tools;
     let memory = e.session.memory();
     pb::SessionStats {
         ticks: st.ticks,
@@ -365,6 +366,18 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
         fidelity_fallbacks: st.fallbacks,
         fidelity_reduced: e.session.stats().reduced.load(Relaxed),
         reduced_ticks: st.reduced_ticks,
+        bridges: st
+            .bridges
+            .iter()
+            .map(|(tool, b)| pb::BridgeStats {
+                tool: tools.get(*tool).map_or(String::new(), |t| t.name().to_string()),
+                latency_p50_us: b.latency_us.p50,
+                latency_p99_us: b.latency_us.p99,
+                deadline_misses: b.deadline_misses,
+                watchdog_ticks: b.watchdog_ticks,
+                input_rejections: b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+            })
+            .collect(),
         memory_bytes: memory.total(),
         memory: memory
             .parts

@@ -26,8 +26,12 @@ fn histogram(out: &mut String, name: &str, session: &str, h: &Histogram<u64>) {
 /// creator gave, escaped). The page is unauthenticated, so it shows nothing secret.
 fn series(e: &Entry) -> String {
     let ordinal = e.session.id().split('-').next().unwrap_or("");
-    let label: String = e
-        .label
+    format!("session=\"{ordinal}\",label=\"{}\"", escape(&e.label))
+}
+
+/// A label value as the exposition format writes it: `\`, `"` and newlines escaped.
+fn escape(value: &str) -> String {
+    value
         .chars()
         .flat_map(|c| match c {
             '\\' => vec!['\\', '\\'],
@@ -35,8 +39,7 @@ fn series(e: &Entry) -> String {
             '\n' => vec!['\\', 'n'],
             c => vec![c],
         })
-        .collect();
-    format!("session=\"{ordinal}\",label=\"{label}\"")
+        .collect()
 }
 
 /// The exposition text for every session.
@@ -153,8 +156,9 @@ fn worker_metrics(out: &mut String, kind: &str, utilisation: &[f64], sessions: &
     }
 }
 
-/// Per session with a haptic channel: states answered, and the device bridge's own figures
-/// from its latest report (latency quantiles as a summary, counters).
+/// Per session with a haptic channel: states answered, and each device bridge's own figures
+/// from its latest report (latency quantiles as a summary, counters), labelled with the
+/// session and the tool the bridge moves.
 fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry>]) {
     let haptic: Vec<_> = all.iter().filter(|e| e.session.config().haptic.is_some()).collect();
     let _ = writeln!(
@@ -165,9 +169,16 @@ fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry
         let n = e.session.stats().haptic_answered.load(Ordering::Relaxed);
         let _ = writeln!(out, "vademecum_haptic_answers_total{{{}}} {n}", series(e));
     }
+    // a series per bridge: the session's, and the tool its bridge moves
     let reports: Vec<_> = haptic
         .iter()
-        .filter_map(|e| e.session.stats().bridge.snapshot().map(|b| (series(e), b)))
+        .flat_map(|e| {
+            let tools = &e.session.scene().spec.tools;
+            e.session.stats().bridges.iter().enumerate().filter_map(move |(tool, b)| {
+                let name = tools.get(tool).map_or("", |t| t.name());
+                b.snapshot().map(|b| (format!("{},tool=\"{}\"", series(e), escape(name)), b))
+            })
+        })
         .collect();
     let _ = writeln!(
         out,

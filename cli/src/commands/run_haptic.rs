@@ -37,8 +37,20 @@ struct Summary {
     tick_work_us: Percentiles,
     read_to_answer_us: Percentiles,
     bridge: Option<BridgeSnapshot>,
+    /// A scene with several tools: each bridge's report, by the tool it moved (those that
+    /// reported).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    bridges: Vec<ToolBridge>,
     /// What the scalpel cut (cutting scenes).
     cut: Option<HapticCut>,
+}
+
+/// One bridge of a session with a bridge per tool.
+#[derive(Debug, Serialize)]
+struct ToolBridge {
+    tool: String,
+    #[serde(flatten)]
+    report: BridgeSnapshot,
 }
 
 /// What the cut thread of a cutting session did.
@@ -149,6 +161,18 @@ pub fn run(
         tick_work_us: stats.work_us,
         read_to_answer_us: stats.haptic_us,
         bridge: stats.bridge,
+        bridges: if tools.len() > 1 {
+            stats
+                .bridges
+                .iter()
+                .map(|&(t, report)| ToolBridge {
+                    tool: scene.spec.tools[t].name().to_string(),
+                    report,
+                })
+                .collect()
+        } else {
+            Vec::new()
+        },
         cut,
     };
     std::fs::write(record.join("summary.json"), serde_json::to_string_pretty(&s)?)
@@ -192,16 +216,27 @@ pub fn run(
             c.cells, c.cracked_nodes, c.path_mm, c.blade_states, c.refused
         )?;
     }
-    match &s.bridge {
-        Some(b) => writeln!(
-            out,
-            "  bridge: {} ticks, {} misses, {} fresh forces, read -> written {}",
+    let bridge = |b: &BridgeSnapshot| {
+        format!(
+            "{} ticks, {} misses, {} fresh forces, read -> written {}",
             b.ticks,
             b.deadline_misses,
             b.fresh_forces,
             p(&b.latency_us)
-        )?,
-        None => writeln!(out, "  bridge: no report received")?,
+        )
+    };
+    if tools.len() > 1 {
+        for t in &s.bridges {
+            writeln!(out, "  bridge '{}': {}", t.tool, bridge(&t.report))?;
+        }
+        if s.bridges.len() < tools.len() {
+            writeln!(out, "  bridges: {} of {} reported", s.bridges.len(), tools.len())?;
+        }
+    } else {
+        match &s.bridge {
+            Some(b) => writeln!(out, "  bridge: {}", bridge(b))?,
+            None => writeln!(out, "  bridge: no report received")?,
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -38,7 +38,7 @@ use std::time::Instant;
 
 use vademecum_bridge::timing::RealtimeStatus;
 
-use super::tick::{Clock, TickLoop, keep_bridge_report};
+use super::tick::{Clock, TickLoop};
 pub use super::workers::{MAX_JOBS_PER_WORKER as MAX_SESSIONS_PER_WORKER, PlaceError};
 use super::workers::{Placed, Poll, Polled, Pool, PoolConfig};
 
@@ -124,8 +124,9 @@ impl Placed for Job {
     /// takes no lock a reader holds and frees nothing.
     fn end(mut self) {
         // a device worker's session: its bridge's last report
-        if let Some(peer) = self.tick.peer.as_mut() {
-            keep_bridge_report(&self.tick.stats, peer);
+        if let Some(mut peer) = self.tick.peer.take() {
+            self.tick.keep_bridge_reports(&mut peer);
+            self.tick.peer = Some(peer);
         }
         self.tick.close_answers();
         self.finished.store(true, Ordering::Release);

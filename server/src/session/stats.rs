@@ -19,6 +19,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use hdrhistogram::Histogram;
 use serde::Serialize;
+use vademecum_engine::pipeline::MAX_TOOLS;
 use vademecum_proto::shm::BridgeReport;
 
 /// Highest latency a histogram tracks (ns): 10 s; larger values are clamped.
@@ -108,8 +109,9 @@ pub struct TickStats {
     pub haptic_skipped: AtomicU64,
     /// Forces that could not be published on the haptic channel.
     pub haptic_errors: AtomicU64,
-    /// The bridge's latest report (zero until one arrives).
-    pub bridge: BridgeStats,
+    /// The latest report of each tool's bridge, by the tool's index in the scene (zero until
+    /// one arrives): the first is the session's one bridge when its scene has one tool.
+    pub bridges: [BridgeStats; MAX_TOOLS],
     /// CPU time of the tick thread (ns), updated every few ticks.
     pub tick_cpu_ns: AtomicU64,
     /// The co-rotational deformation (co-rotational cutting) on the frame thread.
@@ -145,7 +147,7 @@ impl Default for TickStats {
             haptic_answered: AtomicU64::new(0),
             haptic_skipped: AtomicU64::new(0),
             haptic_errors: AtomicU64::new(0),
-            bridge: BridgeStats::default(),
+            bridges: Default::default(),
             tick_cpu_ns: AtomicU64::new(0),
             corotational: CorotationalStats::default(),
             corotational_failures: AtomicU64::new(0),
@@ -362,7 +364,13 @@ impl TickStats {
             haptic_answered: self.haptic_answered.load(Ordering::Relaxed),
             haptic_skipped: self.haptic_skipped.load(Ordering::Relaxed),
             haptic_us: Percentiles::of(&h.haptic),
-            bridge: self.bridge.snapshot(),
+            bridge: self.bridges[0].snapshot(),
+            bridges: self
+                .bridges
+                .iter()
+                .enumerate()
+                .filter_map(|(tool, b)| b.snapshot().map(|s| (tool, s)))
+                .collect(),
         }
     }
 }
@@ -430,6 +438,8 @@ pub struct StatsSnapshot {
     pub haptic_skipped: u64,
     /// Bridge device read → force published by the session.
     pub haptic_us: Percentiles,
-    /// The bridge's latest report.
+    /// The first tool's bridge's latest report (the session's one bridge).
     pub bridge: Option<BridgeSnapshot>,
+    /// Every bridge's latest report, by the index of the tool it moves (those that reported).
+    pub bridges: Vec<(usize, BridgeSnapshot)>,
 }

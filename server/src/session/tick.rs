@@ -335,7 +335,7 @@ impl TickLoop {
                 break;
             }
         }
-        keep_bridge_report(&self.stats, peer);
+        self.keep_bridge_reports(peer);
     }
 
     /// The states that arrived on the other tools' channels (bit `i + 1` of `woken`: the wake
@@ -502,7 +502,7 @@ impl TickLoop {
         if clock.tick.is_multiple_of(PUBLISH_EVERY) {
             self.stats.publish(&mut clock.local);
             if let Some(p) = peer.as_deref_mut() {
-                keep_bridge_report(&self.stats, p);
+                self.keep_bridge_reports(p);
                 let others: u64 = self.others.iter().map(|(_, o)| o.skipped()).sum();
                 self.stats.haptic_skipped.store(p.skipped() + others, Ordering::Relaxed);
             }
@@ -611,10 +611,21 @@ struct Period {
     work_ns: u64,
 }
 
-/// Keeps the bridge's newest report in `stats` (when a haptic loop ends).
-pub(super) fn keep_bridge_report(stats: &TickStats, peer: &mut HapticPeer) {
+/// Keeps the newest report of the bridge of tool `tool` in `stats`.
+pub(super) fn keep_bridge_report(stats: &TickStats, peer: &mut HapticPeer, tool: usize) {
     if let Some(r) = peer.poll_report() {
-        stats.bridge.store(&r);
+        stats.bridges[tool.min(MAX_TOOLS - 1)].store(&r);
+    }
+}
+
+impl TickLoop {
+    /// Keeps the newest report of every bridge: `peer` (the first tool's) and the other
+    /// tools' channels (when a haptic loop ends, and every few ticks).
+    pub(super) fn keep_bridge_reports(&mut self, peer: &mut HapticPeer) {
+        keep_bridge_report(&self.stats, peer, 0);
+        for (tool, p) in self.others.iter_mut() {
+            keep_bridge_report(&self.stats, p, *tool);
+        }
     }
 }
 

@@ -372,15 +372,24 @@ fn two_bridges_each_move_one_probe_of_a_session_and_feel_each_other() {
     // device worker of its own
     let threads = util::threads_of(&server.child);
     assert!(threads.iter().any(|t| t == "device-worker-0"), "{threads:?}");
+    // stopped by the operator, its summary reports each bridge under its tool
+    assert!(server.stop().success());
+    let text = std::fs::read_to_string(dir.path().join("run/summary.json")).unwrap();
+    let s: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let bridges = s["bridges"].as_array().unwrap_or_else(|| panic!("{s}"));
+    let tools: Vec<&str> = bridges.iter().map(|b| b["tool"].as_str().unwrap()).collect();
+    assert_eq!(tools, ["probe", "left"], "{s}");
+    assert!(bridges.iter().all(|b| b["fresh_forces"].as_u64().unwrap() > 100), "{s}");
 }
 
 /// The same two hands on a device worker (`serve --device-workers 1`), which wakes on either
-/// bridge's event; `SessionInfo.tools` names each tool's channel.
+/// bridge's event; `SessionInfo.tools` names each tool's channel, and the session's statistics
+/// and metrics report each bridge, named by its tool.
 #[test]
 fn two_bridges_drive_a_device_worker_session_through_a_channel_per_tool() {
     use vademecum_client::{Client, SceneSpec};
     let text = util::two_probes().to_string();
-    let server = util::Server::start(&["--device-workers", "1"], &[]);
+    let server = util::Server::start(&["--device-workers", "1", "--metrics", "127.0.0.1:0"], &[]);
     let rt = util::runtime();
     let client = rt.block_on(Client::connect(server.url.clone())).unwrap();
     let session = rt
@@ -402,6 +411,31 @@ fn two_bridges_drive_a_device_worker_session_through_a_channel_per_tool() {
     let threads = server.threads();
     assert!(threads.iter().any(|t| t == "device-worker-0"), "{threads:?}");
     assert!(!threads.iter().any(|t| t.starts_with("tick-s")), "{threads:?}");
+    // each bridge's final report, under the tool it moved (the worker keeps both)
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let stats = loop {
+        let st = rt.block_on(session.stats()).unwrap();
+        if st.bridges.len() == 2 || Instant::now() > deadline {
+            break st;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let tools: Vec<&str> = stats.bridges.iter().map(|b| b.tool.as_str()).collect();
+    assert_eq!(tools, ["probe", "left"], "{stats:?}");
+    for b in &stats.bridges {
+        assert!(b.latency_p50_us > 0.0 && b.latency_p99_us >= b.latency_p50_us, "{b:?}");
+    }
+    // the first tool's bridge is also the one in the older fields
+    assert_eq!(stats.bridge_latency_p50_us, stats.bridges[0].latency_p50_us);
+    let text = scrape(server.metrics.as_deref().unwrap());
+    for tool in ["probe", "left"] {
+        let series = "vademecum_bridge_latency_seconds{session=\"s";
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with(series) && l.contains(&format!(",tool=\"{tool}\",quantile="))),
+            "{tool}'s bridge missing from:\n{text}"
+        );
+    }
 }
 
 /// Two bridges on the session of `ch` (a two-probe scene: `util::two_probes`), replaying

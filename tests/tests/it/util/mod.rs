@@ -242,6 +242,13 @@ impl HapticRun {
         Self { child }
     }
 
+    /// Stops it as an operator would (SIGTERM: it ends its session and writes its summary)
+    /// and waits for it to exit.
+    pub fn stop(mut self) -> std::process::ExitStatus {
+        let _ = Command::new("kill").args(["-TERM", &self.child.id().to_string()]).status();
+        self.child.wait().expect("vademecum run exits")
+    }
+
     /// Kills it at once (SIGKILL: a crash, leaving its shared memory behind).
     pub fn crash(mut self) {
         let _ = self.child.kill();
