@@ -473,7 +473,11 @@ fn organ_pressed_straight_in_along_the_normal_never_loses_force() {
 /// Straight presses that are not along the normal (issue 44's open part, docs/contact.md):
 /// straight down (−z) at six points of the organ to 16 radii, and in from +y through the lobe;
 /// prints, per press, the largest fall of the force between two 10 µm steps while the tip is
-/// inside and below the force limit, and the falls summed. A measurement, not a check: run with
+/// inside and below the force limit, and the falls summed; then sweeps 10 cm across the top
+/// at three depths (0.5, 1.5 and 3 radii where they start) and three y, printing the largest
+/// force step per 10 µm (continuity) and the largest horizontal / vertical force (how much a
+/// sweep drags the tissue — none for a frictionless proxy on a flat top). A measurement, not a
+/// check: run with
 /// `cargo test -p vademecum-engine --test it oblique_presses -- --ignored --nocapture`.
 #[test]
 #[ignore]
@@ -530,5 +534,40 @@ fn oblique_presses_where_the_force_falls() {
         eprintln!(
             "{name}: largest fall {worst:.4} N at {at:.5} m along the press (the proxy moved {jump:.1e} m in that step), falls summed {cum:.2} N; depth falls summed {dcum:.2e} m; touched at {dfirst:?}"
         );
+    }
+    // sweeps across the top at depths below and past one radius: the largest change of the
+    // force in a 10 µm step (continuity) and the largest tangential share of it (drag)
+    for depth in [0.5 * r, 1.5 * r, 3.0 * r] {
+        for y in [-0.02, 0.0, 0.02] {
+            pipe.reset();
+            let top = |x: f64| {
+                // the organ's top surface under (x, y): the first contact going down
+                let mut p = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+                let mut z = 0.06;
+                while z > -0.06 && tick(&mut p, [x, y, z]).contact.is_none() {
+                    z -= 1e-4;
+                }
+                z - r
+            };
+            let x0 = -0.05;
+            let z = top(x0) + r - depth;
+            let (mut most_step, mut drag, mut last) = (0.0f64, 0.0f64, None::<[f64; 3]>);
+            for i in 0..=10_000 {
+                let x = x0 + 0.1 * i as f64 / 10_000.0;
+                let s = tick(&mut pipe, [x, y, z]);
+                if let (Some(_), Some(l)) = (s.contact, last) {
+                    most_step = most_step.max(norm(sub(s.force_n, l)));
+                    let vertical = s.force_n[2].abs();
+                    if vertical > 0.05 {
+                        drag = drag.max(norm([s.force_n[0], s.force_n[1], 0.0]) / vertical);
+                    }
+                }
+                last = s.contact.map(|_| s.force_n);
+            }
+            eprintln!(
+                "sweep at {:.1} radii deep, y = {y}: largest force step {most_step:.4} N per 10 µm, largest horizontal / vertical force {drag:.2}",
+                depth / r
+            );
+        }
     }
 }
