@@ -39,15 +39,6 @@ pub enum ToolNameError {
     },
 }
 
-/// The engine's kind of a scene tool.
-pub(crate) fn spec_kind(t: &ToolSpec) -> ToolKind {
-    match t {
-        ToolSpec::Probe { .. } => ToolKind::Probe,
-        ToolSpec::Scalpel { .. } => ToolKind::Scalpel,
-        ToolSpec::Grasper { .. } => ToolKind::Grasper,
-    }
-}
-
 /// A tool state as the tick reads it, its `tool` name resolved among the scene's `tools`
 /// (its index; an empty name is tool 0, the session's one tool at a time, whatever its kind;
 /// a named tool with an unspecified kind takes the tool's). Values are not checked here: the
@@ -64,7 +55,7 @@ pub fn tool_input(t: &pb::ToolState, tools: &[ToolSpec]) -> Result<ToolInput, To
             known: tools.iter().map(|s| format!("'{}'", s.name())).collect::<Vec<_>>().join(", "),
         });
     };
-    let is = spec_kind(&tools[index]);
+    let is = crate::session::tool_kind(&tools[index]);
     if t.kind == pb::ToolKind::Unspecified as i32 {
         input.kind = is;
     } else if input.kind != is {

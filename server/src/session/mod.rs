@@ -56,7 +56,7 @@ use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::contact::Bounds;
 use vademecum_engine::pipeline::{GraspSite, Pipeline, PipelineError, TickState, ToolInput, ToolKind};
 use vademecum_engine::scene::Scene;
-use vademecum_engine::scene::schema::Fallback;
+use vademecum_engine::scene::schema::{Fallback, ToolSpec};
 use vademecum_proto::shm::{ChannelNameError, HapticChannel, OpenError};
 use workers::Placed;
 
@@ -438,6 +438,15 @@ impl PipelineParts {
     }
 }
 
+/// The engine's kind of a scene tool.
+pub fn tool_kind(t: &ToolSpec) -> ToolKind {
+    match t {
+        ToolSpec::Probe { .. } => ToolKind::Probe,
+        ToolSpec::Scalpel { .. } => ToolKind::Scalpel,
+        ToolSpec::Grasper { .. } => ToolKind::Grasper,
+    }
+}
+
 /// The tick thread's form of `script`: each hand's stream registered with `router` and the
 /// state it sends resolved — a named tool's kind is the scene's; a scalpel needs a blade in
 /// its trajectory, and a tool moves with one hand at most.
@@ -458,7 +467,7 @@ fn script_run(script: Script, scene: &Scene, router: &answers::Router) -> Result
                 return Err(why(format!("the scene has no tool {t} ({} tools)", tools.len())));
             }
             Some(t) => {
-                let kind = crate::convert::spec_kind(&tools[t]);
+                let kind = tool_kind(&tools[t]);
                 if kind == ToolKind::Scalpel && !h.trajectory.has_blade() {
                     return Err(why(format!("'{}' is a scalpel, but its trajectory has no blade", tools[t].name())));
                 }
