@@ -353,7 +353,7 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
         bridge_latency_p99_us: b.latency_us.p99,
         bridge_deadline_misses: b.deadline_misses,
         bridge_watchdog_ticks: b.watchdog_ticks,
-        bridge_input_rejections: b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+        bridge_input_rejections: b.input_rejections(),
         fidelity_fallbacks: st.fallbacks,
         fidelity_reduced: e.session.stats().reduced.load(Relaxed),
         reduced_ticks: st.reduced_ticks,
@@ -366,7 +366,7 @@ pub fn session_stats(e: &Entry) -> pb::SessionStats {
                 latency_p99_us: b.latency_us.p99,
                 deadline_misses: b.deadline_misses,
                 watchdog_ticks: b.watchdog_ticks,
-                input_rejections: b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+                input_rejections: b.input_rejections(),
             })
             .collect(),
         memory_bytes: memory.total(),

@@ -210,7 +210,7 @@ fn bridge_metrics(out: &mut String, all: &[std::sync::Arc<crate::registry::Entry
         (
             "vademecum_bridge_input_rejections_total",
             "Device samples held (non-finite) or clamped (jump, workspace).",
-            |b| b.rejected_non_finite + b.clamped_jumps + b.clamped_workspace,
+            |b| b.input_rejections(),
         ),
         (
             "vademecum_bridge_force_limits_total",

@@ -452,6 +452,7 @@ pub fn tool_kind(t: &ToolSpec) -> ToolKind {
 /// its trajectory, and a tool moves with one hand at most.
 fn script_run(script: Script, scene: &Scene, router: &answers::Router) -> Result<tick::ScriptRun, SessionError> {
     let tools = &scene.spec.tools;
+    let duration_s = script.duration_s();
     if script.hands.is_empty() {
         return Err(SessionError::Hand {
             hand: 0,
@@ -490,7 +491,6 @@ fn script_run(script: Script, scene: &Scene, router: &answers::Router) -> Result
             why: "a script of several hands names the tool of each".into(),
         });
     }
-    let duration_s = hands.iter().map(|h| h.trajectory.duration_s()).fold(0.0, f64::max);
     Ok(tick::ScriptRun { hands, duration_s })
 }
 

@@ -256,6 +256,13 @@ pub struct BridgeSnapshot {
     pub latency_us: Percentiles,
 }
 
+impl BridgeSnapshot {
+    /// Device samples the bridge held (non-finite) or clamped (a jump, the workspace).
+    pub fn input_rejections(&self) -> u64 {
+        self.rejected_non_finite + self.clamped_jumps + self.clamped_workspace
+    }
+}
+
 impl From<&BridgeReport> for BridgeSnapshot {
     fn from(r: &BridgeReport) -> Self {
         let us = |ns: u64| ns as f64 / 1e3;

@@ -612,7 +612,7 @@ struct Period {
 }
 
 /// Keeps the newest report of the bridge of tool `tool` in `stats`.
-pub(super) fn keep_bridge_report(stats: &TickStats, peer: &mut HapticPeer, tool: usize) {
+fn keep_bridge_report(stats: &TickStats, peer: &mut HapticPeer, tool: usize) {
     if let Some(r) = peer.poll_report() {
         stats.bridges[tool.min(MAX_TOOLS - 1)].store(&r);
     }

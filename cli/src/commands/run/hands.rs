@@ -46,13 +46,13 @@ impl PlayedHand {
         }
     }
 
-    /// A file of the run for this hand (its trajectory): `<stem>.<ext>` for a run of one
-    /// hand, `<stem>_<tool>.<ext>` for each of several.
-    pub fn file(&self, record: &Path, stem: &str, ext: &str, several: bool) -> PathBuf {
+    /// Where the run writes this hand's trajectory: `trajectory.csv` for a run of one hand,
+    /// `trajectory_<tool>.csv` for each of several.
+    pub fn script_file(&self, record: &Path, several: bool) -> PathBuf {
         if several {
-            record.join(format!("{stem}_{}.{ext}", self.name))
+            record.join(format!("trajectory_{}.csv", self.name))
         } else {
-            record.join(format!("{stem}.{ext}"))
+            record.join("trajectory.csv")
         }
     }
 }

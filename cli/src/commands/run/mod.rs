@@ -40,8 +40,8 @@ struct Summary {
     organs: Vec<String>,
     effects: Vec<&'static str>,
     trajectory: String,
-    /// Each hand of a run of several (one per tool, each with its own force log); empty for
-    /// a run of one, whose figures are the run's.
+    /// Each hand of a run of several (one per tool; its rows of `forces.csv` carry its
+    /// name); empty for a run of one, whose figures are the run's.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     hands: Vec<HandSummary>,
     duration_s: f64,
@@ -373,13 +373,11 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     let scripted = hands::scripted(&scene, &a.script)?;
     let cutting = scene.spec.effects.cutting;
     if cutting {
-        match scripted.as_slice() {
-            [] => check_blade(&scene, None)?,
-            several => {
-                for h in several.iter().filter(|h| h.kind(&scene, cutting, false) == HandKind::Scalpel) {
-                    check_blade(&scene, Some(&h.trajectory))?;
-                }
-            }
+        if scripted.is_empty() {
+            check_blade(&scene, None)?;
+        }
+        for h in scripted.iter().filter(|h| h.kind(&scene, cutting, false) == HandKind::Scalpel) {
+            check_blade(&scene, Some(&h.trajectory))?;
         }
     }
     let tearing = scene.spec.effects.tearing;
@@ -400,7 +398,7 @@ pub fn run(a: RunArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&frames_dir).with_context(|| format!("cannot create {}", frames_dir.display()))?;
     let mut hand_scripts = Vec::with_capacity(hands.len());
     for h in &hands {
-        let file = h.file(&record, "trajectory", "csv", several);
+        let file = h.script_file(&record, several);
         h.trajectory
             .write(&file)
             .with_context(|| format!("cannot write {}", file.display()))?;
