@@ -665,8 +665,8 @@ pub struct ServeArgs {
     /// Run as an Agones GameServer (deploy/k8s/, agones.enabled): Ready once serving, health
     /// pings, the Counter "sessions" kept at the sessions held, Allocated while it holds any
     /// (a fleet scale-down or rolling update never removes it), Shutdown once drained. Needs
-    /// the Agones SDK sidecar (AGONES_SDK_GRPC_PORT) and a build with `--features agones`
-    /// (the container image is one).
+    /// the Agones SDK sidecar (localhost:AGONES_SDK_GRPC_PORT, 9357 by default; waits 30 s
+    /// for it).
     #[arg(long)]
     pub agones: bool,
 }

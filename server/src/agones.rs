@@ -1,5 +1,6 @@
-//! Agones integration (`vademecum serve --agones`, cargo feature `agones`): the server as a
-//! `GameServer` of an Agones `Fleet` (`deploy/k8s/`), through the Agones SDK sidecar.
+//! Agones integration (`vademecum serve --agones`): the server as a `GameServer` of an Agones
+//! `Fleet` (`deploy/k8s/`), through the Agones SDK sidecar's gRPC contract
+//! ([`vademecum_proto::agones`], generated from Agones' own protos with the project's tonic).
 //!
 //! - **Ready** once serving: the GameServer joins the fleet's pool of allocatable servers.
 //! - **Health** pings every [`HEALTH_EVERY`]: Agones restarts a GameServer that stops pinging.
@@ -13,7 +14,9 @@
 
 use std::time::Duration;
 
-use tokio::sync::watch;
+use tokio::sync::{mpsc, watch};
+use tonic::transport::Channel;
+use vademecum_proto::agones::{beta, sdk};
 
 use crate::registry::Occupancy;
 
@@ -23,15 +26,115 @@ pub const HEALTH_EVERY: Duration = Duration::from_secs(2);
 /// The Counter the server keeps at its session count.
 pub const SESSIONS_COUNTER: &str = "sessions";
 
-/// Connects to the Agones SDK sidecar (`AGONES_SDK_GRPC_PORT`, 9357 by default), waiting up to
-/// 30 s for it.
-pub async fn connect() -> anyhow::Result<agones::Sdk> {
-    agones::Sdk::new(None, Some(Duration::from_secs(30))).await.map_err(|e| {
-        anyhow::anyhow!(
-            "--agones: no Agones SDK server answered on localhost:{} within 30 s ({e}): run under an Agones Fleet, or drop --agones",
-            std::env::var("AGONES_SDK_GRPC_PORT").unwrap_or_else(|_| "9357".into())
-        )
-    })
+/// How long [`Sdk::connect`] waits for the sidecar to answer.
+pub const CONNECT_WITHIN: Duration = Duration::from_secs(30);
+
+/// A client of the Agones SDK sidecar: the stable service (state changes, health) and the beta
+/// one (Counters), on one channel.
+#[derive(Clone)]
+pub struct Sdk {
+    stable: sdk::sdk_client::SdkClient<Channel>,
+    beta: beta::sdk_client::SdkClient<Channel>,
+}
+
+impl Sdk {
+    /// Connects to the sidecar on `localhost:AGONES_SDK_GRPC_PORT` (9357 when unset, as every
+    /// Agones SDK does), asking for the GameServer every 100 ms until it answers, for at most
+    /// [`CONNECT_WITHIN`] (the sidecar may start after the game server's container).
+    pub async fn connect() -> anyhow::Result<Self> {
+        let port = std::env::var("AGONES_SDK_GRPC_PORT").unwrap_or_else(|_| "9357".into());
+        let port: u16 = port
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--agones: AGONES_SDK_GRPC_PORT={port:?} is not a port number"))?;
+        let channel = Channel::from_shared(format!("http://localhost:{port}"))?
+            .connect_timeout(CONNECT_WITHIN)
+            .connect_lazy();
+        let mut stable = sdk::sdk_client::SdkClient::new(channel.clone());
+        let answered = tokio::time::timeout(CONNECT_WITHIN, async {
+            let mut tries = tokio::time::interval(Duration::from_millis(100));
+            loop {
+                tries.tick().await;
+                match stable.get_game_server(sdk::Empty {}).await {
+                    Ok(_) => return,
+                    Err(e) => tracing::debug!(error = %e, "Agones: the SDK sidecar does not answer yet"),
+                }
+            }
+        })
+        .await;
+        answered.map_err(|_| {
+            anyhow::anyhow!(
+                "--agones: no Agones SDK server answered on localhost:{port} within {} s: run under an Agones Fleet, or drop --agones",
+                CONNECT_WITHIN.as_secs()
+            )
+        })?;
+        Ok(Self {
+            stable,
+            beta: beta::sdk_client::SdkClient::new(channel),
+        })
+    }
+
+    /// Marks the GameServer Ready (allocatable).
+    pub async fn ready(&mut self) -> Result<(), tonic::Status> {
+        self.stable.ready(sdk::Empty {}).await.map(drop)
+    }
+
+    /// Allocates the GameServer to itself (protected from scale-down).
+    pub async fn allocate(&mut self) -> Result<(), tonic::Status> {
+        self.stable.allocate(sdk::Empty {}).await.map(drop)
+    }
+
+    /// Asks Agones to shut the GameServer down.
+    pub async fn shutdown(&mut self) -> Result<(), tonic::Status> {
+        self.stable.shutdown(sdk::Empty {}).await.map(drop)
+    }
+
+    /// Opens the Health stream: each `()` sent on the returned channel is one ping. The stream
+    /// is reopened (after a second) if the sidecar ends it, for as long as the channel lives.
+    pub fn health(&self) -> mpsc::Sender<()> {
+        let (tx, mut rx) = mpsc::channel::<()>(4);
+        let client = self.stable.clone();
+        tokio::spawn(async move {
+            loop {
+                let (ping, pings) = mpsc::channel::<sdk::Empty>(4);
+                let stream = tokio_stream::wrappers::ReceiverStream::new(pings);
+                let call = tokio::spawn({
+                    let mut client = client.clone();
+                    async move { client.health(stream).await }
+                });
+                while let Some(()) = rx.recv().await {
+                    if ping.send(sdk::Empty {}).await.is_err() {
+                        break; // the call ended: reopen it
+                    }
+                }
+                drop(ping);
+                if let Ok(Err(e)) = call.await {
+                    tracing::warn!(error = %e, "Agones: the Health stream ended");
+                }
+                if rx.is_closed() {
+                    return;
+                }
+                tokio::time::sleep(Duration::from_secs(1)).await;
+            }
+        });
+        tx
+    }
+
+    /// Sets a Counter's count or capacity (beta Counters; the Counter must be declared in the
+    /// GameServer's spec).
+    async fn update_counter(&mut self, name: &str, count: Option<i64>, capacity: Option<i64>) -> Result<(), tonic::Status> {
+        let update = beta::CounterUpdateRequest {
+            name: name.to_owned(),
+            count,
+            capacity,
+            count_diff: 0,
+        };
+        self.beta
+            .update_counter(beta::UpdateCounterRequest {
+                counter_update_request: Some(update),
+            })
+            .await
+            .map(drop)
+    }
 }
 
 /// What the GameServer should be told after a change of occupancy.
@@ -61,16 +164,15 @@ pub fn transition(allocated: bool, now: Occupancy) -> Transition {
 /// Runs the GameServer's side for as long as the server runs: Ready, health pings, the
 /// sessions Counter, Allocate / Ready / Shutdown as sessions come and go. SDK errors are
 /// logged, never fatal: the sessions keep running.
-pub async fn follow(mut sdk: agones::Sdk, mut occupancy: watch::Receiver<Occupancy>, capacity: u32) {
-    let mut beta = sdk.beta().clone();
-    if let Err(e) = beta.set_counter_capacity(SESSIONS_COUNTER, i64::from(capacity)).await {
+pub async fn follow(mut sdk: Sdk, mut occupancy: watch::Receiver<Occupancy>, capacity: u32) {
+    if let Err(e) = sdk.update_counter(SESSIONS_COUNTER, None, Some(i64::from(capacity))).await {
         tracing::warn!(error = %e, "Agones: cannot set the sessions Counter's capacity (declare counters.sessions in the GameServer spec)");
     }
     match sdk.ready().await {
         Ok(()) => tracing::info!("Agones: Ready"),
         Err(e) => tracing::error!(error = %e, "Agones: Ready refused"),
     }
-    let health = sdk.health_check();
+    let health = sdk.health();
     let mut pings = tokio::time::interval(HEALTH_EVERY);
     let (mut allocated, mut shut) = (false, false);
     loop {
@@ -83,7 +185,7 @@ pub async fn follow(mut sdk: agones::Sdk, mut occupancy: watch::Receiver<Occupan
                     return; // the server stopped
                 }
                 let now = *occupancy.borrow_and_update();
-                if let Err(e) = beta.set_counter_count(SESSIONS_COUNTER, i64::from(now.sessions)).await {
+                if let Err(e) = sdk.update_counter(SESSIONS_COUNTER, Some(i64::from(now.sessions)), None).await {
                     tracing::warn!(error = %e, sessions = now.sessions, "Agones: cannot update the sessions Counter");
                 }
                 let step = transition(allocated, now);

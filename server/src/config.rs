@@ -80,7 +80,7 @@ pub struct ServerConfig {
     pub name: String,
     /// The fleet this server is a front door of (`None`: it serves its own sessions alone).
     pub fleet: Option<FleetConfig>,
-    /// Run as an Agones GameServer (`--agones`; builds with the `agones` feature).
+    /// Run as an Agones GameServer (`--agones`).
     pub agones: bool,
     /// How a session driven by a device bridge waits for its states (`None`: the hybrid
     /// wait), unless `session.haptic` gives the whole haptic configuration.

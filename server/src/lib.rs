@@ -14,7 +14,7 @@
 //!   of errors to status codes, [`auth`] the bearer-token interceptor.
 //! - [`fleet`]: a fleet of servers routing sessions between them (placement by load reports,
 //!   redirects, draining).
-//! - `agones` (feature `agones`): the server as an Agones GameServer (`--agones`).
+//! - `agones`: the server as an Agones GameServer (`--agones`).
 //! - [`web`]: the browser viewer and gRPC-web (`--web`).
 //! - [`metrics`]: the Prometheus endpoint. [`config`]: the settings.
 //!
@@ -28,7 +28,6 @@
 //! `vademecum-cli` crate, above this one; this library depends on neither the client SDK nor
 //! the plotting and progress crates.
 
-#[cfg(feature = "agones")]
 pub mod agones;
 pub mod auth;
 pub mod bundle_fetch;
@@ -92,15 +91,10 @@ pub async fn run(
         config.session.framing = Some(std::sync::Arc::new(workers));
     }
     let registry = Registry::new(config.clone());
-    #[cfg(feature = "agones")]
     if config.agones {
-        let sdk = agones::connect().await?;
+        let sdk = agones::Sdk::connect().await?;
         let capacity = u32::try_from(config.max_sessions).unwrap_or(u32::MAX);
         tokio::spawn(agones::follow(sdk, registry.occupancy(), capacity));
-    }
-    #[cfg(not(feature = "agones"))]
-    if config.agones {
-        anyhow::bail!("--agones: this build has no Agones support; build with `--features agones` (the container image does)");
     }
     let auth = Auth::new(config.tokens.clone());
     let (health, health_service) = tonic_health::server::health_reporter();

@@ -183,16 +183,3 @@ fn a_session_asked_of_any_server_is_placed_redirected_and_survives_a_drain_of_an
         device.close().await.unwrap();
     });
 }
-
-/// A build without the `agones` feature refuses `--agones` and says how to get it.
-#[cfg(not(feature = "agones"))]
-#[test]
-fn a_build_without_agones_refuses_the_flag_and_says_why() {
-    let o = Command::new(util::vademecum_bin())
-        .args(["serve", "--listen", "127.0.0.1:0", "--no-auth", "--agones"])
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("--features agones"), "{err}");
-}

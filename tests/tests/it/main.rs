@@ -1,9 +1,10 @@
 //! The end-to-end tests across processes, as modules of one test binary (one link instead of
-//! one per file). `agones.rs` stays apart: it needs the `agones` feature.
+//! one per file).
 //! Run one module with `cargo test -p vademecum-tests --test it haptic::`.
 
 mod util;
 
+mod agones;
 mod bundle_store;
 mod composed;
 mod cutting;

@@ -1,27 +1,17 @@
-//! `vademecum serve --agones` against a fake Agones SDK server (the sidecar's gRPC contract,
-//! tests/proto/): Ready once serving, health pings, the Counter "sessions" at the sessions held
-//! (capacity --max-sessions), Allocated while it holds any, Ready again when the last closes,
-//! Shutdown once drained. Runs with `--features agones` (.ci/run does).
-#![cfg(feature = "agones")]
+//! `vademecum serve --agones` against a fake Agones SDK sidecar (the sidecar's gRPC contract,
+//! `proto/agones/`, served here): Ready once serving, health pings, the Counter "sessions" at
+//! the sessions held (capacity --max-sessions), Allocated while it holds any, Ready again when
+//! the last closes, Shutdown once drained; and a clear refusal when no sidecar answers.
 
-#[path = "it/util/mod.rs"]
-mod util;
-
+use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use tonic::{Request, Response, Status, Streaming};
 use vademecum_client::{Client, SceneSpec};
+use vademecum_proto::agones::{beta, sdk};
 
-mod fake {
-    pub mod sdk {
-        tonic::include_proto!("agones.dev.sdk");
-    }
-    pub mod beta {
-        tonic::include_proto!("agones.dev.sdk.beta");
-    }
-}
-use fake::{beta, sdk};
+use crate::util;
 
 /// What the fake sidecar was told.
 #[derive(Debug, Default)]
@@ -75,7 +65,20 @@ impl sdk::sdk_server::Sdk for Sidecar {
         Ok(Response::new(sdk::Empty {}))
     }
     async fn get_game_server(&self, _: Request<sdk::Empty>) -> Result<Response<sdk::GameServer>, Status> {
-        Ok(Response::new(sdk::GameServer {}))
+        Ok(Response::new(sdk::GameServer::default()))
+    }
+    type WatchGameServerStream = tokio_stream::Empty<Result<sdk::GameServer, Status>>;
+    async fn watch_game_server(&self, _: Request<sdk::Empty>) -> Result<Response<Self::WatchGameServerStream>, Status> {
+        Err(Status::unimplemented("not called by the server"))
+    }
+    async fn set_label(&self, _: Request<sdk::KeyValue>) -> Result<Response<sdk::Empty>, Status> {
+        Err(Status::unimplemented("not called by the server"))
+    }
+    async fn set_annotation(&self, _: Request<sdk::KeyValue>) -> Result<Response<sdk::Empty>, Status> {
+        Err(Status::unimplemented("not called by the server"))
+    }
+    async fn reserve(&self, _: Request<sdk::Duration>) -> Result<Response<sdk::Empty>, Status> {
+        Err(Status::unimplemented("not called by the server"))
     }
 }
 
@@ -99,13 +102,13 @@ impl beta::sdk_server::Sdk for Sidecar {
         }
         let mut t = self.told();
         if let Some(c) = u.capacity {
-            t.counter.1 = c.value;
+            t.counter.1 = c;
         }
         if let Some(c) = u.count {
-            if c.value > t.counter.1 {
+            if c > t.counter.1 {
                 return Err(Status::out_of_range("count above capacity"));
             }
-            t.counter.0 = c.value;
+            t.counter.0 = c;
         }
         t.counter.0 += u.count_diff;
         Ok(Response::new(beta::Counter {
@@ -169,4 +172,17 @@ fn an_agones_game_server_is_ready_counts_its_sessions_is_allocated_while_it_hold
     });
     let pings = sidecar.told().health_pings;
     assert!(pings >= 1, "{pings}");
+}
+
+/// A sidecar port that is not a port number is refused at once, with the variable named.
+#[test]
+fn serve_with_agones_refuses_a_sidecar_port_that_is_not_a_port() {
+    let o = Command::new(util::vademecum_bin())
+        .args(["serve", "--listen", "127.0.0.1:0", "--no-auth", "--agones"])
+        .env("AGONES_SDK_GRPC_PORT", "ninety")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("AGONES_SDK_GRPC_PORT=\"ninety\" is not a port number"), "{err}");
 }
