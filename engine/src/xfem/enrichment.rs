@@ -9,13 +9,22 @@
 //! seed: no cut shorter than a cell.
 //!
 //! # Cracked nodes (§3.2.2)
-//! Every node of a cut cell is *cracked*: it carries a Heaviside enrichment whose discontinuity
+//! A node of a cut cell is *cracked*: it carries a Heaviside enrichment whose discontinuity
 //! is one plane — the plane of its nearest cut cell's facet — across the node's whole support
 //! (the cells around it). Because the node's shape function vanishes on the boundary of its
 //! support, the enriched function is continuous everywhere but on that plane, whatever the
 //! neighbouring cells do: the cracking-node construction (Song & Belytschko 2009, Fig. 3.2 of
 //! the seed), in which an arbitrary blade path is represented by one plane per cracked node at
-//! its own angle θ. With [`XfemParams::node_centred`], each plane is moved to pass through its
+//! its own angle θ.
+//!
+//! # Where the cut ends: the crack front ([`Front`])
+//! A node's plane opens its whole support, so a node on the crack front — the edge of the cut
+//! inside the tissue — would open the cells *ahead* of the blade as well: the opening would run
+//! one ring of cells past where the blade stopped. With [`Front::Shared`] a node is cracked
+//! only where its plane crosses no cell of its support that the cut has not crossed: the front
+//! nodes stay shared by both sides, as in a split-node model (seed 003 §3.5), and a cut on cell
+//! faces ends exactly where the blade did. [`Front::Cracked`] cracks every node of a cut cell
+//! (seed 000 §3.4's rule), kept for comparison with the seeds' published results. With [`XfemParams::node_centred`], each plane is moved to pass through its
 //! node (the seed's node-centred cuts); then only nodes on the positive side of their plane are
 //! cracked, so that one layer of planes represents the cut, not two.
 //!
@@ -44,6 +53,20 @@ pub enum Detached {
     Remove,
 }
 
+/// Which nodes of the cut cells at the edge of a cut are cracked (module docs, "Where the cut
+/// ends").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Front {
+    /// Every node of a cut cell, those on the crack front included (seed 000 §3.4): the
+    /// opening reaches one ring of cells past the cut.
+    #[default]
+    Cracked,
+    /// Only nodes whose plane crosses no uncut cell of their support: the crack front's nodes
+    /// stay shared and the cut ends where the blade stopped (split-node, seed 003 §3.5).
+    Shared,
+}
+
 /// Parameters of the XFEM discretisation of cuts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct XfemParams {
@@ -57,6 +80,8 @@ pub struct XfemParams {
     pub node_centred: bool,
     /// What to do with detached pieces.
     pub detached: Detached,
+    /// Whether the crack front's nodes are cracked or stay shared.
+    pub front: Front,
 }
 
 impl Default for XfemParams {
@@ -66,6 +91,7 @@ impl Default for XfemParams {
             coverage: 0.05,
             node_centred: false,
             detached: Detached::Hold,
+            front: Front::Cracked,
         }
     }
 }
@@ -115,6 +141,9 @@ pub struct Enrichment {
     pub own_positive: Vec<bool>,
     /// Nodes left out by the sliver rule.
     pub dropped: Vec<DroppedNode>,
+    /// Nodes of cut cells left shared because they lie on the crack front ([`Front::Shared`]),
+    /// in increasing order.
+    pub front: Vec<usize>,
     index: Vec<u32>,
 }
 
@@ -140,6 +169,7 @@ impl Enrichment {
             planes: Vec::new(),
             own_positive: Vec::new(),
             dropped: Vec::new(),
+            front: Vec::new(),
             index: vec![NONE; mesh.n_nodes()],
         }
     }
@@ -235,6 +265,10 @@ impl Enrichment {
             }
         }
         let around = node_cells(mesh);
+        let mut is_cut = vec![false; mesh.n_cells()];
+        for &(c, _) in cut_cells {
+            is_cut[c] = true;
+        }
         let mut out = Self::none(mesh);
         out.cut_cells = cut_cells.to_vec();
         for (a, b) in best.iter().enumerate() {
@@ -242,17 +276,25 @@ impl Enrichment {
             let plane = if params.node_centred { plane.through(mesh.nodes[a]) } else { plane };
             let mut h: f64 = 0.0;
             let mut vols = [0.0; 2];
+            // whether the plane opens a cell of the support the cut has not crossed
+            let mut on_front = false;
             for &c in &around[a] {
                 mesh.cell_coords(c, &mut x);
-                h = h.max(subcell::cell_size(&x));
+                let hc = subcell::cell_size(&x);
+                h = h.max(hc);
                 let [p, m] = subcell::side_volumes(mesh.kind, &x, &plane);
                 vols[0] += p;
                 vols[1] += m;
+                on_front |= params.front == Front::Shared && !is_cut[c] && crossed(mesh.kind, &x, &plane, hc, |_| true);
             }
             let own_positive = subcell::snapped_phi(&plane, mesh.nodes[a], h) > 0.0;
             let fraction = vols[0].min(vols[1]) / (vols[0] + vols[1]);
             if fraction < params.sliver {
                 out.dropped.push(DroppedNode { node: a, fraction });
+                continue;
+            }
+            if on_front {
+                out.front.push(a);
                 continue;
             }
             out.index[a] = out.nodes.len() as u32;
@@ -270,10 +312,17 @@ impl Enrichment {
     /// nodes already enriched keep their planes and their places, and the nodes of the new cut
     /// cells not enriched yet are appended (after the sliver rule) — so the enriched degrees of
     /// freedom of an online model only ever grow at the end.
+    ///
+    /// With [`Front::Shared`] the nodes are judged against every cut cell, old and new: a node
+    /// that was on the front is cracked once the cells ahead of it are cut.
     pub fn extended(&self, mesh: &Mesh, new_cells: &[(usize, Plane)], params: &XfemParams) -> Result<Self, EnrichmentError> {
-        let fresh = Self::from_cut_cells(mesh, new_cells, params)?;
+        let fresh = match params.front {
+            Front::Cracked => Self::from_cut_cells(mesh, new_cells, params)?,
+            Front::Shared => Self::from_cut_cells(mesh, &[&self.cut_cells[..], new_cells].concat(), params)?,
+        };
         let mut out = self.clone();
         out.cut_cells.extend_from_slice(new_cells);
+        out.front = fresh.front.iter().copied().filter(|&a| out.index(a).is_none()).collect();
         for (k, &a) in fresh.nodes.iter().enumerate() {
             if out.index(a).is_none() {
                 out.index[a] = out.nodes.len() as u32;
@@ -283,7 +332,11 @@ impl Enrichment {
             }
         }
         let dropped: Vec<DroppedNode> = fresh.dropped.iter().filter(|d| out.index(d.node).is_none()).copied().collect();
-        out.dropped.extend(dropped);
+        match params.front {
+            Front::Cracked => out.dropped.extend(dropped),
+            // judged against every cut cell: the fresh list is the whole list
+            Front::Shared => out.dropped = dropped,
+        }
         Ok(out)
     }
 
@@ -302,6 +355,7 @@ impl Enrichment {
         let old = std::mem::replace(self, Self::none(mesh));
         self.cut_cells = old.cut_cells;
         self.dropped = old.dropped;
+        self.front = old.front;
         for (k, &a) in old.nodes.iter().enumerate() {
             if keep[a] {
                 self.index[a] = self.nodes.len() as u32;

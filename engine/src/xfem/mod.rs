@@ -43,6 +43,6 @@ pub mod view;
 pub mod visual;
 pub mod visual_split;
 
-pub use enrichment::{Detached, Enrichment, EnrichmentError, XfemParams};
+pub use enrichment::{Detached, Enrichment, EnrichmentError, Front, XfemParams};
 pub use subcell::Plane;
 pub use system::{XfemError, XfemSolution};

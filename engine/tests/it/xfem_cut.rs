@@ -15,7 +15,7 @@ use vademecum_engine::mesh::Mesh;
 use vademecum_engine::mesh::procedural::{self, LobeParams};
 use vademecum_engine::xfem::identity;
 use vademecum_engine::xfem::system::{self, XfemSolution};
-use vademecum_engine::xfem::{Detached, Enrichment, XfemParams};
+use vademecum_engine::xfem::{Detached, Enrichment, Front, XfemParams};
 
 fn materials(mesh: &Mesh, poisson: f64) -> MaterialMap {
     MaterialMap::uniform(LinearElastic::new(1e4, poisson).unwrap(), 1000.0, mesh.n_cells())
@@ -401,4 +401,253 @@ fn an_incision_in_the_liver_opens_and_softens_it() {
             .map(|j| (j[0] * j[0] + j[1] * j[1] + j[2] * j[2]).sqrt())
             .fold(0.0, f64::max);
     assert!(opening > 1e-4 && opening < 1e-2, "opening {opening:.3e} m");
+}
+
+/// The block cut along its cell faces by [`face_cut`] with its nodes split by hand, the crack
+/// front's shared: the nodes on x = 2 strictly above `depth` get a copy, used by the cells
+/// right of the plane. Built from the geometry alone (no enrichment), it is the split-node
+/// model the XFEM with [`Front::Shared`] must equal. Returns the mesh, its problem and, for
+/// each copied node, (original, copy).
+fn split_by_hand(mesh: &Mesh, problem: &StaticProblem, depth: f64) -> (Mesh, StaticProblem, Vec<(usize, usize)>) {
+    let n = mesh.n_nodes();
+    let split: Vec<usize> = (0..n).filter(|&a| mesh.nodes[a][0] == 2.0 && mesh.nodes[a][2] > depth).collect();
+    let copy_of = |a: usize| split.iter().position(|&b| b == a).map(|k| n + k);
+    let mut nodes = mesh.nodes.clone();
+    nodes.extend(split.iter().map(|&a| mesh.nodes[a]));
+    let npc = mesh.kind.nodes_per_cell();
+    let mut cells = Vec::new();
+    for c in mesh.cells_iter() {
+        let right = c.iter().map(|&a| mesh.nodes[a][0]).sum::<f64>() / npc as f64 > 2.0;
+        cells.extend(c.iter().map(|&a| if right { copy_of(a).unwrap_or(a) } else { a }));
+    }
+    let dup = Mesh::new(nodes, mesh.kind, cells).unwrap();
+    let mut p = StaticProblem::new(dup.n_nodes());
+    p.constrained[..3 * n].copy_from_slice(&problem.constrained);
+    p.forces[..3 * n].copy_from_slice(&problem.forces);
+    let pairs = split.iter().enumerate().map(|(k, &a)| (a, n + k)).collect();
+    (dup, p, pairs)
+}
+
+/// A cut that stops inside the tissue opens up to where the blade stopped and no further: with
+/// the crack front's nodes shared, the XFEM equals, to solver precision, a split-node model
+/// built by hand from the geometry; the seed's rule (every node of a cut cell cracked) opens
+/// the front nodes too, and differs from it by far more than the solver's error.
+#[test]
+fn a_cut_that_stops_inside_opens_to_the_blade_and_no_further_as_a_split_node_model() {
+    for tets in [false, true] {
+        let (mesh, p) = block(tets);
+        let depth = 1.0;
+        let (dup, dp, pairs) = split_by_hand(&mesh, &p, depth);
+        let mats = materials(&mesh, 0.3);
+        let locking = if tets { Locking::None } else { Locking::Bbar };
+        let reference = linear_static::solve(&dup, &materials(&dup, 0.3), locking, &dp, &mut |_| {}).unwrap();
+        let gap_to_split = |front: Front| {
+            let params = XfemParams {
+                front,
+                ..XfemParams::default()
+            };
+            let enr = Enrichment::from_cut(&mesh, &face_cut(depth), &params).unwrap();
+            let x = system::solve(&mesh, &mats, locking, &p, &enr, &params).unwrap();
+            assert!(x.residual < 1e-10);
+            let mut gap: f64 = 0.0;
+            for a in 0..mesh.n_nodes() {
+                let copy = pairs.iter().find(|(o, _)| *o == a).map(|&(_, c)| c);
+                // the node's displacement on each side: left of the plane, right of it
+                let (left, right) = match enr.index(a) {
+                    Some(k) => {
+                        let right_positive = enr.planes[k].phi([2.5, 1.0, 2.0]) > 0.0;
+                        (
+                            x.side_displacement(&enr, a, !right_positive),
+                            x.side_displacement(&enr, a, right_positive),
+                        )
+                    }
+                    None => {
+                        let u = [x.u[3 * a], x.u[3 * a + 1], x.u[3 * a + 2]];
+                        (u, u)
+                    }
+                };
+                let right_ref = copy.unwrap_or(a);
+                for i in 0..3 {
+                    gap = gap.max((left[i] - reference.u[3 * a + i]).abs());
+                    gap = gap.max((right[i] - reference.u[3 * right_ref + i]).abs());
+                }
+            }
+            let max = reference.u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            (gap / max, enr)
+        };
+        let (shared, enr) = gap_to_split(Front::Shared);
+        assert!(
+            shared < 1e-10,
+            "tets {tets}: front shared, relative gap to the split-node model {shared:.3e}"
+        );
+        // the front's three nodes (x = 2, z = 1) stay shared, the six above them are cracked
+        assert_eq!(enr.len(), 6, "tets {tets}: enriched {:?}", enr.nodes);
+        assert_eq!(enr.front.len(), 3, "tets {tets}: front {:?}", enr.front);
+        assert!(enr.front.iter().all(|&a| mesh.nodes[a][0] == 2.0 && mesh.nodes[a][2] == depth));
+        let (cracked, _) = gap_to_split(Front::Cracked);
+        assert!(
+            cracked > 1e-3,
+            "tets {tets}: the seed's rule should open the front: gap {cracked:.3e}"
+        );
+    }
+}
+
+/// A cut that grows cell by cell (the online cut) cracks a front node once the cells ahead of
+/// it are cut, and ends with what cutting it all at once gives.
+#[test]
+fn a_growing_cut_cracks_the_front_nodes_once_the_blade_has_passed_them() {
+    let (mesh, _) = block(false);
+    let params = XfemParams {
+        front: Front::Shared,
+        ..XfemParams::default()
+    };
+    let all = Enrichment::cut_cells(&mesh, &face_cut(0.0), &params).unwrap();
+    // the cells in the order a blade going down meets them
+    let mut order = all.clone();
+    order.sort_by(|a, b| {
+        let top = |c: usize| -mesh.cell(c).iter().map(|&n| mesh.nodes[n][2]).sum::<f64>();
+        top(a.0).total_cmp(&top(b.0))
+    });
+    let mut enr = Enrichment::none(&mesh);
+    for step in order.chunks(4) {
+        enr = enr.extended(&mesh, step, &params).unwrap();
+        let deepest = enr
+            .cut_cells
+            .iter()
+            .flat_map(|&(c, _)| mesh.cell(c))
+            .map(|&n| mesh.nodes[n][2])
+            .fold(f64::MAX, f64::min);
+        // the nodes on the plane strictly above the deepest cut cell's bottom are cracked, those at
+        // its bottom are the front — until the cut reaches the base, whose nodes have no cell
+        // below them: then every node on the plane is cracked
+        for a in (0..mesh.n_nodes()).filter(|&a| mesh.nodes[a][0] == 2.0) {
+            let z = mesh.nodes[a][2];
+            assert_eq!(
+                enr.index(a).is_some(),
+                z > deepest || deepest == 0.0,
+                "node at z = {z}, cut down to {deepest}"
+            );
+            assert_eq!(
+                enr.front.contains(&a),
+                z == deepest && deepest > 0.0,
+                "node at z = {z}, cut down to {deepest}"
+            );
+        }
+    }
+    let at_once = Enrichment::from_cut_cells(&mesh, &all, &params).unwrap();
+    let mut grown = enr.nodes.clone();
+    grown.sort_unstable();
+    let mut once = at_once.nodes.clone();
+    once.sort_unstable();
+    assert_eq!(grown, once);
+}
+
+/// Issue 47's block: 0.1 m wide (x) and high (y), 0.02 m thick (z), E = 3 kPa, ν = 0.45, the
+/// base clamped, 30 Pa pulling the top up, meshed with n × n × n/5 hexahedra.
+fn edge_crack_block(n: usize) -> (Mesh, StaticProblem) {
+    let mesh = procedural::block_hex([0.0; 3], [0.1, 0.1, 0.02], [n, n, (n / 5).max(1)]);
+    let mut p = StaticProblem::new(mesh.n_nodes());
+    let (hx, hz) = (0.1 / n as f64, 0.02 / (n / 5).max(1) as f64);
+    for (a, x) in mesh.nodes.iter().enumerate() {
+        if x[1] == 0.0 {
+            p.clamp(&[a]);
+        }
+        if (x[1] - 0.1).abs() < 1e-12 {
+            // the consistent nodal forces of a uniform traction on bilinear faces: a quarter of
+            // each face around the node
+            let wx = if x[0] == 0.0 || (x[0] - 0.1).abs() < 1e-12 { 0.5 } else { 1.0 };
+            let wz = if x[2] == 0.0 || (x[2] - 0.02).abs() < 1e-12 { 0.5 } else { 1.0 };
+            p.forces[3 * a + 1] = 30.0 * wx * hx * wz * hz;
+        }
+    }
+    (mesh, p)
+}
+
+/// The through-thickness cut from the left face at mid-height, 0.05 m long, at `angle` (rad)
+/// above the horizontal; the blade starts 5 mm outside the block.
+fn edge_cut(angle: f64) -> Cut {
+    let (c, s) = (angle.cos(), angle.sin());
+    let at = |t: f64| ([t * c, 0.05 + t * s, -0.001], [t * c, 0.05 + t * s, 0.021]);
+    Cut::swept(&[at(-0.005), at(0.05)]).unwrap()
+}
+
+/// The table of issue 47 (docs/cutting.md "Where the cut ends"): strain energy of the block
+/// cut horizontally and at 20°, by the seed's rule and with the front shared, at n = 10, 20,
+/// 40 (and 60 with `VADEMECUM_CUT_N60=1`, a few minutes), beside the split-node model's
+/// extrapolated energy for the horizontal cut (Richardson from n = 20, 40, 60 when run,
+/// else n = 10, 20, 40).
+/// `cargo test -p vademecum-engine --test it edge_crack_table -- --ignored --nocapture`.
+#[test]
+#[ignore = "prints the table of BENCHMARKS.md (a minute)"]
+fn edge_crack_table() {
+    let mut ns = vec![10, 20, 40];
+    if std::env::var_os("VADEMECUM_CUT_N60").is_some() {
+        ns.push(60);
+    }
+    let energy = |p: &StaticProblem, u: &[f64]| 0.5 * p.forces.iter().zip(u).map(|(f, u)| f * u).sum::<f64>();
+    let mut split_energies = Vec::new();
+    println!("n\tangle\trule\tenergy_J\tenriched\tfront\tseconds");
+    for &n in &ns {
+        let (mesh, p) = edge_crack_block(n);
+        let mats = MaterialMap::uniform(LinearElastic::new(3e3, 0.45).unwrap(), 1000.0, mesh.n_cells());
+        for (angle, name) in [(0.0, "0"), (20f64.to_radians(), "20")] {
+            for front in [Front::Cracked, Front::Shared] {
+                let params = XfemParams {
+                    front,
+                    ..XfemParams::default()
+                };
+                let enr = Enrichment::from_cut(&mesh, &edge_cut(angle), &params).unwrap();
+                let x = system::solve(&mesh, &mats, Locking::Bbar, &p, &enr, &params).unwrap();
+                assert!(x.residual < 1e-8, "residual {:.2e}", x.residual);
+                println!(
+                    "{n}\t{name}\t{front:?}\t{:.6e}\t{}\t{}\t{:.1}",
+                    energy(&p, &x.u),
+                    enr.len(),
+                    enr.front.len(),
+                    x.seconds
+                );
+            }
+        }
+        // the horizontal cut lies on cell faces (y = 0.05, x ≤ 0.05): the split-node model,
+        // by hand, the front (x = 0.05) shared
+        let n_nodes = mesh.n_nodes();
+        let split: Vec<usize> = (0..n_nodes)
+            .filter(|&a| (mesh.nodes[a][1] - 0.05).abs() < 1e-12 && mesh.nodes[a][0] < 0.05 - 1e-12)
+            .collect();
+        let mut nodes = mesh.nodes.clone();
+        nodes.extend(split.iter().map(|&a| mesh.nodes[a]));
+        let mut copy = vec![usize::MAX; n_nodes];
+        for (k, &a) in split.iter().enumerate() {
+            copy[a] = n_nodes + k;
+        }
+        let mut cells = Vec::new();
+        for c in mesh.cells_iter() {
+            let above = c.iter().map(|&a| mesh.nodes[a][1]).sum::<f64>() / 8.0 > 0.05;
+            cells.extend(c.iter().map(|&a| if above && copy[a] != usize::MAX { copy[a] } else { a }));
+        }
+        let dup = Mesh::new(nodes, mesh.kind, cells).unwrap();
+        let mut dp = StaticProblem::new(dup.n_nodes());
+        dp.constrained[..3 * n_nodes].copy_from_slice(&p.constrained);
+        dp.forces[..3 * n_nodes].copy_from_slice(&p.forces);
+        let dmats = MaterialMap::uniform(LinearElastic::new(3e3, 0.45).unwrap(), 1000.0, dup.n_cells());
+        let s = linear_static::solve(&dup, &dmats, Locking::Bbar, &dp, &mut |_| {}).unwrap();
+        let e = energy(&dp, &s.u);
+        println!("{n}\t0\tsplit-node\t{e:.6e}\t{}\t-\t-", split.len());
+        split_energies.push((n as f64, e));
+    }
+    // E(n) = E∞ + C n^(−p) through the last three: p from the ratio of differences
+    let k = split_energies.len();
+    let [(n1, e1), (n2, e2), (n3, e3)] = [split_energies[k - 3], split_energies[k - 2], split_energies[k - 1]];
+    let ratio = (e1 - e2) / (e2 - e3);
+    // solve (n1^-p − n2^-p) / (n2^-p − n3^-p) = ratio for p by bisection
+    let f = |p: f64| (n1.powf(-p) - n2.powf(-p)) / (n2.powf(-p) - n3.powf(-p)) - ratio;
+    let (mut lo, mut hi) = (0.05, 4.0);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if f(lo) * f(mid) <= 0.0 { hi = mid } else { lo = mid }
+    }
+    let p = 0.5 * (lo + hi);
+    let c = (e2 - e3) / (n2.powf(-p) - n3.powf(-p));
+    let limit = e3 - c * n3.powf(-p);
+    println!("split-node extrapolated (n = {n1}, {n2}, {n3}): energy {limit:.6e} J, rate n^-{p:.2}");
 }
