@@ -88,35 +88,29 @@ impl Sdk {
         self.stable.shutdown(sdk::Empty {}).await.map(drop)
     }
 
-    /// Opens the Health stream: each `()` sent on the returned channel is one ping. The stream
-    /// is reopened (after a second) if the sidecar ends it, for as long as the channel lives.
-    pub fn health(&self) -> mpsc::Sender<()> {
-        let (tx, mut rx) = mpsc::channel::<()>(4);
+    /// Pings the Health stream every `every`, on a task of its own (so a slow state change
+    /// never delays a ping), reopening the stream a second after the sidecar ends it. The
+    /// task runs until the returned handle is aborted.
+    pub fn keep_healthy(&self, every: Duration) -> tokio::task::JoinHandle<()> {
         let client = self.stable.clone();
         tokio::spawn(async move {
             loop {
-                let (ping, pings) = mpsc::channel::<sdk::Empty>(4);
-                let stream = tokio_stream::wrappers::ReceiverStream::new(pings);
+                let (ping, pings) = mpsc::channel(1);
                 let call = tokio::spawn({
                     let mut client = client.clone();
-                    async move { client.health(stream).await }
+                    async move { client.health(tokio_stream::wrappers::ReceiverStream::new(pings)).await }
                 });
-                while let Some(()) = rx.recv().await {
-                    if ping.send(sdk::Empty {}).await.is_err() {
-                        break; // the call ended: reopen it
-                    }
+                let mut ticks = tokio::time::interval(every);
+                // a send fails once the call has ended (its stream dropped)
+                while ping.send(sdk::Empty {}).await.is_ok() {
+                    ticks.tick().await;
                 }
-                drop(ping);
                 if let Ok(Err(e)) = call.await {
                     tracing::warn!(error = %e, "Agones: the Health stream ended");
                 }
-                if rx.is_closed() {
-                    return;
-                }
                 tokio::time::sleep(Duration::from_secs(1)).await;
             }
-        });
-        tx
+        })
     }
 
     /// Sets a Counter's count or capacity (beta Counters; the Counter must be declared in the
@@ -172,38 +166,29 @@ pub async fn follow(mut sdk: Sdk, mut occupancy: watch::Receiver<Occupancy>, cap
         Ok(()) => tracing::info!("Agones: Ready"),
         Err(e) => tracing::error!(error = %e, "Agones: Ready refused"),
     }
-    let health = sdk.health();
-    let mut pings = tokio::time::interval(HEALTH_EVERY);
+    let health = sdk.keep_healthy(HEALTH_EVERY);
     let (mut allocated, mut shut) = (false, false);
-    loop {
-        tokio::select! {
-            _ = pings.tick() => {
-                let _ = health.try_send(());
-            }
-            changed = occupancy.changed() => {
-                if changed.is_err() {
-                    return; // the server stopped
-                }
-                let now = *occupancy.borrow_and_update();
-                if let Err(e) = sdk.update_counter(SESSIONS_COUNTER, Some(i64::from(now.sessions)), None).await {
-                    tracing::warn!(error = %e, sessions = now.sessions, "Agones: cannot update the sessions Counter");
-                }
-                let step = transition(allocated, now);
-                let done = match step {
-                    Transition::None => Ok(()),
-                    Transition::Allocate => sdk.allocate().await.map(|()| allocated = true),
-                    Transition::Ready => sdk.ready().await.map(|()| allocated = false),
-                    Transition::Shutdown if !shut => sdk.shutdown().await.map(|()| shut = true),
-                    Transition::Shutdown => Ok(()),
-                };
-                match done {
-                    Ok(()) if step != Transition::None => tracing::info!(?step, sessions = now.sessions, "Agones: state set"),
-                    Ok(()) => {}
-                    Err(e) => tracing::error!(?step, error = %e, "Agones refused a state change"),
-                }
-            }
+    // until the server stops
+    while occupancy.changed().await.is_ok() {
+        let now = *occupancy.borrow_and_update();
+        if let Err(e) = sdk.update_counter(SESSIONS_COUNTER, Some(i64::from(now.sessions)), None).await {
+            tracing::warn!(error = %e, sessions = now.sessions, "Agones: cannot update the sessions Counter");
+        }
+        let step = transition(allocated, now);
+        let done = match step {
+            Transition::None => Ok(()),
+            Transition::Allocate => sdk.allocate().await.map(|()| allocated = true),
+            Transition::Ready => sdk.ready().await.map(|()| allocated = false),
+            Transition::Shutdown if !shut => sdk.shutdown().await.map(|()| shut = true),
+            Transition::Shutdown => Ok(()),
+        };
+        match done {
+            Ok(()) if step != Transition::None => tracing::info!(?step, sessions = now.sessions, "Agones: state set"),
+            Ok(()) => {}
+            Err(e) => tracing::error!(?step, error = %e, "Agones refused a state change"),
         }
     }
+    health.abort();
 }
 
 #[cfg(test)]

@@ -15,7 +15,9 @@
 //! support, the enriched function is continuous everywhere but on that plane, whatever the
 //! neighbouring cells do: the cracking-node construction (Song & Belytschko 2009, Fig. 3.2 of
 //! the seed), in which an arbitrary blade path is represented by one plane per cracked node at
-//! its own angle θ.
+//! its own angle θ. With [`XfemParams::node_centred`], each plane is moved to pass through its
+//! node (the seed's node-centred cuts); then only nodes on the positive side of their plane are
+//! cracked, so that one layer of planes represents the cut, not two.
 //!
 //! # Where the cut ends: the crack front ([`Front`])
 //! A node's plane opens its whole support, so a node on the crack front — the edge of the cut
@@ -24,9 +26,7 @@
 //! only where its plane crosses no cell of its support that the cut has not crossed: the front
 //! nodes stay shared by both sides, as in a split-node model (seed 003 §3.5), and a cut on cell
 //! faces ends exactly where the blade did. [`Front::Cracked`] cracks every node of a cut cell
-//! (seed 000 §3.4's rule), kept for comparison with the seeds' published results. With [`XfemParams::node_centred`], each plane is moved to pass through its
-//! node (the seed's node-centred cuts); then only nodes on the positive side of their plane are
-//! cracked, so that one layer of planes represents the cut, not two.
+//! (seed 000 §3.4's rule), kept for comparison with the seeds' published results.
 //!
 //! # The sliver rule (conditioning)
 //! When one side of a node's support is a tiny fraction of the support's volume, the enriched
@@ -55,8 +55,7 @@ pub enum Detached {
 
 /// Which nodes of the cut cells at the edge of a cut are cracked (module docs, "Where the cut
 /// ends").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Front {
     /// Every node of a cut cell, those on the crack front included (seed 000 §3.4): the
     /// opening reaches one ring of cells past the cut.
