@@ -118,7 +118,7 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
     // tracking: from one press point to the next in 20 steps, pressed all the way
     let tracking = tracking_ticks(&mut palpation, &press_points, a.contacts, &mut acc);
     // two probes (two hands) tracking pressed slides together, their contacts solved together
-    let mut two = Palpation::for_tools(vec![bundle.clone()], vec![radius, radius], false);
+    let mut two = Palpation::for_tools(vec![bundle.clone()], vec![radius, radius], &[false]);
     let (two_probes, coupled) = two_probe_ticks(&mut two, &press_points, a.contacts, &mut acc);
     // fields
     let mut coeffs = vec![0.0; v.modes()];

@@ -312,10 +312,7 @@ pub fn merge(m: MergeArgs) -> anyhow::Result<ExitCode> {
 fn shardable(scene: &Scene) -> anyhow::Result<()> {
     let e = &scene.spec.effects;
     let more: Vec<&str> = [
-        (
-            e.deformation == vademecum_engine::scene::schema::DeformationModel::Large,
-            "large deformations",
-        ),
+        (scene.any_large(), "large deformations"),
         (e.cutting, "cutting"),
         (e.tearing, "tearing"),
     ]

@@ -12,7 +12,6 @@ use serde::{Deserialize, Serialize};
 use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::offline::BuildOptions;
 use vademecum_engine::scene::Scene;
-use vademecum_engine::scene::schema::DeformationModel;
 use vademecum_engine::study::estimate::{self, Coverage, Sample};
 
 /// The share of sampled states the estimate must bound.
@@ -69,7 +68,7 @@ pub(super) fn check(
     bar.enable_steady_tick(std::time::Duration::from_millis(120));
     bar.set_message(format!("error estimate: {points} linear states against the full model"));
     let mut samples = estimate::linear_samples(&model, bundle, points)?;
-    let large = scene.spec.effects.deformation == DeformationModel::Large;
+    let large = scene.organ_large(0);
     if large && let (Some(lattice), Some(params)) = (&bundle.anm, BuildOptions::for_scene(scene, true).large) {
         bar.set_message(format!("error estimate: full Newton at {nodes} nodes off the lattice"));
         samples.extend(estimate::large_samples(&model, lattice, &params, nodes, |done, total| {

@@ -158,6 +158,9 @@ fn scaled(d: [usize; 3], f: f64) -> [usize; 3] {
 fn palpation(scene: &Scene) -> Scene {
     let mut s = scene.clone();
     s.spec.effects.deformation = DeformationModel::Linear;
+    for o in &mut s.spec.organs {
+        o.deformation = None;
+    }
     s.spec.effects.cutting = false;
     s.spec.effects.tearing = false;
     s

@@ -28,7 +28,6 @@ use crate::pgd::vademecum::{LocalCompliance, Vademecum};
 use crate::pgd::{brute, compress};
 use crate::rom::palpation::{AnmLattice, AnmLatticeParams};
 use crate::rom::study::StudyError;
-use crate::scene::schema::DeformationModel;
 use crate::scene::{Scene, SceneError};
 use crate::solve::{self, Cholesky, SolveError};
 use crate::xfem::reduced::{Discontinuous, ReducedCut, RitzBasis};
@@ -48,7 +47,8 @@ pub struct BuildOptions {
     pub recompress: bool,
     /// Radius (m) of the tool footprint over which each unit load is spread (0: point loads).
     pub load_radius: f64,
-    /// Also build the large-deformation lattice (scenes with `effects.deformation = "large"`).
+    /// Also build the large-deformation lattice, for the organs that deform largely
+    /// ([`Scene::organ_large`]; `Some` when any does).
     pub large: Option<AnmLatticeParams>,
     /// Refuse an organ whose direct solve is estimated to need more than this many bytes
     /// ([`crate::solve::memory`]); `None`: no limit.
@@ -83,7 +83,7 @@ impl BuildOptions {
             tolerance: f.tolerance,
             recompress,
             load_radius: probe_radius(scene),
-            large: (scene.spec.effects.deformation == DeformationModel::Large).then(|| {
+            large: scene.any_large().then(|| {
                 let l = scene.spec.fidelity.large;
                 AnmLatticeParams {
                     positions: l.positions,
@@ -701,7 +701,11 @@ pub fn build_organ_from(
         tear: None,
         tear_sites: Vec::new(),
     };
-    let anm = lattice_stage(&model, opts, &mut report, on)?;
+    let anm = if scene.organ_large(index) {
+        lattice_stage(&model, opts, &mut report, on)?
+    } else {
+        None
+    };
     let cut_basis = if scene.cut_organ() == Some(index) {
         let (cut, basis) = cut_stage(scene, &model, &vademecum, opts, on)?;
         report.cut = Some(cut);
@@ -878,7 +882,8 @@ fn exact_pass(
     }
 }
 
-/// The large-deformation stage (a scene with `large`): the organ's ANM-POD lattice of
+/// The large-deformation stage (an organ that deforms largely, [`Scene::organ_large`], in
+/// options with `large`): the organ's ANM-POD lattice of
 /// palpation paths (seed 001), grown until it meets `large_target_error` against full Newton
 /// at nodes off it when there is one ([`crate::rom::lattice_check`]); its size, time and
 /// target go into `report`.

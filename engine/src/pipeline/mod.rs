@@ -28,7 +28,7 @@ use std::sync::Arc;
 
 use crate::bundle::LoadedBundle;
 use crate::scene::Scene;
-use crate::scene::schema::{DeformationModel, GLOBAL_FORCE_LIMIT_N, ToolSpec};
+use crate::scene::schema::{GLOBAL_FORCE_LIMIT_N, ToolSpec};
 
 pub use cutting::{BladeForce, Cutting};
 pub use palpation::Palpation;
@@ -429,9 +429,10 @@ impl Pipeline {
     /// A cutting scene (`effects.cutting`, linear, a scalpel) also reads its cut organ's mesh
     /// ([`Scene::cut_organ`]) and prepares its reduced cutting model from the bundle's modes
     /// (seconds on a large organ: call it off any async runtime), and starts the cut thread.
-    /// Effects compose on different organs: a scene may tear one organ (its grasper) and cut
-    /// another (its scalpel) in one session, each tool acting on the organ it touches; large
-    /// deformations with cutting or tearing are refused ([`PipelineError::Unsupported`]).
+    /// Effects compose on different organs: a scene may deform one organ largely (its own
+    /// `deformation = "large"`), tear another (its grasper) and cut a third (its scalpel) in
+    /// one session, each tool acting on the organ it touches ([`Scene::cut_organ`]); on one
+    /// organ they do not compose yet (scene validation refuses them).
     pub fn for_scene(scene: &Scene, bundles: &[Arc<LoadedBundle>]) -> Result<Self, PipelineError> {
         let fx = &scene.spec.effects;
         if bundles.len() != scene.spec.organs.len() {
@@ -449,30 +450,26 @@ impl Pipeline {
             ToolSpec::Grasper { jaw_width, max_force, .. } => Some((*jaw_width, *max_force)),
             _ => None,
         });
-        let large = fx.deformation == DeformationModel::Large;
+        // each organ's deformation; the organs cut or torn are linear (scene validation)
+        let large: Vec<bool> = (0..bundles.len()).map(|i| scene.organ_large(i)).collect();
         if fx.tearing {
             if grasper.is_none() {
                 return Err(PipelineError::NoGrasper);
             }
-            if large {
+            if crate::scene::tearing::tearable_organ(scene).is_some_and(|i| large[i]) {
                 return Err(PipelineError::Unsupported(
-                    "tearing together with large deformations (effects.tearing with deformation = \"large\")",
+                    "tearing together with large deformations on one organ (a tearable organ with deformation = \"large\")",
                 ));
             }
         }
         if fx.cutting {
-            if large {
-                return Err(PipelineError::Unsupported(
-                    "cutting with large deformations (effects.cutting with deformation = \"large\")",
-                ));
-            }
             if scalpel.is_none() {
                 return Err(PipelineError::NoScalpel);
             }
         } else if probe.is_none() && !fx.tearing {
             return Err(PipelineError::NoProbe);
         }
-        if large && let Some(i) = bundles.iter().position(|b| b.anm.is_none()) {
+        if let Some(i) = (0..bundles.len()).find(|&i| large[i] && bundles[i].anm.is_none()) {
             return Err(PipelineError::NoLattice { organ: i });
         }
         let radius = match (probe, scalpel) {
@@ -485,7 +482,7 @@ impl Pipeline {
             Some(r) => vec![Box::new(Palpation::for_tools(
                 bundles.to_vec(),
                 tip_radii(&scene.spec.tools, r),
-                large,
+                &large,
             ))],
             None => Vec::new(),
         };
@@ -747,16 +744,19 @@ impl Pipeline {
     }
 }
 
-/// Each tool's contact radius (m), by its index in the scene: a probe's own tip radius, for
-/// every other tool `radius` (the first probe's, or a scalpel's tip in a scene without
-/// probe). One entry for a scene without tools.
+/// Each tool's contact radius (m), by its index in the scene: a probe's own tip radius, a
+/// scalpel's tip ([`SCALPEL_TIP_FRACTION`] of its blade), whatever other tools the scene names
+/// (a grasper does not palpate) `radius`. One entry for a scene without tools. Each tool
+/// touches with its own tip whatever other tools the scene has: what `SessionInfo` tells
+/// clients.
 fn tip_radii(tools: &[ToolSpec], radius: f64) -> Vec<f64> {
     let radii: Vec<f64> = tools
         .iter()
         .take(MAX_TOOLS)
         .map(|t| match t {
             ToolSpec::Probe { radius, .. } => *radius,
-            _ => radius,
+            ToolSpec::Scalpel { blade_length, .. } => SCALPEL_TIP_FRACTION * blade_length,
+            ToolSpec::Grasper { .. } => radius,
         })
         .collect();
     if radii.is_empty() { vec![radius] } else { radii }

@@ -26,8 +26,9 @@
 //! one spot: the system is singular) the shallower lets go and the deeper takes the load —
 //! the limit of two tools coming together, where the split grows until one would pull.
 //!
-//! The force on the tool is the reaction `−f`. With large deformations
-//! (`effects.deformation = "large"`) the tissue's part is scaled by the organ's ANM-POD lattice
+//! The force on the tool is the reaction `−f`. On an organ that deforms largely
+//! (`effects.deformation = "large"`, or the organ's own `deformation`: each organ has its
+//! model) the tissue's part is scaled by the organ's ANM-POD lattice
 //! ([`crate::rom::palpation`]): the ratio of the nonlinear to the linear force at this depth,
 //! blended over the four nearest lattice positions — `O(r · order)` per position, no
 //! allocation; past the lattice's paths the ratio continues along their last tangent and the
@@ -77,6 +78,8 @@ struct Organ {
     modes_error: Option<f64>,
     /// The support stiffness `k_w` (N/m).
     wall_stiffness: f64,
+    /// Whether this organ deforms largely: its contact force is scaled by its lattice.
+    large: bool,
     /// The lattice's interpolation rates for its four-position blend and for its nearest
     /// position alone (the reduced fidelity) (large deformations; empty otherwise).
     rates: [Vec<f64>; 2],
@@ -88,7 +91,6 @@ pub struct Palpation {
     organs: Vec<Organ>,
     /// Each tool's tip radius (m), by [`ToolInput::tool`].
     radii_m: Vec<f64>,
-    large: bool,
     scratch: Vec<f64>,
     /// Lattice positions blended: [`NEIGHBOURS`], or 1 at the reduced fidelity.
     neighbours: usize,
@@ -131,6 +133,7 @@ impl Organ {
             bounds,
             proxies: vec![Proxy::default(); tools],
             wall_stiffness,
+            large,
             rates,
         }
     }
@@ -273,16 +276,20 @@ fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &
 
 impl Palpation {
     /// Prepares the contact surfaces of `bundles` for one tool with a tip of radius
-    /// `radius_m` (m); with `large`, every bundle must carry a large-deformation lattice
-    /// (checked by the pipeline).
+    /// `radius_m` (m); with `large`, every organ deforms largely and its bundle must carry a
+    /// large-deformation lattice (checked by the pipeline).
     pub fn new(bundles: Vec<Arc<LoadedBundle>>, radius_m: f64, large: bool) -> Self {
-        Self::for_tools(bundles, vec![radius_m], large)
+        let large = vec![large; bundles.len()];
+        Self::for_tools(bundles, vec![radius_m], &large)
     }
 
     /// [`Palpation::new`] for several tools, `radii_m[t]` the tip radius of tool `t`
-    /// ([`ToolInput::tool`]; at most [`MAX_TOOLS`], at least one), each with its own proxy.
-    pub fn for_tools(bundles: Vec<Arc<LoadedBundle>>, radii_m: Vec<f64>, large: bool) -> Self {
+    /// ([`ToolInput::tool`]; at most [`MAX_TOOLS`], at least one), each with its own proxy;
+    /// `large[i]`: whether organ `i` deforms largely (one per bundle; a large organ's bundle
+    /// must carry a lattice).
+    pub fn for_tools(bundles: Vec<Arc<LoadedBundle>>, radii_m: Vec<f64>, large: &[bool]) -> Self {
         assert!((1..=MAX_TOOLS).contains(&radii_m.len()), "one to {MAX_TOOLS} tools");
+        assert_eq!(large.len(), bundles.len(), "one deformation model per organ");
         let scratch = vec![
             0.0;
             bundles
@@ -294,9 +301,8 @@ impl Palpation {
         ];
         let tools = radii_m.len();
         Self {
-            organs: bundles.into_iter().map(|b| Organ::new(b, large, tools)).collect(),
+            organs: bundles.into_iter().zip(large).map(|(b, &l)| Organ::new(b, l, tools)).collect(),
             radii_m,
-            large,
             scratch,
             neighbours: NEIGHBOURS,
         }
@@ -341,7 +347,7 @@ impl Palpation {
         let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         let mut scale = 1.0;
         let mut error = LINEAR_RELATIVE_ERROR * norm(tissue);
-        if self.large
+        if o.large
             && lambda > 0.0
             && let Some(lattice) = &o.bundle.anm
         {

@@ -179,7 +179,7 @@ impl Scene {
         if s.effects.cutting && self.cut_organ().is_none() {
             return Err(self.error_at(
                 &[Seg::Key("effects"), Seg::Key("cutting")],
-                "cutting is enabled but every organ has a damage law: cutting acts on the first organ without one (cutting and tearing are not composed on one organ in this version)",
+                "cutting is enabled but every organ tears (a damage law) or deforms largely (deformation = \"large\"): cutting acts on the first organ that does neither (effects are not composed on one organ in this version)",
             ));
         }
         if s.fidelity.cutting == schema::CuttingModel::CorotationalXfem && !s.effects.cutting {
@@ -435,6 +435,23 @@ impl Scene {
                 "this material can tear but effects.tearing is false: set [effects] tearing = true, or remove `damage`",
             ));
         }
+        if s.effects.tearing
+            && let Some(i) = tearing::tearable_organ(self)
+            && self.organ_large(i)
+        {
+            let at = if s.organs[i].deformation.is_some() {
+                organ_key(i, &[Seg::Key("deformation")])
+            } else {
+                vec![Seg::Key("effects"), Seg::Key("deformation")]
+            };
+            return Err(self.error_at(
+                &at,
+                format!(
+                    "organ '{}' tears, and tearing with large deformations on one organ is not composed in this version: give it deformation = \"linear\" (another organ may still deform largely)",
+                    s.organs[i].name
+                ),
+            ));
+        }
         let t = &s.fidelity.tearing;
         let key = |k: &'static str| [Seg::Key("fidelity"), Seg::Key("tearing"), Seg::Key(k)];
         let steps = t
@@ -511,7 +528,7 @@ impl Scene {
                 if self.cut_organ() != Some(o) {
                     return Err(self.error_at(
                         &at,
-                        "only the cut organ has cuts: the first organ without a damage law (a tearable organ tears, it is not cut)",
+                        "only the cut organ has cuts: the first organ without a damage law and with linear deformation (a tearable organ tears, a large one deforms; neither is cut)",
                     ));
                 }
                 let hyperelastic = organ.materials.iter().any(|m| m.model != schema::MaterialModel::Linear);
@@ -989,17 +1006,35 @@ impl Scene {
         Ok(Some(visual))
     }
 
-    /// The organ a cutting scene cuts (`effects.cutting`): the first organ whose materials
-    /// have no damage law. A tearable organ tears (cutting and tearing are composed on
-    /// different organs in this version, never on one), so in a scene that tears one organ
-    /// and cuts another — the fat of Calot's triangle and the cystic duct — each effect knows
-    /// its organ. `None` when the scene does not cut, or every organ tears (scene validation
-    /// refuses that).
+    /// Organ `index`'s deformation model: its own `deformation`, or the scene's
+    /// `effects.deformation`.
+    pub fn organ_deformation(&self, index: usize) -> schema::DeformationModel {
+        let s = &self.spec;
+        s.organs[index].deformation.unwrap_or(s.effects.deformation)
+    }
+
+    /// Whether organ `index` deforms largely ([`Scene::organ_deformation`]): its bundle
+    /// carries an ANM-POD lattice and its palpation force is scaled by it.
+    pub fn organ_large(&self, index: usize) -> bool {
+        self.organ_deformation(index) == schema::DeformationModel::Large
+    }
+
+    /// Whether any organ deforms largely.
+    pub fn any_large(&self) -> bool {
+        (0..self.spec.organs.len()).any(|i| self.organ_large(i))
+    }
+
+    /// The organ a cutting scene cuts (`effects.cutting`): the first organ that neither
+    /// tears (a material with a damage law) nor deforms largely. Effects compose on different
+    /// organs in this version, never on one, so in a scene that retracts one organ, tears a
+    /// second and cuts a third — the gallbladder, the fat of Calot's triangle and the cystic
+    /// duct — each effect knows its organ. `None` when the scene does not cut, or no organ is
+    /// left to cut (scene validation refuses that).
     pub fn cut_organ(&self) -> Option<usize> {
         if !self.spec.effects.cutting {
             return None;
         }
-        self.spec.organs.iter().position(|o| o.materials.iter().all(|m| m.damage.is_none()))
+        (0..self.spec.organs.len()).find(|&i| self.spec.organs[i].materials.iter().all(|m| m.damage.is_none()) && !self.organ_large(i))
     }
 
     /// The cut organ's pre-planned cuts ([`Scene::cut_organ`]); none in a scene that does not

@@ -69,6 +69,11 @@ pub struct OrganSpec {
     /// `fidelity.cutting = "corotational_xfem"`).
     #[serde(default)]
     pub visual: Option<VisualSpec>,
+    /// This organ's deformation model, in place of the scene's `effects.deformation`: a scene
+    /// may deform one organ largely (a gallbladder retracted by a grasper) while it cuts or
+    /// tears another, which stays linear ([`crate::scene::Scene::organ_deformation`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deformation: Option<DeformationModel>,
 }
 
 /// `[organs.visual]`: a visual surface mesh (seed 003 §3.2).
@@ -492,7 +497,8 @@ pub enum DeformationModel {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Effects {
-    /// Deformation model. Default linear.
+    /// Deformation model of every organ that does not name its own (`[[organs]]
+    /// deformation`). Default linear.
     #[serde(default)]
     pub deformation: DeformationModel,
     /// Cutting (needs a scalpel tool).
@@ -516,7 +522,8 @@ pub struct Fidelity {
     /// Settings of the PGD vademecum builder.
     #[serde(default)]
     pub pgd: PgdFidelity,
-    /// Settings of the large-deformation lattice (used when `effects.deformation = "large"`).
+    /// Settings of the large-deformation lattice (used by the organs whose deformation is
+    /// large: `effects.deformation = "large"` or the organ's own `deformation`).
     #[serde(default)]
     pub large: LargeFidelity,
     /// The solver of `vademecum solve`: finite elements (default) or the meshless reference.
