@@ -24,6 +24,8 @@
 //!   its own rotation, so rotating flaps keep their volume.
 //! - [`system`]: the full-order XFEM system (the reference of the reduced online models), its
 //!   detached pieces, and the static solve.
+//! - [`tip`]: a cut that ends inside a cell — the crack-tip (branch-function) enrichment along
+//!   the blade's edge, full order (issue 47).
 //! - [`view`]: the mesh split along a cut, for viewers and recordings.
 //! - [`visual`]: visual surfaces embedded in the tetrahedra, following each side of a cut.
 //! - [`visual_split`]: a visual surface split along a cut and closed by the cut faces.
@@ -39,6 +41,7 @@ pub mod progressive;
 pub mod reduced;
 pub mod subcell;
 pub mod system;
+pub mod tip;
 pub mod view;
 pub mod visual;
 pub mod visual_split;

@@ -297,6 +297,19 @@ pub fn quadrature(kind: CellKind, t: &SubTet, mut f: impl FnMut([f64; 3], f64)) 
     }
 }
 
+/// Calls `f(ξ, w)` at the 27 points of the degree-5 conical-product rule on sub-tetrahedron `t`,
+/// whatever the cell's kind (for integrands that are not polynomial: the branch functions of a
+/// crack tip, [`super::tip`]); weights as [`quadrature`]'s.
+pub fn rich_quadrature(t: &SubTet, mut f: impl FnMut([f64; 3], f64)) {
+    let v = t.xi;
+    let vol = t.reference_volume();
+    let (a, b, c) = (sub(v[1], v[0]), sub(v[2], v[0]), sub(v[3], v[0]));
+    for &(l, w) in duffy_rule() {
+        let xi = std::array::from_fn(|i| v[0][i] + l[0] * a[i] + l[1] * b[i] + l[2] * c[i]);
+        f(xi, 6.0 * vol * w);
+    }
+}
+
 /// Calls `f(ξ, w)` at the quadrature points of a whole cell of `kind` (a cell no plane
 /// crosses): the 2×2×2 Gauss rule of the hexahedron (the uncut stiffness's), the centroid of the
 /// tetrahedron.

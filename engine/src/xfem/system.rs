@@ -67,6 +67,9 @@ pub enum XfemError {
     /// The solution is not finite.
     #[error("the XFEM solution contains non-finite values")]
     NonFinite,
+    /// A combination this solver does not handle.
+    #[error("{0} is not supported")]
+    Unsupported(&'static str),
 }
 
 /// A piece of material that no support holds after the cut.
