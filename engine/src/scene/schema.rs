@@ -701,6 +701,11 @@ pub struct XfemFidelity {
     /// shape functions alone).
     #[serde(default = "default_discontinuous")]
     pub discontinuous: crate::xfem::reduced::Discontinuous,
+    /// Where the cut ends: `cracked` (seed 000's rule, every node of a cut cell, the front's
+    /// included: the opening runs one ring of cells past the blade) or `shared` (the front's
+    /// nodes stay shared by both sides: the cut ends where the blade stopped, on cell faces).
+    #[serde(default)]
+    pub front: crate::xfem::Front,
 }
 
 fn default_sliver() -> f64 {
@@ -721,6 +726,7 @@ impl Default for XfemFidelity {
             detached: crate::xfem::Detached::Hold,
             basis: default_basis(),
             discontinuous: default_discontinuous(),
+            front: crate::xfem::Front::Cracked,
         }
     }
 }
@@ -732,6 +738,7 @@ impl XfemFidelity {
             sliver: self.sliver,
             node_centred: self.node_centred,
             detached: self.detached,
+            front: self.front,
             ..crate::xfem::XfemParams::default()
         }
     }

@@ -54,8 +54,9 @@ pub enum Detached {
 }
 
 /// Which nodes of the cut cells at the edge of a cut are cracked (module docs, "Where the cut
-/// ends").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// ends"); a scene's `fidelity.xfem.front`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Front {
     /// Every node of a cut cell, those on the crack front included (seed 000 §3.4): the
     /// opening reaches one ring of cells past the cut.

@@ -126,6 +126,43 @@ fn a_scalpel_pressed_down_the_patch_cuts_the_top_row_and_the_tissue_there_soften
     assert_eq!(status.overwritten.load(Relaxed), 0);
 }
 
+/// `fidelity.xfem.front = "shared"` in a session: the same stroke cuts the same two cells, but
+/// only the two nodes of the top edge crack — the row the blade's edge stopped on stays shared
+/// — so the tissue opens down to the blade and no further: back at z = 4.5 the blade feels more
+/// of the tissue than with the seed's rule, whose opening runs one cell row past the blade, and
+/// less than before the cut.
+#[test]
+fn with_the_front_shared_a_session_opens_the_cut_down_to_the_blade_only() {
+    let mut forces = Vec::new();
+    for front in ["cracked", "shared"] {
+        let base = Scene::builtin("patch_cut").unwrap();
+        let xfem: toml::Table = toml::from_str(&format!("front = \"{front}\"")).unwrap();
+        let text = common::with_keys(&base.source, &[("fidelity.xfem", xfem.into())]);
+        let scene = Scene::from_toml(&text, "patch_cut.toml").unwrap();
+        let mut p = Pipeline::for_scene(&scene, &[bundle(&scene)]).unwrap();
+        p.set_deterministic(true);
+        let status = p.cut_status().unwrap();
+        let mut before = 0.0;
+        for i in 0..=1200 {
+            let z = 5.1 - 1.2 * i as f64 / 1200.0;
+            let s = p.tick(&blade(z, UPRIGHT));
+            if (z - 4.5).abs() < 5e-4 {
+                before = norm(s.force_n);
+            }
+        }
+        for _ in 0..100 {
+            p.tick(&blade(3.9, UPRIGHT));
+        }
+        assert_eq!(status.cells.load(Relaxed), 2, "{front}");
+        assert_eq!(status.nodes.load(Relaxed), if front == "shared" { 2 } else { 4 }, "{front}");
+        let after = norm(p.tick(&blade(4.5, UPRIGHT)).force_n);
+        eprintln!("front {front}: {before} N before the cut, {after} N after");
+        assert!(after < 0.99 * before, "{front}: {after} N after the cut, {before} N before");
+        forces.push(after);
+    }
+    assert!(forces[1] > 1.01 * forces[0], "{forces:?}");
+}
+
 #[test]
 fn the_flat_of_the_blade_and_friction_cut_nothing() {
     let mut p = patch_cut();

@@ -9,10 +9,15 @@ use vademecum_engine::pgd::PgdParams;
 use vademecum_engine::scene::Scene;
 use vademecum_engine::xfem::reduced::{Discontinuous, ReducedCut, ReducedError, RitzBasis};
 use vademecum_engine::xfem::system;
-use vademecum_engine::xfem::{Enrichment, XfemParams};
+use vademecum_engine::xfem::{Enrichment, Front, XfemParams};
 
 /// The reduced cutting model of a built organ, with the default XFEM settings.
 fn reduced(b: &offline::Built, basis: RitzBasis, disc: Discontinuous) -> ReducedCut {
+    reduced_with(b, basis, disc, &XfemParams::default())
+}
+
+/// [`reduced`] with the XFEM settings `params`.
+fn reduced_with(b: &offline::Built, basis: RitzBasis, disc: Discontinuous, params: &XfemParams) -> ReducedCut {
     let (m, v) = (&b.model, &b.vademecum);
     ReducedCut::new(
         &m.mesh,
@@ -23,7 +28,7 @@ fn reduced(b: &offline::Built, basis: RitzBasis, disc: Discontinuous) -> Reduced
         v.modes(),
         basis,
         disc,
-        &XfemParams::default(),
+        params,
     )
     .unwrap()
 }
@@ -110,6 +115,47 @@ fn prb_and_srb_follow_the_full_xfem_on_the_patch_as_the_cut_grows() {
                 Discontinuous::Bare => assert!(*e < 1.0, "{} bare: {e:.3e}", basis.name()),
             }
         }
+    }
+}
+
+/// With the crack front shared (`fidelity.xfem.front = "shared"`) the online model grows its
+/// cut as the full XFEM does: each step cracks the nodes the blade has passed — the new row's
+/// front stays shared, the last step's front is cracked — and its field follows the full XFEM's
+/// with the same front to the modes' error.
+#[test]
+fn with_the_front_shared_the_reduced_model_follows_the_full_xfem_as_the_cut_grows() {
+    let scene = Scene::builtin("patch").unwrap();
+    let b = built(&scene, 1e-4);
+    let m = &b.model;
+    let params = XfemParams {
+        front: Front::Shared,
+        ..XfemParams::default()
+    };
+    let mut red = reduced_with(&b, RitzBasis::Srb, Discontinuous::LocalFields, &params);
+    for depth in [4.0, 3.0, 2.0] {
+        let cut = Cut::swept(&[([2.0, -0.1, 5.1], [2.0, 1.1, 5.1]), ([2.0, -0.1, depth], [2.0, 1.1, depth])]).unwrap();
+        let cells = Enrichment::cut_cells(&m.mesh, &cut, &params).unwrap();
+        let up = red.cut(&m.mesh, &cells).unwrap();
+        // the two nodes of the row above the blade's edge; those on its edge stay shared
+        assert_eq!(up.new_nodes.len(), 2, "depth {depth}");
+        let enr = red.enrichment().clone();
+        assert!(
+            enr.nodes.iter().all(|&a| m.mesh.nodes[a][2] > depth + 0.5),
+            "depth {depth}: {:?}",
+            enr.nodes
+        );
+        assert_eq!(enr.front.len(), 2, "depth {depth}");
+        // the same as enriching the whole cut at once
+        let once = Enrichment::from_cut(&m.mesh, &cut, &params).unwrap();
+        let (mut a, mut o) = (enr.nodes.clone(), once.nodes.clone());
+        a.sort_unstable();
+        o.sort_unstable();
+        assert_eq!(a, o, "depth {depth}");
+        let full = system::solve(&m.mesh, &m.materials, m.locking, &m.problem, &enr, &params).unwrap();
+        let (u, q) = red.displacements(&m.problem.forces);
+        let e = error(&enr, &u, &q, &full);
+        eprintln!("front shared, depth {depth}: {} enriched, L2 error {e:.3e}", enr.len());
+        assert!(e < 1e-3, "depth {depth}: {e:.3e}");
     }
 }
 
