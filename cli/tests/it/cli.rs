@@ -1696,6 +1696,42 @@ fn run_plays_both_hands_of_a_scene_that_cuts_and_tears_and_each_feels_what_it_wo
     }
 }
 
+/// `scenes/effects/three_hands.toml`: a lobe that deforms largely pressed by a probe, the patch
+/// cut by a scalpel, the cube torn by a grasper — a headless run plays the three built-in hands
+/// at once, each effect on its organ, and only the lobe's bundle holds a lattice.
+#[test]
+fn run_plays_three_hands_that_press_an_organ_that_deforms_largely_cut_another_and_tear_a_third() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = concat!(env!("CARGO_MANIFEST_DIR"), "/../scenes/effects/three_hands.toml");
+    let o = vademecum(&["run", scene, "--json"], dir.path());
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let s: serde_json::Value = serde_json::from_str(&stdout(&o)).expect("stdout is JSON");
+    let hands = s["hands"].as_array().expect("a hand per tool");
+    let tools: Vec<&str> = hands.iter().map(|h| h["tool"].as_str().unwrap()).collect();
+    assert_eq!(tools, ["scalpel", "grasper", "probe"], "{s}");
+    assert!(hands[2]["trajectory"].as_str().unwrap().contains("palpation of 'lobe'"), "{s}");
+    assert!(hands[2]["peak_force_n"].as_f64().unwrap() > 0.0, "{s}");
+    assert!(
+        s["cut"]["cut_cells"].as_u64().unwrap() >= 1 && s["cut"]["advances"].as_u64().unwrap() >= 1,
+        "{s}"
+    );
+    assert!(s["tear"]["torn_at_s"].as_f64().is_some(), "{s}");
+    // the probe's rows: in contact with the lobe (organ 2) while it presses
+    let rec = dir.path().join("out/three_hands/run");
+    let rows = forces_csv(&rec.join("forces.csv"));
+    let ticks = s["ticks"].as_u64().unwrap() as usize;
+    assert_eq!(rows.len(), 3 * ticks);
+    assert!(rows.iter().any(|r| r["tool"] == "probe" && r["events"].contains("contact")));
+    // only the organ that deforms largely carries a lattice
+    for (organ, lattice) in [("lobe", true), ("patch", false), ("cube", false)] {
+        let bundle = dir.path().join(format!("out/three_hands/{organ}.bundle"));
+        let anm = std::fs::read_dir(&bundle)
+            .unwrap()
+            .any(|e| e.unwrap().file_name().to_string_lossy().starts_with("anm_"));
+        assert_eq!(anm, lattice, "{organ}");
+    }
+}
+
 #[test]
 fn run_refuses_scripts_of_several_hands_that_do_not_each_name_one_tool() {
     let dir = tempfile::tempdir().unwrap();

@@ -1,7 +1,8 @@
 //! The hands a headless run plays: one trajectory for the session's one tool at a time, or one
-//! per named tool of the scene — `--script TOOL=CSV`, repeated, or, for a scene that cuts and
-//! tears, the built-in incisions in the scalpel's hand and the built-in grasp in the
-//! grasper's, at once.
+//! per named tool of the scene — `--script TOOL=CSV`, repeated, or, for a scene that composes
+//! effects on different organs, the built-in incisions in the scalpel's hand, the built-in
+//! grasp in the grasper's and the built-in palpation of the organ that deforms largely in the
+//! probe's, at once.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -102,38 +103,54 @@ pub(super) fn scripted(scene: &Scene, scripts: &[String]) -> anyhow::Result<Vec<
     Ok(hands)
 }
 
-/// The built-in hands of a scene without a script: for a scene that cuts one organ and tears
-/// another, the scalpel's incisions and the grasper's grasp at once (two hands); otherwise
-/// the one built-in trajectory of [`super::builtin_trajectory`].
+/// The built-in hands of a scene without a script: for a scene that composes effects on
+/// different organs, one hand per effect at once — the scalpel's incisions (cutting), the
+/// grasper's grasp (tearing), the probe's palpation of the first organ that deforms largely —
+/// when there are two or more; otherwise the one built-in trajectory of
+/// [`super::builtin_trajectory`].
 pub(super) fn builtin(scene: &Scene, bundles: &[Arc<LoadedBundle>], radius: f64, depth: Option<f64>) -> anyhow::Result<Vec<PlayedHand>> {
     let tools = &scene.spec.tools;
-    let scalpel = tools.iter().position(|t| matches!(t, ToolSpec::Scalpel { .. }));
-    let grasper = tools.iter().position(|t| matches!(t, ToolSpec::Grasper { .. }));
-    if let (true, Some(s), Some(g)) = (scene.spec.effects.cutting && scene.spec.effects.tearing, scalpel, grasper) {
-        let (cut, cut_source) = super::builtin_incisions(scene, bundles)?;
-        let (grasp, grasp_source) = super::builtin_grasp(scene)?;
-        return Ok(vec![
-            PlayedHand {
-                tool: Some(s),
-                name: tools[s].name().to_string(),
-                trajectory: cut,
-                source: cut_source,
-            },
-            PlayedHand {
-                tool: Some(g),
-                name: tools[g].name().to_string(),
-                trajectory: grasp,
-                source: grasp_source,
-            },
-        ]);
+    let fx = &scene.spec.effects;
+    let scalpel = tools
+        .iter()
+        .position(|t| matches!(t, ToolSpec::Scalpel { .. }))
+        .filter(|_| fx.cutting);
+    let grasper = tools
+        .iter()
+        .position(|t| matches!(t, ToolSpec::Grasper { .. }))
+        .filter(|_| fx.tearing);
+    let probe = tools.iter().enumerate().find_map(|(i, t)| match t {
+        ToolSpec::Probe { radius, .. } => Some((i, *radius)),
+        _ => None,
+    });
+    let large = (0..scene.spec.organs.len()).find(|&i| scene.organ_large(i));
+    let pressing = probe.zip(large).filter(|_| scalpel.is_some() || grasper.is_some());
+    if usize::from(scalpel.is_some()) + usize::from(grasper.is_some()) + usize::from(pressing.is_some()) < 2 {
+        let (trajectory, source) = super::builtin_trajectory(scene, bundles, radius, depth)?;
+        return Ok(vec![PlayedHand {
+            tool: None,
+            name: String::new(),
+            trajectory,
+            source,
+        }]);
     }
-    let (trajectory, source) = super::builtin_trajectory(scene, bundles, radius, depth)?;
-    Ok(vec![PlayedHand {
-        tool: None,
-        name: String::new(),
+    let hand = |tool: usize, (trajectory, source): (Trajectory, String)| PlayedHand {
+        tool: Some(tool),
+        name: tools[tool].name().to_string(),
         trajectory,
         source,
-    }])
+    };
+    let mut hands = Vec::new();
+    if let Some(s) = scalpel {
+        hands.push(hand(s, super::builtin_incisions(scene, bundles)?));
+    }
+    if let Some(g) = grasper {
+        hands.push(hand(g, super::builtin_grasp(scene)?));
+    }
+    if let Some(((p, r), organ)) = pressing {
+        hands.push(hand(p, super::builtin_palpation(scene, bundles, organ, r, depth)?));
+    }
+    Ok(hands)
 }
 
 /// The run's length (s): its longest hand's.

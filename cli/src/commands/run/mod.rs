@@ -654,18 +654,30 @@ fn builtin_trajectory(
     } else if scene.spec.effects.tearing {
         builtin_grasp(scene)
     } else {
-        let (depth, why) = palpation_depth(&bundles[0], depth)?;
-        Ok((
-            vademecum_server::session::builtin_palpation(&bundles[0], radius, depth, PALPATION_SLIDE_M)
-                .map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?,
-            format!(
-                "built-in palpation of '{}' ({:.3} mm deep{why}, {:.0} mm slide)",
-                scene.spec.organs[0].name,
-                depth * 1e3,
-                PALPATION_SLIDE_M * 1e3
-            ),
-        ))
+        builtin_palpation(scene, bundles, 0, radius, depth)
     }
+}
+
+/// The built-in palpation of organ `organ` by a probe of tip `radius` (its trajectory and
+/// description): pressed `depth` in (`None`: the default, or the lattice's reach), slid, lifted.
+fn builtin_palpation(
+    scene: &vademecum_engine::scene::Scene,
+    bundles: &[Arc<vademecum_engine::bundle::LoadedBundle>],
+    organ: usize,
+    radius: f64,
+    depth: Option<f64>,
+) -> anyhow::Result<(Trajectory, String)> {
+    let (depth, why) = palpation_depth(&bundles[organ], depth)?;
+    Ok((
+        vademecum_server::session::builtin_palpation(&bundles[organ], radius, depth, PALPATION_SLIDE_M)
+            .map_err(|e| anyhow::anyhow!("cannot script the built-in palpation: {e}"))?,
+        format!(
+            "built-in palpation of '{}' ({:.3} mm deep{why}, {:.0} mm slide)",
+            scene.spec.organs[organ].name,
+            depth * 1e3,
+            PALPATION_SLIDE_M * 1e3
+        ),
+    ))
 }
 
 /// The built-in incisions of a cutting scene (its trajectory and description): the scalpel
