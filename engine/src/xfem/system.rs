@@ -336,15 +336,35 @@ pub fn enriched_cell_stiffness(
             }
         }
     }
+    let volume: f64 = sides.iter().map(|s| s.side.volume).sum();
+    close_cell_matrix(ke, n, ng, divergence, volume, kappa, mu, volumetric);
+    Ok(sides.into_iter().map(|s| s.side).collect())
+}
+
+/// Completes an enriched cell matrix over `ng` generalized functions (the first `n` the
+/// standard ones) whose deviatoric (and, plain, volumetric) part is integrated: with
+/// [`EnrichedVolumetric::CellMean`] the volumetric term of the cell's mean dilatation of every
+/// function (`divergence[p] = ∫_e g_p`, over the cell's `volume`), then the standard–standard
+/// block set to zero (it is the uncut stiffness's).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn close_cell_matrix(
+    ke: &mut [f64],
+    n: usize,
+    ng: usize,
+    divergence: &[[f64; 3]],
+    volume: f64,
+    kappa: f64,
+    mu: f64,
+    volumetric: EnrichedVolumetric,
+) {
     if volumetric == EnrichedVolumetric::CellMean {
-        let volume: f64 = sides.iter().map(|s| s.side.volume).sum();
         let gbar: Vec<[f64; 3]> = divergence.iter().map(|s| s.map(|v| v / volume)).collect();
         element::add_terms(ke, ng, &gbar, volume, kappa, mu, true, false);
-        for r in 0..3 * n {
-            ke[r * nd..r * nd + 3 * n].fill(0.0);
-        }
     }
-    Ok(sides.into_iter().map(|s| s.side).collect())
+    let nd = 3 * ng;
+    for r in 0..3 * n {
+        ke[r * nd..r * nd + 3 * n].fill(0.0);
+    }
 }
 
 /// The stiffness per node of the soft foundation that holds a loose piece, `E·h`: the
@@ -845,26 +865,40 @@ pub fn solve(
 ) -> Result<XfemSolution, XfemError> {
     let clock = Instant::now();
     let sys = assemble(mesh, materials, locking, problem, enr, params)?;
-    let chol = Cholesky::factor(&sys.k)?;
-    let mut x = sys.rhs.clone();
+    let (u, q, residual) = factor_and_solve(&sys.k, &sys.rhs, &sys.dofs, &sys.prescribed, mesh.n_nodes())?;
+    Ok(XfemSolution {
+        u,
+        q,
+        detached: sys.detached,
+        n_free: sys.dofs.n_free(),
+        nnz: sys.k.pattern.nnz(),
+        residual,
+        seconds: clock.elapsed().as_secs_f64(),
+    })
+}
+
+/// Factors the extended `k` and solves it for `rhs`: the displacements of the `n_nodes` mesh
+/// nodes, the enriched degrees of freedom after them (both with `prescribed` where held), and
+/// the relative residual.
+pub(super) fn factor_and_solve(
+    k: &SymmetricMatrix,
+    rhs: &[f64],
+    dofs: &DofMap,
+    prescribed: &[f64],
+    n_nodes: usize,
+) -> Result<(Vec<f64>, Vec<f64>, f64), XfemError> {
+    let chol = Cholesky::factor(k)?;
+    let mut x = rhs.to_vec();
     chol.solve_in_place(&mut x);
     if x.iter().any(|v| !v.is_finite()) {
         return Err(XfemError::NonFinite);
     }
     let mut kx = vec![0.0; x.len()];
-    sys.k.mul_vec(&x, &mut kx);
-    let r2: f64 = kx.iter().zip(&sys.rhs).map(|(a, b)| (a - b).powi(2)).sum();
-    let f2: f64 = sys.rhs.iter().map(|v| v * v).sum();
-    let mut full = vec![0.0; sys.dofs.n_dofs()];
-    sys.dofs.expand(&x, &sys.prescribed, &mut full);
-    let q = full.split_off(3 * mesh.n_nodes());
-    Ok(XfemSolution {
-        u: full,
-        q,
-        detached: sys.detached,
-        n_free: sys.dofs.n_free(),
-        nnz: sys.k.pattern.nnz(),
-        residual: (r2 / f2.max(f64::MIN_POSITIVE)).sqrt(),
-        seconds: clock.elapsed().as_secs_f64(),
-    })
+    k.mul_vec(&x, &mut kx);
+    let r2: f64 = kx.iter().zip(rhs).map(|(a, b)| (a - b).powi(2)).sum();
+    let f2: f64 = rhs.iter().map(|v| v * v).sum();
+    let mut full = vec![0.0; dofs.n_dofs()];
+    dofs.expand(&x, prescribed, &mut full);
+    let q = full.split_off(3 * n_nodes);
+    Ok((full, q, (r2 / f2.max(f64::MIN_POSITIVE)).sqrt()))
 }

@@ -40,14 +40,13 @@ use std::time::Instant;
 
 use super::enrichment::{Enrichment, EnrichmentError, Front, XfemParams};
 use super::subcell::{self, Plane, SubTet};
-use super::system::{EnrichedVolumetric, XfemError};
+use super::system::{self, EnrichedVolumetric, XfemError};
 use crate::fem::assembly::{self, DofMap, MaterialMap, SymmetricPattern};
 use crate::fem::element::{self, ElementError, Locking};
 use crate::fem::linear_static::StaticProblem;
 use crate::geometry::cut::Cut;
-use crate::geometry::vec3::{cross, dot, norm, sub};
+use crate::geometry::vec3::{cross, dot, lerp, norm, sub};
 use crate::mesh::{CellKind, Mesh, shape};
-use crate::solve::Cholesky;
 
 /// Which branch functions the tip nodes carry (module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -319,7 +318,15 @@ pub struct TipSolution {
     pub seconds: f64,
 }
 
-/// One cell's enriched functions: `(local node, generalized node, what)`.
+/// An enriched function of the whole mesh, by its node: the Heaviside of a cracked node (its
+/// plane, whether the node lies on its positive side), or branch function `j` of a tip node.
+#[derive(Debug, Clone, Copy)]
+enum Enriched {
+    Heaviside(Plane, bool),
+    Branch(usize),
+}
+
+/// What one of a cell's enriched generalized functions is, for its quadrature.
 #[derive(Debug, Clone, Copy)]
 enum Function {
     /// The Heaviside of a cracked node: its plane's index among the cell's planes, and the
@@ -332,7 +339,7 @@ enum Function {
 /// Splits `t` into its eight children (the midpoints of its edges).
 fn refine(t: &SubTet) -> [SubTet; 8] {
     let v = t.xi;
-    let m = |a: usize, b: usize| std::array::from_fn(|i| 0.5 * (v[a][i] + v[b][i]));
+    let m = |a: usize, b: usize| lerp(v[a], v[b], 0.5);
     let (m01, m02, m03, m12, m13, m23) = (m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3));
     [
         [v[0], m01, m02, m03],
@@ -364,7 +371,6 @@ const GAUSS_4: [(f64, f64); 4] = [
 fn singular_rule(t: &SubTet, on: [bool; 4], mut f: impl FnMut([f64; 3], f64)) {
     let v = t.xi;
     let six_v = 6.0 * t.reference_volume();
-    let lerp = |a: [f64; 3], b: [f64; 3], s: f64| -> [f64; 3] { std::array::from_fn(|i| a[i] + s * (b[i] - a[i])) };
     let singular: Vec<usize> = (0..4).filter(|&i| on[i]).collect();
     if singular.len() >= 2 {
         let (a, b) = (singular[0], singular[1]);
@@ -484,14 +490,7 @@ fn cell_matrix(
     if let Some(det) = bad {
         return Err(ElementError::NonPositiveJacobian { det });
     }
-    if volumetric == EnrichedVolumetric::CellMean {
-        let gbar: Vec<[f64; 3]> = divergence.iter().map(|s| s.map(|v| v / volume)).collect();
-        element::add_terms(ke, ng, &gbar, volume, kappa, mu, true, false);
-    }
-    let nd = 3 * ng;
-    for r in 0..3 * n {
-        ke[r * nd..r * nd + 3 * n].fill(0.0);
-    }
+    system::close_cell_matrix(ke, n, ng, &divergence, volume, kappa, mu, volumetric);
     Ok(())
 }
 
@@ -514,23 +513,23 @@ pub fn solve(
     let npc = mesh.kind.nodes_per_cell();
     let ng = enr.generalized(n);
     let nf = enr.params.branch.count();
-    // each node's enriched generalized nodes
-    let mut of_node: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n]; // (generalized node, function index)
-    let mut functions: Vec<(usize, Plane, bool, usize)> = Vec::new(); // (node, plane, own positive, branch j) by generalized index − n
+    // the enriched functions, generalized node n + i for functions[i], and each node's
+    let mut of_node: Vec<Vec<usize>> = vec![Vec::new(); n];
+    let mut functions: Vec<(usize, Enriched)> = Vec::new();
     for &(a, plane, own) in &enr.cracked {
-        of_node[a].push((n + functions.len(), functions.len()));
-        functions.push((a, plane, own, usize::MAX));
+        of_node[a].push(functions.len());
+        functions.push((a, Enriched::Heaviside(plane, own)));
     }
     for &a in &enr.tip_nodes {
         for j in 0..nf {
-            of_node[a].push((n + functions.len(), functions.len()));
-            functions.push((a, enr.frame_plane(), false, j));
+            of_node[a].push(functions.len());
+            functions.push((a, Enriched::Branch(j)));
         }
     }
     // constraints: an enriched dof is held where its node's is
     let mut constrained = problem.constrained.clone();
     let mut prescribed = problem.prescribed.clone();
-    for &(a, ..) in &functions {
+    for &(a, _) in &functions {
         for i in 0..3 {
             constrained.push(problem.constrained[3 * a + i]);
             prescribed.push(0.0);
@@ -541,7 +540,7 @@ pub fn solve(
         out.clear();
         out.extend_from_slice(mesh.cell(c));
         for &a in mesh.cell(c) {
-            out.extend(of_node[a].iter().map(|g| g.0));
+            out.extend(of_node[a].iter().map(|i| n + i));
         }
     };
     let mut adj = vec![Vec::new(); ng];
@@ -578,23 +577,25 @@ pub fn solve(
         let (mut local, mut funcs) = (Vec::new(), Vec::new());
         let mut has_tip = false;
         for (la, &a) in cell.iter().enumerate() {
-            for &(_, fi) in &of_node[a] {
-                let (_, plane, own, j) = functions[fi];
+            for &fi in &of_node[a] {
                 local.push(la);
-                if j == usize::MAX {
-                    let p = planes.iter().position(|q| *q == plane).unwrap_or_else(|| {
-                        planes.push(plane);
-                        planes.len() - 1
-                    });
-                    funcs.push(Function::Heaviside {
-                        plane: p,
-                        own_positive: own,
-                    });
-                } else {
-                    has_tip = true;
-                    let mut v = [0.0; 4];
-                    enr.frame.branch(mesh.nodes[a], true, &mut v, &mut [[0.0; 3]; 4]);
-                    funcs.push(Function::Branch { j, at_node: v[j] });
+                match functions[fi].1 {
+                    Enriched::Heaviside(plane, own) => {
+                        let p = planes.iter().position(|q| *q == plane).unwrap_or_else(|| {
+                            planes.push(plane);
+                            planes.len() - 1
+                        });
+                        funcs.push(Function::Heaviside {
+                            plane: p,
+                            own_positive: own,
+                        });
+                    }
+                    Enriched::Branch(j) => {
+                        has_tip = true;
+                        let mut v = [0.0; 4];
+                        enr.frame.branch(mesh.nodes[a], true, &mut v, &mut [[0.0; 3]; 4]);
+                        funcs.push(Function::Branch { j, at_node: v[j] });
+                    }
                 }
             }
         }
@@ -638,24 +639,12 @@ pub fn solve(
             rhs[e] += f;
         }
     }
-    let chol = Cholesky::factor(&k)?;
-    let mut sol = rhs.clone();
-    chol.solve_in_place(&mut sol);
-    if sol.iter().any(|v| !v.is_finite()) {
-        return Err(XfemError::NonFinite);
-    }
-    let mut kx = vec![0.0; sol.len()];
-    k.mul_vec(&sol, &mut kx);
-    let r2: f64 = kx.iter().zip(&rhs).map(|(a, b)| (a - b).powi(2)).sum();
-    let f2: f64 = rhs.iter().map(|v| v * v).sum();
-    let mut full = vec![0.0; dofs.n_dofs()];
-    dofs.expand(&sol, &prescribed, &mut full);
-    let q = full.split_off(3 * n);
+    let (u, q, residual) = system::factor_and_solve(&k, &rhs, &dofs, &prescribed, n)?;
     Ok(TipSolution {
-        u: full,
+        u,
         q,
         n_free: dofs.n_free(),
-        residual: (r2 / f2.max(f64::MIN_POSITIVE)).sqrt(),
+        residual,
         seconds: clock.elapsed().as_secs_f64(),
     })
 }
