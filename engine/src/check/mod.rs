@@ -20,9 +20,12 @@
 //!   tick, inputs at the edge of their range, contact outside the accessible region.
 //! - `cutting`: XFEM cuts through nodes to the fixed boundary, a piece cut loose, ν = 0.499,
 //!   malformed blades.
+//! - `cut_tip`: a cut that ends inside a cell (the crack-tip enrichment): the blade stopping on
+//!   a node line, a face, inside a cell, 1e-9 beside them, at the far face; tetrahedra.
 //! - `tearing`: a fully damaged layer, ν = 0.499 under damage, the POD–PGD integrator driven
 //!   outside its coefficient box.
 
+mod cut_tip;
 mod cutting;
 mod hyperelastic;
 mod locking;
@@ -193,6 +196,7 @@ pub fn cases() -> Vec<Case> {
         meshless::cases(),
         tool::cases(),
         cutting::cases(),
+        cut_tip::cases(),
         tearing::cases(),
     ]
     .into_iter()

@@ -29,11 +29,13 @@
 //! line: a sub-tetrahedron with an edge or a vertex on it takes a rule collapsed onto that
 //! edge or vertex, whose Jacobian vanishes like r there (the product is smooth; 4 × 4 × 4
 //! Gauss–Legendre points); those near it are refined
-//! [`TipParams::levels`] times; the rest take the degree-5 conical-product rule. The extended stiffness is assembled as in [`super::system`]:
-//! the uncut stiffness for the standard block, B̄'s one mean dilatation per hexahedron for every
-//! generalized function, the plain volumetric term on tetrahedra. (The averaged nodal pressure,
-//! pieces cut loose, the reduced and co-rotational models and sessions do not take the tip
-//! enrichment yet.)
+//! [`TipParams::levels`] times; the rest take the degree-5 conical-product rule. The extended
+//! stiffness is assembled as in [`super::system`]: the uncut stiffness for the standard block,
+//! B̄'s one mean dilatation per hexahedron for every generalized function, the plain volumetric
+//! term on tetrahedra. A blade that has reached the organ's surface is refused
+//! ([`TipError::Through`]: the cut goes through, which the Heaviside enrichment solves). (The
+//! averaged nodal pressure, pieces cut loose, the reduced and co-rotational models and sessions
+//! do not take the tip enrichment yet.)
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -209,6 +211,11 @@ pub enum TipError {
     /// No cell holds the tip line.
     #[error("the tip line passes through no cell of the mesh")]
     Outside,
+    /// The tip line lies on the organ's surface, no material ahead of it.
+    #[error(
+        "the blade has reached the organ's surface (no tissue ahead of its edge): the cut goes right through; the tip enrichment is for a cut that ends inside — solve it with the Heaviside enrichment, which finds the pieces it frees"
+    )]
+    Through,
 }
 
 /// Whether the origin lies in the convex hull of the 2D points `p` (within `tol`).
@@ -266,6 +273,23 @@ impl TipEnrichment {
         }
         if tip_cells.is_empty() {
             return Err(TipError::Outside);
+        }
+        // a blade that reached the organ's surface leaves no material ahead of its edge in the
+        // cells that hold it: the cut goes right through, and the branch functions would hang
+        // the pieces it frees on that edge (a hinge, nearly singular) instead of finding them
+        let ahead = Plane {
+            point: frame.origin,
+            normal: frame.e[0],
+        };
+        let (mut front, mut all) = (0.0, 0.0);
+        for &c in &tip_cells {
+            mesh.cell_coords(c, &mut x);
+            let [pos, neg] = subcell::side_volumes(mesh.kind, &x, &ahead);
+            front += pos;
+            all += pos + neg;
+        }
+        if front <= 1e-9 * all {
+            return Err(TipError::Through);
         }
         let mut is_tip = vec![false; mesh.n_nodes()];
         if params.branch != Branch::None {
@@ -495,8 +519,9 @@ fn cell_matrix(
 }
 
 /// Solves the static `problem` on `mesh` cut as `enr` says by the full-order XFEM with the
-/// tip enrichment (module docs). The averaged nodal pressure is refused; pieces cut loose
-/// are not detected (the solve then fails as singular).
+/// tip enrichment (module docs). The averaged nodal pressure is refused; a blade that has
+/// reached the organ's surface was refused when the enrichment was made ([`TipError::Through`]);
+/// other pieces cut loose are not looked for.
 pub fn solve(
     mesh: &Mesh,
     materials: &MaterialMap,
