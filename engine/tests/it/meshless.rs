@@ -14,26 +14,30 @@ fn one_thread<T: Send>(f: impl FnOnce() -> T + Send) -> T {
     rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(f)
 }
 
-/// The 21² square stretched by 20 % (ν = 0.49, 2 × 2 points per cell) and its solution, solved
-/// once for the tests that start from it (seven of them; each solve is seconds of explicit
-/// relaxation).
-fn stretched_square() -> &'static (Pulled, efg::EfgSolution) {
-    static SQUARE: std::sync::OnceLock<(Pulled, efg::EfgSolution)> = std::sync::OnceLock::new();
-    SQUARE.get_or_init(|| {
-        let case = reference::square(21, 0.2, 0.49, 2).unwrap();
+/// A pulled problem and its solution.
+type Solved = (Pulled, efg::EfgSolution);
+
+/// `case` solved once into `cell`, for every test that starts from it.
+fn solved_once(cell: &'static std::sync::OnceLock<Solved>, case: fn() -> Pulled) -> &'static Solved {
+    cell.get_or_init(|| {
+        let case = case();
         let s = efg::solve(&case.problem, &AdrParams::default(), |_, _| {}).unwrap();
         (case, s)
     })
 }
 
+/// The 21² square stretched by 20 % (ν = 0.49, 2 × 2 points per cell) and its solution, solved
+/// once for the tests that start from it (seven of them; each solve is seconds of explicit
+/// relaxation).
+fn stretched_square() -> &'static Solved {
+    static SQUARE: std::sync::OnceLock<Solved> = std::sync::OnceLock::new();
+    solved_once(&SQUARE, || reference::square(21, 0.2, 0.49, 2).unwrap())
+}
+
 /// The cube of Table 5.2 at 9³ nodes, stretched by 20 %, and its solution (two tests).
-fn stretched_cube() -> &'static (Pulled, efg::EfgSolution) {
-    static CUBE: std::sync::OnceLock<(Pulled, efg::EfgSolution)> = std::sync::OnceLock::new();
-    CUBE.get_or_init(|| {
-        let case = reference::cube(9, 0.2, 0.49, 2).unwrap();
-        let s = efg::solve(&case.problem, &AdrParams::default(), |_, _| {}).unwrap();
-        (case, s)
-    })
+fn stretched_cube() -> &'static Solved {
+    static CUBE: std::sync::OnceLock<Solved> = std::sync::OnceLock::new();
+    solved_once(&CUBE, || reference::cube(9, 0.2, 0.49, 2).unwrap())
 }
 
 #[test]
