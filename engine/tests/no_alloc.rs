@@ -433,6 +433,7 @@ fn solving_several_contacts_together_allocates_nothing() {
     let v = &built.vademecum;
     let loads = v.load_nodes();
     let points: Vec<([usize; 3], [f64; 3])> = (0..4).map(|k| ([loads[k * loads.len() / 4]; 3], [1.0, 0.0, 0.0])).collect();
+    let normals = [[0.0, 0.0, 1.0]; 4];
     let penetrations = [[0.0, 0.0, -0.002]; 4];
     let mut forces = [[0.0; 3]; 4];
     COUNT.with(|n| n.set(0));
@@ -440,7 +441,17 @@ fn solving_several_contacts_together_allocates_nothing() {
     let mut solved = 0;
     for k in 0..1000 {
         let n = 1 + k % 4;
-        solved += usize::from(coupled_forces(v, &points[..n], &penetrations[..n], &mut forces[..n]).is_ok());
+        solved += usize::from(
+            coupled_forces(
+                v,
+                &points[..n],
+                &[Default::default(); 4][..n],
+                &normals[..n],
+                &penetrations[..n],
+                &mut forces[..n],
+            )
+            .is_ok(),
+        );
     }
     COUNTING.with(|c| c.set(false));
     let n = COUNT.with(|n| n.get());

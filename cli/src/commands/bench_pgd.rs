@@ -9,8 +9,8 @@ use std::time::Instant;
 use anyhow::{Context, bail};
 use serde::Serialize;
 use vademecum_engine::bundle::{self, LoadedBundle};
-use vademecum_engine::pgd::Vademecum;
 use vademecum_engine::pgd::vademecum::{NodeMajorField, QuantizedField};
+use vademecum_engine::pgd::{Footprint, Vademecum};
 use vademecum_engine::pipeline::{Effect, Palpation, TickState, ToolInput};
 
 use crate::cli::BenchPgdArgs;
@@ -101,7 +101,7 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
         let bary = [1.0 - u - w, u, w];
         let delta = [0.0, 0.0, -1e-3 * rng.unit()];
         let t = Instant::now();
-        let f = match v.compliance(black_box(tri), black_box(bary)) {
+        let f = match v.contact_compliance(black_box(tri), black_box(bary), Footprint::Tip) {
             Some(c) => Vademecum::contact_force(&c, delta),
             None => [0.0; 3],
         };

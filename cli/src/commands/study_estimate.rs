@@ -195,7 +195,9 @@ fn press(
         })?;
     let (_, n) = triangle_area_normal(&model.mesh, top);
     let size = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-    let c = bundle.vademecum.compliance(top, [1.0 / 3.0; 3])?;
+    let c = bundle
+        .vademecum
+        .contact_compliance(top, [1.0 / 3.0; 3], vademecum_engine::pgd::Footprint::Tip)?;
     let along: f64 = (0..3).map(|i| (0..3).map(|j| n[i] * c[i][j] * n[j]).sum::<f64>()).sum::<f64>() / (size * size);
     let (lo, hi) = model.mesh.bounding_box();
     let extent = (0..3).map(|k| hi[k] - lo[k]).fold(f64::INFINITY, f64::min);

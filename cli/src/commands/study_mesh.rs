@@ -12,8 +12,9 @@
 //! - **the contact force** at fixed points of the accessible surface (up to [`PROBES`]
 //!   loadable nodes of the scene's own mesh inside the loadable region, drawn uniformly with a
 //!   fixed seed): the force
-//!   `C(s)⁻¹ δ` for a 1 mm indentation along the surface normal, with `C(s)` the vademecum's
-//!   exact compliance at the nearest point `s` of that level's surface (the tool's footprint
+//!   `K(s) δ` for a 1 mm indentation along the surface normal, with `K(s)` the probe's contact
+//!   stiffness (`Vademecum::contact_stiffness`, the tip's law: the exact nodal stiffnesses
+//!   interpolated) at the nearest point `s` of that level's surface (the tool's footprint
 //!   of `probe_radius` spreads the load, so it can converge once cells are smaller than the
 //!   footprint; a point load's cannot);
 //! - **the strain energy** under the scene's static loads (the full-order linear solve), when it
@@ -36,7 +37,7 @@ use vademecum_engine::bundle;
 use vademecum_engine::contact::Surface;
 use vademecum_engine::fem::linear_static;
 use vademecum_engine::offline::{self, BuildOptions};
-use vademecum_engine::pgd::Vademecum;
+use vademecum_engine::pgd::{Footprint, Vademecum};
 use vademecum_engine::scene::Scene;
 use vademecum_engine::scene::schema::DeformationModel;
 
@@ -260,7 +261,7 @@ fn probe_forces(v: &Vademecum, nodes: &[[f64; 3]], tris: &[[usize; 3]], probes: 
         .map(|&p| {
             let s = surface.nearest(p)?;
             let n = surface.normal_at(&s);
-            let c = v.compliance(surface.triangles()[s.triangle], s.weights)?;
+            let c = v.contact_compliance(surface.triangles()[s.triangle], s.weights, Footprint::Tip)?;
             let f = Vademecum::contact_force(&c, n.map(|x| -INDENTATION * x));
             Some(-(0..3).map(|k| f[k] * n[k]).sum::<f64>())
         })

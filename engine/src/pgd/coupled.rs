@@ -1,25 +1,37 @@
-//! Several tools in contact with one organ at once: the forces that displace k surface points
+//! Several tools in contact with one organ at once: the forces that press k surface points
 //! by their penetrations together.
 //!
-//! With `C(i ← j)` the compliance between contact points ([`Vademecum::cross_compliance`]:
-//! the displacement at i per unit force at j), the tools' forces on the tissue solve
+//! Each tool alone pushes the tissue with its contact law, `f_i = K_i δ_i`
+//! ([`Vademecum::contact_stiffness`] for the tool's [`Footprint`]; `δ_i = −depth_i n_i`
+//! along the surface's normal). Together, each keeps that law's **direction**, `f_i = a_i
+//! f̂_i` with `f̂_i = K_i n_i`, and the scalars `a_i` solve
 //!
-//! `Σ_j C(i ← j) f_j = δ_i`,  i = 1 … k
+//! `Σ_j S_ij a_j = r_i`,  `S_ij = γ_i γ_j f̂_iᵀ C(i ← j) f̂_j`,  `r_i = f̂_iᵀ δ_i`,  i = 1 … k,
 //!
-//! — one 3k × 3k system, so that pressing with one tool moves the tissue under the others and
-//! changes their forces (superposition of the linear responses; for k = 1 it is the single
-//! tool's `f = C⁻¹δ`, [`Vademecum::contact_force`]). The system is symmetric by reciprocity
-//! (`C(j ← i) = C(i ← j)ᵀ`) and positive definite for distinct points of a supported organ;
-//! two tools on the same spot make it singular, and it is refused then, as an ill-conditioned
-//! single compliance is. Everything lives on the stack: a tick may call it.
+//! with `C(i ← j)` the compliance between the contact points
+//! ([`Vademecum::cross_compliance`]: the displacement at i per unit force at j) and `γ_i` the
+//! scale that makes each own entry the tool-alone law's, `S_ii = n_iᵀ K_i n_i` (1 where `K_i⁻¹`
+//! is the point's own block `C(i ← i)`, as at the load nodes). This is the Galerkin projection
+//! of the tissue's response on the tools' force directions: row i says that the tissue under
+//! tool i, displaced by every tool's force, has moved by tool i's penetration as tool i
+//! measures displacement (along `f̂_i`); pressing with one tool moves the tissue under the
+//! others and changes their forces (superposition of the linear responses). For k = 1 it is
+//! the tool-alone law `f = K δ`. `S` is a Gram matrix of the organ's compliance (symmetric by
+//! reciprocity, `C(j ← i) = C(i ← j)ᵀ`; positive definite for distinct points of a supported
+//! organ), so the problem of probes that only push (`a_i ≤ 0`) is a convex one with one
+//! solution that moves continuously with the tools: a probe touching the tissue another one
+//! moves takes its load from zero (a system that imposed the whole displacement vector at each
+//! contact pinned the tissue's sideways motion there the moment it touched: a step of the other
+//! tool's force). Two tools on one spot make it singular, and it is refused then, as an
+//! ill-conditioned single compliance is. Everything lives on the stack: a tick may call it.
 
-use super::vademecum::Vademecum;
+use super::vademecum::{Footprint, Vademecum};
 
 /// Most contacts solved together (tools in one session).
 pub const MAX_CONTACTS: usize = 4;
 
-/// Largest system: three equations per contact.
-const N: usize = 3 * MAX_CONTACTS;
+/// Largest system: one equation per contact.
+const N: usize = MAX_CONTACTS;
 
 /// Smallest accepted pivot, relative to the largest diagonal entry of the system: below it the
 /// contacts are taken as not independent (two tools on one spot) and nothing is solved.
@@ -40,18 +52,21 @@ pub enum CoupledError {
 }
 
 /// The forces (N) on the tissue at `points` (each `(nodes, barycentric weights)` on the
-/// loadable surface) that displace them by `penetrations` (m) together, into `forces` (one per
-/// point; module docs). Allocates nothing.
+/// loadable surface, with its outward unit normal in `normals` and its tool's footprint in
+/// `footprints`) that press them by `penetrations` (m) together, into `forces` (one per point;
+/// module docs). Allocates nothing.
 pub fn coupled_forces(
     v: &Vademecum,
     points: &[([usize; 3], [f64; 3])],
+    footprints: &[Footprint],
+    normals: &[[f64; 3]],
     penetrations: &[[f64; 3]],
     forces: &mut [[f64; 3]],
 ) -> Result<(), CoupledError> {
     let k = points.len();
     assert!(
-        penetrations.len() == k && forces.len() == k,
-        "one penetration and one force per point"
+        footprints.len() == k && normals.len() == k && penetrations.len() == k && forces.len() == k,
+        "one footprint, one normal, one penetration and one force per point"
     );
     if k > MAX_CONTACTS {
         return Err(CoupledError::TooMany(k));
@@ -59,24 +74,40 @@ pub fn coupled_forces(
     if k == 0 {
         return Ok(());
     }
-    let n = 3 * k;
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let apply = |m: &[[f64; 3]; 3], x: &[f64; 3]| m.map(|row| dot(&row, x));
+    // each tool's force direction f̂_i = K_i n_i and its scale γ_i
+    let mut dirs = [[0.0; 3]; MAX_CONTACTS];
+    let mut gamma = [0.0; MAX_CONTACTS];
     let mut a = [[0.0; N]; N];
     let mut b = [0.0; N];
     for i in 0..k {
-        if penetrations[i].iter().any(|x| !x.is_finite()) {
+        let (n, delta) = (&normals[i], &penetrations[i]);
+        if n.iter().chain(delta).any(|x| !x.is_finite()) {
             return Err(CoupledError::NotLoadable(i));
         }
+        let stiffness = v
+            .contact_stiffness(points[i].0, points[i].1, footprints[i])
+            .ok_or(CoupledError::NotLoadable(i))?;
+        let own = v.cross_compliance(points[i], points[i]).ok_or(CoupledError::NotLoadable(i))?;
+        let f = apply(&stiffness, n);
+        let (alone, blend) = (dot(n, &f), dot(&f, &apply(&own, &f)));
+        if !(alone > 0.0 && blend > 0.0) {
+            return Err(CoupledError::Singular);
+        }
+        dirs[i] = f;
+        gamma[i] = (alone / blend).sqrt();
+        b[i] = dot(&f, delta);
+    }
+    for i in 0..k {
         for j in 0..k {
             let c = v.cross_compliance(points[i], points[j]).ok_or(CoupledError::NotLoadable(j))?;
-            for (r, row) in c.iter().enumerate() {
-                a[3 * i + r][3 * j..3 * j + 3].copy_from_slice(row);
-            }
+            a[i][j] = gamma[i] * gamma[j] * dot(&dirs[i], &apply(&c, &dirs[j]));
         }
-        b[3 * i..3 * i + 3].copy_from_slice(&penetrations[i]);
     }
-    let x = solve(&mut a, &mut b, n).ok_or(CoupledError::Singular)?;
-    for (f, chunk) in forces.iter_mut().zip(x[..n].chunks_exact(3)) {
-        *f = [chunk[0], chunk[1], chunk[2]];
+    let x = solve(&mut a, &mut b, k).ok_or(CoupledError::Singular)?;
+    for ((f, d), s) in forces.iter_mut().zip(&dirs).zip(&x[..k]) {
+        *f = d.map(|c| s * c);
     }
     Ok(())
 }

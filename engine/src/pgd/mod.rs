@@ -40,4 +40,4 @@ pub mod coupled;
 pub mod vademecum;
 
 pub use build::{LoadVector, PgdInfo, PgdParams, SeparatedSolution};
-pub use vademecum::Vademecum;
+pub use vademecum::{Footprint, Vademecum};

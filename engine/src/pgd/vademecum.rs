@@ -131,6 +131,19 @@ pub struct Vademecum {
     local: Option<LocalCompliance>,
 }
 
+/// How a tool's load reaches the tissue between the load nodes
+/// ([`Vademecum::contact_stiffness`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Footprint {
+    /// A tip smaller than the mesh (a probe's sphere): the load sits where the tip is, and the
+    /// nodes' own stiffnesses are interpolated between them.
+    #[default]
+    Tip,
+    /// An edge lying along the surface (a blade): the load spreads over the triangle as its
+    /// shape functions spread it, and the blend of the nodes' blocks is exact for it.
+    Edge,
+}
+
 impl Vademecum {
     /// Builds the online form of a separated solution over the free equations of `dofs`.
     pub fn from_separated(sep: &SeparatedSolution, dofs: &DofMap, load_nodes: &[usize], patches: &[(Vec<usize>, Vec<f64>)]) -> Self {
@@ -319,6 +332,55 @@ impl Vademecum {
             }
         }
         self.modal_compliance(js, weights)
+    }
+
+    /// The contact stiffness (N/m) a tool with `footprint` meets at a surface point
+    /// (docs/contact.md, "Which stiffness is right"):
+    ///
+    /// - [`Footprint::Tip`]: the nodes' own stiffnesses `K_a = C(a ← a)⁻¹` interpolated,
+    ///   `K(s) = Σ_a w_a K_a` — exact at the nodes and, between them, closer to the stiffness
+    ///   of a tip smaller than the mesh (measured under refinement) than the blend, and as
+    ///   smooth as it;
+    /// - [`Footprint::Edge`]: the blend's `C(s)⁻¹` ([`Vademecum::compliance`]), exact for the
+    ///   load spread over the triangle by its shape functions — a blade's edge lying along the
+    ///   surface across the mesh.
+    ///
+    /// `None` as for [`Vademecum::compliance`], or when a block is singular.
+    pub fn contact_stiffness(&self, nodes: [usize; 3], weights: [f64; 3], footprint: Footprint) -> Option<[[f64; 3]; 3]> {
+        let inverse = |c: [[f64; 3]; 3]| nalgebra::Matrix3::from_fn(|r, d| c[r][d]).try_inverse();
+        let mut k = [[0.0; 3]; 3];
+        match footprint {
+            Footprint::Edge => {
+                let inv = inverse(self.compliance(nodes, weights)?)?;
+                k = std::array::from_fn(|i| std::array::from_fn(|d| inv[(i, d)]));
+            }
+            Footprint::Tip => {
+                self.load_indices(nodes, weights)?;
+                for a in 0..3 {
+                    if weights[a] == 0.0 {
+                        continue;
+                    }
+                    let inv = inverse(self.compliance([nodes[a]; 3], [1.0, 0.0, 0.0])?)?;
+                    for i in 0..3 {
+                        for d in 0..3 {
+                            k[i][d] += weights[a] * inv[(i, d)];
+                        }
+                    }
+                }
+            }
+        }
+        Some(k)
+    }
+
+    /// The compliance a tool with `footprint` alone meets at a surface point: the inverse of
+    /// its [`Vademecum::contact_stiffness`] (at a node, the node's own block for either).
+    pub fn contact_compliance(&self, nodes: [usize; 3], weights: [f64; 3], footprint: Footprint) -> Option<[[f64; 3]; 3]> {
+        if footprint == Footprint::Edge {
+            return self.compliance(nodes, weights);
+        }
+        let k = self.contact_stiffness(nodes, weights, footprint)?;
+        let c = nalgebra::Matrix3::from_fn(|r, d| k[r][d]).try_inverse()?;
+        Some(std::array::from_fn(|r| std::array::from_fn(|d| c[(r, d)])))
     }
 
     /// The load-node index of each node of a surface point with non-zero weight (0 for the

@@ -360,7 +360,7 @@ impl Cutting {
             && let Some(c) = &mut state.contact
             && c.organ == self.organ
             && c.loadable > 0.0
-            && let Some(cv) = self.bundle.vademecum.compliance(c.nodes, c.weights)
+            && let Some(cv) = self.bundle.vademecum.contact_compliance(c.nodes, c.weights, tool.kind.footprint())
         {
             let added = if self.view.enriched_unknowns() > 0 {
                 self.view.added_compliance(&c.nodes, &c.weights)

@@ -59,6 +59,17 @@ pub enum ToolKind {
     Other,
 }
 
+impl ToolKind {
+    /// How the tool's load reaches the tissue: a blade's edge lies along the surface, every
+    /// other tool presses with a tip (docs/contact.md, "Which stiffness is right").
+    pub fn footprint(self) -> crate::pgd::Footprint {
+        match self {
+            Self::Scalpel => crate::pgd::Footprint::Edge,
+            _ => crate::pgd::Footprint::Tip,
+        }
+    }
+}
+
 /// What the tick reads from the tool (SI units).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ToolInput {

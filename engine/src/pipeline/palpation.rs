@@ -5,22 +5,25 @@
 //! deepest contact wins), then the force on the tissue for the imposed surface displacement
 //! `δ = −depth · n(s)` at the proxy s:
 //!
-//! - on the accessible surface (every node of the triangle loadable), `f = C(s)⁻¹δ` with the
-//!   vademecum's compliance `C(s)` (exact local 3×3 blocks interpolated over the triangle);
+//! - on the accessible surface (every node of the triangle loadable), `f = K(s)δ` with the
+//!   contact stiffness of the tool's footprint ([`Vademecum::contact_stiffness`]): for a tip
+//!   (probe, grasper) the load nodes' own stiffnesses `C(a ← a)⁻¹` (exact local blocks)
+//!   interpolated over the triangle; for a blade's edge the blend `C(s)⁻¹`;
 //! - where the surface reaches nodes the vademecum cannot load (the fixed face, the parts
 //!   outside the accessible region), the organ lies on its rigid support: with λ the weight of
 //!   the loadable nodes at s and s_L the point of their edge or vertex they span,
-//!   `f = [λ C(s_L)⁻¹ + (1 − λ) k_w I] δ`, where the support stiffness `k_w` is the stiffest
+//!   `f = [λ K(s_L) + (1 − λ) k_w I] δ`, where the support stiffness `k_w` is the stiffest
 //!   the organ gets at any loadable node (`max_a 1/λ_min(C(a))`). At λ = 1 this is the
 //!   accessible law and at λ = 0 a wall, so the force is continuous everywhere on the surface.
 //!
 //! # Several tools on one organ
 //! Each tool keeps its own proxy on every organ. When several tools touch the same organ in
-//! one tick, their forces on the tissue are solved together ([`crate::pgd::coupled`]): with
-//! `s_L,i` the loadable point of tool i and `λ_i` its share,
-//! `Σ_j C(s_L,i ← s_L,j) g_j = δ_i` and `f_i = λ_i g_i + (1 − λ_i) k_w δ_i` — pressing with
-//! one tool moves the tissue under the other (a tool wholly on the support, `λ = 0`, takes no
-//! part). For one tool this is the law above. A probe only pushes: a contact whose solution
+//! one tick, their forces on the tissue are solved together ([`crate::pgd::coupled`]: each
+//! keeps its own law's direction, the magnitudes solved from the compliances between the
+//! loadable points `s_L,i`), and `f_i = λ_i g_i + (1 − λ_i) k_w δ_i` with `g_i` the solved
+//! tissue force and `λ_i` the tool's share — pressing with one tool moves the tissue under the
+//! other (a tool wholly on the support, `λ = 0`, takes no part). For one tool this is the law
+//! above. A probe only pushes: a contact whose solution
 //! would pull the tissue out (the others' press drew the surface away from under it) lets
 //! go, and the rest are solved again. Where the contacts are not independent (two tools on
 //! one spot: the system is singular) the shallower lets go and the deeper takes the load —
@@ -38,7 +41,7 @@
 //! # The error estimate of each force
 //! Every force comes with an estimate of its error against the full-order model of the same
 //! mesh ([`TickState::force_error_n`]): for the linear law, the round-off of the exact local
-//! compliances (`LINEAR_RELATIVE_ERROR · |f|`: the force is exact otherwise); with large
+//! compliances (`LINEAR_RELATIVE_ERROR · |f|`: the law is the full model's otherwise); with large
 //! deformations, the lattice's [`Stiffening::error`] times the linear force — the nonlinear
 //! correction's uncertainty growing with the distance to the nearest lattice position at the
 //! rate the lattice's leave-one-out calibrated around each position
@@ -50,7 +53,7 @@
 //! nodes), whose field the build measured to a relative error ε
 //! ([`LoadedBundle::modes_error`]): a block `C(i ← j)` is then off by up to about
 //! `ε ‖C(s_L,j)‖` (the error relative to the field under the load at j), which moves tool
-//! i's force by `ε λ_i ‖C(s_L,i)⁻¹‖ Σ_{j≠i} ‖C(s_L,j)‖ |g_j|` to first order — added to each
+//! i's force by `ε λ_i ‖K(s_L,i)‖ Σ_{j≠i} ‖K(s_L,j)⁻¹‖ |g_j|` to first order — added to each
 //! estimate; a bundle without that measure gives no estimate.
 //! `vademecum study` checks the estimate against full Newton at nodes off the lattice.
 //!
@@ -62,8 +65,8 @@ use std::sync::Arc;
 use super::{Contact, Effect, Events, Fidelity, MAX_TOOLS, TickState, ToolInput, ToolKind};
 use crate::bundle::LoadedBundle;
 use crate::contact::{Bounds, Proxy, Surface, Touch};
-use crate::pgd::Vademecum;
 use crate::pgd::coupled::{CoupledError, coupled_forces};
+use crate::pgd::{Footprint, Vademecum};
 
 /// One organ as the probe sees it.
 #[derive(Debug, Clone)]
@@ -138,9 +141,9 @@ impl Organ {
         }
     }
 
-    /// The force on the tissue at the touch as if the tool were alone (before any
-    /// large-deformation scaling), split into its loadable and support parts.
-    fn forces(&self, t: &Touch) -> Share {
+    /// The force on the tissue at the touch as if the tool (of `footprint`) were alone (before
+    /// any large-deformation scaling), split into its loadable and support parts.
+    fn forces(&self, t: &Touch, footprint: Footprint) -> Share {
         let v = &self.bundle.vademecum;
         let delta = t.penetration();
         let w = t.at.weights;
@@ -163,7 +166,7 @@ impl Organ {
             };
         }
         let wl = wl.map(|x| x / lambda);
-        let tissue = match v.compliance(t.nodes, wl) {
+        let tissue = match v.contact_compliance(t.nodes, wl, footprint) {
             Some(c) => Vademecum::contact_force(&c, delta).map(|f| lambda * f),
             None => [0.0; 3],
         };
@@ -189,7 +192,7 @@ struct Share {
     /// The support's part of the force (N).
     wall: [f64; 3],
     /// What an error of the compliances between the tools' contacts can move the loadable
-    /// part by, per unit relative error (N): `λ_i ‖C(s_L,i)⁻¹‖ Σ_{j≠i} ‖C(s_L,j)‖ |g_j|`;
+    /// part by, per unit relative error (N): `λ_i ‖K(s_L,i)‖ Σ_{j≠i} ‖K(s_L,j)⁻¹‖ |g_j|`;
     /// zero for a tool alone.
     coupling: f64,
 }
@@ -201,9 +204,10 @@ struct Share {
 /// it), the most pulling contact lets go — its tissue force is zero — and the rest are
 /// solved again (an active set: at most one pass per tool). Two tools on one spot (a
 /// singular system): the shallower lets go. Nothing changes when fewer than two tools touch.
-fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &mut [Share]) {
+fn couple(o: &Organ, organ: usize, tools: &[ToolInput], touches: &[Option<(usize, Touch)>], shares: &mut [Share]) {
     let mut members = [0usize; MAX_TOOLS];
     let mut points = [([0usize; 3], [0.0; 3]); MAX_TOOLS];
+    let mut footprints = [Footprint::Tip; MAX_TOOLS];
     let mut penetrations = [[0.0; 3]; MAX_TOOLS];
     let mut normals = [[0.0; 3]; MAX_TOOLS];
     let mut k = 0;
@@ -214,6 +218,7 @@ fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &
         {
             members[k] = i;
             points[k] = (touch.nodes, shares[i].weights);
+            footprints[k] = tools[i].kind.footprint();
             penetrations[k] = touch.penetration();
             normals[k] = touch.normal;
             k += 1;
@@ -228,7 +233,14 @@ fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &
     // the active contacts first, in `members[..active]`, the released ones after
     let mut active = k;
     loop {
-        let drop = match coupled_forces(v, &points[..active], &penetrations[..active], &mut g[..active]) {
+        let drop = match coupled_forces(
+            v,
+            &points[..active],
+            &footprints[..active],
+            &normals[..active],
+            &penetrations[..active],
+            &mut g[..active],
+        ) {
             Ok(()) => (0..active)
                 .map(|a| (a, dot(&g[a], &normals[a]) / dot(&g[a], &g[a]).sqrt().max(f64::MIN_POSITIVE)))
                 .filter(|&(_, c)| c > 0.0)
@@ -245,18 +257,19 @@ fn couple(o: &Organ, organ: usize, touches: &[Option<(usize, Touch)>], shares: &
                 active -= 1;
                 members.swap(a, active);
                 points.swap(a, active);
+                footprints.swap(a, active);
                 penetrations.swap(a, active);
                 normals.swap(a, active);
             }
             _ => break,
         }
     }
-    // ‖C(s_L,i)‖ and ‖C(s_L,i)⁻¹‖ (Frobenius, bounding the spectral norms)
+    // ‖K(s_L,i)⁻¹‖ and ‖K(s_L,i)‖ (Frobenius, bounding the spectral norms)
     let mut norms = [(0.0, 0.0); MAX_TOOLS];
-    for (n, p) in norms.iter_mut().zip(&points[..active]) {
-        if let Some(c) = v.compliance(p.0, p.1) {
-            let m = nalgebra::Matrix3::from_fn(|r, d| c[r][d]);
-            *n = (m.norm(), m.try_inverse().map_or(f64::INFINITY, |inv| inv.norm()));
+    for ((n, p), f) in norms.iter_mut().zip(&points[..active]).zip(&footprints) {
+        if let Some(k) = v.contact_stiffness(p.0, p.1, *f) {
+            let m = nalgebra::Matrix3::from_fn(|r, d| k[r][d]);
+            *n = (m.try_inverse().map_or(f64::INFINITY, |c| c.norm()), m.norm());
         }
     }
     let size = |f: &[f64; 3]| dot(f, f).sqrt();
@@ -415,13 +428,13 @@ impl Effect for Palpation {
         }
         let touches = &touches[..tools.len()];
         let mut shares = [Share::default(); MAX_TOOLS];
-        for (share, t) in shares.iter_mut().zip(touches) {
+        for ((share, t), tool) in shares.iter_mut().zip(touches).zip(tools) {
             if let Some((organ, touch)) = t {
-                *share = self.organs[*organ].forces(touch);
+                *share = self.organs[*organ].forces(touch, tool.kind.footprint());
             }
         }
         for (organ, o) in self.organs.iter().enumerate() {
-            couple(o, organ, touches, &mut shares);
+            couple(o, organ, tools, touches, &mut shares);
         }
         for (i, state) in states.iter_mut().enumerate() {
             if tools[i].kind == ToolKind::Grasper {

@@ -436,34 +436,41 @@ pub fn linear_samples(model: &OrganModel, bundle: &LoadedBundle, count: usize) -
         let (a, b) = (rng.unit(), rng.unit());
         let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
         let w = [1.0 - a - b, a, b];
-        let Some(served_c) = v.compliance(tri, w) else { continue };
-        // the full model's compliance at s: unit forces over the weighted patches, read back
-        // with the same weights
-        let mut rhs = vec![0.0; 3 * nf];
-        for d in 0..3 {
-            let mut f = vec![0.0; 3 * n];
-            for (&node, &wa) in tri.iter().zip(&w) {
-                let (nodes, pw) = &patches[index[&node]];
-                for (&p, &x) in nodes.iter().zip(pw) {
-                    f[3 * p + d] += wa * x;
-                }
+        let Some(served_c) = v.contact_compliance(tri, w, crate::pgd::Footprint::Tip) else {
+            continue;
+        };
+        // the full model's contact law at s: each node's own compliance (unit forces over its
+        // patch, read back over it), inverted, interpolated with the weights, inverted back
+        let mut stiffness = nalgebra::Matrix3::<f64>::zeros();
+        for (&node, &wa) in tri.iter().zip(&w) {
+            if wa == 0.0 {
+                continue;
             }
-            dofs.restrict(&f, &mut rhs[d * nf..(d + 1) * nf]);
-        }
-        chol.solve_many_in_place(&mut rhs, 3);
-        let mut true_c = [[0.0; 3]; 3];
-        let mut u = vec![0.0; 3 * n];
-        for d in 0..3 {
-            dofs.expand(&rhs[d * nf..(d + 1) * nf], &zero, &mut u);
-            for (&node, &wa) in tri.iter().zip(&w) {
-                let (nodes, pw) = &patches[index[&node]];
+            let (nodes, pw) = &patches[index[&node]];
+            let mut rhs = vec![0.0; 3 * nf];
+            for d in 0..3 {
+                let mut f = vec![0.0; 3 * n];
                 for (&p, &x) in nodes.iter().zip(pw) {
-                    for (i, row) in true_c.iter_mut().enumerate() {
-                        row[d] += wa * x * u[3 * p + i];
+                    f[3 * p + d] += x;
+                }
+                dofs.restrict(&f, &mut rhs[d * nf..(d + 1) * nf]);
+            }
+            chol.solve_many_in_place(&mut rhs, 3);
+            let mut c = nalgebra::Matrix3::<f64>::zeros();
+            let mut u = vec![0.0; 3 * n];
+            for d in 0..3 {
+                dofs.expand(&rhs[d * nf..(d + 1) * nf], &zero, &mut u);
+                for (&p, &x) in nodes.iter().zip(pw) {
+                    for i in 0..3 {
+                        c[(i, d)] += x * u[3 * p + i];
                     }
                 }
             }
+            let Some(k) = c.try_inverse() else { continue };
+            stiffness += wa * k;
         }
+        let Some(true_c) = stiffness.try_inverse() else { continue };
+        let true_c: [[f64; 3]; 3] = std::array::from_fn(|i| std::array::from_fn(|d| true_c[(i, d)]));
         let normal = unit_normal(&bundle.nodes, tri);
         let depth = 1e-3;
         let delta = normal.map(|x| -depth * x);

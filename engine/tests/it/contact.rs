@@ -750,3 +750,52 @@ fn probe_stiffness_under_refinement() {
         assert!(worst(interp) < worst(blend) && roughest(interp) < roughest(blend));
     }
 }
+
+/// How far the surface under a probe's tip moves, relative to the tip's depth, in the frames
+/// a session shows (docs/contact.md, "The field the frames show"): the field is the response
+/// `C(s) f` to the force `f = K(s) δ` of the tip's law, so the point under the tip moves by
+/// `nᵀ C(s) K(s) n` of the depth along the normal — 1 at the nodes, and between them what the
+/// coarse mesh's blend makes of the tip's load. Prints its range over 20,000 random points of
+/// the organ's accessible triangles and its value at the triangles' centres. A measurement:
+/// `cargo test -p vademecum-engine --test it surface_under_the_tip -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn surface_under_the_tip_between_nodes() {
+    use vademecum_engine::mesh::boundary::triangle_area_normal;
+    use vademecum_engine::pgd::Footprint;
+    use vademecum_engine::rng::Rng;
+    let scene = Scene::builtin("organ").unwrap();
+    let b = bundle(&scene);
+    let v = &b.vademecum;
+    let model = scene.organ_model(0).unwrap();
+    let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
+    let mut rng = Rng(0x7_1b_5eed);
+    let (mut lo, mut hi, mut centre_lo, mut centre_hi) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+    let ratio = |tri: [usize; 3], w: [f64; 3]| {
+        let (_, n) = triangle_area_normal(&model.mesh, tri);
+        let size = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let n = n.map(|x| x / size);
+        let k = v.contact_stiffness(tri, w, Footprint::Tip).unwrap();
+        let c = v.compliance(tri, w).unwrap();
+        let kn = k.map(|row| (0..3).map(|j| row[j] * n[j]).sum::<f64>());
+        let ckn: Vec<f64> = c.iter().map(|row| (0..3).map(|j| row[j] * kn[j]).sum::<f64>()).collect();
+        (0..3).map(|i| n[i] * ckn[i]).sum::<f64>()
+    };
+    for _ in 0..20_000 {
+        let tri = tris[(rng.next_u64() % tris.len() as u64) as usize];
+        let (x, y) = (rng.unit(), rng.unit());
+        let (x, y) = if x + y > 1.0 { (1.0 - x, 1.0 - y) } else { (x, y) };
+        let q = ratio(tri, [1.0 - x - y, x, y]);
+        lo = lo.min(q);
+        hi = hi.max(q);
+    }
+    for &tri in &tris {
+        let q = ratio(tri, [1.0 / 3.0; 3]);
+        centre_lo = centre_lo.min(q);
+        centre_hi = centre_hi.max(q);
+    }
+    eprintln!(
+        "the surface under the tip moves by {lo:.3}–{hi:.3} of the depth ({} accessible triangles; at their centres {centre_lo:.3}–{centre_hi:.3})",
+        tris.len()
+    );
+}
