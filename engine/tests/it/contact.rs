@@ -769,7 +769,7 @@ fn surface_under_the_tip_between_nodes() {
     let v = &b.vademecum;
     let model = scene.organ_model(0).unwrap();
     let tris: Vec<[usize; 3]> = b.surface.iter().copied().filter(|t| t.iter().all(|&n| v.is_loadable(n))).collect();
-    let mut rng = Rng(0x7_1b_5eed);
+    let mut rng = Rng(0x071b_5eed);
     let (mut lo, mut hi, mut centre_lo, mut centre_hi) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
     let ratio = |tri: [usize; 3], w: [f64; 3]| {
         let (_, n) = triangle_area_normal(&model.mesh, tri);
