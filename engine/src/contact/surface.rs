@@ -242,9 +242,10 @@ impl Surface {
             }
             if next == NO_NEIGHBOUR || next as usize == came_from {
                 // an open edge, or a fold of the normal field between two triangles (each
-                // solution lies beyond their shared edge): the proxy rests on the edge, at its
-                // point nearest to p — the same point from either side
-                let here = self.edge_point(t, a, p);
+                // solution lies beyond their shared edge): the proxy rests on the edge, at the
+                // point whose normal passes nearest to p — the same point from either side, and
+                // where the triangle's solution left the edge when the fold began
+                let here = self.edge_point(t, a, w, p);
                 let d = self.signed_distance(&here, p);
                 return Some((here, d));
             }
@@ -262,8 +263,14 @@ impl Surface {
         None
     }
 
-    /// The point of the edge of triangle `t` opposite vertex `a` nearest to `p`.
-    fn edge_point(&self, t: usize, a: usize, p: [f64; 3]) -> SurfacePoint {
+    /// The point of the edge of triangle `t` opposite vertex `a` whose smooth normal passes
+    /// nearest to `p`: the least-squares solution of `p = q(τ) + σ N(τ)` along the edge
+    /// (`q` and `N` interpolated between the edge's two nodes, τ ∈ [0, 1]), by Gauss–Newton
+    /// from the edge point of the triangle's own solution `w`. Where a fold begins, the
+    /// triangle's solution reaches the edge with a zero residual, so the proxy does not jump
+    /// into the fold (the point nearest to `p` did: 0.33 mm on the organ); and the problem is
+    /// the edge's alone, so either triangle finds the same point.
+    fn edge_point(&self, t: usize, a: usize, w: [f64; 3], p: [f64; 3]) -> SurfacePoint {
         let g = &self.geom[t];
         let corner = |i: usize| match i {
             0 => g[0],
@@ -272,20 +279,44 @@ impl Surface {
         };
         let (i, j) = ((a + 1) % 3, (a + 2) % 3);
         let (x, y) = (corner(i), corner(j));
-        let e = sub(y, x);
-        let len2 = dot(e, e);
-        let s = if len2 > 0.0 {
-            (dot(sub(p, x), e) / len2).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        let (nx, ny) = (self.vertex_normals[self.tris[t][i]], self.vertex_normals[self.tris[t][j]]);
+        let (e, dn) = (sub(y, x), sub(ny, nx));
+        let at = |tau: f64| ([0, 1, 2].map(|k| x[k] + tau * e[k]), [0, 1, 2].map(|k| nx[k] + tau * dn[k]));
+        let (wi, wj) = (w[i].max(0.0), w[j].max(0.0));
+        let mut tau = if wi + wj > 0.0 { wj / (wi + wj) } else { 0.5 };
+        let (q, n) = at(tau);
+        let mut sigma = dot(sub(p, q), n) / dot(n, n).max(f64::MIN_POSITIVE);
+        for _ in 0..PROJECTION_ITERATIONS {
+            let (q, n) = at(tau);
+            let f = [0, 1, 2].map(|k| q[k] + sigma * n[k] - p[k]);
+            let jt = [0, 1, 2].map(|k| e[k] + sigma * dn[k]);
+            // the normal equations of J = [jt n]
+            let (a11, a12, a22) = (dot(jt, jt), dot(jt, n), dot(n, n));
+            let (b1, b2) = (-dot(jt, f), -dot(n, f));
+            let det = a11 * a22 - a12 * a12;
+            if !(det.is_finite() && det > 1e-14 * a11 * a22) {
+                break;
+            }
+            let dt = (b1 * a22 - b2 * a12) / det;
+            let ds = (a11 * b2 - a12 * b1) / det;
+            let next = (tau + dt).clamp(0.0, 1.0);
+            sigma += ds;
+            let moved = (next - tau).abs();
+            tau = next;
+            if !(moved > 1e-15) {
+                break;
+            }
+        }
+        if !tau.is_finite() {
+            tau = 0.5;
+        }
         let mut weights = [0.0; 3];
-        weights[i] = 1.0 - s;
-        weights[j] = s;
+        weights[i] = 1.0 - tau;
+        weights[j] = tau;
         SurfacePoint {
             triangle: t,
             weights,
-            point: [0, 1, 2].map(|k| x[k] + s * e[k]),
+            point: at(tau).0,
         }
     }
 
