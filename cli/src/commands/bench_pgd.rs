@@ -166,7 +166,10 @@ pub fn run(a: BenchPgdArgs) -> anyhow::Result<ExitCode> {
     let mut stats = vec![
         stat("bundle load (verify checksums, build online layout)", loads),
         stat("null timing loop", null),
-        stat("contact force (compliance in a triangle + C^-1 delta)", contact),
+        stat(
+            "contact force (the tip's law in a triangle: nodal stiffnesses interpolated, K delta)",
+            contact,
+        ),
         stat(
             &format!("probe tick, contact from scratch over {n_surface} surface triangles + force ({touched} touching)"),
             tick,
