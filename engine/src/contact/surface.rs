@@ -303,7 +303,7 @@ impl Surface {
             sigma += ds;
             let moved = (next - tau).abs();
             tau = next;
-            if !(moved > 1e-15) {
+            if moved.is_nan() || moved <= 1e-15 {
                 break;
             }
         }
