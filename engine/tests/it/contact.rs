@@ -512,7 +512,55 @@ fn organ_pressed_straight_down_away_from_the_rim_never_loses_force() {
     }
 }
 
-/// Straight presses that are not along the normal (issue 44's open part, docs/contact.md):
+/// Along a straight press — straight down at six points of the lobe to 16 radii, and in from
+/// +y through 11 cm of it, in 10 µm steps — the force never falls while the tip moves into the
+/// surface at the proxy (`v · n(s) ≤ 0` at the step's start: the depth grows), inside the organ and
+/// below the probe's limit: it eases only where the tip moves out through the surface the
+/// proxy is on, heading out of the organ past its rim (docs/contact.md, "Pressing deep").
+/// With the blend's stiffness the force fell by 31.1 N summed over such steps (its ripple
+/// under the sliding proxy), and by 0.03 N where the proxy jumped into a fold of the normal
+/// field.
+#[test]
+fn a_straight_press_never_loses_force_while_it_goes_deeper() {
+    let scene = Scene::builtin("organ").unwrap();
+    let b = bundle(&scene);
+    let r = probe_radius(&scene);
+    let truth = Truth::new(&b);
+    let mut presses: Vec<([f64; 3], [f64; 3], f64)> = press_points(&b, 6)
+        .into_iter()
+        .map(|(p, _)| ([p[0], p[1], p[2] + 2.0 * r], [0.0, 0.0, -1.0], 16.0 * r))
+        .collect();
+    presses.push(([0.0, 0.08, 0.01], [0.0, -1.0, 0.0], 0.12));
+    let mut deeper = 0;
+    for (start, dir, length) in presses {
+        let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
+        let mut last: Option<(f64, f64)> = None;
+        for k in 0..=(length / 1e-5).round() as usize {
+            let tip = [0, 1, 2].map(|d| start[d] + 1e-5 * k as f64 * dir[d]);
+            let s = tick(&mut pipe, tip);
+            let Some(c) = s.contact.filter(|_| truth.inside(tip) && !s.events.has(Events::FORCE_SATURATED)) else {
+                last = None;
+                continue;
+            };
+            let f = norm(s.force_n);
+            // the press direction against the proxy's outward normal (δ = −depth · n)
+            let vn = -(0..3).map(|d| c.imposed_m[d] * dir[d]).sum::<f64>() / norm(c.imposed_m);
+            if let Some((before, into)) = last
+                && into <= 0.0
+            {
+                assert!(
+                    f >= before,
+                    "pressed into the surface from {start:?}, the force fell {before} → {f} N at {tip:?}"
+                );
+                deeper += 1;
+            }
+            last = Some((f, vn));
+        }
+    }
+    assert!(deeper > 15_000, "only {deeper} steps pressed deeper");
+}
+
+/// Straight presses that are not along the normal (docs/contact.md, "Pressing deep"):
 /// straight down (−z) at six points of the organ to 16 radii, and in from +y through the lobe;
 /// prints, per press, the largest fall of the force between two 10 µm steps while the tip is
 /// inside and below the force limit, and the falls summed; then sweeps 10 cm across the top
