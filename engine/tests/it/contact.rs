@@ -470,71 +470,40 @@ fn organ_pressed_straight_in_along_the_normal_never_loses_force() {
     );
 }
 
-/// Pressed straight down (not along the normal) at three points of the lobe's top away from its
-/// rounded rim, 16 radii deep, in 10 µm steps: the force never falls while the tip is inside
-/// and below the probe's limit. With the blend's stiffness three of them fell (by 0.56, 1.84
-/// and 6.41 N summed: its ripple under the sliding proxy), and one also where the proxy jumped
-/// 0.33 mm into a fold of the normal field. (Near the rim, where the proxy wraps round onto the
-/// side, the force still falls: docs/contact.md, "Pressing deep".)
-#[test]
-fn organ_pressed_straight_down_away_from_the_rim_never_loses_force() {
-    let scene = Scene::builtin("organ").unwrap();
-    let b = bundle(&scene);
-    let r = probe_radius(&scene);
-    let truth = Truth::new(&b);
-    let points = press_points(&b, 6);
-    // the measurement's presses 4, 5 and 6 (`oblique_presses_where_the_force_falls`; its
-    // first point lies on the lobe's side, where a press straight down grazes past outside)
-    for i in [3, 4, 5] {
-        let p = points[i].0;
-        let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
-        let steps = (16.0 * r / 1e-5).ceil() as usize;
-        let (mut last, mut pressed) = (None::<f64>, 0);
-        for k in 0..=steps {
-            let tip = [p[0], p[1], p[2] + 2.0 * r - 1e-5 * k as f64];
-            let s = tick(&mut pipe, tip);
-            let f = norm(s.force_n);
-            if s.contact.is_none() || !truth.inside(tip) || s.events.has(Events::FORCE_SATURATED) {
-                last = None;
-                continue;
-            }
-            if let Some(before) = last {
-                assert!(
-                    f >= before,
-                    "press {}: the force fell from {before} to {f} N with the tip at {tip:?}",
-                    i + 1
-                );
-                pressed += 1;
-            }
-            last = Some(f);
-        }
-        assert!(pressed > 1000, "press {}: only {pressed} steps inside and below the limit", i + 1);
-    }
+/// The seven straight presses that are not along the normal (docs/contact.md, "Pressing
+/// deep"): straight down (−z) at six points of the organ, from 2 radii above to 16 radii past
+/// the point, and in from +y through 11 cm of the lobe — each named, with its start, direction
+/// and length (m).
+fn seven_presses(b: &LoadedBundle, r: f64) -> Vec<(String, [f64; 3], [f64; 3], f64)> {
+    let mut presses: Vec<(String, [f64; 3], [f64; 3], f64)> = press_points(b, 6)
+        .into_iter()
+        .map(|(p, _)| (format!("down at {p:?}"), [p[0], p[1], p[2] + 2.0 * r], [0.0, 0.0, -1.0], 16.0 * r))
+        .collect();
+    presses.push(("from +y".into(), [0.0, 0.08, 0.01], [0.0, -1.0, 0.0], 0.12));
+    presses
 }
 
-/// Along a straight press — straight down at six points of the lobe to 16 radii, and in from
-/// +y through 11 cm of it, in 10 µm steps — the force never falls while the tip moves into the
-/// surface at the proxy (`v · n(s) ≤ 0` at the step's start: the depth grows), inside the organ and
-/// below the probe's limit: it eases only where the tip moves out through the surface the
-/// proxy is on, heading out of the organ past its rim (docs/contact.md, "Pressing deep").
-/// With the blend's stiffness the force fell by 31.1 N summed over such steps (its ripple
-/// under the sliding proxy), and by 0.03 N where the proxy jumped into a fold of the normal
-/// field.
+/// Along a straight press ([`seven_presses`], in 10 µm steps) the force never falls while the
+/// tip moves into the surface at the proxy (`v · n(s) ≤ 0` at the step's start: the depth
+/// grows), inside the organ and below the probe's limit: it eases only where the tip moves out
+/// through the surface the proxy is on, heading out of the organ past its rim (docs/contact.md,
+/// "Pressing deep"). The three presses at the top's inner points (4–6) never head out, so
+/// their force never falls at any step inside and below the limit. With the blend's stiffness
+/// the force fell by 31.1 N summed over the steps going deeper (its ripple under the sliding
+/// proxy: by 0.56, 1.84 and 6.41 N at presses 4–6), and by 0.03 N where the proxy jumped
+/// 0.33 mm into a fold of the normal field. (Press 1's point is on the lobe's side: a press
+/// straight down grazes past it outside.)
 #[test]
 fn a_straight_press_never_loses_force_while_it_goes_deeper() {
     let scene = Scene::builtin("organ").unwrap();
     let b = bundle(&scene);
     let r = probe_radius(&scene);
     let truth = Truth::new(&b);
-    let mut presses: Vec<([f64; 3], [f64; 3], f64)> = press_points(&b, 6)
-        .into_iter()
-        .map(|(p, _)| ([p[0], p[1], p[2] + 2.0 * r], [0.0, 0.0, -1.0], 16.0 * r))
-        .collect();
-    presses.push(([0.0, 0.08, 0.01], [0.0, -1.0, 0.0], 0.12));
     let mut deeper = 0;
-    for (start, dir, length) in presses {
+    for (i, (name, start, dir, length)) in seven_presses(&b, r).into_iter().enumerate() {
+        let inner = (3..=5).contains(&i);
         let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
-        let mut last: Option<(f64, f64)> = None;
+        let (mut last, mut pressed): (Option<(f64, f64)>, usize) = (None, 0);
         for k in 0..=(length / 1e-5).round() as usize {
             let tip = [0, 1, 2].map(|d| start[d] + 1e-5 * k as f64 * dir[d]);
             let s = tick(&mut pipe, tip);
@@ -545,24 +514,30 @@ fn a_straight_press_never_loses_force_while_it_goes_deeper() {
             let f = norm(s.force_n);
             // the press direction against the proxy's outward normal (δ = −depth · n)
             let vn = -(0..3).map(|d| c.imposed_m[d] * dir[d]).sum::<f64>() / norm(c.imposed_m);
-            if let Some((before, into)) = last
-                && into <= 0.0
-            {
-                assert!(
-                    f >= before,
-                    "pressed into the surface from {start:?}, the force fell {before} → {f} N at {tip:?}"
-                );
-                deeper += 1;
+            if let Some((before, into)) = last {
+                assert!(!inner || into <= 0.0, "press {} ({name}) heads out at {tip:?}", i + 1);
+                if into <= 0.0 {
+                    assert!(
+                        f >= before,
+                        "press {} ({name}), going deeper: the force fell {before} → {f} N at {tip:?}",
+                        i + 1
+                    );
+                    deeper += 1;
+                    pressed += 1;
+                }
             }
             last = Some((f, vn));
         }
+        assert!(
+            !inner || pressed > 1000,
+            "press {}: only {pressed} steps inside and below the limit",
+            i + 1
+        );
     }
     assert!(deeper > 15_000, "only {deeper} steps pressed deeper");
 }
 
-/// Straight presses that are not along the normal (docs/contact.md, "Pressing deep"):
-/// straight down (−z) at six points of the organ to 16 radii, and in from +y through the lobe;
-/// prints, per press, the largest fall of the force between two 10 µm steps while the tip is
+/// The [`seven_presses`] measured (docs/contact.md, "Pressing deep"): prints, per press, the largest fall of the force between two 10 µm steps while the tip is
 /// inside and below the force limit, and the falls summed; then sweeps 10 cm across the top
 /// at three depths (0.5, 1.5 and 3 radii where they start) and three y, printing the largest
 /// force step per 10 µm (continuity) and the largest horizontal / vertical force (how much a
@@ -577,13 +552,8 @@ fn oblique_presses_where_the_force_falls() {
     let r = probe_radius(&scene);
     let truth = Truth::new(&b);
     let mut pipe = Pipeline::for_scene(&scene, std::slice::from_ref(&b)).unwrap();
-    let mut presses: Vec<(String, [f64; 3], [f64; 3], f64)> = press_points(&b, 6)
-        .into_iter()
-        .map(|(p, _)| (format!("down at {p:?}"), [p[0], p[1], p[2] + 2.0 * r], [0.0, 0.0, -1.0], 16.0 * r))
-        .collect();
-    presses.push(("from +y".into(), [0.0, 0.08, 0.01], [0.0, -1.0, 0.0], 0.12));
     let step = 1e-5;
-    for (name, start, dir, length) in presses {
+    for (name, start, dir, length) in seven_presses(&b, r) {
         pipe.reset();
         let steps = (length / step).ceil() as usize;
         let mut last: Option<(f64, f64, [f64; 3])> = None;
