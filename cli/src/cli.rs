@@ -156,7 +156,9 @@ the load and the two across it against the full-order reference, from virgin tis
 and third grasps, after another grasp site's pull and after six pulls at two sites; for a cutting \
 scene, points between the cracked nodes of its cut (and, with the bare enrichment, of the cut \
 halfway) against the full XFEM; for co-rotational cutting, a press of the uncut organ and one \
-beside the cut, tick by tick against the deformation's own compliance. Exit status 1 when it \
+beside the cut, tick by tick against the deformation's own compliance; for an organ cut and \
+deformed largely at once, up to --estimate-nodes surface nodes beside its cut pressed as the lattice \
+presses, the composed law against full Newton on the organ cut by split nodes. Exit status 1 when it \
 bounds fewer than 95 % of the states.\n\n\
 Then, for the effects the scene names: large deformations — the lattice at a quarter, half, one and \
 two times fidelity.large.positions blending 1 or 4 positions, and each path's load steps, POD modes \

@@ -13,6 +13,7 @@ use vademecum_engine::bundle::LoadedBundle;
 use vademecum_engine::offline::BuildOptions;
 use vademecum_engine::scene::Scene;
 use vademecum_engine::study::estimate::{self, Coverage, Sample};
+use vademecum_engine::study::large_cut;
 
 /// The share of sampled states the estimate must bound.
 pub(super) const REQUIRED: f64 = 0.95;
@@ -20,8 +21,8 @@ pub(super) const REQUIRED: f64 = 0.95;
 /// The version of the set of states the check samples: 2 added the third grasps and the grasps
 /// after another site's pull, 3 the cut organ, 4 the co-rotational press, 5 the grasps after
 /// many pulls, 6 the co-rotational press beside the cut, 7 the bare enrichment on the cut
-/// halfway (a record without it is of version 0, redone).
-const SAMPLES: u32 = 7;
+/// halfway, 8 the organ cut and deformed largely (a record without it is of version 0, redone).
+const SAMPLES: u32 = 8;
 
 /// Contact points of the cut organ sampled (each pressed along the three axes; six full XFEM
 /// solves each).
@@ -129,6 +130,24 @@ pub(super) fn check(
                 estimate::corotational_samples(&model.mesh, &model.materials, &model.problem, &contact, Some(&cut))
                     .map_err(anyhow::Error::msg)?,
             );
+        }
+    }
+    if cut_here
+        && large
+        && let (Some(lattice), Some(params)) = (&bundle.anm, BuildOptions::for_scene(scene, true).large)
+    {
+        // the scene's cuts on the organ that deforms largely, pressed beside them
+        let xp = vademecum_engine::pipeline::cut_params(scene, bundle.cut_sliver().map_err(anyhow::Error::msg)?);
+        let cells = vademecum_engine::xfem::accuracy::cut_cells(&scene.organ_cuts(0)?, &model, &xp).map_err(anyhow::Error::msg)?;
+        let cut = vademecum_engine::xfem::Enrichment::from_cut_cells(&model.mesh, &cells, &xp)?;
+        if !cut.is_empty() {
+            let beside = large_cut::nodes_beside(&model, &cut, lattice, nodes);
+            let states = large_cut::composed_states(&model, &cut, lattice, &params, &beside, |done, total| {
+                bar.set_message(format!(
+                    "error estimate: the cut organ that deforms largely, Newton on the split organ beside the cut, {done}/{total}"
+                ))
+            })?;
+            samples.extend(states.iter().map(large_cut::ComposedState::sample));
         }
     }
     bar.finish_and_clear();

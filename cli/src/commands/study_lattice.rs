@@ -184,9 +184,8 @@ pub(super) fn sweep(scene: &Scene, key: &str, nodes: usize, out: &Path) -> anyho
         return Ok(Some(rec.points));
     }
     let model = scene.organ_model(0)?;
-    let Some(laws) = &model.laws else {
-        anyhow::bail!("organ 0 has large deformations but no hyperelastic material");
-    };
+    // the law `build` gives the lattice: St Venant–Kirchhoff with the materials' E and ν
+    let laws = &vademecum_engine::rom::palpation::svk_laws(&model);
     let sizes: Vec<usize> = {
         let p = params.positions.max(2);
         let mut s = vec![(p / 4).max(2), (p / 2).max(2), p, 2 * p];

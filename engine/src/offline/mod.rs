@@ -21,8 +21,6 @@ use crate::bundle::{self, ArrayData, BundleError, CutBasis, KIND, Manifest, TEAR
 use crate::damage::store::TearArrays;
 use crate::fem::OrganModel;
 use crate::fem::assembly::{self, AssemblyError, DofMap, SymmetricMatrix, SymmetricPattern};
-use crate::fem::hyperelastic::LawMap;
-use crate::material::hyperelastic::Hyperelastic;
 use crate::pgd::build::{self, PgdInfo, PgdParams, SeparatedSolution};
 use crate::pgd::vademecum::{LocalCompliance, Vademecum};
 use crate::pgd::{brute, compress};
@@ -898,10 +896,7 @@ fn lattice_stage(
         Some(params) => {
             let clock = Instant::now();
             // the seed's law: St Venant–Kirchhoff with each material's E and ν
-            let laws = LawMap {
-                laws: model.materials.table.iter().map(Hyperelastic::svk).collect(),
-                of_cell: model.materials.of_cell.clone(),
-            };
+            let laws = crate::rom::palpation::svk_laws(model);
             let lattice = match opts.large_target_error {
                 None => AnmLattice::build(model, &laws, params, |done, total| on(BuildStage::Lattice(done, total)))?,
                 Some(e) => {

@@ -53,9 +53,12 @@
 //! blend has still to move and what the correction's solve left
 //! ([`super::corotational::corrected_force_error`]).
 //!
-//! A cutting scene cuts one organ, linear: its cut organ ([`crate::scene::Scene::cut_organ`],
-//! the first organ without a damage law), beside any others it palpates or tears (large
-//! deformations and cutting together are refused by the pipeline). The blade's criterion
+//! A cutting scene cuts one organ: its cut organ ([`crate::scene::Scene::cut_organ`], the
+//! first organ without a damage law, a linear one first), beside any others it palpates or
+//! tears. When the cut organ deforms largely, palpation leaves the lattice's stiffening `r` of
+//! the contact ([`super::Contact::stiffened`]) and the cut's force is scaled by it
+//! ([`stiffened_cut`]: `f = r λ (C + ΔC_cut)⁻¹ δ`, with the interaction of the two
+//! corrections added to the estimate). The blade's criterion
 //! counts only the cut organ's reaction: a blade pressed on another organ pushes it and
 //! cuts nothing. With several tools each tool's contact on the cut organ feels the cut.
 
@@ -410,13 +413,23 @@ impl Cutting {
             {
                 self.status.blend_step_max_un.fetch_max(size(tissue, before), Ordering::Relaxed);
             }
+            // the module docs' estimate, and with a rotation correction in the force what the
+            // blend has still to move and the correction's solve left
+            let mut cut_error = force_error(self.view.discontinuous(), self.bare_error, tissue);
+            // an organ that deforms largely: the lattice's stiffening scales the cut's force
+            let tissue = match c.stiffened {
+                Some(s) => {
+                    let uncut = Vademecum::contact_force(&cv, c.imposed_m).map(|f| c.loadable * f);
+                    let (f, error) = stiffened_cut(s, tissue, uncut);
+                    cut_error = cut_error.map(|e| s.ratio * e + error);
+                    f
+                }
+                None => tissue,
+            };
             for k in 0..3 {
                 state.force_n[k] += c.tissue_force_n[k] - tissue[k];
             }
             c.tissue_force_n = tissue;
-            // the module docs' estimate, and with a rotation correction in the force what the
-            // blend has still to move and the correction's solve left
-            let cut_error = force_error(self.view.discontinuous(), self.bare_error, tissue);
             state.force_error_n = match now {
                 None => cut_error,
                 Some(_) => super::corotational::corrected_force_error(tissue, self.blend.target(), |d| force(Some(d)))
@@ -546,6 +559,27 @@ pub fn force_error(disc: Discontinuous, bare_error: Option<f64>, f: [f64; 3]) ->
         Discontinuous::LocalFields => Some(super::palpation::LINEAR_RELATIVE_ERROR * size),
         Discontinuous::Bare => bare_error.map(|e| e * size),
     }
+}
+
+/// The cut's force on an organ that deforms largely, and what the composition adds to its error
+/// estimate (N; `docs/large_deformation.md`, "Cutting an organ that deforms largely").
+///
+/// With `r` the stiffening the organ's lattice gives at the contact's point and depth (built
+/// on the uncut organ), `f = λ C⁻¹δ` the uncut linear force and `f_cut = λ (C + ΔC_cut)⁻¹ δ`
+/// the cut's, the composed force is
+///
+/// `f_large,cut = r f_cut = f + (f_cut − f) + (r − 1) f + (r − 1)(f_cut − f)`:
+///
+/// the linear force, the cut's correction, the nonlinear correction, and an interaction
+/// term — the nonlinear and the cut's corrections taken as separable (the stiffening of the
+/// cut organ at this depth is the uncut organ's). The error added is the lattice's on the
+/// cut's force, `ε_r |f_cut|`, and the interaction term's own size, `|r − 1| |f_cut − f|`:
+/// what the composition assumes, counted as unknown. Both vanish where they should — at
+/// small depth (`r → 1`) and far from the cut (`f_cut → f`).
+pub fn stiffened_cut(s: super::Stiffened, cut: [f64; 3], uncut: [f64; 3]) -> ([f64; 3], f64) {
+    let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let interaction = (s.ratio - 1.0).abs() * norm(std::array::from_fn(|k| cut[k] - uncut[k]));
+    (cut.map(|x| s.ratio * x), s.ratio_error * norm(cut) + interaction)
 }
 
 /// Whether the symmetric part of the 3×3 `m` is positive definite (its leading minors).

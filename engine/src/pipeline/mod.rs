@@ -249,6 +249,22 @@ pub struct Contact {
     pub loadable: f64,
     /// The displacement imposed on the tissue at `point_m`, `δ = −depth · n` (m).
     pub imposed_m: [f64; 3],
+    /// On an organ that deforms largely, the lattice's stiffening of the tissue's part at this
+    /// contact (`None` on a linear organ): the effects after palpation that change the linear
+    /// force (cutting) scale theirs by it.
+    pub stiffened: Option<Stiffened>,
+}
+
+/// The large-deformation law at a contact: the ratio `r` of the nonlinear to the linear force
+/// at its depth, from the organ's ANM-POD lattice ([`crate::rom::palpation::Stiffening`]), and
+/// the ratio's estimated error (relative to the linear force).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Stiffened {
+    /// `r`: the tissue's force is `r` times the linear law's.
+    pub ratio: f64,
+    /// The estimated error of `r` (the lattice's interpolation and path errors; the linear
+    /// law's round-off is not in it).
+    pub ratio_error: f64,
 }
 
 /// What a tick produces, filled in by the effects in order. `Copy` and small: the tick

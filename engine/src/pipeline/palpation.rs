@@ -62,7 +62,7 @@
 
 use std::sync::Arc;
 
-use super::{Contact, Effect, Events, Fidelity, MAX_TOOLS, TickState, ToolInput, ToolKind};
+use super::{Contact, Effect, Events, Fidelity, MAX_TOOLS, Stiffened, TickState, ToolInput, ToolKind};
 use crate::bundle::LoadedBundle;
 use crate::contact::{Bounds, Proxy, Surface, Touch};
 use crate::pgd::coupled::{CoupledError, coupled_forces};
@@ -360,13 +360,19 @@ impl Palpation {
         let norm = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         let mut scale = 1.0;
         let mut error = LINEAR_RELATIVE_ERROR * norm(tissue);
+        let mut stiffened = None;
         if o.large
             && lambda > 0.0
             && let Some(lattice) = &o.bundle.anm
         {
             let s = lattice.stiffness_ratio(point, touch.depth, self.neighbours, &mut self.scratch);
             let rates = &o.rates[usize::from(self.neighbours == 1)];
-            error = norm(tissue) * s.error(rates) + LINEAR_RELATIVE_ERROR * s.ratio * norm(tissue);
+            let ratio_error = s.error(rates);
+            stiffened = Some(Stiffened {
+                ratio: s.ratio,
+                ratio_error,
+            });
+            error = norm(tissue) * ratio_error + LINEAR_RELATIVE_ERROR * s.ratio * norm(tissue);
             scale = s.ratio;
             tissue = tissue.map(|x| x * s.ratio);
             if s.extrapolated {
@@ -390,6 +396,7 @@ impl Palpation {
             tissue_force_n: tissue,
             loadable: lambda,
             imposed_m: touch.penetration(),
+            stiffened,
         });
         state.events.0 |= Events::CONTACT;
     }

@@ -49,7 +49,8 @@ pub fn lattice_error(lattice: &AnmLattice, truth: &[NewtonLaw]) -> f64 {
 
 /// The full model's force–depth laws ([`NewtonLaw`]) at `nodes` surface nodes drawn at random
 /// (repeatably) among the loadable nodes not in `exclude`, with a lattice position's load
-/// (`params`) pushed [`PAST_THE_LATTICE`] times past its force. `progress(done, total)` after
+/// (`params`) pushed [`PAST_THE_LATTICE`] times past its force, on the lattice's own law (St
+/// Venant–Kirchhoff with the materials' E and ν, [`crate::rom::palpation::svk_laws`]). `progress(done, total)` after
 /// each node; nodes where Newton converges no step are skipped.
 pub fn newton_laws(
     model: &OrganModel,
@@ -58,9 +59,9 @@ pub fn newton_laws(
     nodes: usize,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<Vec<NewtonLaw>, StudyError> {
-    let Some(laws) = &model.laws else {
-        return Err(StudyError::Unsupported("the organ's materials are not hyperelastic".into()));
-    };
+    // the lattice's own law, whatever model the materials name (a linear organ that deforms
+    // largely included)
+    let laws = &crate::rom::palpation::svk_laws(model);
     let normals = surface_normals(model);
     let mut pool: Vec<usize> = loadable_nodes(model, &normals)
         .into_iter()

@@ -584,6 +584,20 @@ pub fn surface_normals(organ: &OrganModel) -> Vec<[f64; 3]> {
     normals
 }
 
+/// The large-deformation law of `model` a lattice is built with: St Venant–Kirchhoff with each
+/// material's E and ν (seed 001), whatever model the materials name.
+pub fn svk_laws(model: &OrganModel) -> LawMap {
+    LawMap {
+        laws: model
+            .materials
+            .table
+            .iter()
+            .map(crate::material::hyperelastic::Hyperelastic::svk)
+            .collect(),
+        of_cell: model.materials.of_cell.clone(),
+    }
+}
+
 /// The accessible nodes a lattice may load: with a surface normal, and free to move.
 pub fn loadable_nodes(organ: &OrganModel, normals: &[[f64; 3]]) -> Vec<usize> {
     organ
@@ -643,6 +657,13 @@ impl NewtonLaw {
         let Some(inward) = normals.get(node).and_then(|&n| unit(n)).map(|n| n.map(|x| -x)) else {
             return Err(StudyError::Unsupported(format!("node {node} has no surface normal")));
         };
+        Self::along(organ, laws, params, node, inward)
+    }
+
+    /// [`NewtonLaw::at`] with the load along the unit vector `inward` (the organ's own surface
+    /// normal need not be the one the load follows: on an organ cut through `node`, the normal
+    /// of the uncut surface).
+    pub fn along(organ: &OrganModel, laws: &LawMap, params: &AnmLatticeParams, node: usize, inward: [f64; 3]) -> Result<Self, StudyError> {
         let mesh = &organ.mesh;
         let (patch, problem) = patch_load(mesh, &organ.accessible_nodes, &organ.problem, params, node, inward);
         let mut steps = Vec::new();

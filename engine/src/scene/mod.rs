@@ -179,13 +179,24 @@ impl Scene {
         if s.effects.cutting && self.cut_organ().is_none() {
             return Err(self.error_at(
                 &[Seg::Key("effects"), Seg::Key("cutting")],
-                "cutting is enabled but every organ tears (a damage law) or deforms largely (deformation = \"large\"): cutting acts on the first organ that does neither (effects are not composed on one organ in this version)",
+                "cutting is enabled but every organ tears (a damage law): cutting acts on the first organ that does not (cutting and tearing are not composed on one organ in this version)",
             ));
         }
         if s.fidelity.cutting == schema::CuttingModel::CorotationalXfem && !s.effects.cutting {
             return Err(self.error_at(
                 &[Seg::Key("fidelity"), Seg::Key("cutting")],
                 "fidelity.cutting = \"corotational_xfem\" chooses a cutting model, but cutting is off: set effects.cutting = true",
+            ));
+        }
+        if s.fidelity.cutting == schema::CuttingModel::CorotationalXfem
+            && let Some(i) = self.cut_organ().filter(|&i| self.organ_large(i))
+        {
+            return Err(self.error_at(
+                &[Seg::Key("fidelity"), Seg::Key("cutting")],
+                format!(
+                    "the cut organ '{}' deforms largely, and the co-rotational cutting model is not composed with the large-deformation law in this version: use fidelity.cutting = \"pgd_xfem\" (the cut's force scaled by the lattice), or give the organ deformation = \"linear\"",
+                    s.organs[i].name
+                ),
             ));
         }
         self.validate_visuals()?;
@@ -349,7 +360,7 @@ impl Scene {
             if self.cut_organ() != Some(i) {
                 return Err(self.error_at(
                     &at,
-                    "a visual mesh is drawn for the cut organ only: the first organ without a damage law",
+                    "a visual mesh is drawn for the cut organ only: the first organ without a damage law, a linear one first",
                 ));
             }
             if !v.file.to_ascii_lowercase().ends_with(".obj") {
@@ -528,7 +539,7 @@ impl Scene {
                 if self.cut_organ() != Some(o) {
                     return Err(self.error_at(
                         &at,
-                        "only the cut organ has cuts: the first organ without a damage law and with linear deformation (a tearable organ tears, a large one deforms; neither is cut)",
+                        "only the cut organ has cuts: the first organ without a damage law, a linear one first (a tearable organ tears and is not cut)",
                     ));
                 }
                 let hyperelastic = organ.materials.iter().any(|m| m.model != schema::MaterialModel::Linear);
@@ -1025,16 +1036,20 @@ impl Scene {
     }
 
     /// The organ a cutting scene cuts (`effects.cutting`): the first organ that neither
-    /// tears (a material with a damage law) nor deforms largely. Effects compose on different
-    /// organs in this version, never on one, so in a scene that retracts one organ, tears a
-    /// second and cuts a third — the gallbladder, the fat of Calot's triangle and the cystic
-    /// duct — each effect knows its organ. `None` when the scene does not cut, or no organ is
-    /// left to cut (scene validation refuses that).
+    /// tears (a material with a damage law) nor deforms largely, or else the first that does
+    /// not tear — an organ cut and deformed largely at once (the cut's force scaled by the
+    /// lattice's stiffening: [`crate::pipeline::cutting::stiffened_cut`]). So in a scene that
+    /// retracts one organ, tears a second and cuts a third — the gallbladder, the fat of
+    /// Calot's triangle and the cystic duct — each effect knows its organ, and a scene of one
+    /// organ that deforms largely cuts it. `None` when the scene does not cut, or every organ
+    /// tears (scene validation refuses that).
     pub fn cut_organ(&self) -> Option<usize> {
         if !self.spec.effects.cutting {
             return None;
         }
-        (0..self.spec.organs.len()).find(|&i| self.spec.organs[i].materials.iter().all(|m| m.damage.is_none()) && !self.organ_large(i))
+        let untorn = |i: &usize| self.spec.organs[*i].materials.iter().all(|m| m.damage.is_none());
+        let mut organs = (0..self.spec.organs.len()).filter(untorn);
+        organs.clone().find(|&i| !self.organ_large(i)).or_else(|| organs.next())
     }
 
     /// The cut organ's pre-planned cuts ([`Scene::cut_organ`]); none in a scene that does not

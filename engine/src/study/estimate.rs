@@ -26,6 +26,9 @@
 //!   touch a cracked node along each axis, against the full XFEM's compliance there
 //!   ([`crate::xfem::accuracy::patch_samples`]) — points between the cracked nodes the bare
 //!   enrichment's calibration used ([`CUT`], [`CUT_BARE`]).
+//! - **An organ cut and deformed largely** ([`LARGE_CUT`]): the scene's cut on the organ that
+//!   deforms largely, pressed at surface nodes beside it with a lattice position's load,
+//!   against Newton on the organ cut by split nodes ([`super::large_cut`]).
 //! - **Co-rotational cutting** (seed 003): a tool pressing a surface triangle of the organ
 //!   with a force ramped in over two seconds of frames and held, the co-rotational deformation
 //!   stepped frame by frame as a session's frame thread steps it and each frame's ticks served
@@ -191,9 +194,13 @@ pub const MANY_PULLS: &str = "tearing (after many pulls)";
 /// The pulls before a [`MANY_PULLS`] grasp.
 pub const MANY_PULLS_BEFORE: usize = 6;
 
+/// The model label of the samples of an organ cut and deformed largely at once
+/// ([`super::large_cut`]).
+pub const LARGE_CUT: &str = "large deformations (on the cut organ)";
+
 /// Every model label of the samples, in the order reports list them (none holds a comma: they
 /// are CSV fields).
-pub const MODELS: [&str; 12] = [
+pub const MODELS: [&str; 13] = [
     "linear",
     "large",
     "tearing",
@@ -206,6 +213,7 @@ pub const MODELS: [&str; 12] = [
     CUT_BARE_HALFWAY,
     COROTATIONAL,
     COROTATIONAL_CUT,
+    LARGE_CUT,
 ];
 
 /// Frames over which [`corotational_samples`] ramps the tool's force in (two seconds at

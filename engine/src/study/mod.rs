@@ -5,3 +5,4 @@
 //! the bundles); nothing below imports it.
 
 pub mod estimate;
+pub mod large_cut;

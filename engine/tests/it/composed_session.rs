@@ -237,7 +237,7 @@ fn a_hand_that_sends_nothing_stays_where_it_was() {
 }
 
 #[test]
-fn effects_on_one_organ_are_refused_with_their_reason() {
+fn effects_not_composed_on_one_organ_are_refused_with_their_reason() {
     // every organ tears: nothing is left to cut
     let text = common::with_keys(
         &composed_text(),
@@ -248,10 +248,12 @@ fn effects_on_one_organ_are_refused_with_their_reason() {
     );
     let err = Scene::from_toml(&text, "s.toml").unwrap_err().to_string();
     assert!(err.contains("every organ tears") && err.contains("effects.cutting"), "{err}");
-    // the organ that does not tear deforms largely: nothing is left to cut either
+    // the organ that does not tear deforms largely: it is the one cut, cut and deformed largely
+    // at once (`large_cut.rs`)
     let text = common::with_keys(&composed_text(), &[("organs[0].deformation", "large".into())]);
-    let err = Scene::from_toml(&text, "s.toml").unwrap_err().to_string();
-    assert!(err.contains("deforms largely") && err.contains("effects.cutting"), "{err}");
+    let scene = Scene::from_toml(&text, "s.toml").unwrap();
+    assert_eq!(scene.cut_organ(), Some(0));
+    assert!(scene.organ_large(0));
     // cuts planned on the organ that tears
     let mut t: toml::Table = toml::from_str(&composed_text()).unwrap();
     let cuts = t["organs"][0]["cuts"].clone();

@@ -219,7 +219,7 @@ fn bad_blade_states_are_rejected_with_zero_force() {
 }
 
 #[test]
-fn a_palpation_scene_carries_no_cutting_and_cutting_scenes_need_a_linear_organ_and_a_scalpel() {
+fn a_palpation_scene_carries_no_cutting_and_refuses_a_bundle_of_another_mesh() {
     // the built-in patch, with its probe
     let scene = Scene::builtin("patch").unwrap();
     let b = bundle(&scene);

@@ -23,6 +23,7 @@ mod fuzz;
 mod hard_cases;
 mod hyperelastic_cube;
 mod lame_tet;
+mod large_cut;
 mod large_palpation;
 mod loads_and_boundary;
 mod mesh_formats;
