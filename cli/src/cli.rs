@@ -916,7 +916,7 @@ pub struct BenchCorotArgs {
 /// Arguments of `vademecum bench effects`.
 #[derive(Debug, Args)]
 pub struct BenchEffectsArgs {
-    /// Scene files (TOML), the first the baseline. Default: scenes/effects/cornea_{palpation,large,cutting,tearing}.toml.
+    /// Scene files (TOML), the first the baseline. Default: scenes/effects/cornea_{palpation,large,cutting,tearing,large_cutting}.toml.
     pub scenes: Vec<PathBuf>,
     /// Seconds of each session (default: the length of the scene's built-in trajectory).
     #[arg(long, value_name = "S")]

@@ -12,12 +12,14 @@ use serde::Serialize;
 
 use crate::cli::BenchEffectsArgs;
 
-/// The default scenes: the cornea with each effect added to palpation.
-const DEFAULT_SCENES: [&str; 4] = [
+/// The default scenes: the cornea with each effect added to palpation, then two of them
+/// composed on it (large deformations and cutting).
+const DEFAULT_SCENES: [&str; 5] = [
     "scenes/effects/cornea_palpation.toml",
     "scenes/effects/cornea_large.toml",
     "scenes/effects/cornea_cutting.toml",
     "scenes/effects/cornea_tearing.toml",
+    "scenes/effects/cornea_large_cutting.toml",
 ];
 
 /// One scene's costs.

@@ -352,7 +352,7 @@ fn run_cuts_the_patch_with_a_scalpel_and_records_the_opening() {
 #[test]
 fn every_builtin_scene_runs() {
     // run here: small builds, the built-in palpation or grasp
-    let here = ["patch", "cantilever", "bar", "stretch", "cube_tear"];
+    let here = ["patch", "cantilever", "bar", "stretch", "cube_tear", "large_cut"];
     // run by another test of this file (the costly ones), or by a benchmark's command
     let elsewhere = [
         ("organ", "run_builds_the_missing_vademecum_plays_the_palpation_and_records_it"),

@@ -24,7 +24,10 @@
 //!   a node line, a face, inside a cell, 1e-9 beside them, at the far face; tetrahedra.
 //! - `tearing`: a fully damaged layer, ν = 0.499 under damage, the POD–PGD integrator driven
 //!   outside its coefficient box.
+//! - `composed`: effects on one organ — a flap cut while it deforms largely, pressed on the
+//!   cut's lip and line far past the lattice; the composed law against Newton on the split organ.
 
+mod composed;
 mod cut_tip;
 mod cutting;
 mod hyperelastic;
@@ -198,6 +201,7 @@ pub fn cases() -> Vec<Case> {
         cutting::cases(),
         cut_tip::cases(),
         tearing::cases(),
+        composed::cases(),
     ]
     .into_iter()
     .flatten()
@@ -262,6 +266,40 @@ fn once_per_size<T>(cache: &Mutex<Vec<(Size, Arc<T>)>>, size: Size, make: impl F
     let v = Arc::new(make()?);
     made.push((size, v.clone()));
     Ok(v)
+}
+
+/// Built-in scene `name` at `size`: its mesh's `divisions` line replaced by `divisions[0]` at
+/// reduced size and `divisions[1]` at full size (one of them is the scene's own).
+fn builtin_at(name: &str, size: Size, divisions: [&str; 2]) -> Result<crate::scene::Scene, Outcome> {
+    let text = crate::scene::builtin(name).expect("a built-in scene");
+    let own = divisions
+        .iter()
+        .find(|d| text.contains(&format!("divisions = {d}")))
+        .unwrap_or_else(|| panic!("the built-in {name}'s mesh has one of {divisions:?}"));
+    let text = text.replace(
+        &format!("divisions = {own}"),
+        &format!("divisions = {}", size.pick(divisions[0], divisions[1])),
+    );
+    crate::scene::Scene::from_toml(&text, format!("<hard case: {name}>")).map_err(diagnostic)
+}
+
+/// The bundle of `scene`'s first organ for `size`, built once per process and size (`cache`:
+/// the case family's own) and written and loaded back as a session's.
+fn session_bundle(
+    cache: &Mutex<Vec<(Size, Arc<crate::bundle::LoadedBundle>)>>,
+    scene: &crate::scene::Scene,
+    size: Size,
+) -> Result<Arc<crate::bundle::LoadedBundle>, Outcome> {
+    use crate::offline::{self, BuildOptions};
+    once_per_size(cache, size, || {
+        let b = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).map_err(diagnostic)?;
+        let dir = std::env::temp_dir().join(format!("vademecum-check-{}-{}-{size:?}", scene.spec.scene.name, std::process::id()));
+        let loaded = offline::write_bundle(&dir, scene, &b)
+            .map_err(diagnostic)
+            .and_then(|_| crate::bundle::load_bundle(&dir).map_err(diagnostic));
+        let _ = std::fs::remove_dir_all(&dir);
+        loaded
+    })
 }
 
 /// The outcome of a case body written with `?` over [`Outcome`]s.

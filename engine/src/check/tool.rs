@@ -7,39 +7,22 @@
 
 use std::sync::{Arc, Mutex};
 
-use super::{Case, Expect, Outcome, Size, diagnostic, once_per_size, outcome, relative};
-use crate::bundle;
+use super::{Case, Expect, Outcome, Size, builtin_at, diagnostic, outcome, relative, session_bundle};
 use crate::bundle::LoadedBundle;
-use crate::offline::{self, BuildOptions};
+use crate::offline;
 use crate::pipeline::{Events, MAX_TOOL_SPEED_M_S, Pipeline, QUATERNION_NORM_TOLERANCE, TickState, ToolInput};
 use crate::scene::Scene;
 
 /// The built-in organ, coarser at reduced size.
 fn organ_scene(size: Size) -> Result<Scene, Outcome> {
-    let text = crate::scene::builtin("organ").expect("the built-in organ");
-    let text = match size {
-        Size::Full => text.to_string(),
-        Size::Reduced => {
-            assert!(text.contains("divisions = [16, 10, 6]"), "the built-in organ's mesh");
-            text.replace("divisions = [16, 10, 6]", "divisions = [8, 5, 3]")
-        }
-    };
-    Scene::from_toml(&text, "<hard case: organ>").map_err(diagnostic)
+    builtin_at("organ", size, ["[8, 5, 3]", "[16, 10, 6]"])
 }
 
 /// The organ's bundle for `size`, built once per process and size (a few seconds), written
 /// and loaded back as a session's.
 fn organ_bundle(scene: &Scene, size: Size) -> Result<Arc<LoadedBundle>, Outcome> {
     static BUILT: Mutex<Vec<(Size, Arc<LoadedBundle>)>> = Mutex::new(Vec::new());
-    once_per_size(&BUILT, size, || {
-        let b = offline::build_organ(scene, 0, &BuildOptions::for_scene(scene, true), &mut |_| {}).map_err(diagnostic)?;
-        let dir = std::env::temp_dir().join(format!("vademecum-check-{}-{size:?}", std::process::id()));
-        let loaded = offline::write_bundle(&dir, scene, &b)
-            .map_err(diagnostic)
-            .and_then(|_| bundle::load_bundle(&dir).map_err(diagnostic));
-        let _ = std::fs::remove_dir_all(&dir);
-        loaded
-    })
+    session_bundle(&BUILT, scene, size)
 }
 
 /// A pipeline of the organ and a probe state pressing 2 mm into the middle of its accessible

@@ -459,7 +459,9 @@ impl Pipeline {
     /// Effects compose on different organs: a scene may deform one organ largely (its own
     /// `deformation = "large"`), tear another (its grasper) and cut a third (its scalpel) in
     /// one session, each tool acting on the organ it touches ([`Scene::cut_organ`]); on one
-    /// organ they do not compose yet (scene validation refuses them).
+    /// organ, cutting composes with large deformations (the cut's force scaled by the
+    /// organ's lattice: [`cutting::stiffened_cut`]), and tearing with neither yet (scene
+    /// validation refuses them).
     pub fn for_scene(scene: &Scene, bundles: &[Arc<LoadedBundle>]) -> Result<Self, PipelineError> {
         let fx = &scene.spec.effects;
         if bundles.len() != scene.spec.organs.len() {

@@ -1,7 +1,7 @@
 //! Scenes compiled into the binary, so defaults need no files.
 
 /// Names of the built-in scenes; the first is the default.
-pub const BUILTIN_NAMES: [&str; 12] = [
+pub const BUILTIN_NAMES: [&str; 13] = [
     "organ",
     "patch",
     "cantilever",
@@ -14,6 +14,7 @@ pub const BUILTIN_NAMES: [&str; 12] = [
     "gallbladder_fat",
     "liver_cut",
     "bar",
+    "large_cut",
 ];
 
 /// The TOML text of a built-in scene.
@@ -31,6 +32,7 @@ pub fn builtin(name: &str) -> Option<&'static str> {
         "gallbladder_fat" => GALLBLADDER_FAT,
         "liver_cut" => LIVER_CUT,
         "bar" => BAR,
+        "large_cut" => LARGE_CUT,
         _ => return None,
     })
 }
@@ -143,6 +145,73 @@ radius = 0.05
 locking = "none"
 "#
 );
+
+const LARGE_CUT: &str = r#"# Two effects on one organ: a flap of soft tissue that deforms largely (St Venant-Kirchhoff, its
+# own ANM-POD lattice) cut by the scalpel down the middle of its top half, and pressed beside the
+# cut by a probe. The cut's force is scaled by the lattice's stiffening of the uncut organ
+# (docs/large_deformation.md, "Cutting an organ that deforms largely"); against Newton on the
+# organ cut by split nodes in engine/tests/it/large_cut.rs. `vademecum run --builtin large_cut`.
+[scene]
+name = "large_cut"
+description = "A 2 x 1 x 1 m flap (8 x 4 x 4 hexahedra, E = 1 kPa, nu = 0.3, deformation large) clamped at its base, cut by the scalpel down the plane x = 1 through its top half while it deforms largely, and pressed beside the cut by a probe: cutting and large deformations on one organ."
+
+[[organs]]
+name = "flap"
+density = 1.0
+deformation = "large"
+
+[organs.mesh]
+builtin = "block"
+origin = [0.0, 0.0, 0.0]
+size = [2.0, 1.0, 1.0]               # x long, y deep, z up (m)
+divisions = [8, 4, 4]
+cell = "hex8"
+
+[[organs.materials]]
+model = "linear"                     # its E and nu; large deformations take St Venant-Kirchhoff with them
+young = 1000.0                       # Pa
+poisson = 0.3
+
+[organs.fixed]                       # the base is clamped
+half_space = { point = [0.0, 0.0, 0.01], normal = [0.0, 0.0, -1.0] }
+
+[organs.accessible]                  # tools touch the top
+half_space = { point = [0.0, 0.0, 0.99], normal = [0.0, 0.0, 1.0] }
+
+[[organs.loads]]                     # the flap's free top corner pulled sideways: opens the cut
+kind = "point"
+at = [2.0, 0.5, 1.0]
+force = [0.5, 0.0, 0.0]              # N
+
+[[organs.cuts]]                      # the blade goes down x = 1 (a plane of cell faces) to half height
+blade = [[[1.0, -0.1, 1.1], [1.0, 1.1, 1.1]], [[1.0, -0.1, 0.5], [1.0, 1.1, 0.5]]]
+
+[[tools]]                            # the right hand
+kind = "scalpel"
+name = "scalpel"
+blade_length = 1.2                   # m
+cut_force = 1.0                      # N
+
+[[tools]]                            # the left hand
+kind = "probe"
+name = "probe"
+radius = 0.05                        # m
+max_force = 60.0                     # N
+
+[effects]
+cutting = true
+
+[fidelity]
+locking = "none"                     # the standard hexahedron
+
+[fidelity.xfem]
+front = "shared"                     # the cut ends where the blade stopped
+
+[fidelity.large]
+positions = 4
+load_steps = 4
+max_force = 40.0                     # N
+"#;
 
 const BAR: &str = r#"# A bar clamped at one end, its free end's upper corner loaded: cut through, its end comes loose.
 [scene]

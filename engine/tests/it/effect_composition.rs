@@ -87,7 +87,7 @@ fn a_tearing_scene_holds_its_tearing_arrays_and_state() {
 }
 
 #[test]
-fn the_composition_scenes_add_one_effect_each_to_the_same_cornea() {
+fn the_composition_scenes_add_one_effect_each_to_the_same_cornea_and_compose_two() {
     use vademecum_engine::scene::schema::DeformationModel;
     let load = |name: &str| {
         let path = common::repo_root().join(format!("scenes/effects/cornea_{name}.toml"));
@@ -102,8 +102,10 @@ fn the_composition_scenes_add_one_effect_each_to_the_same_cornea() {
     assert_eq!(fx(&load("large")), (true, false, false));
     assert_eq!(fx(&load("cutting")), (false, true, false));
     assert_eq!(fx(&load("tearing")), (false, false, true));
+    // and two composed on it
+    assert_eq!(fx(&load("large_cutting")), (true, true, false));
     // the same organ: mesh, supports and accessible surface
-    for name in ["large", "cutting", "tearing"] {
+    for name in ["large", "cutting", "tearing", "large_cutting"] {
         let s = load(name);
         assert_eq!(s.spec.organs[0].mesh, base.spec.organs[0].mesh, "{name}");
         assert_eq!(s.spec.organs[0].fixed, base.spec.organs[0].fixed, "{name}");

@@ -15,11 +15,11 @@ use vademecum_engine::scene::Scene;
 use vademecum_engine::study::large_cut::{composed_states, nodes_beside};
 use vademecum_engine::xfem::Enrichment;
 
-/// `scenes/effects/large_cut.toml`: a flap 2 × 1 × 1 m (8 × 4 × 4 hexahedra, E = 1 kPa, ν = 0.3,
+/// The built-in `large_cut`: a flap 2 × 1 × 1 m (8 × 4 × 4 hexahedra, E = 1 kPa, ν = 0.3,
 /// deforming largely) clamped at its base and touched on its top; the scalpel's planned cut goes
 /// down the plane x = 1 (a plane of cell faces) through the top half, across the whole depth.
 fn scene_text() -> String {
-    std::fs::read_to_string(common::repo_root().join("scenes/effects/large_cut.toml")).unwrap()
+    Scene::builtin("large_cut").unwrap().source
 }
 
 fn scene(text: &str) -> Scene {
