@@ -1,7 +1,8 @@
 //! A scene pays only for the effects it names: a palpation scene's bundle holds no
 //! large-deformation lattice, no cutting basis and no tearing arrays, and its session's
 //! pipeline carries no cutting or tearing state and does no work for them; the same organ
-//! naming large deformations, and a tearing scene, do hold theirs (so the checks can fail).
+//! naming large deformations, and a tearing scene, do hold theirs (so the checks can fail);
+//! an organ cut while it deforms largely holds the lattice and the cut's state, nothing else.
 
 use crate::common;
 
@@ -73,6 +74,25 @@ fn a_palpation_scene_holds_nothing_for_the_effects_it_does_not_name() {
     let extra: Vec<&String> = large_names.iter().filter(|n| !names.contains(n)).collect();
     assert!(!extra.is_empty() && extra.iter().all(|n| n.starts_with("anm_")), "{extra:?}");
     assert!(large_bytes > bytes);
+}
+
+#[test]
+fn a_scene_cutting_an_organ_that_deforms_largely_holds_the_lattice_and_the_cut_and_nothing_for_tearing() {
+    let text = Scene::builtin("large_cut").unwrap().source;
+    let both = Scene::from_toml(&text, "<large_cut>").unwrap();
+    let (b, names, _) = bundle(&both);
+    assert!(b.anm.is_some() && b.tear.is_empty(), "{names:?}");
+    assert!(names.iter().all(|n| !n.starts_with("tear")), "{names:?}");
+    let pipe = Pipeline::for_scene(&both, std::slice::from_ref(&b)).unwrap();
+    assert_eq!(pipe.effect_names(), ["palpation", "cutting"]);
+    assert!(pipe.cut_status().is_some() && pipe.grasp_sites().is_empty() && pipe.tear_offline().is_empty());
+    // the same organ linear and cut: the lattice's arrays are the whole difference
+    let linear = Scene::from_toml(&common::with_keys(&text, &[("organs[0].deformation", "linear".into())]), "<linear>").unwrap();
+    let (bl, linear_names, _) = bundle(&linear);
+    assert!(bl.anm.is_none());
+    let extra: Vec<&String> = names.iter().filter(|n| !linear_names.contains(n)).collect();
+    assert!(!extra.is_empty() && extra.iter().all(|n| n.starts_with("anm_")), "{extra:?}");
+    assert!(linear_names.iter().all(|n| names.contains(n)), "{linear_names:?} against {names:?}");
 }
 
 #[test]
