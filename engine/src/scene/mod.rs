@@ -176,6 +176,31 @@ impl Scene {
                 "cutting is enabled but the scene has no scalpel tool; add a [[tools]] entry with kind = \"scalpel\"",
             ));
         }
+        let marked: Vec<usize> = (0..s.organs.len()).filter(|&i| s.organs[i].cuttable).collect();
+        if let Some(&i) = marked.get(1).or(marked.first().filter(|_| !s.effects.cutting)) {
+            return Err(self.error_at(
+                &organ_key(i, &[Seg::Key("cuttable")]),
+                if s.effects.cutting {
+                    format!(
+                        "organ '{}' is marked cuttable, but so is organ '{}': the scalpel cuts one organ",
+                        s.organs[i].name, s.organs[marked[0]].name
+                    )
+                } else {
+                    "the organ is marked cuttable, but cutting is off: set [effects] cutting = true".to_string()
+                },
+            ));
+        }
+        if let Some(&i) = marked.first()
+            && s.organs[i].materials.iter().any(|m| m.damage.is_some())
+        {
+            return Err(self.error_at(
+                &organ_key(i, &[Seg::Key("cuttable")]),
+                format!(
+                    "organ '{}' tears (a material with a damage law), and cutting and tearing are not composed on one organ in this version: mark another organ cuttable",
+                    s.organs[i].name
+                ),
+            ));
+        }
         if s.effects.cutting && self.cut_organ().is_none() {
             return Err(self.error_at(
                 &[Seg::Key("effects"), Seg::Key("cutting")],
@@ -360,7 +385,7 @@ impl Scene {
             if self.cut_organ() != Some(i) {
                 return Err(self.error_at(
                     &at,
-                    "a visual mesh is drawn for the cut organ only: the first organ without a damage law, a linear one first",
+                    "a visual mesh is drawn for the cut organ only: the organ marked cuttable, or the first without a damage law, a linear one first",
                 ));
             }
             if !v.file.to_ascii_lowercase().ends_with(".obj") {
@@ -539,7 +564,7 @@ impl Scene {
                 if self.cut_organ() != Some(o) {
                     return Err(self.error_at(
                         &at,
-                        "only the cut organ has cuts: the first organ without a damage law, a linear one first (a tearable organ tears and is not cut)",
+                        "only the cut organ has cuts: the organ marked cuttable, or the first without a damage law, a linear one first (a tearable organ tears and is not cut)",
                     ));
                 }
                 let hyperelastic = organ.materials.iter().any(|m| m.model != schema::MaterialModel::Linear);
@@ -1035,9 +1060,9 @@ impl Scene {
         (0..self.spec.organs.len()).any(|i| self.organ_large(i))
     }
 
-    /// The organ a cutting scene cuts (`effects.cutting`): the first organ that neither
-    /// tears (a material with a damage law) nor deforms largely, or else the first that does
-    /// not tear — an organ cut and deformed largely at once (the cut's force scaled by the
+    /// The organ a cutting scene cuts (`effects.cutting`): the organ marked `cuttable`, or
+    /// the first organ that neither tears (a material with a damage law) nor deforms
+    /// largely, or else the first that does not tear — an organ cut and deformed largely at once (the cut's force scaled by the
     /// lattice's stiffening: [`crate::pipeline::cutting::stiffened_cut`]). So in a scene that
     /// retracts one organ, tears a second and cuts a third — the gallbladder, the fat of
     /// Calot's triangle and the cystic duct — each effect knows its organ, and a scene of one
@@ -1046,6 +1071,9 @@ impl Scene {
     pub fn cut_organ(&self) -> Option<usize> {
         if !self.spec.effects.cutting {
             return None;
+        }
+        if let Some(i) = self.spec.organs.iter().position(|o| o.cuttable) {
+            return Some(i);
         }
         let untorn = |i: &usize| self.spec.organs[*i].materials.iter().all(|m| m.damage.is_none());
         let mut organs = (0..self.spec.organs.len()).filter(untorn);

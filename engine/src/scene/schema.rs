@@ -71,9 +71,15 @@ pub struct OrganSpec {
     pub visual: Option<VisualSpec>,
     /// This organ's deformation model, in place of the scene's `effects.deformation`: a scene
     /// may deform one organ largely (a gallbladder retracted by a grasper) while it cuts or
-    /// tears another, which stays linear ([`crate::scene::Scene::organ_deformation`]).
+    /// tears another ([`crate::scene::Scene::organ_deformation`]); the organ cut may deform
+    /// largely itself.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub deformation: Option<DeformationModel>,
+    /// This is the organ the scalpel cuts (at most one organ; it must not tear). Default: the
+    /// first organ without a damage law, a linear one first
+    /// ([`crate::scene::Scene::cut_organ`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cuttable: bool,
 }
 
 /// `[organs.visual]`: a visual surface mesh (seed 003 §3.2).

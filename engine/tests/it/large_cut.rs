@@ -222,3 +222,52 @@ fn co_rotational_cutting_of_an_organ_that_deforms_largely_is_refused_with_its_re
         "{err}"
     );
 }
+
+#[test]
+fn an_organ_marked_cuttable_is_the_one_cut_and_the_mark_is_checked() {
+    // the flap beside a linear block: by default the linear organ is cut, the mark moves the
+    // scalpel to the flap that deforms largely
+    let mut t: toml::Table = toml::from_str(&scene_text()).unwrap();
+    let mut block = t["organs"][0].as_table().unwrap().clone();
+    block.insert("name".into(), "block".into());
+    block.remove("deformation");
+    block.remove("cuts");
+    block.insert(
+        "mesh".into(),
+        toml::from_str::<toml::Table>(
+            "builtin = \"block\"\norigin = [3.0, 0.0, 0.0]\nsize = [1.0, 1.0, 1.0]\ndivisions = [2, 2, 2]\ncell = \"hex8\"",
+        )
+        .unwrap()
+        .into(),
+    );
+    t.get_mut("organs").unwrap().as_array_mut().unwrap().insert(0, block.into());
+    let text = toml::to_string(&t).unwrap();
+    // the flap's planned cut belongs to the cut organ: unmarked, that is the linear block
+    let err = Scene::from_toml(&text, "two.toml").unwrap_err().to_string();
+    assert!(err.contains("only the cut organ has cuts"), "{err}");
+    let marked = common::with_keys(&text, &[("organs[1].cuttable", true.into())]);
+    let scene = Scene::from_toml(&marked, "two.toml").unwrap();
+    assert_eq!(scene.cut_organ(), Some(1));
+    assert!(scene.organ_large(1) && !scene.organ_large(0));
+    // two marks, a mark with cutting off, a mark on an organ that tears: refused at the mark
+    let two = common::with_keys(&marked, &[("organs[0].cuttable", true.into())]);
+    let err = Scene::from_toml(&two, "two.toml").unwrap_err().to_string();
+    assert!(err.contains("organs[1].cuttable") && err.contains("one organ"), "{err}");
+    let off = common::with_keys(
+        &scene_text(),
+        &[("organs[0].cuttable", true.into()), ("effects.cutting", false.into())],
+    );
+    let err = Scene::from_toml(&off, "off.toml").unwrap_err().to_string();
+    assert!(err.contains("cuttable") && err.contains("cutting is off"), "{err}");
+    let damage = toml::Value::Table(toml::from_str("alpha = 0.1\nbeta = 0.0").unwrap());
+    let torn = common::with_keys(
+        &marked,
+        &[
+            ("organs[1].materials[0].damage", damage),
+            ("organs[1].deformation", "linear".into()),
+            ("effects.tearing", true.into()),
+        ],
+    );
+    let err = Scene::from_toml(&torn, "torn.toml").unwrap_err().to_string();
+    assert!(err.contains("organs[1].cuttable") && err.contains("tears"), "{err}");
+}
