@@ -122,9 +122,7 @@ pub(super) fn check(
         }
         // the same beside the scene's cut, on the organ cut by it
         bar.set_message("error estimate: a co-rotational press beside the cut, each tick against the deformation's own compliance");
-        let params = vademecum_engine::pipeline::cut_params(scene, bundle.cut_sliver().map_err(anyhow::Error::msg)?);
-        let cells = vademecum_engine::xfem::accuracy::cut_cells(&scene.organ_cuts(0)?, &model, &params).map_err(anyhow::Error::msg)?;
-        let cut = std::sync::Arc::new(vademecum_engine::xfem::Enrichment::from_cut_cells(&model.mesh, &cells, &params)?);
+        let cut = std::sync::Arc::new(scene_cut(scene, &model, bundle)?);
         if let Some(contact) = press(&model, bundle, |t| t.iter().any(|&a| cut.index(a).is_some())) {
             samples.extend(
                 estimate::corotational_samples(&model.mesh, &model.materials, &model.problem, &contact, Some(&cut))
@@ -137,9 +135,7 @@ pub(super) fn check(
         && let (Some(lattice), Some(params)) = (&bundle.anm, BuildOptions::for_scene(scene, true).large)
     {
         // the scene's cuts on the organ that deforms largely, pressed beside them
-        let xp = vademecum_engine::pipeline::cut_params(scene, bundle.cut_sliver().map_err(anyhow::Error::msg)?);
-        let cells = vademecum_engine::xfem::accuracy::cut_cells(&scene.organ_cuts(0)?, &model, &xp).map_err(anyhow::Error::msg)?;
-        let cut = vademecum_engine::xfem::Enrichment::from_cut_cells(&model.mesh, &cells, &xp)?;
+        let cut = scene_cut(scene, &model, bundle)?;
         if !cut.is_empty() {
             let beside = large_cut::nodes_beside(&model, &cut, lattice, nodes);
             let states = large_cut::composed_states(&model, &cut, lattice, &params, &beside, |done, total| {
@@ -186,6 +182,18 @@ pub(super) fn check(
     };
     std::fs::write(&record_path, serde_json::to_string_pretty(&rec)?)?;
     Ok(rec)
+}
+
+/// The enrichment of organ 0 (`model`) cut by the scene's planned cuts, with the sliver rule
+/// its bundle chose: the cut a session's cutting model makes of them.
+fn scene_cut(
+    scene: &Scene,
+    model: &vademecum_engine::fem::OrganModel,
+    bundle: &LoadedBundle,
+) -> anyhow::Result<vademecum_engine::xfem::Enrichment> {
+    let params = vademecum_engine::pipeline::cut_params(scene, bundle.cut_sliver().map_err(anyhow::Error::msg)?);
+    let cells = vademecum_engine::xfem::accuracy::cut_cells(&scene.organ_cuts(0)?, model, &params).map_err(anyhow::Error::msg)?;
+    Ok(vademecum_engine::xfem::Enrichment::from_cut_cells(&model.mesh, &cells, &params)?)
 }
 
 /// Of the organ's smallest extent, how deep [`press`] pushes (linearly).

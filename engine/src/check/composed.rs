@@ -141,8 +141,7 @@ fn estimate_against_newton(size: Size) -> Outcome {
 }
 
 /// The co-rotational cutting model asked of the flap, which deforms largely.
-fn corotational_refused(size: Size) -> Outcome {
-    let _ = size;
+fn corotational_refused(_size: Size) -> Outcome {
     let text = crate::scene::builtin("large_cut").expect("the built-in large_cut");
     let text = text.replace("[fidelity]\n", "[fidelity]\ncutting = \"corotational_xfem\"\n");
     match Scene::from_toml(&text, "<hard case: large_cut, co-rotational>") {

@@ -163,10 +163,7 @@ pub fn composed_states(
 ) -> Result<Vec<ComposedState>, StudyError> {
     let laws = svk_laws(model);
     let split = split_organ(model, enr);
-    let split_laws = LawMap {
-        laws: laws.laws.clone(),
-        of_cell: split.materials.of_cell.clone(),
-    };
+    let split_laws = svk_laws(&split);
     let past = AnmLatticeParams {
         max_force: PAST_THE_LATTICE * lattice.max_force,
         load_steps: (PAST_THE_LATTICE * params.load_steps as f64).ceil() as usize,
@@ -177,12 +174,9 @@ pub fn composed_states(
     let mut zeta = vec![0.0; lattice.max_modes()];
     let mut out = Vec::new();
     for (done, &node) in nodes.iter().enumerate() {
-        let n = normals[node];
-        let size = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-        if size == 0.0 {
+        let Some(inward) = crate::rom::unit(normals[node]).map(|n| n.map(|x| -x)) else {
             return Err(StudyError::Unsupported(format!("node {node} has no surface normal")));
-        }
-        let inward = n.map(|x| -x / size);
+        };
         let laws_of = |organ: &OrganModel, laws: &LawMap| match NewtonLaw::along(organ, laws, &past, node, inward) {
             Ok(law) => Ok(Some(law)),
             Err(StudyError::Newton(_)) => Ok(None),
